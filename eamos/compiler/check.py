@@ -1,0 +1,282 @@
+"""Phase 2: checks before anything flies.
+
+Validates a parsed :class:`~.syntax.Mission` against the uniform API and the
+drone types: undefined blocks, unknown actions and properties (with "did you
+mean"), argument counts and values, condition types, recursion between
+blocks, empty blocks, blocks never reached.  Returns the warnings; raises one
+:class:`~.errors.MissionError` with every error found.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from ..hal.uniform import (
+    ACTIONS,
+    DEFAULT_DRONE_TYPE,
+    DRONE_TYPES,
+    GROUND_STATION,
+    PROPERTIES,
+    DroneType,
+)
+from .errors import Diagnostic, MissionError, SourceLocation, did_you_mean
+from .syntax import (
+    ActionCall,
+    Binary,
+    BlockCall,
+    BlockRef,
+    Bool,
+    Control,
+    Expr,
+    Mission,
+    Num,
+    Prop,
+    Unary,
+)
+
+_ARITH = {"+", "-", "*", "/"}
+_COMPARE = {"<", "<=", ">", ">="}
+_EQUALITY = {"==", "!="}
+_LOGIC = {"&&", "||"}
+
+
+def drone_types(mission: Mission) -> dict[str, DroneType]:
+    """The type of every drone the mission commands or declares (default type if undeclared)."""
+    types: dict[str, DroneType] = {}
+    for decl in mission.drones.values():
+        types[decl.name] = DRONE_TYPES.get(decl.type, DRONE_TYPES[DEFAULT_DRONE_TYPE])
+    for block in mission.blocks.values():
+        for stmt in block.statements:
+            if isinstance(stmt, ActionCall) and stmt.drone is not None and stmt.drone not in types:
+                types[stmt.drone] = DRONE_TYPES[DEFAULT_DRONE_TYPE]
+    return types
+
+
+def _refs(stmt: object) -> Iterator[BlockRef | BlockCall]:
+    if isinstance(stmt, BlockCall):
+        yield stmt
+    elif isinstance(stmt, Control):
+        for ref in (stmt.body, stmt.orelse, stmt.exit):
+            if ref is not None:
+                yield ref
+
+
+class _Checker:
+    def __init__(self, mission: Mission) -> None:
+        self.mission = mission
+        self.diags: list[Diagnostic] = []
+        self.types = drone_types(mission)
+
+    def error(self, loc: SourceLocation, message: str, hint: str = "") -> None:
+        self.diags.append(Diagnostic("error", loc, message, hint))
+
+    def warn(self, loc: SourceLocation, message: str, hint: str = "") -> None:
+        self.diags.append(Diagnostic("warning", loc, message, hint))
+
+    def run(self) -> list[Diagnostic]:
+        m = self.mission
+        for decl in m.drones.values():
+            if decl.type not in DRONE_TYPES:
+                self.error(decl.loc, f"unknown drone type '{decl.type}'", did_you_mean(decl.type, DRONE_TYPES))
+            if decl.name == GROUND_STATION:
+                self.error(decl.loc, f"'{GROUND_STATION}' is the ground station's name", "name the drone differently")
+        for name, block in m.blocks.items():
+            if not block.statements:
+                self.error(block.loc, f"block '{name}' is empty",
+                           "give it at least one statement, or remove it and its calls")
+            for stmt in block.statements:
+                self.statement(stmt)
+        self.recursion()
+        self.reachability()
+        used = {s.drone for b in m.blocks.values() for s in b.statements
+                if isinstance(s, ActionCall) and s.drone is not None}
+        used |= {p.drone for b in m.blocks.values() for s in b.statements
+                 if isinstance(s, Control) for p in _props(s.cond)}
+        for decl in m.drones.values():
+            if decl.name not in used:
+                self.warn(decl.loc, f"drone '{decl.name}' is declared but never used")
+        return self.diags
+
+    # -- statements ---------------------------------------------------------
+
+    def statement(self, stmt: object) -> None:
+        if isinstance(stmt, BlockCall):
+            self.block_ref(stmt.name, stmt.loc)
+        elif isinstance(stmt, ActionCall):
+            self.action(stmt)
+        elif isinstance(stmt, Control):
+            self.control(stmt)
+
+    def block_ref(self, name: str, loc: SourceLocation) -> None:
+        if name not in self.mission.blocks:
+            hint = did_you_mean(name, self.mission.blocks)
+            if name in ACTIONS:
+                hint = f"{name} is an action: call it on a drone, e.g. Drone1.{name}(...)"
+            self.error(loc, f"undefined block '{name}'", hint)
+
+    def action(self, call: ActionCall) -> None:
+        spec = ACTIONS.get(call.action)
+        if call.drone is None:
+            if call.action != "PauseFor":  # pragma: no cover - the parser only makes bare PauseFor
+                self.error(call.loc, f"'{call.action}' needs a drone", f"write Drone1.{call.action}(...)")
+                return
+        elif call.drone == GROUND_STATION:
+            self.error(call.loc, f"the ground station '{GROUND_STATION}' does not fly",
+                       "call actions on drones; a bare PauseFor(s) pauses at the ground station")
+            return
+        if spec is None:
+            self.error(call.loc, f"unknown action '{call.action}'", did_you_mean(call.action, ACTIONS))
+            return
+        if call.drone is not None:
+            dtype = self.types[call.drone]
+            if call.action not in dtype.actions:
+                self.error(call.loc, f"{call.drone} ({dtype.name}) has no action '{call.action}'",
+                           did_you_mean(call.action, dtype.actions) if call.action not in ACTIONS
+                           else f"{dtype.name} offers: {', '.join(sorted(dtype.actions))}")
+                return
+        if len(call.args) != len(spec.params):
+            want = ", ".join(spec.params) or "no arguments"
+            self.error(call.loc, f"{call.action} takes {len(spec.params)} argument"
+                       f"{'s' if len(spec.params) != 1 else ''}, got {len(call.args)}",
+                       f"{call.action}({want})")
+            return
+        for value, param, loc in zip(call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args),
+                                     strict=False):
+            if param in ("height_m", "duration_s") and value < 0 or param == "height_m" and value == 0:
+                self.error(loc, f"{call.action}'s {param} must be positive, got {value:g}")
+            if param == "lat_deg" and not -90 <= value <= 90:
+                self.error(loc, f"latitude must be within -90..90 degrees, got {value:g}")
+            if param == "lon_deg" and not -180 <= value <= 180:
+                self.error(loc, f"longitude must be within -180..180 degrees, got {value:g}")
+
+    def control(self, ctl: Control) -> None:
+        for ref in (ctl.body, ctl.orelse, ctl.exit):
+            if ref is not None:
+                self.block_ref(ref.name, ref.loc)
+        if ctl.drone is not None:
+            if ctl.drone == GROUND_STATION:
+                pass
+            elif ctl.drone not in self.types:
+                self.error(ctl.loc, f"unknown drone '{ctl.drone}'", did_you_mean(ctl.drone, self.types))
+        if ctl.cond is not None:
+            kind = self.expr_type(ctl.cond)
+            if kind == "number":
+                self.error(ctl.cond.loc, f"the condition of {ctl.kind} is a number, not true/false",
+                           "compare it, e.g. D1.Z() > 1.5")
+
+    def expr_type(self, expr: Expr) -> str | None:
+        """'number' or 'bool' (None after an error already reported)."""
+        if isinstance(expr, Num):
+            return "number"
+        if isinstance(expr, Bool):
+            return "bool"
+        if isinstance(expr, Prop):
+            if expr.drone not in self.types and expr.drone != GROUND_STATION:
+                self.error(expr.loc, f"unknown drone '{expr.drone}'",
+                           did_you_mean(expr.drone, self.types) or
+                           "declare it: var " + expr.drone + " Quadcopter")
+                return None
+            dtype = self.types.get(expr.drone)
+            spec = PROPERTIES.get(expr.name)
+            if spec is None or dtype is None or expr.name not in dtype.properties:
+                offered = dtype.properties if dtype is not None else frozenset()
+                self.error(expr.loc, f"{expr.drone} has no property '{expr.name}'",
+                           did_you_mean(expr.name, offered or PROPERTIES))
+                return None
+            return spec.type
+        if isinstance(expr, Unary):
+            inner = self.expr_type(expr.operand)
+            want = "bool" if expr.op == "!" else "number"
+            if inner is not None and inner != want:
+                self.error(expr.loc, f"'{expr.op}' needs a {'condition' if want == 'bool' else 'number'}")
+                return None
+            return want
+        if isinstance(expr, Binary):
+            left, right = self.expr_type(expr.left), self.expr_type(expr.right)
+            if left is None or right is None:
+                return None
+            if expr.op in _LOGIC:
+                if left != "bool" or right != "bool":
+                    self.error(expr.loc, f"'{expr.op}' joins conditions, not numbers",
+                               "compare the numbers first, e.g. D1.X() > 1 && D1.Y() < 2")
+                    return None
+                return "bool"
+            if expr.op in _EQUALITY:
+                if left != right:
+                    self.error(expr.loc, f"'{expr.op}' compares a number with a condition")
+                    return None
+                return "bool"
+            if left != "number" or right != "number":
+                self.error(expr.loc, f"'{expr.op}' needs numbers on both sides")
+                return None
+            return "bool" if expr.op in _COMPARE else "number"
+        return None  # pragma: no cover
+
+    # -- whole-mission checks -----------------------------------------------
+
+    def recursion(self) -> None:
+        blocks = self.mission.blocks
+        state: dict[str, int] = {}  # 1 = on the current path, 2 = done
+        path: list[str] = []
+
+        def visit(name: str) -> None:
+            state[name] = 1
+            path.append(name)
+            for stmt in blocks[name].statements:
+                for ref in _refs(stmt):
+                    if ref.name not in blocks:
+                        continue
+                    if state.get(ref.name) == 1:
+                        cycle = path[path.index(ref.name):] + [ref.name]
+                        self.error(ref.loc, "recursion between blocks: " + " -> ".join(cycle),
+                                   "a mission is finite: use RepeatWhile/RepeatFor to repeat a block")
+                    elif ref.name not in state:
+                        visit(ref.name)
+            path.pop()
+            state[name] = 2
+
+        for name in blocks:
+            if name not in state:
+                visit(name)
+
+    def reachability(self) -> None:
+        blocks = self.mission.blocks
+        if not self.mission.entry:
+            return
+        seen = {self.mission.entry}
+        todo = [self.mission.entry]
+        while todo:
+            for stmt in blocks[todo.pop()].statements:
+                for ref in _refs(stmt):
+                    if ref.name in blocks and ref.name not in seen:
+                        seen.add(ref.name)
+                        todo.append(ref.name)
+        for name, block in blocks.items():
+            if name not in seen:
+                self.warn(block.loc, f"block '{name}' is never reached from {self.mission.entry}",
+                          "call it from another block, or remove it")
+
+
+def _props(expr: Expr | None) -> Iterator[Prop]:
+    if expr is None:
+        return
+    if isinstance(expr, Prop):
+        yield expr
+    elif isinstance(expr, Unary):
+        yield from _props(expr.operand)
+    elif isinstance(expr, Binary):
+        yield from _props(expr.left)
+        yield from _props(expr.right)
+
+
+def props_read(expr: Expr | None) -> list[Prop]:
+    """Every property read in a condition, in source order."""
+    return list(_props(expr))
+
+
+def check_mission(mission: Mission) -> list[Diagnostic]:
+    """Check a parsed mission; return its warnings or raise MissionError with all errors."""
+    diags = _Checker(mission).run()
+    if any(d.severity == "error" for d in diags):
+        raise MissionError(diags)
+    return diags

@@ -1,0 +1,153 @@
+"""Phase 5: Mission Execution Graph -> one Mission Dependency Graph per drone.
+
+The paper's slicing (Section V-C, Algorithms 1 to 4, Figure 8).  For every
+drone ``d`` (the ground station ``GCS`` included) and every MEG node ``n``
+hosted by ``d``:
+
+1. *Forward fork processing* (Algorithm 2): for each fork ``s`` following
+   ``n``, find the non-fork leaves reachable through forks only; for every
+   other drone ``d'`` owning one of them, add the fork proxy ``s@d'`` and
+   link ``n -> s@d'``.
+2. *Current node processing* (Algorithm 3): add ``n`` and link it with its
+   non-fork predecessors and successors.
+3. *Backward fork processing* (Algorithm 4): for each fork parent of ``n``,
+   replicate the chain of forks above it for ``d`` (internal arcs) and link
+   the non-fork predecessors of the topmost fork to it.
+
+A link between nodes of different drones is an *external* arc (dashed); it
+appears once in the sender's MDG and once in the receiver's, under the same
+node keys, which is what the bridges send.
+
+MDG node keys: ``"n<id>"`` for non-fork nodes (one drone each) and
+``"n<id>@<drone>"`` for the replica of fork ``<id>`` on that drone.  Node
+attributes: ``meg`` (MEG id), ``drone`` (the drone that executes it),
+``native`` (executed in this MDG) or proxy (a node of another drone this MDG
+sends to or receives from), plus the MEG node's attributes for natives.
+Edge attributes: ``kind`` (the MEG arc kind) and ``external``.
+"""
+
+from __future__ import annotations
+
+import networkx as nx
+
+from ..hal.uniform import GROUND_STATION
+from .errors import CompilerBug
+
+
+def node_key(meg: nx.DiGraph, node: int, drone: str) -> str:
+    """The MDG key of a MEG node (for forks: of its replica on ``drone``)."""
+    return f"n{node}@{drone}" if meg.nodes[node]["kind"] == "fork" else f"n{node}"
+
+
+class _Slicer:
+    def __init__(self, meg: nx.DiGraph, drone: str) -> None:
+        self.meg = meg
+        self.drone = drone
+        self.mdg = nx.DiGraph(drone=drone, **meg.graph)
+        self._leaf_cache: dict[int, frozenset[str]] = {}
+
+    def is_fork(self, node: int) -> bool:
+        return bool(self.meg.nodes[node]["kind"] == "fork")
+
+    def ensure(self, node: int, drone: str) -> str:
+        key = node_key(self.meg, node, drone)
+        if key not in self.mdg:
+            attrs = dict(self.meg.nodes[node])
+            attrs["drone"] = drone
+            self.mdg.add_node(key, meg=node, native=(drone == self.drone), **attrs)
+        return key
+
+    def host(self, node: int) -> str:
+        return str(self.meg.nodes[node]["drone"])
+
+    def link(self, src: int, src_drone: str, dst: int, dst_drone: str, kind: str) -> None:
+        a = self.ensure(src, src_drone)
+        b = self.ensure(dst, dst_drone)
+        self.mdg.add_edge(a, b, kind=kind, external=(src_drone != dst_drone))
+
+    def leaf_drones(self, fork: int) -> frozenset[str]:
+        """Drones of the non-fork nodes reachable from ``fork`` through forks only."""
+        if fork not in self._leaf_cache:
+            drones: set[str] = set()
+            for child in self.meg.successors(fork):
+                if self.is_fork(child):
+                    drones |= self.leaf_drones(child)
+                else:
+                    drones.add(self.host(child))
+            self._leaf_cache[fork] = frozenset(drones)
+        return self._leaf_cache[fork]
+
+    def forward(self, n: int) -> None:
+        for s in self.meg.successors(n):
+            if not self.is_fork(s):
+                continue
+            kind = self.meg.edges[n, s]["kind"]
+            for other in sorted(self.leaf_drones(s) - {self.drone}):
+                self.link(n, self.drone, s, other, kind)
+
+    def current(self, n: int) -> None:
+        self.ensure(n, self.drone)
+        for s in self.meg.successors(n):
+            if not self.is_fork(s):
+                self.link(n, self.drone, s, self.host(s), self.meg.edges[n, s]["kind"])
+        for p in self.meg.predecessors(n):
+            if not self.is_fork(p):
+                self.link(p, self.host(p), n, self.drone, self.meg.edges[p, n]["kind"])
+
+    def backward(self, n: int) -> None:
+        for p in self.meg.predecessors(n):
+            if not self.is_fork(p):
+                continue
+            child = n
+            fork = p
+            while True:
+                already = node_key(self.meg, fork, self.drone) in self.mdg
+                self.link(fork, self.drone, child, self.drone if child != n else self.drone,
+                          self.meg.edges[fork, child]["kind"])
+                if already:
+                    break  # the chain above was replicated by an earlier node
+                parents = list(self.meg.predecessors(fork))
+                fork_parents = [q for q in parents if self.is_fork(q)]
+                if fork_parents:
+                    if len(parents) != 1:
+                        raise CompilerBug(f"fork {fork} has a fork parent and other parents")
+                    child, fork = fork, fork_parents[0]
+                    continue
+                for q in parents:
+                    self.link(q, self.host(q), fork, self.drone, self.meg.edges[q, fork]["kind"])
+                break
+
+    def run(self) -> nx.DiGraph:
+        for n, attrs in self.meg.nodes(data=True):
+            if attrs["kind"] == "fork" or attrs["drone"] != self.drone:
+                continue
+            self.forward(n)
+            self.current(n)
+            self.backward(n)
+        return self.mdg
+
+
+def fleet(meg: nx.DiGraph) -> list[str]:
+    """Every participant hosting MEG nodes: the ground station first, then drones by name."""
+    drones = {a["drone"] for _, a in meg.nodes(data=True) if a["kind"] != "fork"}
+    return [GROUND_STATION] + sorted(drones - {GROUND_STATION})
+
+
+def slice_dependency_graphs(meg: nx.DiGraph) -> dict[str, nx.DiGraph]:
+    """Slice the MEG into one MDG per participant (ground station included)."""
+    return {drone: _Slicer(meg, drone).run() for drone in fleet(meg)}
+
+
+def mdg_stats(mdg: nx.DiGraph) -> dict[str, int]:
+    """Paper Table 7's columns for one MDG: nodes, internal arcs, external in/out arcs."""
+    drone = mdg.graph["drone"]
+    internal = ext_in = ext_out = 0
+    for a, b, data in mdg.edges(data=True):
+        if not data["external"]:
+            internal += 1
+        elif mdg.nodes[b]["drone"] == drone:
+            ext_in += 1
+        else:
+            ext_out += 1
+    return {"nodes": mdg.number_of_nodes(), "internal_arcs": internal,
+            "external_in": ext_in, "external_out": ext_out}

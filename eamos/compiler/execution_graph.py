@@ -1,0 +1,204 @@
+"""Phase 4: Abstract Mission Tree -> Mission Execution Graph (paper V-B2, Figure 7).
+
+"Closing" the AMT: sequential nodes disappear and their children are chained
+so that the last nodes of one statement point to the first nodes of the next.
+Forks (``par``) stay.  Control structures become a *begin* node (the AMT's
+control node, which evaluates the condition) and, where branches must join
+again, an ``end`` node on the same drone.
+
+Node ids are the AMT's ids (so Figure 6 and Figure 7 number nodes alike);
+``end`` nodes get new ids after the AMT's largest.  Node attributes are the
+AMT's (``par`` becomes ``fork``) plus:
+
+``loops``
+    Ids of the loops (``repeat_*`` begin nodes) enclosing the node, outermost
+    first.  A trigger carries one iteration counter per enclosing loop.
+``scopes``
+    Ids of the ``do_*`` and ``repeat_*`` begin nodes whose body contains the
+    node: the structures that may interrupt it.
+``end`` / ``begin``
+    On a begin node, the id of its ``end`` node; on an ``end`` node, its begin.
+``interrupt_drones``, ``interrupt_mode``
+    On ``do_*`` and ``repeat_*`` begin nodes: the drones to tell when the
+    body is interrupted, and what is interrupted there (``all`` for Do: the
+    running action is cancelled and the rest of Body skipped; ``waits`` for
+    Repeat: only Wait/Pause conditions in Body are abandoned).
+
+Edge attribute ``kind``: ``seq`` (plain order), ``then``/``else`` (If
+branches), ``body`` (into a structure's Body), ``exit`` (into its Exit or
+straight to its end), ``loop`` (back arc from Body's last nodes to the loop
+begin, drawn dotted) and ``begin`` (a Do's begin to its end).
+
+Shapes per construct (C = begin, E = end, X = Exit block):
+
+* ``If``: C -then-> Then -> E, C -else-> Else -> E (or C -else-> E).
+* ``WaitWhile``/``WaitUntil``: C -body-> Body; Body's last nodes end it.
+* ``PauseWhile``/``PauseUntil``: C alone.
+* ``Repeat*``: C -body-> Body -loop-> C, C -exit-> X -> E (or C -exit-> E).
+* ``Do*``: C -body-> Body -> E, C -begin-> E, E -exit-> X; it ends with E and X.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+
+from .errors import CompilerBug
+from .mission_tree import CONTROL_KINDS, DO_KINDS, LOOP_KINDS, WAIT_KINDS
+
+_CARRIED = ("kind", "drone", "label", "block", "line", "col", "action", "args", "cond", "count")
+
+
+@dataclass(frozen=True)
+class _Fragment:
+    entries: tuple[int, ...]
+    exits: tuple[int, ...]
+
+
+class _Closer:
+    def __init__(self, amt: nx.DiGraph) -> None:
+        self.amt = amt
+        self.meg = nx.DiGraph(**amt.graph)
+        self.next_id = max(amt.nodes) + 1
+        self.shared: dict[int, _Fragment] = {}
+
+    def children(self, node: int, role: str | None = None) -> list[int]:
+        out = [(d.get("order", 0), c) for _, c, d in self.amt.out_edges(node, data=True)
+               if role is None or d["role"] == role]
+        return [c for _, c in sorted(out)]
+
+    def add(self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...], **extra: object) -> int:
+        attrs = {k: v for k, v in self.amt.nodes[node].items() if k in _CARRIED} if node in self.amt else {}
+        attrs.update(extra)
+        if attrs.get("kind") == "par":
+            attrs["kind"] = "fork"
+            attrs["drone"] = ""
+        self.meg.add_node(node, loops=loops, scopes=scopes, **attrs)
+        return node
+
+    def connect(self, sources: tuple[int, ...], targets: tuple[int, ...], kind: str) -> None:
+        for s in sources:
+            for t in targets:
+                if self.meg.has_edge(s, t) and self.meg.edges[s, t]["kind"] != kind:
+                    raise CompilerBug(f"two arcs {s}->{t} of kinds {self.meg.edges[s, t]['kind']}/{kind}")
+                self.meg.add_edge(s, t, kind=kind)
+
+    def build(self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...]) -> _Fragment:
+        kind = self.amt.nodes[node]["kind"]
+        if kind == "seq":
+            frags = [self.build(c, loops, scopes) for c in self.children(node)]
+            for a, b in zip(frags, frags[1:], strict=False):
+                self.connect(a.exits, b.entries, "seq")
+            return _Fragment(frags[0].entries, frags[-1].exits)
+        if kind == "par":
+            fork = self.add(node, loops, scopes)
+            exits: list[int] = []
+            for child in self.children(node):
+                frag = self.build(child, loops, scopes)
+                self.connect((fork,), frag.entries, "seq")
+                exits.extend(x for x in frag.exits if x not in exits)
+            return _Fragment((fork,), tuple(exits))
+        if kind == "action":
+            self.add(node, loops, scopes)
+            return _Fragment((node,), (node,))
+        if kind == "init":
+            self.add(node, loops, scopes)
+            (child,) = self.children(node)
+            frag = self.build(child, loops, scopes)
+            self.connect((node,), frag.entries, "seq")
+            return _Fragment((node,), frag.exits)
+        if kind in CONTROL_KINDS:
+            return self.control(node, kind, loops, scopes)
+        raise CompilerBug(f"unknown AMT node kind {kind!r}")
+
+    def end_node(self, begin: int, loops: tuple[int, ...], scopes: tuple[int, ...]) -> int:
+        attrs = self.amt.nodes[begin]
+        end = self.next_id
+        self.next_id += 1
+        self.meg.add_node(end, kind="end", drone=attrs["drone"], label="end " + attrs["label"].split(" ")[0],
+                          block=attrs["block"], line=attrs["line"], col=attrs["col"],
+                          loops=loops, scopes=scopes, begin=begin)
+        self.meg.nodes[begin]["end"] = end
+        return end
+
+    def exit_block(self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...]) -> _Fragment | None:
+        exits = self.children(node, "exit")
+        if not exits:
+            return None
+        (exit_root,) = exits
+        if exit_root not in self.shared:
+            self.shared[exit_root] = self.build(exit_root, loops, scopes)
+        return self.shared[exit_root]
+
+    def control(self, node: int, kind: str, loops: tuple[int, ...], scopes: tuple[int, ...]) -> _Fragment:
+        begin = self.add(node, loops, scopes)
+        if kind in WAIT_KINDS:
+            bodies = self.children(node, "body")
+            if not bodies:  # PauseWhile / PauseUntil
+                return _Fragment((begin,), (begin,))
+            body = self.build(bodies[0], loops, scopes)
+            self.connect((begin,), body.entries, "body")
+            return _Fragment((begin,), body.exits)
+        end = self.end_node(begin, loops, scopes)
+        if kind == "if":
+            (then_root,) = self.children(node, "then")
+            then = self.build(then_root, loops, scopes)
+            self.connect((begin,), then.entries, "then")
+            self.connect(then.exits, (end,), "seq")
+            else_roots = self.children(node, "else")
+            if else_roots:
+                orelse = self.build(else_roots[0], loops, scopes)
+                self.connect((begin,), orelse.entries, "else")
+                self.connect(orelse.exits, (end,), "seq")
+            else:
+                self.connect((begin,), (end,), "else")
+            return _Fragment((begin,), (end,))
+        (body_root,) = self.children(node, "body")
+        if kind in LOOP_KINDS:
+            body = self.build(body_root, (*loops, begin), (*scopes, begin))
+            self.connect((begin,), body.entries, "body")
+            self.connect(body.exits, (begin,), "loop")
+            exit_frag = self.exit_block(node, loops, scopes)
+            if exit_frag is None:
+                self.connect((begin,), (end,), "exit")
+            else:
+                self.connect((begin,), exit_frag.entries, "exit")
+                self.connect(exit_frag.exits, (end,), "seq")
+            return _Fragment((begin,), (end,))
+        if kind in DO_KINDS:
+            body = self.build(body_root, loops, (*scopes, begin))
+            self.connect((begin,), body.entries, "body")
+            self.connect(body.exits, (end,), "seq")
+            self.connect((begin,), (end,), "begin")
+            exit_frag = self.exit_block(node, loops, scopes)
+            if exit_frag is None:
+                return _Fragment((begin,), (end,))
+            self.connect((end,), exit_frag.entries, "exit")
+            return _Fragment((begin,), (end, *(x for x in exit_frag.exits if x != end)))
+        raise CompilerBug(f"unknown control kind {kind!r}")  # pragma: no cover
+
+
+def build_execution_graph(amt: nx.DiGraph) -> nx.DiGraph:
+    """Close an Abstract Mission Tree into its Mission Execution Graph."""
+    closer = _Closer(amt)
+    closer.build(amt.graph.get("root", 0), (), ())
+    meg = closer.meg
+    for node, attrs in meg.nodes(data=True):
+        kind = attrs["kind"]
+        if kind in DO_KINDS or kind in LOOP_KINDS:
+            mode = "all" if kind in DO_KINDS else "waits"
+            drones = {
+                meg.nodes[n]["drone"]
+                for n, a in meg.nodes(data=True)
+                if node in a["scopes"] and a["kind"] != "fork"
+                and (mode == "all" or a["kind"] in WAIT_KINDS)
+            }
+            attrs["interrupt_mode"] = mode
+            attrs["interrupt_drones"] = tuple(sorted(drones))
+    return meg
+
+
+def is_fork(meg: nx.DiGraph, node: int) -> bool:
+    """True for fork (parallel branching) nodes."""
+    return bool(meg.nodes[node]["kind"] == "fork")

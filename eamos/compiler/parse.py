@@ -1,0 +1,493 @@
+"""Phase 1: mission text -> :class:`~.syntax.Mission`, with a real Go parser.
+
+tree-sitter-go gives a concrete syntax tree even for broken input, so this
+phase reports every syntax error and every Go construct missions do not
+support (``for``, ``if``, ``go``, assignments ...) in one pass, each with the
+control structure to use instead.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .errors import Diagnostic, MissionError, SourceLocation
+from .syntax import (
+    CONTROL_KINDS,
+    ActionCall,
+    Binary,
+    Block,
+    BlockCall,
+    BlockRef,
+    Bool,
+    Control,
+    DroneDecl,
+    Expr,
+    Mission,
+    Num,
+    Prop,
+    Statement,
+    Unary,
+)
+
+Node = Any  # tree_sitter.Node; typed loosely so the module imports without it
+
+MAX_SOURCE_BYTES = 2_000_000
+
+# Go statements a mission cannot contain, and what to write instead.
+_UNSUPPORTED_STATEMENTS = {
+    "for_statement": ("a Go 'for' loop", "use RepeatWhile(cond, Body), RepeatUntil or RepeatFor(n, Body)"),
+    "if_statement": ("a Go 'if' statement", "use If(cond, Then, Else) with blocks named Then and Else"),
+    "go_statement": ("a 'go' statement", "put the calls in a PAR_ block to run them in parallel"),
+    "assignment_statement": ("an assignment", "missions have no variables; use literal values"),
+    "short_var_declaration": ("a variable declaration", "missions have no variables; use literal values"),
+    "var_declaration": ("a variable declaration inside a block", "declare drones at the top: var Drone1 DroneType1"),
+    "const_declaration": ("a constant", "missions have no constants; use literal values"),
+    "inc_statement": ("an increment", "missions have no variables"),
+    "dec_statement": ("a decrement", "missions have no variables"),
+    "return_statement": ("a 'return'", "a block ends at its closing brace"),
+    "defer_statement": ("a 'defer'", "put the call last in a SEQ_ block"),
+    "expression_switch_statement": ("a 'switch'", "use If(cond, Then, Else)"),
+    "type_switch_statement": ("a 'switch'", "use If(cond, Then, Else)"),
+    "select_statement": ("a 'select'", "use WaitUntil(cond, Body)"),
+    "goto_statement": ("a 'goto'", "call blocks instead"),
+    "labeled_statement": ("a label", "call blocks instead"),
+    "break_statement": ("a 'break'", "use DoWhile/DoUntil to interrupt a body"),
+    "continue_statement": ("a 'continue'", "use RepeatWhile/RepeatUntil"),
+    "send_statement": ("a channel send", "missions synchronise through SEQ_ and PAR_ blocks"),
+    "block": ("a nested block", "put the statements in a named SEQ_ or PAR_ block and call it"),
+}
+
+_CONTROL_SIGNATURES = {
+    "If": "If(cond, Then[, Else])",
+    "WaitWhile": "WaitWhile(cond, Body)",
+    "WaitUntil": "WaitUntil(cond, Body)",
+    "RepeatWhile": "RepeatWhile(cond, Body[, Exit])",
+    "RepeatUntil": "RepeatUntil(cond, Body[, Exit])",
+    "RepeatFor": "RepeatFor(n, Body[, Exit])",
+    "PauseWhile": "PauseWhile(cond)",
+    "PauseUntil": "PauseUntil(cond)",
+    "DoWhile": "DoWhile(cond, Body[, Exit])",
+    "DoUntil": "DoUntil(cond, Body[, Exit])",
+}
+
+_BINARY_OPS = {"&&", "||", "==", "!=", "<", "<=", ">", ">=", "+", "-", "*", "/"}
+
+
+def _go_parser() -> Any:
+    try:
+        import tree_sitter
+        import tree_sitter_go
+    except ImportError as exc:  # pragma: no cover - depends on the installation
+        raise MissionError(
+            [
+                Diagnostic(
+                    "error",
+                    SourceLocation(1, 1),
+                    "the mission compiler needs tree-sitter and tree-sitter-go",
+                    "install them with: pip install 'eamos[compiler]'",
+                )
+            ]
+        ) from exc
+    return tree_sitter.Parser(tree_sitter.Language(tree_sitter_go.language()))
+
+
+def _loc(node: Node) -> SourceLocation:
+    return SourceLocation(node.start_point.row + 1, node.start_point.column + 1)
+
+
+def _end_col(node: Node) -> int | None:
+    if node.end_point.row != node.start_point.row:
+        return None
+    return int(node.end_point.column) + 1
+
+
+def _text(node: Node) -> str:
+    return bytes(node.text).decode("utf-8", errors="replace")
+
+
+class _Reader:
+    """Walks one tree-sitter tree, collecting diagnostics instead of stopping."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.diags: list[Diagnostic] = []
+
+    def error(self, node: Node, message: str, hint: str = "") -> None:
+        self.diags.append(Diagnostic("error", _loc(node), message, hint, _end_col(node)))
+
+    def warn(self, node: Node, message: str, hint: str = "") -> None:
+        self.diags.append(Diagnostic("warning", _loc(node), message, hint, _end_col(node)))
+
+    # -- syntax errors ------------------------------------------------------
+
+    def syntax_errors(self, root: Node) -> None:
+        """Report each ERROR / MISSING node once, at its innermost position."""
+        stack = [root]
+        while stack:
+            node = stack.pop()
+            if node.is_missing:
+                self.error(node, f"syntax error: missing '{node.type}'", "check the line above")
+                continue
+            if node.type == "ERROR":
+                snippet = _text(node).strip().splitlines()[0][:40] if _text(node).strip() else ""
+                self.error(
+                    node,
+                    f"syntax error near '{snippet}'" if snippet else "syntax error",
+                    "check brackets, parentheses and commas",
+                )
+                continue
+            if node.has_error:
+                stack.extend(reversed(node.children))
+
+    # -- top level ----------------------------------------------------------
+
+    def mission(self, root: Node) -> Mission:
+        name = "mission"
+        blocks: dict[str, Block] = {}
+        drones: dict[str, DroneDecl] = {}
+        order: list[str] = []
+        for node in root.named_children:
+            kind = node.type
+            if kind == "comment" or kind == "ERROR":
+                continue
+            if kind == "package_clause":
+                ident = next((c for c in node.named_children if c.type == "package_identifier"), None)
+                if ident is not None:
+                    name = _text(ident)
+            elif kind == "var_declaration":
+                for decl in self._var_specs(node):
+                    if decl.name in drones:
+                        self.diags.append(
+                            Diagnostic(
+                                "error", decl.loc, f"drone '{decl.name}' is declared twice",
+                                f"first declared at line {drones[decl.name].loc.line}",
+                            )
+                        )
+                    drones[decl.name] = decl
+            elif kind == "function_declaration":
+                block = self._function(node)
+                if block is None:
+                    continue
+                if block.name in blocks:
+                    self.error(
+                        node.child_by_field_name("name") or node,
+                        f"block '{block.name}' is defined twice",
+                        f"first defined at line {blocks[block.name].loc.line}; rename one",
+                    )
+                    continue
+                blocks[block.name] = block
+                order.append(block.name)
+            elif kind == "import_declaration":
+                self.error(node, "imports are not supported in missions", "remove the import")
+            elif kind in ("type_declaration", "method_declaration", "const_declaration"):
+                self.error(node, f"a Go {kind.split('_')[0]} declaration is not supported here",
+                           "a mission has only drone declarations (var) and func blocks")
+            else:
+                self.error(node, "unexpected top-level statement",
+                           "a mission has only drone declarations (var) and func blocks")
+        entry = "INIT" if "INIT" in blocks else (order[0] if order else "")
+        if not blocks and not any(d.severity == "error" for d in self.diags):
+            self.diags.append(
+                Diagnostic("error", SourceLocation(1, 1), "the mission has no blocks",
+                           "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }")
+            )
+        return Mission(name=name, blocks=blocks, drones=drones, entry=entry, source=self.source)
+
+    def _var_specs(self, node: Node) -> list[DroneDecl]:
+        specs = [c for c in node.named_children if c.type == "var_spec"]
+        for group in (c for c in node.named_children if c.type == "var_spec_list"):
+            specs.extend(c for c in group.named_children if c.type == "var_spec")
+        out = []
+        for spec in specs:
+            names = [c for c in spec.children_by_field_name("name")]
+            type_node = spec.child_by_field_name("type")
+            if spec.child_by_field_name("value") is not None or type_node is None:
+                self.error(spec, "a drone declaration names a drone and its type",
+                           "write: var Drone1 DroneType1")
+                continue
+            if type_node.type != "type_identifier":
+                self.error(type_node, "a drone type is a plain name",
+                           "write: var Drone1 Quadcopter")
+                continue
+            out.extend(DroneDecl(_text(n), _text(type_node), _loc(n)) for n in names)
+        return out
+
+    def _function(self, node: Node) -> Block | None:
+        name_node = node.child_by_field_name("name")
+        if name_node is None:
+            return None
+        name = _text(name_node)
+        params = node.child_by_field_name("parameters")
+        if params is not None and params.named_child_count:
+            self.error(params, f"block '{name}' takes no parameters",
+                       "missions have no variables; use literal values in the calls")
+        if node.child_by_field_name("result") is not None:
+            self.error(node.child_by_field_name("result"), f"block '{name}' returns nothing",
+                       "remove the result type")
+        if name.startswith("PAR_"):
+            mode = "PAR"
+        else:
+            mode = "SEQ"
+            if not name.startswith("SEQ_") and name != "INIT":
+                self.warn(name_node, f"block '{name}' has no SEQ_ or PAR_ prefix; its statements run in order",
+                          f"rename it SEQ_{name} (in order) or PAR_{name} (in parallel)")
+        body = node.child_by_field_name("body")
+        statements: list[Statement] = []
+        if body is not None:
+            for stmt_node in self._statement_nodes(body):
+                stmt = self._statement(stmt_node)
+                if stmt is not None:
+                    statements.append(stmt)
+        return Block(name=name, mode=mode, statements=tuple(statements), loc=_loc(name_node))
+
+    def _statement_nodes(self, body: Node) -> list[Node]:
+        out = []
+        for child in body.named_children:
+            if child.type == "statement_list":
+                out.extend(c for c in child.named_children)
+            else:
+                out.append(child)
+        return [c for c in out if c.type not in ("comment", "empty_statement")]
+
+    # -- statements ---------------------------------------------------------
+
+    def _statement(self, node: Node) -> Statement | None:
+        if node.type == "ERROR":
+            return None
+        if node.type in _UNSUPPORTED_STATEMENTS:
+            what, hint = _UNSUPPORTED_STATEMENTS[node.type]
+            self.error(node, f"{what} is not supported in missions", hint)
+            return None
+        if node.type != "expression_statement" or node.named_child_count != 1:
+            self.error(node, "a statement is a block call, a drone action or a control structure",
+                       "e.g. SEQ_Fly(), Drone1.Takeoff(1.5) or WaitUntil(D1.Z() > 1, SEQ_Go)")
+            return None
+        call = node.named_children[0]
+        if call.type != "call_expression":
+            self.error(call, "a statement is a block call, a drone action or a control structure",
+                       "e.g. SEQ_Fly(), Drone1.Takeoff(1.5) or WaitUntil(D1.Z() > 1, SEQ_Go)")
+            return None
+        function = call.child_by_field_name("function")
+        args_node = call.child_by_field_name("arguments")
+        args = [a for a in args_node.named_children if a.type != "comment"] if args_node else []
+        if function is None:
+            return None
+        if function.type == "identifier":
+            name = _text(function)
+            if name in CONTROL_KINDS:
+                return self._control(name, None, call, args)
+            if args:
+                self.error(args_node, f"block '{name}' takes no arguments",
+                           "blocks are called without arguments: " + f"{name}()")
+                return None
+            if name == "PauseFor":  # pragma: no cover - PauseFor has arguments
+                return None
+            return BlockCall(name, _loc(function))
+        if function.type == "selector_expression":
+            operand = function.child_by_field_name("operand")
+            field = function.child_by_field_name("field")
+            if operand is None or field is None or operand.type != "identifier":
+                self.error(function, "an action is called on a drone by name",
+                           "e.g. Drone1.Takeoff(1.5)")
+                return None
+            drone, action = _text(operand), _text(field)
+            if action in ("PauseWhile", "PauseUntil"):
+                return self._control(action, drone, call, args)
+            values: list[float] = []
+            locs: list[SourceLocation] = []
+            ok = True
+            for arg in args:
+                value = self._number(arg)
+                if value is None:
+                    ok = False
+                    continue
+                values.append(value)
+                locs.append(_loc(arg))
+            if not ok:
+                return None
+            return ActionCall(drone, action, tuple(values), _loc(call), tuple(locs))
+        self.error(function, "a statement is a block call, a drone action or a control structure",
+                   "e.g. SEQ_Fly(), Drone1.Takeoff(1.5)")
+        return None
+
+    def _number(self, node: Node) -> float | None:
+        """A literal number argument (with an optional sign)."""
+        sign = 1.0
+        inner = node
+        while inner.type == "unary_expression" and _text(inner.child_by_field_name("operator")) in "+-":
+            if _text(inner.child_by_field_name("operator")) == "-":
+                sign = -sign
+            inner = inner.child_by_field_name("operand")
+        if inner.type == "parenthesized_expression" and inner.named_child_count == 1:
+            return self._number(inner.named_children[0])
+        if inner.type in ("int_literal", "float_literal"):
+            try:
+                text = _text(inner).replace("_", "")
+                value = float(int(text, 0)) if inner.type == "int_literal" else float(text)
+            except ValueError:
+                self.error(inner, f"'{_text(inner)}' is not a number this compiler understands",
+                           "write decimal numbers like 1.5 or -2")
+                return None
+            return sign * value
+        kind = {
+            "interpreted_string_literal": "a string",
+            "raw_string_literal": "a string",
+            "true": "a boolean",
+            "false": "a boolean",
+            "identifier": "a name",
+        }.get(inner.type, "an expression")
+        self.error(node, f"action arguments are literal numbers, not {kind}",
+                   "write the value itself, e.g. Drone1.Takeoff(1.5)")
+        return None
+
+    def _control(self, kind: str, drone: str | None, call: Node, args: list[Node]) -> Control | None:
+        sig = _CONTROL_SIGNATURES[kind]
+        loc = _loc(call)
+        needs_cond = kind != "RepeatFor"
+        min_args, max_args = {
+            "If": (2, 3), "WaitWhile": (2, 2), "WaitUntil": (2, 2), "RepeatWhile": (2, 3),
+            "RepeatUntil": (2, 3), "RepeatFor": (2, 3), "PauseWhile": (1, 1), "PauseUntil": (1, 1),
+            "DoWhile": (2, 3), "DoUntil": (2, 3),
+        }[kind]
+        if not (min_args <= len(args) <= max_args):
+            self.diags.append(
+                Diagnostic("error", loc, f"{kind} takes {_count(min_args, max_args)}, got {len(args)}",
+                           f"write {sig}", _end_col(call))
+            )
+            return None
+        cond: Expr | None = None
+        count: int | None = None
+        if needs_cond:
+            cond = self.expr(args[0])
+            if cond is None:
+                return None
+        else:
+            value = self._number(args[0])
+            if value is None:
+                return None
+            if value != int(value) or value < 0:
+                self.error(args[0], "RepeatFor repeats a whole number of times (0 or more)",
+                           "e.g. RepeatFor(3, SEQ_Body)")
+                return None
+            count = int(value)
+        refs: list[BlockRef] = []
+        for arg in args[1:]:
+            if arg.type == "identifier":
+                refs.append(BlockRef(_text(arg), _loc(arg)))
+            elif arg.type == "call_expression":
+                fn = arg.child_by_field_name("function")
+                name = _text(fn) if fn is not None else "?"
+                self.error(arg, f"name the block without calling it: {name}, not {name}()",
+                           f"write {sig}")
+                return None
+            else:
+                self.error(arg, f"{kind} expects a block name here", f"write {sig}")
+                return None
+        body = refs[0] if refs else None
+        rest = refs[1] if len(refs) > 1 else None
+        if kind == "If":
+            return Control("If", loc, cond=cond, body=body, orelse=rest)  # type: ignore[arg-type]
+        return Control(kind, loc, cond=cond, count=count, body=body, exit=rest, drone=drone)  # type: ignore[arg-type]
+
+    # -- conditions ---------------------------------------------------------
+
+    def expr(self, node: Node) -> Expr | None:
+        kind = node.type
+        loc = _loc(node)
+        if kind == "parenthesized_expression":
+            inner = [c for c in node.named_children if c.type != "comment"]
+            return self.expr(inner[0]) if len(inner) == 1 else None
+        if kind in ("int_literal", "float_literal"):
+            value = self._number(node)
+            return None if value is None else Num(value, loc)
+        if kind in ("true", "false"):
+            return Bool(kind == "true", loc)
+        if kind == "unary_expression":
+            op = _text(node.child_by_field_name("operator"))
+            operand = self.expr(node.child_by_field_name("operand"))
+            if operand is None:
+                return None
+            if op == "+":
+                return operand
+            if op not in ("!", "-"):
+                self.error(node, f"operator '{op}' is not supported in conditions",
+                           "use numbers, comparisons, &&, ||, ! and + - * /")
+                return None
+            return Unary(op, operand, loc)  # type: ignore[arg-type]
+        if kind == "binary_expression":
+            op = _text(node.child_by_field_name("operator"))
+            left = self.expr(node.child_by_field_name("left"))
+            right = self.expr(node.child_by_field_name("right"))
+            if op not in _BINARY_OPS:
+                self.error(node.child_by_field_name("operator"),
+                           f"operator '{op}' is not supported in conditions",
+                           "use comparisons, &&, ||, ! and + - * /")
+                return None
+            if left is None or right is None:
+                return None
+            return Binary(op, left, right, _loc(node.child_by_field_name("operator")))
+        if kind == "call_expression":
+            fn = node.child_by_field_name("function")
+            args = node.child_by_field_name("arguments")
+            if fn is not None and fn.type == "selector_expression":
+                operand = fn.child_by_field_name("operand")
+                field = fn.child_by_field_name("field")
+                if operand is not None and operand.type == "identifier" and field is not None:
+                    if args is not None and args.named_child_count:
+                        self.error(args, "drone properties take no arguments",
+                                   f"write {_text(operand)}.{_text(field)}()")
+                        return None
+                    return Prop(_text(operand), _text(field), loc)
+            self.error(node, "only drone properties can be called in a condition",
+                       "e.g. D3.X() > 10 && Drone1.Battery() > 30")
+            return None
+        if kind == "identifier":
+            self.error(node, f"'{_text(node)}' is a bare name; conditions read drone properties",
+                       f"did you mean {_text(node)}.X()? properties are called with ()")
+            return None
+        if kind == "selector_expression":
+            self.error(node, "a property is read by calling it",
+                       f"write {_text(node)}()")
+            return None
+        self.error(node, "this expression is not supported in conditions",
+                   "use numbers, drone properties like D3.X(), comparisons, &&, ||, !")
+        return None
+
+
+def _count(lo: int, hi: int) -> str:
+    plural = "s" if hi != 1 else ""
+    return f"{lo} argument{plural}" if lo == hi else f"{lo} or {hi} arguments"
+
+
+def parse_mission(source: str) -> Mission:
+    """Parse mission text into a :class:`Mission`, or raise :class:`MissionError`.
+
+    Raises with every syntax error and unsupported construct found at once.
+    Warnings found on a successful parse are returned by :func:`parse_with_warnings`.
+    """
+    mission, _ = parse_with_warnings(source)
+    return mission
+
+
+def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
+    """Parse mission text; return the mission and the warnings, or raise MissionError."""
+    if not source.strip():
+        raise MissionError([Diagnostic("error", SourceLocation(1, 1), "the mission file is empty",
+                                       "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }")])
+    if "\x00" in source:
+        raise MissionError([Diagnostic("error", SourceLocation(1, 1),
+                                       "the mission file is not text (it contains NUL bytes)",
+                                       "give the path of a .go mission file")])
+    encoded = source.encode("utf-8", errors="surrogatepass")
+    if len(encoded) > MAX_SOURCE_BYTES:
+        raise MissionError([Diagnostic("error", SourceLocation(1, 1),
+                                       f"the mission file is too large ({len(encoded)} bytes)",
+                                       f"missions are limited to {MAX_SOURCE_BYTES} bytes")])
+    tree = _go_parser().parse(encoded)
+    reader = _Reader(source)
+    reader.syntax_errors(tree.root_node)
+    mission = reader.mission(tree.root_node)
+    errors = [d for d in reader.diags if d.severity == "error"]
+    if errors:
+        raise MissionError(reader.diags)
+    return mission, [d for d in reader.diags if d.severity == "warning"]

@@ -1,0 +1,102 @@
+"""The seam between the uniform API and the adapters (paper Figures 4 and 5).
+
+An *adapter* drives one vehicle (a simulated quadcopter, a MAVLink autopilot,
+a fake for unit tests).  The uniform-API actor (:mod:`eamos.hal.actor`) owns
+exactly one adapter and is the only caller of these methods, always from its
+own thread; adapters call back from any thread they like.
+
+Contract every adapter keeps:
+
+* ``start(on_telemetry)`` connects and begins calling ``on_telemetry`` with a
+  fresh :class:`Telemetry` whenever the vehicle state changes (and at most at
+  the adapter's telemetry rate).  It raises :class:`AdapterError` if the
+  vehicle cannot be reached.
+* ``run(action, args, done)`` starts one uniform action and returns at once
+  with an :class:`ActionHandle`.  ``done`` is called exactly once with an
+  :class:`ActionResult`, from any thread.  An action completes on real
+  criteria (position within tolerance, landed, armed flag seen), never on a
+  timer alone, and fails with a reason after its own timeout.
+* ``cancel(handle)`` interrupts a running action: the vehicle holds its
+  position and ``done`` is called with status ``"cancelled"``.  Cancelling a
+  finished action does nothing.
+* ``abort()`` cancels every running action and lands the vehicle.
+* ``close()`` releases threads and sockets; it is idempotent.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Literal, Protocol
+
+ActionStatus = Literal["ok", "failed", "cancelled"]
+
+
+class AdapterError(Exception):
+    """The vehicle behind an adapter cannot be used (unreachable, bad settings)."""
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """One sample of a vehicle's state in the mission frame (X north, Y east, Z up)."""
+
+    drone: str
+    time_s: float  # wall clock (epoch seconds) when the sample was taken
+    x_m: float
+    y_m: float
+    z_m: float
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    battery_pct: float
+    armed: bool
+    landed: bool = True
+
+    def value(self, field_name: str) -> float | bool:
+        """The value of one telemetry field by name (see ``uniform.PROPERTY_FIELDS``)."""
+        return getattr(self, field_name)  # type: ignore[no-any-return]
+
+
+@dataclass(frozen=True)
+class ActionResult:
+    """How an action ended; ``reason`` says why when it did not end ``"ok"``."""
+
+    status: ActionStatus
+    reason: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+_handle_ids = itertools.count(1)
+
+
+@dataclass(frozen=True)
+class ActionHandle:
+    """Identifies one running action of one adapter."""
+
+    action: str
+    args: tuple[float, ...]
+    id: int = field(default_factory=lambda: next(_handle_ids))
+
+
+TelemetryCallback = Callable[[Telemetry], None]
+DoneCallback = Callable[[ActionResult], None]
+
+
+class Adapter(Protocol):
+    """What the uniform-API actor needs from a vehicle driver (see module docstring)."""
+
+    drone: str
+
+    def start(self, on_telemetry: TelemetryCallback) -> None: ...
+
+    def run(self, action: str, args: tuple[float, ...], done: DoneCallback) -> ActionHandle: ...
+
+    def cancel(self, handle: ActionHandle) -> None: ...
+
+    def abort(self) -> None: ...
+
+    def close(self) -> None: ...

@@ -1,0 +1,114 @@
+"""Per-drone JSON-lines logs (paper Table 5): mission, uniform and adapter logs.
+
+Loggers are built per runtime with :func:`structlog.wrap_logger` instead of
+structlog's global configuration, so two drone runtimes in one process (as in
+tests) write to their own files.  The schema is documented in ``docs/logs.md``.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+import structlog
+
+LOG_NAMES = ("mission", "uniform", "adapter")
+
+
+def _add_time(_: Any, __: str, event: dict[str, Any]) -> dict[str, Any]:
+    event.setdefault("ts", round(time.time(), 6))
+    return event
+
+
+class _LockedFile:
+    """A line-buffered file shared by threads; one write per event keeps lines whole."""
+
+    def __init__(self, stream: IO[str]) -> None:
+        self._stream = stream
+        self._lock = threading.Lock()
+
+    def msg(self, message: str) -> None:
+        with self._lock:
+            if not self._stream.closed:
+                self._stream.write(message + "\n")
+                self._stream.flush()
+
+    log = debug = info = warn = warning = error = critical = exception = msg
+
+    def close(self) -> None:
+        with self._lock:
+            self._stream.close()
+
+
+class _Discard:
+    def msg(self, message: str) -> None:
+        pass
+
+    log = debug = info = warn = warning = error = critical = exception = msg
+
+    def close(self) -> None:
+        pass
+
+
+def make_logger(path: Path | None, **context: Any) -> structlog.typing.FilteringBoundLogger:
+    """A JSON-lines logger writing to ``path`` (or discarding, when ``path`` is None)."""
+    sink: _LockedFile | _Discard
+    if path is None:
+        sink = _Discard()
+    else:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        sink = _LockedFile(path.open("a", encoding="utf-8"))
+    logger = structlog.wrap_logger(
+        sink,
+        processors=[
+            structlog.contextvars.merge_contextvars,
+            structlog.processors.add_log_level,
+            _add_time,
+            structlog.processors.format_exc_info,
+            structlog.processors.JSONRenderer(sort_keys=False, default=str),
+        ],
+        wrapper_class=structlog.make_filtering_bound_logger(0),
+        cache_logger_on_first_use=False,
+    )
+    return logger.bind(**context)  # type: ignore[no-any-return]
+
+
+def close_logger(logger: Any) -> None:
+    """Close the file behind a logger made by :func:`make_logger`."""
+    sink = getattr(logger, "_logger", None)
+    if sink is not None and hasattr(sink, "close"):
+        sink.close()
+
+
+@dataclass
+class DroneLogs:
+    """The three logs of one drone (paper Table 5)."""
+
+    mission: Any
+    uniform: Any
+    adapter: Any
+
+    @classmethod
+    def open(cls, log_dir: Path | None, drone: str) -> DroneLogs:
+        """Open ``mission.log``, ``uniform.log`` and ``adapter.log`` in ``log_dir``."""
+
+        def one(name: str) -> Any:
+            return make_logger(None if log_dir is None else log_dir / f"{name}.log", drone=drone)
+
+        return cls(one("mission"), one("uniform"), one("adapter"))
+
+    def close(self) -> None:
+        for logger in (self.mission, self.uniform, self.adapter):
+            close_logger(logger)
+
+
+def read_log(path: Path) -> list[dict[str, Any]]:
+    """Read a JSON-lines log back (for tests, reports and notebooks)."""
+    import json
+
+    if not path.exists():
+        return []
+    return [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line]

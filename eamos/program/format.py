@@ -1,0 +1,253 @@
+"""Drone mission programs: what the compiler ships to each drone.
+
+A program is one JSON document per drone (``<Drone>.program.json``): its
+Mission Dependency Graph as node and arc lists plus what the runtime needs to
+run it.  It is versioned (``format``/``version``) and checksummed (SHA-256 of
+the canonical JSON of everything but the checksum), and loads with the
+standard library only: drones need neither the compiler nor tree-sitter.
+
+Document fields (all required):
+
+``format`` = ``"eamos-program"``, ``version`` = 1, ``checksum`` = ``"sha256:<hex>"``
+``mission``       mission name (the Go package, or the file name)
+``mission_id``    identity of the compiled mission (same in every program of it)
+``drone``         the drone (or ``"GCS"``) this program runs on
+``drone_type``    its drone type
+``fleet``         every participant of the mission, ground station first
+``telemetry_from`` drones whose properties this drone's conditions read
+``nodes``         list of node objects (below)
+``arcs``          list of ``{"src", "dst", "kind", "external"}`` (keys of nodes)
+``source_file``   the mission file it was compiled from
+``compiler``      the eamos version that compiled it
+
+Node object: ``key`` (``n<id>`` or ``n<id>@<drone>`` for fork replicas),
+``meg`` (MEG id), ``kind``, ``drone`` (executing drone), ``native`` (runs
+here; otherwise a proxy of a node on another drone), ``label``, and where
+they apply ``action``, ``args``, ``cond``, ``count``, ``loops``, ``scopes``,
+``begin``, ``end``, ``interrupt_drones``, ``interrupt_mode``, ``line``,
+``col``, ``block``.  See :mod:`eamos.compiler.execution_graph` for meanings.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .conditions import ConditionError, validate
+
+FORMAT = "eamos-program"
+VERSION = 1
+
+NODE_KINDS = frozenset({
+    "init", "action", "fork", "end", "if", "wait_while", "wait_until", "pause_while",
+    "pause_until", "repeat_while", "repeat_until", "repeat_for", "do_while", "do_until",
+})
+ARC_KINDS = frozenset({"seq", "then", "else", "body", "exit", "loop", "begin"})
+
+
+class ProgramError(Exception):
+    """A drone program file is missing, damaged, or of an unsupported version."""
+
+
+@dataclass(frozen=True)
+class ProgramNode:
+    """One MDG node (native, or a proxy for a node of another drone)."""
+
+    key: str
+    meg: int
+    kind: str
+    drone: str
+    native: bool
+    label: str = ""
+    action: str | None = None
+    args: tuple[float, ...] = ()
+    cond: list[Any] | None = field(default=None, hash=False)
+    count: int | None = None
+    loops: tuple[int, ...] = ()
+    scopes: tuple[int, ...] = ()
+    begin: int | None = None
+    end: int | None = None
+    interrupt_drones: tuple[str, ...] = ()
+    interrupt_mode: str | None = None
+    line: int = 0
+    col: int = 0
+    block: str = ""
+
+
+@dataclass(frozen=True)
+class ProgramArc:
+    """One MDG arc; ``external`` when it crosses between drones."""
+
+    src: str
+    dst: str
+    kind: str
+    external: bool
+
+
+@dataclass(frozen=True)
+class DroneProgram:
+    """The program one drone runs: its MDG and its place in the fleet."""
+
+    mission: str
+    mission_id: str
+    drone: str
+    drone_type: str
+    fleet: tuple[str, ...]
+    nodes: tuple[ProgramNode, ...]
+    arcs: tuple[ProgramArc, ...]
+    telemetry_from: tuple[str, ...] = ()
+    source_file: str = ""
+    compiler: str = ""
+
+    def body(self) -> dict[str, Any]:
+        """The JSON document without its checksum."""
+        doc = asdict(self)
+        doc["nodes"] = [_compact(n) for n in doc["nodes"]]
+        return {"format": FORMAT, "version": VERSION, **doc}
+
+    @property
+    def checksum(self) -> str:
+        """``sha256:<hex>`` of the canonical JSON body."""
+        return "sha256:" + hashlib.sha256(_canonical(self.body())).hexdigest()
+
+    def to_json(self) -> str:
+        """The program file's text."""
+        doc = self.body()
+        doc["checksum"] = self.checksum
+        return json.dumps(doc, indent=1, sort_keys=False) + "\n"
+
+    def save(self, path: Path) -> Path:
+        """Write the program to ``path`` (atomically: a half-written file never loads)."""
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        tmp.write_text(self.to_json(), encoding="utf-8")
+        tmp.replace(path)
+        return path
+
+    # -- views the runtime uses ---------------------------------------------
+
+    def node(self, key: str) -> ProgramNode:
+        """The node with this key."""
+        for n in self.nodes:
+            if n.key == key:
+                return n
+        raise KeyError(key)
+
+    def native_nodes(self) -> list[ProgramNode]:
+        """The nodes this drone executes."""
+        return [n for n in self.nodes if n.native]
+
+    def stats(self) -> dict[str, int]:
+        """Paper Table 7's columns: nodes, internal arcs, external in/out arcs."""
+        native = {n.key for n in self.nodes if n.native}
+        ext_in = sum(1 for a in self.arcs if a.external and a.dst in native)
+        ext_out = sum(1 for a in self.arcs if a.external and a.src in native)
+        return {"nodes": len(self.nodes), "internal_arcs": sum(1 for a in self.arcs if not a.external),
+                "external_in": ext_in, "external_out": ext_out}
+
+
+def _compact(node: dict[str, Any]) -> dict[str, Any]:
+    """Drop fields at their defaults to keep program files readable."""
+    defaults = {"action": None, "args": (), "cond": None, "count": None, "loops": (), "scopes": (),
+                "begin": None, "end": None, "interrupt_drones": (), "interrupt_mode": None,
+                "line": 0, "col": 0, "block": "", "label": ""}
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in node.items()
+            if k not in defaults or (v != defaults[k] and v != list(defaults[k] or []))}
+
+
+def _canonical(doc: dict[str, Any]) -> bytes:
+    return json.dumps(doc, sort_keys=True, separators=(",", ":")).encode("utf-8")
+
+
+def _require(doc: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    if key not in doc:
+        raise ProgramError(f"{where}: missing field '{key}'")
+    value = doc[key]
+    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        raise ProgramError(f"{where}: field '{key}' has the wrong type")
+    return value
+
+
+def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
+    """Validate a decoded program document and build the :class:`DroneProgram`."""
+    if not isinstance(doc, dict):
+        raise ProgramError(f"{where}: not a program document")
+    if doc.get("format") != FORMAT:
+        raise ProgramError(f"{where}: not an EAMOS drone program (format is {doc.get('format')!r})")
+    version = doc.get("version")
+    if version != VERSION:
+        raise ProgramError(f"{where}: program version {version!r} is not supported "
+                           f"(this eamos reads version {VERSION}); recompile the mission")
+    checksum = _require(doc, "checksum", str, where)
+    body = {k: v for k, v in doc.items() if k != "checksum"}
+    actual = "sha256:" + hashlib.sha256(_canonical(body)).hexdigest()
+    if checksum != actual:
+        raise ProgramError(f"{where}: checksum mismatch: the file was changed or damaged; "
+                           "recompile and redeploy it")
+    nodes = []
+    for i, raw in enumerate(_require(doc, "nodes", list, where)):
+        at = f"{where}: nodes[{i}]"
+        if not isinstance(raw, dict):
+            raise ProgramError(f"{at}: not an object")
+        kind = _require(raw, "kind", str, at)
+        if kind not in NODE_KINDS:
+            raise ProgramError(f"{at}: unknown node kind {kind!r}")
+        cond = raw.get("cond")
+        if cond is not None:
+            try:
+                validate(cond)
+            except ConditionError as exc:
+                raise ProgramError(f"{at}: bad condition: {exc}") from exc
+        try:
+            nodes.append(ProgramNode(
+                key=_require(raw, "key", str, at), meg=_require(raw, "meg", int, at), kind=kind,
+                drone=_require(raw, "drone", str, at), native=_require(raw, "native", bool, at),
+                label=str(raw.get("label", "")), action=raw.get("action"),
+                args=tuple(float(a) for a in raw.get("args", ())), cond=cond,
+                count=raw.get("count"), loops=tuple(int(x) for x in raw.get("loops", ())),
+                scopes=tuple(int(x) for x in raw.get("scopes", ())), begin=raw.get("begin"),
+                end=raw.get("end"), interrupt_drones=tuple(str(d) for d in raw.get("interrupt_drones", ())),
+                interrupt_mode=raw.get("interrupt_mode"), line=int(raw.get("line", 0)),
+                col=int(raw.get("col", 0)), block=str(raw.get("block", "")),
+            ))
+        except (TypeError, ValueError) as exc:
+            raise ProgramError(f"{at}: {exc}") from exc
+    keys = {n.key for n in nodes}
+    if len(keys) != len(nodes):
+        raise ProgramError(f"{where}: duplicate node keys")
+    arcs = []
+    for i, raw in enumerate(_require(doc, "arcs", list, where)):
+        at = f"{where}: arcs[{i}]"
+        if not isinstance(raw, dict):
+            raise ProgramError(f"{at}: not an object")
+        arc = ProgramArc(_require(raw, "src", str, at), _require(raw, "dst", str, at),
+                         _require(raw, "kind", str, at), _require(raw, "external", bool, at))
+        if arc.src not in keys or arc.dst not in keys:
+            raise ProgramError(f"{at}: refers to a node that is not in the program")
+        if arc.kind not in ARC_KINDS:
+            raise ProgramError(f"{at}: unknown arc kind {arc.kind!r}")
+        arcs.append(arc)
+    return DroneProgram(
+        mission=_require(doc, "mission", str, where), mission_id=_require(doc, "mission_id", str, where),
+        drone=_require(doc, "drone", str, where), drone_type=_require(doc, "drone_type", str, where),
+        fleet=tuple(_require(doc, "fleet", list, where)), nodes=tuple(nodes), arcs=tuple(arcs),
+        telemetry_from=tuple(doc.get("telemetry_from", ())), source_file=str(doc.get("source_file", "")),
+        compiler=str(doc.get("compiler", "")),
+    )
+
+
+def load_program(path: Path) -> DroneProgram:
+    """Load and verify a program file; raise :class:`ProgramError` with the reason."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError as exc:
+        raise ProgramError(f"{path}: no such program file") from exc
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ProgramError(f"{path}: cannot read the program: {exc}") from exc
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ProgramError(f"{path}: not valid JSON (line {exc.lineno}): the file is damaged") from exc
+    return program_from_dict(doc, str(path))
