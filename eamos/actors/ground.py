@@ -1,0 +1,185 @@
+"""The ground station's role (paper VI-G): start trigger, progress, completion, abort.
+
+The ground station is a participant like any drone: it runs its own program
+(the initial node, and any pause or condition hosted there) in a
+:class:`~.runtime.DroneRuntime`.  On top, :class:`GroundStation` collects the
+drones' Ready, Progress, Resolved and Report messages, sends the start
+trigger only once every drone is ready (so no trigger is lost at start), and
+declares the mission complete once every participant resolved its top-level
+nodes.  There is no central master during the mission: drones trigger each
+other directly; the ground station only starts, watches and ends.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..hal.uniform import GROUND_STATION
+from ..net import wire
+from .runtime import DroneRuntime
+
+
+@dataclass
+class DroneView:
+    """What the ground station knows of one drone, for display and the summary."""
+
+    name: str
+    ready: bool = False
+    resolved: bool = False
+    state: str = "starting"
+    action: str = ""
+    node: str = ""
+    position: tuple[float, float, float] | None = None
+    armed: bool | None = None
+    done_actions: int = 0
+    failed_actions: int = 0
+    report: dict[str, Any] | None = None
+    events: list[dict[str, Any]] = field(default_factory=list)
+
+
+class GroundStation:
+    """Coordinates one mission run from the ground; thread-safe, waits on a Condition."""
+
+    def __init__(self, drones: Iterable[str], mission_id: str,
+                 on_change: Callable[[str, DroneView, Any], None] | None = None) -> None:
+        self.mission_id = mission_id
+        self.views = {name: DroneView(name) for name in drones}
+        self.views.setdefault(GROUND_STATION, DroneView(GROUND_STATION))
+        self.runtime: DroneRuntime | None = None
+        self.on_change = on_change
+        self._cond = threading.Condition()
+        self.failures: list[str] = []  # participants that died or never became ready
+
+    # -- wiring -------------------------------------------------------------------------
+
+    def attach(self, runtime: DroneRuntime) -> None:
+        """Use ``runtime`` (running the ground station's program) to talk to the fleet."""
+        self.runtime = runtime
+
+    def handle(self, msg: Any) -> None:
+        """Everything addressed to the ground station arrives here (any thread)."""
+        with self._cond:
+            view = self.views.get(getattr(msg, "sender", ""))
+            if view is None:
+                return
+            if isinstance(msg, wire.Ready):
+                view.ready = True
+                view.state = "ready"
+            elif isinstance(msg, wire.Resolved):
+                view.resolved = True
+                view.state = "resolved"
+            elif isinstance(msg, wire.Report):
+                view.report = dict(msg.report)
+            elif isinstance(msg, wire.Progress):
+                view.node = msg.node
+                if msg.state == "running":
+                    view.action, view.state = msg.action, "running"
+                elif msg.state == "waiting":
+                    view.action, view.state = msg.action, "waiting"
+                else:
+                    view.state = msg.state
+                    if msg.state == "ok":
+                        view.done_actions += 1
+                    elif msg.state == "failed":
+                        view.failed_actions += 1
+                view.events.append({"t": time.time(), "state": msg.state, "node": msg.node,
+                                    "action": msg.action, **msg.detail})
+            elif isinstance(msg, wire.TelemetrySample):
+                view.position = (msg.x_m, msg.y_m, msg.z_m)
+                view.armed = msg.armed
+            self._cond.notify_all()
+        if self.on_change is not None:
+            self.on_change(view.name, view, msg)
+
+    def fail(self, name: str, reason: str) -> None:
+        """A participant is gone (its process died, or it could not start)."""
+        with self._cond:
+            self.failures.append(f"{name}: {reason}")
+            if name in self.views:
+                self.views[name].state = "lost"
+            self._cond.notify_all()
+
+    # -- phases ---------------------------------------------------------------------------
+
+    def _wait(self, predicate: Callable[[], bool], timeout_s: float | None,
+              stop: threading.Event | None = None, fail_fast: bool = False) -> bool:
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with self._cond:
+            while not predicate():
+                if stop is not None and stop.is_set():
+                    return False
+                if fail_fast and self.failures:
+                    return False
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    return False
+                # A bounded wait only so that `stop` (set by a signal handler, which
+                # cannot notify a Condition safely) is noticed.
+                self._cond.wait(0.5 if remaining is None else min(remaining, 0.5))
+            return True
+
+    def drones(self) -> list[str]:
+        return [n for n in self.views if n != GROUND_STATION]
+
+    def wait_ready(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
+        """Every drone reported ready, and every drone listens to the ground station."""
+        ok = self._wait(lambda: all(self.views[d].ready for d in self.drones()), timeout_s, stop,
+                        fail_fast=True)
+        if not ok or self.runtime is None or self.runtime.out is None:
+            return ok
+        topics = [wire.topic_to(d) for d in self.drones()]
+        return self.runtime.out.wait_subscribed(topics, timeout_s)
+
+    def not_ready(self) -> list[str]:
+        with self._cond:
+            return [d for d in self.drones() if not self.views[d].ready]
+
+    def start(self) -> None:
+        """Send the start trigger: the ground station's initial node fires."""
+        assert self.runtime is not None
+        self.runtime.send(wire.Start(mission=self.mission_id, sender=GROUND_STATION))
+        self.runtime.fire()
+
+    def wait_resolved(self, timeout_s: float | None, stop: threading.Event | None = None) -> bool:
+        """Every participant still alive (ground station included) resolved its top-level nodes.
+
+        A lost drone does not stop the others: drones that do not depend on it finish,
+        and those that do stay unresolved until the timeout.
+        """
+        return self._wait(lambda: all(v.resolved or v.state == "lost" for v in self.views.values()),
+                          timeout_s, stop)
+
+    def unresolved(self) -> list[str]:
+        with self._cond:
+            return [n for n, v in self.views.items() if not v.resolved]
+
+    def complete(self) -> None:
+        """Tell every drone the mission is over (they report and exit)."""
+        assert self.runtime is not None
+        self.runtime.send(wire.Complete(mission=self.mission_id, sender=GROUND_STATION))
+
+    def abort(self, reason: str) -> None:
+        """Every drone stops its mission and lands now."""
+        if self.runtime is not None:
+            self.runtime.send(wire.Abort(mission=self.mission_id, sender=GROUND_STATION, reason=reason))
+            self.runtime.abort(reason)
+
+    def wait_reports(self, names: Iterable[str], timeout_s: float) -> bool:
+        """Wait for the final report of each of ``names``."""
+        wanted = list(names)
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while not all(self.views[n].report is not None for n in wanted):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._cond.wait(min(remaining, 0.5))
+        return True
+
+    def snapshot(self) -> dict[str, DroneView]:
+        with self._cond:
+            return {n: DroneView(**{**v.__dict__, "events": list(v.events)}) for n, v in self.views.items()}

@@ -1,0 +1,135 @@
+"""Messages between the actors of one drone runtime (typed, frozen).
+
+Cross-drone messages have their own wire format in :mod:`eamos.net.wire`;
+these never leave the process.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from .state import Iteration, Status
+
+
+@dataclass(frozen=True)
+class Trigger:
+    """A precondition arc delivers: node ``src`` finished ``iteration`` with ``status``."""
+
+    src: str
+    dst: str
+    iteration: Iteration
+    status: Status
+
+
+@dataclass(frozen=True)
+class Fire:
+    """Start the initial node (the ground station's start trigger)."""
+
+
+@dataclass(frozen=True)
+class Interrupt:
+    """The structure ``scope`` (a Do or Repeat begin node) interrupts its body."""
+
+    scope: int
+    iteration: Iteration
+    mode: str  # "all" or "waits"
+
+
+@dataclass(frozen=True)
+class Release:
+    """A Do's end node tells its begin node that Body is over: stop watching."""
+
+    iteration: Iteration
+
+
+@dataclass(frozen=True)
+class TelemetryChanged:
+    """New property values of one drone, for the nodes watching it."""
+
+    drone: str
+    values: dict[str, Any] = field(hash=False)
+
+
+@dataclass(frozen=True)
+class Watch:
+    """Ask the telemetry board for updates of these drones."""
+
+    watcher: Any  # pykka.ActorRef
+    drones: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Unwatch:
+    watcher: Any
+
+
+@dataclass(frozen=True)
+class LocalTelemetry:
+    """A sample of this drone's own state, from its adapter."""
+
+    sample: Any  # eamos.hal.Telemetry
+
+
+@dataclass(frozen=True)
+class RemoteTelemetry:
+    """A telemetry sample received from another drone."""
+
+    drone: str
+    values: dict[str, Any] = field(hash=False)
+
+
+@dataclass(frozen=True)
+class AbortMission:
+    """Stop executing: no more actions, no more triggers."""
+
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class SendTrigger:
+    """Ask the out-bridge to deliver a trigger to another drone."""
+
+    dest: str
+    trigger: Trigger
+
+
+@dataclass(frozen=True)
+class SendInterrupt:
+    """Ask the out-bridge to deliver an interrupt to another drone."""
+
+    dest: str
+    interrupt: Interrupt
+
+
+@dataclass(frozen=True)
+class ActionRecord:
+    """One action a node ran, for the summary (times in epoch seconds)."""
+
+    node: str
+    action: str
+    args: tuple[float, ...]
+    iteration: Iteration
+    start: float
+    end: float
+    result: str  # "ok" | "failed" | "cancelled"
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class NodeEvent:
+    """A node started or finished something worth showing live."""
+
+    node: str
+    state: str  # "running", "ok", "failed", "cancelled", "waiting", "skipped", "blocked"
+    action: str
+    iteration: Iteration = ()
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class NodeResolved:
+    """A top-level node (outside any loop) has finished for good."""
+
+    node: str
+    status: Status

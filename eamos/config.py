@@ -1,0 +1,168 @@
+"""Configuration files: one per drone (``eamos-node --config``) and one per fleet (``eamos run --fleet``).
+
+Drone config (TOML)::
+
+    drone = "Drone1"                          # must match the program
+    program = "programs/Drone1.program.json"  # relative to this file
+    log_dir = "logs/Drone1"                   # relative to this file (default: logs/<drone>)
+    ready_timeout_s = 60                      # how long to wait for the peers' subscriptions
+    land_timeout_s = 120                      # after an abort, how long to wait for touchdown
+
+    [net]
+    bind = "tcp://127.0.0.1:6001"             # this drone's out-bridge
+    [net.peers]                               # every other participant's out-bridge
+    GCS = "tcp://127.0.0.1:6000"
+    Drone2 = "tcp://127.0.0.1:6002"
+
+    [hal]
+    adapter = "sim"                           # sim | ground | fake | mavlink
+    speedup = 10                              # the adapter's own settings follow
+
+Fleet config (TOML), for ``eamos run``::
+
+    [defaults.hal]                            # applied to every drone
+    adapter = "sim"
+    [drones.Drone3.hal]                       # per drone, merged over the defaults
+    pilot = [{x_m = 0, y_m = 0, z_m = 5, hold_s = 2}]
+
+Every error names the file and the field.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .compiler.errors import did_you_mean
+
+
+class ConfigError(Exception):
+    """A configuration file is missing, unreadable, or has a bad field."""
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; ConfigError with the line on syntax errors."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError as exc:
+        raise ConfigError(f"{path}: no such configuration file") from exc
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read it: {exc}") from exc
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+
+
+def _check_keys(where: str, table: Mapping[str, Any], allowed: set[str]) -> None:
+    for key in table:
+        if key not in allowed:
+            hint = did_you_mean(key, allowed)
+            raise ConfigError(f"{where}{key}: unknown field" + (f" ({hint})" if hint else ""))
+
+
+def _endpoint(where: str, value: Any) -> str:
+    if not isinstance(value, str) or "://" not in value:
+        raise ConfigError(f"{where}: must be a ZeroMQ endpoint such as \"tcp://127.0.0.1:6001\"")
+    return value
+
+
+@dataclass(frozen=True)
+class NodeConfig:
+    """Everything ``eamos-node`` needs to run one drone."""
+
+    path: Path
+    drone: str
+    program: Path
+    log_dir: Path
+    bind: str
+    peers: dict[str, str]
+    hal: dict[str, Any] = field(default_factory=dict)
+    ready_timeout_s: float = 60.0
+    land_timeout_s: float = 120.0
+
+    @classmethod
+    def load(cls, path: Path) -> NodeConfig:
+        """Read and validate a drone config file."""
+        path = Path(path)
+        doc = read_toml(path)
+        w = f"{path}: "
+        _check_keys(w, doc, {"drone", "program", "log_dir", "ready_timeout_s", "land_timeout_s", "net", "hal"})
+        drone = doc.get("drone")
+        if not isinstance(drone, str) or not drone:
+            raise ConfigError(f"{w}drone: required, the drone's name as in the mission (e.g. \"Drone1\")")
+        program = doc.get("program")
+        if not isinstance(program, str) or not program:
+            raise ConfigError(f"{w}program: required, the path of the drone's .program.json")
+        net = doc.get("net")
+        if not isinstance(net, dict):
+            raise ConfigError(f"{w}net: required table with 'bind' and 'peers'")
+        _check_keys(f"{w}net.", net, {"bind", "peers"})
+        bind = _endpoint(f"{w}net.bind", net.get("bind"))
+        peers = net.get("peers", {})
+        if not isinstance(peers, dict):
+            raise ConfigError(f"{w}net.peers: must be a table of name = endpoint")
+        peers = {str(k): _endpoint(f"{w}net.peers.{k}", v) for k, v in peers.items()}
+        hal = doc.get("hal", {"adapter": "sim"})
+        if not isinstance(hal, dict):
+            raise ConfigError(f"{w}hal: must be a table")
+        timeouts = {}
+        for key in ("ready_timeout_s", "land_timeout_s"):
+            if key in doc:
+                value = doc[key]
+                if not isinstance(value, int | float) or isinstance(value, bool) or value <= 0:
+                    raise ConfigError(f"{w}{key}: must be a positive number of seconds")
+                timeouts[key] = float(value)
+        base = path.parent
+        log_dir = doc.get("log_dir", f"logs/{drone}")
+        if not isinstance(log_dir, str):
+            raise ConfigError(f"{w}log_dir: must be a path")
+        return cls(path=path, drone=drone, program=(base / program).resolve(),
+                   log_dir=(base / log_dir).resolve(), bind=bind, peers=peers, hal=dict(hal), **timeouts)
+
+
+@dataclass(frozen=True)
+class FleetConfig:
+    """Per-drone hardware settings for a run: defaults merged with each drone's table."""
+
+    path: Path | None
+    defaults: dict[str, Any]
+    drones: dict[str, dict[str, Any]]
+
+    def hal_for(self, drone: str) -> dict[str, Any]:
+        """The merged ``[hal]`` table of one drone."""
+        merged = dict(self.defaults)
+        merged.update(self.drones.get(drone, {}))
+        merged.setdefault("adapter", "sim")
+        return merged
+
+    @classmethod
+    def empty(cls) -> FleetConfig:
+        return cls(None, {"adapter": "sim"}, {})
+
+    @classmethod
+    def load(cls, path: Path) -> FleetConfig:
+        """Read and validate a fleet config file."""
+        doc = read_toml(path)
+        w = f"{path}: "
+        _check_keys(w, doc, {"defaults", "drones"})
+        defaults = doc.get("defaults", {})
+        if not isinstance(defaults, dict):
+            raise ConfigError(f"{w}defaults: must be a table")
+        _check_keys(f"{w}defaults.", defaults, {"hal"})
+        drones: dict[str, dict[str, Any]] = {}
+        for name, table in doc.get("drones", {}).items():
+            if not isinstance(table, dict):
+                raise ConfigError(f"{w}drones.{name}: must be a table")
+            _check_keys(f"{w}drones.{name}.", table, {"hal"})
+            hal = table.get("hal", {})
+            if not isinstance(hal, dict):
+                raise ConfigError(f"{w}drones.{name}.hal: must be a table")
+            drones[name] = dict(hal)
+        default_hal = defaults.get("hal", {})
+        if not isinstance(default_hal, dict):
+            raise ConfigError(f"{w}defaults.hal: must be a table")
+        return cls(path, dict(default_hal), drones)
