@@ -280,6 +280,8 @@ class MissionNode(pykka.ThreadingActor):
     def _watch(self) -> None:
         if not self.watching and self.links is not None and self.cond_drones:
             self.watching = True
+            # Values cached while not watching are stale: decide on the board's fresh push.
+            self.values.clear()
             self.links.board.tell(Watch(self.actor_ref, self.cond_drones))
 
     def _unwatch(self) -> None:

@@ -1,8 +1,12 @@
-"""The mission compiler: mission text -> mission tree -> execution graph -> dependency graphs -> programs.
+"""The mission compiler.
+
+Mission text -> mission tree -> execution graph -> dependency graphs -> programs.
 
 Public surface; everything else in this package is private.
 """
 
+from .artifacts import write_artifacts
+from .drawing import render_svg, to_dot, to_graphml
 from .errors import CompilerBug, Diagnostic, MissionError, SourceLocation
 from .phases import CompiledMission, compile_file, compile_mission
 
@@ -14,4 +18,8 @@ __all__ = [
     "SourceLocation",
     "compile_file",
     "compile_mission",
+    "render_svg",
+    "to_dot",
+    "to_graphml",
+    "write_artifacts",
 ]

@@ -80,12 +80,21 @@ class CompilerBug(Exception):
     """An internal invariant of the compiler broke.  Not the mission author's fault."""
 
 
+def _stem(name: str) -> str:
+    return name[4:] if name[:4] in ("SEQ_", "PAR_") and len(name) > 4 else name
+
+
 def did_you_mean(word: str, choices: object) -> str:
     """A 'did you mean X?' hint for a misspelt name, or a list of valid names."""
     import difflib
 
     names = sorted(str(c) for c in choices)  # type: ignore[attr-defined]
-    close = difflib.get_close_matches(word, names, n=1, cutoff=0.6)
+    # Block names share their SEQ_/PAR_ prefix, which would make any two look
+    # alike ("SEQ_Nope" vs "SEQ_A"): compare what follows the prefix.
+    stems: dict[str, str] = {}
+    for name in names:
+        stems.setdefault(_stem(name), name)
+    close = [stems[m] for m in difflib.get_close_matches(_stem(word), list(stems), n=1, cutoff=0.6)]
     if not close:
         lowered = {n.lower(): n for n in names}
         if word.lower() in lowered:

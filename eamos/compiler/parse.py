@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..hal.uniform import ACTIONS, PROPERTIES
 from .errors import Diagnostic, MissionError, SourceLocation
 from .syntax import (
     CONTROL_KINDS,
@@ -276,11 +277,17 @@ class _Reader:
             name = _text(function)
             if name in CONTROL_KINDS:
                 return self._control(name, None, call, args)
+            if name == "PauseFor":
+                # A bare PauseFor(s) is an action without a drone: it runs on the
+                # drone of the preceding statement (the ground station at the start).
+                return self._action_call(None, name, call, args)
+            if name in ACTIONS:
+                self.error(function, f"'{name}' is an action and needs a drone",
+                           f"write Drone1.{name}(...)")
+                return None
             if args:
                 self.error(args_node, f"block '{name}' takes no arguments",
                            "blocks are called without arguments: " + f"{name}()")
-                return None
-            if name == "PauseFor":  # pragma: no cover - PauseFor has arguments
                 return None
             return BlockCall(name, _loc(function))
         if function.type == "selector_expression":
@@ -293,22 +300,27 @@ class _Reader:
             drone, action = _text(operand), _text(field)
             if action in ("PauseWhile", "PauseUntil"):
                 return self._control(action, drone, call, args)
-            values: list[float] = []
-            locs: list[SourceLocation] = []
-            ok = True
-            for arg in args:
-                value = self._number(arg)
-                if value is None:
-                    ok = False
-                    continue
-                values.append(value)
-                locs.append(_loc(arg))
-            if not ok:
-                return None
-            return ActionCall(drone, action, tuple(values), _loc(call), tuple(locs))
+            return self._action_call(drone, action, call, args)
         self.error(function, "a statement is a block call, a drone action or a control structure",
                    "e.g. SEQ_Fly(), Drone1.Takeoff(1.5)")
         return None
+
+    def _action_call(self, drone: str | None, action: str, call: Node,
+                     args: list[Node]) -> ActionCall | None:
+        """An action with literal number arguments (every bad argument is reported)."""
+        values: list[float] = []
+        locs: list[SourceLocation] = []
+        ok = True
+        for arg in args:
+            value = self._number(arg)
+            if value is None:
+                ok = False
+                continue
+            values.append(value)
+            locs.append(_loc(arg))
+        if not ok:
+            return None
+        return ActionCall(drone, action, tuple(values), _loc(call), tuple(locs))
 
     def _number(self, node: Node) -> float | None:
         """A literal number argument (with an optional sign)."""
@@ -442,8 +454,10 @@ class _Reader:
                        "e.g. D3.X() > 10 && Drone1.Battery() > 30")
             return None
         if kind == "identifier":
-            self.error(node, f"'{_text(node)}' is a bare name; conditions read drone properties",
-                       f"did you mean {_text(node)}.X()? properties are called with ()")
+            name = _text(node)
+            hint = (f"read it from a drone: Drone1.{name}()" if name in PROPERTIES
+                    else f"did you mean {name}.X()? properties are called with ()")
+            self.error(node, f"'{name}' is a bare name; conditions read drone properties", hint)
             return None
         if kind == "selector_expression":
             self.error(node, "a property is read by calling it",

@@ -50,7 +50,9 @@ ACTIONS: dict[str, ActionSpec] = {
             ("lat_deg", "lon_deg", "alt_m"),
             "Fly to a WGS84 latitude/longitude (degrees) at alt_m metres above home.",
         ),
-        ActionSpec("PauseFor", ("duration_s",), "Hold position (or stay on the ground) duration_s."),
+        ActionSpec(
+            "PauseFor", ("duration_s",), "Hold position (or stay on the ground) duration_s."
+        ),
         ActionSpec("TurnOn", (), "Power on the payload/companion systems.", payload=True),
         ActionSpec("PreFlightCheck", (), "Run the pre-flight checks.", payload=True),
         ActionSpec("Calibrate", (), "Calibrate the sensors.", payload=True),
@@ -105,7 +107,9 @@ class DroneType:
 
 #: The ground station: it only waits (and hosts conditions); it never flies.
 GROUND_STATION = "GCS"
-GROUND_TYPE = DroneType("GroundStation", frozenset({"PauseFor"}), frozenset(), "The ground station.")
+GROUND_TYPE = DroneType(
+    "GroundStation", frozenset({"PauseFor"}), frozenset(), "The ground station."
+)
 
 DEFAULT_DRONE_TYPE = "Quadcopter"
 

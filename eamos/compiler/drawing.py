@@ -1,0 +1,691 @@
+"""Pictures and exports of the mission graphs: GraphML, Graphviz DOT and SVG.
+
+* :func:`to_graphml` writes any of the compiler's graphs (AMT, MEG, MDG) as
+  GraphML, the format the paper's compiler emitted (Figure 2), after turning
+  attribute values GraphML cannot hold (tuples, lists, ``None``) into JSON
+  strings or dropping them.
+* :func:`to_dot` draws a graph in the paper's visual language (Figures 6-8):
+  the shape tells the node kind, the fill colour the drone, dashed lines are
+  external arcs and proxy nodes, dotted lines are loop arcs.
+* :func:`render_svg` turns DOT text into SVG with Graphviz when it is
+  installed, and otherwise (or when Graphviz fails or takes too long) with a
+  small built-in layered renderer, so pictures never need Graphviz.
+
+Legend (also in ``docs/graphs.md``):
+
+=================  ============================================================
+shape              node kind
+=================  ============================================================
+triangle           ``init``: the ground station's initial node
+box                ``seq``: a sequential block (AMT only)
+diamond            ``par``/``fork``: a parallel block
+ellipse            ``action``: a drone action
+cds (arrow right)  a control structure (If, Wait*, Repeat*, Pause*, Do*) begin
+larrow (arrow left) ``end`` node closing a control structure
+=================  ============================================================
+
+Fill colours: the ground station is grey, drones take a fixed palette in
+natural name order (first yellow, second green, third orange-red, ...), nodes
+not yet assigned to a drone (AMT ``seq``/``par``, MEG forks) are white.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import itertools
+import json
+import logging
+import math
+import re
+import shutil
+import subprocess
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+from xml.sax.saxutils import escape as _xml_escape
+
+import networkx as nx
+
+from ..hal.uniform import GROUND_STATION
+
+log = logging.getLogger(__name__)
+
+GraphKind = Literal["amt", "meg", "mdg"]
+
+#: Graphviz shape for each node kind; control structures not listed use :data:`CONTROL_SHAPE`.
+KIND_SHAPES: dict[str, str] = {
+    "init": "triangle",
+    "seq": "box",
+    "par": "diamond",
+    "fork": "diamond",
+    "action": "ellipse",
+    "end": "larrow",
+}
+CONTROL_SHAPE = "cds"
+
+GROUND_COLOUR = "#c8c8c8"
+UNASSIGNED_COLOUR = "#ffffff"
+#: Drone colours in order: the paper's yellow, green, orange-red, then more.
+PALETTE: tuple[str, ...] = (
+    "#ffe066",  # yellow   (Drone1 in the paper)
+    "#8ce99a",  # green    (Drone2)
+    "#ff8c69",  # orange-red (Drone3)
+    "#74c0fc",  # blue
+    "#da77f2",  # violet
+    "#63e6be",  # teal
+    "#ffc078",  # light orange
+    "#a9e34b",  # lime
+    "#91a7ff",  # indigo
+    "#f783ac",  # pink
+)
+
+#: Arc kinds (MEG/MDG) and roles (AMT) written next to their arcs.
+_LABELLED_ARCS = frozenset({"then", "else", "body", "exit", "loop", "begin"})
+
+#: Above about this many nodes plus arcs Graphviz may run for minutes; the built-in
+#: renderer is used instead.
+MAX_DOT_STATEMENTS = 6000
+DOT_TIMEOUT_S = 30.0
+_LABEL_WIDTH = 30  # characters per label line before wrapping
+
+
+# -- GraphML --------------------------------------------------------------------
+
+
+def _graphml_value(value: Any) -> Any:
+    """A value GraphML can store: bool/int/float/str kept, containers as JSON, None dropped."""
+    if value is None:
+        return None
+    if isinstance(value, bool | int | float | str):
+        return value
+    if isinstance(value, tuple | list | dict | set | frozenset):
+        items = sorted(value) if isinstance(value, set | frozenset) else value
+        return json.dumps(items, default=str)
+    return str(value)
+
+
+def _clean_attrs(records: Iterable[dict[str, Any]]) -> None:
+    """Convert attribute dicts in place; a key whose values mix types becomes a string."""
+    records = list(records)
+    types: dict[str, set[type]] = {}
+    for attrs in records:
+        for key in list(attrs):
+            value = _graphml_value(attrs[key])
+            if value is None:
+                del attrs[key]
+            else:
+                attrs[key] = value
+                types.setdefault(key, set()).add(type(value))
+    # networkx declares one GraphML type per key: mixed int/float becomes float,
+    # any other mix becomes text, so every graph exports.
+    for key, seen in types.items():
+        if len(seen) <= 1:
+            continue
+        if seen <= {int, float}:
+            conv: Any = float
+        else:
+            conv = _as_text
+        for attrs in records:
+            if key in attrs:
+                attrs[key] = conv(attrs[key])
+
+
+def _as_text(value: Any) -> str:
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def graphml_ready(graph: nx.DiGraph) -> nx.DiGraph:
+    """A copy of ``graph`` whose attributes all fit GraphML (node ids are kept)."""
+    out = graph.copy()
+    graph_attrs = dict(out.graph)
+    _clean_attrs([graph_attrs])
+    out.graph.clear()
+    out.graph.update(graph_attrs)
+    _clean_attrs(attrs for _, attrs in out.nodes(data=True))
+    _clean_attrs(attrs for _, _, attrs in out.edges(data=True))
+    return out
+
+
+def to_graphml(graph: nx.DiGraph, path: Path | str) -> Path:
+    """Write an AMT, MEG or MDG as GraphML to ``path``; return the path.
+
+    Tuples and lists (``args``, ``loops``, ``cond`` ...) are stored as JSON
+    strings, ``None`` attributes are left out; node ids stay as they are.
+    """
+    path = Path(path)
+    nx.write_graphml(graphml_ready(graph), path, encoding="utf-8", prettyprint=True)
+    return path
+
+
+# -- colours and labels ------------------------------------------------------------
+
+
+def _natural_key(name: str) -> tuple[Any, ...]:
+    """Drone2 before Drone10."""
+    return tuple(int(p) if p.isdigit() else p for p in re.split(r"(\d+)", name))
+
+
+def drone_colours(drones: Iterable[str]) -> dict[str, str]:
+    """A fill colour per participant: GCS grey, drones by the palette in natural name order."""
+    names = sorted({d for d in drones if d and d != GROUND_STATION}, key=_natural_key)
+    colours = {GROUND_STATION: GROUND_COLOUR, "": UNASSIGNED_COLOUR}
+    for i, name in enumerate(names):
+        if i < len(PALETTE):
+            colours[name] = PALETTE[i]
+        else:
+            # Past the palette, spread hues by the golden angle: distinct and stable.
+            hue = (i * 0.381966) % 1.0
+            r, g, b = colorsys.hls_to_rgb(hue, 0.78, 0.75)
+            colours[name] = f"#{round(r * 255):02x}{round(g * 255):02x}{round(b * 255):02x}"
+    return colours
+
+
+def _wrap(text: str, width: int = _LABEL_WIDTH) -> list[str]:
+    """Break a long label (conditions) at spaces into lines of about ``width``."""
+    lines: list[str] = []
+    current = ""
+    for word in text.split(" "):
+        if current and len(current) + 1 + len(word) > width:
+            lines.append(current)
+            current = word
+        else:
+            current = f"{current} {word}" if current else word
+    if current or not lines:
+        lines.append(current)
+    return lines
+
+
+def _dot_quote(text: str) -> str:
+    """A DOT double-quoted string; newlines become DOT's centred line break."""
+    out = text.replace("\\", "\\\\").replace('"', '\\"')
+    return '"' + out.replace("\n", "\\n") + '"'
+
+
+def _sort_key(node: Any, attrs: dict[str, Any]) -> tuple[Any, ...]:
+    meg = attrs.get("meg", node)
+    return (meg if isinstance(meg, int) else 1 << 60, str(node))
+
+
+def _node_id_text(node: Any, attrs: dict[str, Any]) -> str:
+    """``n<id>``: the MEG id for MDG nodes (forks' replicas share their fork's id)."""
+    meg = attrs.get("meg")
+    if isinstance(meg, int):
+        return f"n{meg}"
+    if isinstance(node, int):
+        return f"n{node}"
+    return str(node).split("@", 1)[0]
+
+
+def _node_dot_id(node: Any) -> str:
+    return _dot_quote(f"n{node}" if isinstance(node, int) else str(node))
+
+
+def _drones_of(graph: nx.DiGraph) -> list[str]:
+    return [str(a.get("drone", "")) for _, a in graph.nodes(data=True)]
+
+
+def to_dot(
+    graph: nx.DiGraph,
+    which: GraphKind,
+    *,
+    fleet: Sequence[str] | None = None,
+    title: str | None = None,
+) -> str:
+    """Graphviz DOT text drawing ``graph`` (an AMT, MEG or MDG) in the paper's style.
+
+    ``fleet`` fixes the colours across several pictures of one mission (pass
+    every participant); by default the drones found in ``graph`` are used.
+    The output is deterministic: nodes and arcs are sorted.
+    """
+    if which not in ("amt", "meg", "mdg"):
+        raise ValueError(f"which must be 'amt', 'meg' or 'mdg', not {which!r}")
+    colours = drone_colours(list(fleet or ()) + _drones_of(graph))
+    if title is None:
+        mission = graph.graph.get("mission", "mission")
+        title = {"amt": "Abstract Mission Tree", "meg": "Mission Execution Graph",
+                 "mdg": f"Mission Dependency Graph of {graph.graph.get('drone', '?')}"}[which]
+        title = f"{mission}: {title}"
+    lines = [
+        f"digraph {_dot_quote(which)} {{",
+        f"  graph [rankdir=TB, fontname=\"Helvetica\", labelloc=t, label={_dot_quote(title)}];",
+        "  node [fontname=\"Helvetica\", fontsize=10, style=filled, fillcolor=\"#ffffff\"];",
+        "  edge [fontname=\"Helvetica\", fontsize=9];",
+    ]
+    for node, attrs in sorted(graph.nodes(data=True), key=lambda na: _sort_key(*na)):
+        kind = str(attrs.get("kind", ""))
+        drone = str(attrs.get("drone", ""))
+        if which != "mdg" and kind in ("seq", "par", "fork"):
+            drone = ""  # structural nodes are assigned only by slicing
+        label = f"{_node_id_text(node, attrs)} {attrs.get('label', kind)}"
+        text = "\n".join(_wrap(label) + ([drone] if drone else []))
+        shape = KIND_SHAPES.get(kind, CONTROL_SHAPE if kind else "ellipse")
+        style = "filled"
+        if which == "mdg" and not attrs.get("native", True):
+            style = "filled,dashed"  # a proxy: executed by another drone
+        fill = colours.get(drone, UNASSIGNED_COLOUR)
+        lines.append(
+            f"  {_node_dot_id(node)} [label={_dot_quote(text)}, shape={shape}, "
+            f"style={_dot_quote(style)}, fillcolor={_dot_quote(fill)}];"
+        )
+
+    def edge_key(e: tuple[Any, Any, dict[str, Any]]) -> tuple[Any, ...]:
+        a, b, _ = e
+        return (_sort_key(a, graph.nodes[a]), _sort_key(b, graph.nodes[b]))
+
+    for a, b, data in sorted(graph.edges(data=True), key=edge_key):
+        attrs_out: list[str] = []
+        kind = str(data.get("role" if which == "amt" else "kind", ""))
+        if which == "amt" and "order" in data:
+            attrs_out.append(f"label={_dot_quote(str(data['order']))}")
+        elif kind in _LABELLED_ARCS:
+            attrs_out.append(f"label={_dot_quote(kind)}")
+        if kind == "loop":
+            attrs_out.append('style="dotted"')
+            if data.get("external"):
+                attrs_out.append("penwidth=2")  # external and a loop arc: dotted, thicker
+        elif data.get("external"):
+            attrs_out.append('style="dashed"')
+        suffix = f" [{', '.join(attrs_out)}]" if attrs_out else ""
+        lines.append(f"  {_node_dot_id(a)} -> {_node_dot_id(b)}{suffix};")
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+# -- SVG ------------------------------------------------------------------------------
+
+
+def render_svg(
+    dot_text: str,
+    *,
+    engine: Literal["auto", "dot", "builtin"] = "auto",
+    timeout: float = DOT_TIMEOUT_S,
+    warnings: list[str] | None = None,
+) -> str:
+    """SVG text for ``dot_text``: Graphviz ``dot -Tsvg`` if installed, else the built-in renderer.
+
+    Graphviz failing, timing out or missing (with ``engine="dot"``) falls back
+    to the built-in renderer; the reason is logged and appended to
+    ``warnings`` when a list is given.  Very large graphs (more than
+    :data:`MAX_DOT_STATEMENTS` nodes and arcs) skip Graphviz, which could run for minutes.
+    """
+
+    def warn(message: str) -> None:
+        log.warning(message)
+        if warnings is not None:
+            warnings.append(message)
+
+    if engine != "builtin":
+        exe = shutil.which("dot")
+        if exe is None:
+            if engine == "dot":
+                warn("Graphviz 'dot' is not installed; drawing with the built-in renderer")
+        elif dot_text.count(";") > MAX_DOT_STATEMENTS:
+            warn(f"graph too large for Graphviz (over {MAX_DOT_STATEMENTS} nodes and arcs); "
+                 "drawing with the built-in renderer")
+        else:
+            try:
+                done = subprocess.run(
+                    [exe, "-Tsvg"], input=dot_text.encode("utf-8"), capture_output=True,
+                    timeout=timeout, check=False,
+                )
+            except subprocess.TimeoutExpired:
+                warn(f"Graphviz took longer than {timeout:g} s; drawing with the built-in renderer")
+            except OSError as exc:
+                warn(f"Graphviz could not run ({exc}); drawing with the built-in renderer")
+            else:
+                if done.returncode == 0 and done.stdout.lstrip().startswith((b"<?xml", b"<svg")):
+                    return done.stdout.decode("utf-8", errors="replace")
+                err = done.stderr.decode("utf-8", errors="replace").strip().splitlines()
+                warn(f"Graphviz failed ({err[0] if err else f'exit code {done.returncode}'}); "
+                     "drawing with the built-in renderer")
+    return builtin_svg(dot_text)
+
+
+# -- built-in renderer: a tiny DOT reader and a layered layout --------------------------
+
+_TOKEN = re.compile(
+    r'\s*(?:(?P<comment>//[^\n]*|#[^\n]*|/\*.*?\*/)|(?P<string>"(?:[^"\\]|\\.)*")'
+    r"|(?P<arrow>->|--)|(?P<punct>[\[\]{};,=])|(?P<ident>-?[\w.@\u0080-\U0010ffff]+))",
+    re.S,
+)
+
+
+@dataclass
+class _DotGraph:
+    name: str = ""
+    graph: dict[str, str] = field(default_factory=dict)
+    nodes: dict[str, dict[str, str]] = field(default_factory=dict)
+    edges: list[tuple[str, str, dict[str, str]]] = field(default_factory=list)
+
+
+def _unquote(token: str) -> str:
+    if token.startswith('"') and token.endswith('"') and len(token) >= 2:
+        body = token[1:-1]
+        out = []
+        i = 0
+        while i < len(body):
+            ch = body[i]
+            if ch == "\\" and i + 1 < len(body):
+                nxt = body[i + 1]
+                out.append("\n" if nxt in "nlr" else nxt)
+                i += 2
+                continue
+            out.append(ch)
+            i += 1
+        return "".join(out)
+    return token
+
+
+def _tokens(text: str) -> list[str]:
+    out = []
+    pos = 0
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if m is None or m.end() == pos:
+            if text[pos:].strip():
+                raise ValueError(f"cannot read DOT text at offset {pos}")
+            break
+        pos = m.end()
+        if m.group("comment") is None:
+            tok = m.group(m.lastgroup or "ident")
+            out.append(tok)
+    return out
+
+
+def parse_dot(text: str) -> _DotGraph:
+    """Read the simple DOT this module writes (statements, attribute lists, edge chains).
+
+    Subgraphs are flattened; ports and HTML labels are not understood.
+    """
+    toks = _tokens(text)
+    g = _DotGraph()
+    i = 0
+    node_defaults: dict[str, str] = {}
+    edge_defaults: dict[str, str] = {}
+    # Header: [strict] (di)graph [name] {
+    while i < len(toks) and toks[i] != "{":
+        if toks[i] not in ("strict", "digraph", "graph"):
+            g.name = _unquote(toks[i])
+        i += 1
+    i += 1
+
+    def attr_list(j: int) -> tuple[dict[str, str], int]:
+        attrs: dict[str, str] = {}
+        while j < len(toks) and toks[j] == "[":
+            j += 1
+            while j < len(toks) and toks[j] != "]":
+                if toks[j] in (",", ";"):
+                    j += 1
+                    continue
+                key = _unquote(toks[j])
+                if j + 2 < len(toks) and toks[j + 1] == "=":
+                    attrs[key] = _unquote(toks[j + 2])
+                    j += 3
+                else:
+                    attrs[key] = "true"
+                    j += 1
+            j += 1
+        return attrs, j
+
+    while i < len(toks):
+        tok = toks[i]
+        if tok in ("}", "{", ";", "subgraph") or (tok not in ("[",) and i + 1 < len(toks)
+                                                   and toks[i + 1] == "{"):
+            i += 1
+            continue
+        if tok in ("graph", "node", "edge") and i + 1 < len(toks) and toks[i + 1] == "[":
+            attrs, i = attr_list(i + 1)
+            {"graph": g.graph, "node": node_defaults, "edge": edge_defaults}[tok].update(attrs)
+            continue
+        if i + 2 < len(toks) and toks[i + 1] == "=":  # graph attribute: a = b
+            g.graph[_unquote(tok)] = _unquote(toks[i + 2])
+            i += 3
+            continue
+        chain = [_unquote(tok)]
+        i += 1
+        while i + 1 < len(toks) and toks[i] in ("->", "--"):
+            chain.append(_unquote(toks[i + 1]))
+            i += 2
+        attrs, i = attr_list(i)
+        for name in chain:
+            if name not in g.nodes:
+                g.nodes[name] = dict(node_defaults)
+        if len(chain) == 1:
+            g.nodes[chain[0]].update(attrs)
+        for a, b in itertools.pairwise(chain):
+            g.edges.append((a, b, {**edge_defaults, **attrs}))
+    return g
+
+
+@dataclass
+class _Box:
+    x: float = 0.0
+    y: float = 0.0
+    w: float = 0.0
+    h: float = 0.0
+    lines: list[str] = field(default_factory=list)
+
+
+_CHAR_W = 6.4  # average width of a 10 pt Helvetica character, in px
+_LINE_H = 13.0
+_LAYER_GAP = 56.0
+_NODE_GAP = 22.0
+_MARGIN = 24.0
+
+
+def _layers(names: list[str], edges: list[tuple[str, str, dict[str, str]]]) -> dict[str, int]:
+    """Longest-path layering after breaking cycles at DFS back arcs (loop arcs)."""
+    succ: dict[str, list[str]] = {n: [] for n in names}
+    for a, b, _ in edges:
+        if a != b:
+            succ[a].append(b)
+    index = {n: i for i, n in enumerate(names)}
+    state: dict[str, int] = {}
+    forward: dict[str, list[str]] = {n: [] for n in names}
+    has_pred = {b for a, b, _ in edges if a != b}
+    roots = [n for n in names if n not in has_pred] + names
+    order: list[str] = []  # post-order
+    for root in roots:
+        if root in state:
+            continue
+        state[root] = 1
+        stack = [(root, iter(sorted(succ[root], key=index.__getitem__)))]
+        while stack:
+            node, it = stack[-1]
+            nxt = next(it, None)
+            if nxt is None:
+                stack.pop()
+                state[node] = 2
+                order.append(node)
+                continue
+            if state.get(nxt) == 1:
+                continue  # back arc: drawn, but ignored for layering
+            forward[node].append(nxt)
+            if nxt not in state:
+                state[nxt] = 1
+                stack.append((nxt, iter(sorted(succ[nxt], key=index.__getitem__))))
+    layer = dict.fromkeys(names, 0)
+    for node in reversed(order):  # reverse post-order is a topological order
+        for nxt in forward[node]:
+            layer[nxt] = max(layer[nxt], layer[node] + 1)
+    return layer
+
+
+def _order_layers(rows: list[list[str]], edges: list[tuple[str, str, dict[str, str]]],
+                  layer: dict[str, int]) -> None:
+    """Barycentre sweeps to reduce crossings (in place)."""
+    up: dict[str, list[str]] = {}
+    down: dict[str, list[str]] = {}
+    for a, b, _ in edges:
+        if layer[a] < layer[b]:
+            down.setdefault(a, []).append(b)
+            up.setdefault(b, []).append(a)
+    for sweep in range(4):
+        pos = {n: i for row in rows for i, n in enumerate(row)}
+        rng = range(1, len(rows)) if sweep % 2 == 0 else range(len(rows) - 2, -1, -1)
+        nbrs = up if sweep % 2 == 0 else down
+        for r in rng:
+            row = rows[r]
+            bary = {}
+            for i, n in enumerate(row):
+                ps = [pos[p] for p in nbrs.get(n, ()) if p in pos]
+                bary[n] = sum(ps) / len(ps) if ps else float(i)
+            row.sort(key=lambda n: (bary[n], pos[n]))
+            for i, n in enumerate(row):
+                pos[n] = i
+
+
+def _shape_points(shape: str, b: _Box) -> str:
+    x0, x1, y0, y1 = b.x - b.w / 2, b.x + b.w / 2, b.y - b.h / 2, b.y + b.h / 2
+    t = min(b.h / 2, 14.0)
+    pts = {
+        "diamond": [(b.x, y0), (x1, b.y), (b.x, y1), (x0, b.y)],
+        "triangle": [(b.x, y0), (x1, y1), (x0, y1)],
+        "cds": [(x0, y0), (x1 - t, y0), (x1, b.y), (x1 - t, y1), (x0, y1)],
+        "larrow": [(x0 + t, y0), (x1, y0), (x1, y1), (x0 + t, y1), (x0, b.y)],
+    }[shape]
+    return " ".join(f"{px:.1f},{py:.1f}" for px, py in pts)
+
+
+def _clip(b: _Box, shape: str, tx: float, ty: float) -> tuple[float, float]:
+    """Where the line from the centre of ``b`` towards (tx, ty) leaves the node."""
+    dx, dy = tx - b.x, ty - b.y
+    if dx == 0 and dy == 0:
+        return b.x, b.y
+    if shape == "ellipse":
+        a, c = b.w / 2, b.h / 2
+        k = 1.0 / math.sqrt((dx / a) ** 2 + (dy / c) ** 2)
+    elif shape in ("diamond", "triangle"):
+        k = 1.0 / (abs(dx) / (b.w / 2) + abs(dy) / (b.h / 2))
+    else:
+        k = min(b.w / 2 / abs(dx) if dx else math.inf, b.h / 2 / abs(dy) if dy else math.inf)
+    k = min(k, 1.0)
+    return b.x + dx * k, b.y + dy * k
+
+
+def _dash(style: str) -> str:
+    if "dotted" in style:
+        return ' stroke-dasharray="2,3"'
+    if "dashed" in style:
+        return ' stroke-dasharray="6,4"'
+    return ""
+
+
+def builtin_svg(dot_text: str) -> str:
+    """Draw DOT text as SVG without Graphviz: layered top to bottom, straight arrows.
+
+    Plain but readable: longest-path layers, barycentre ordering, boxes,
+    ellipses, diamonds and arrows, with the DOT's fill colours and
+    dashed/dotted styles.
+    """
+    g = parse_dot(dot_text)
+    names = list(g.nodes)
+    layer = _layers(names, g.edges)
+    rows: list[list[str]] = [[] for _ in range(max(layer.values(), default=-1) + 1)]
+    for n in names:
+        rows[layer[n]].append(n)
+    _order_layers(rows, g.edges, layer)
+
+    boxes: dict[str, _Box] = {}
+    for n in names:
+        attrs = g.nodes[n]
+        lines = attrs.get("label", n).split("\n")
+        shape = attrs.get("shape", "ellipse")
+        w = max(len(line) for line in lines) * _CHAR_W + 20
+        h = len(lines) * _LINE_H + 14
+        if shape in ("diamond", "triangle"):
+            w, h = w * 1.5, h * 1.6
+        elif shape in ("ellipse", "circle", "oval"):
+            w, h = w * 1.15, h * 1.1
+        boxes[n] = _Box(w=w, h=h, lines=lines)
+
+    title = g.graph.get("label", "")
+    top = _MARGIN + (24.0 if title else 0.0)
+    widths = [sum(boxes[n].w for n in row) + _NODE_GAP * max(len(row) - 1, 0) for row in rows]
+    total_w = max([*widths, len(title) * 7.5, 80.0]) + 2 * _MARGIN
+    y = top
+    for row, width in zip(rows, widths, strict=True):
+        row_h = max((boxes[n].h for n in row), default=0.0)
+        x = (total_w - width) / 2
+        for n in row:
+            b = boxes[n]
+            b.x, b.y = x + b.w / 2, y + row_h / 2
+            x += b.w + _NODE_GAP
+        y += row_h + _LAYER_GAP
+    total_h = y - _LAYER_GAP + _MARGIN if rows else top + _MARGIN
+
+    out = [
+        '<?xml version="1.0" encoding="UTF-8" standalone="no"?>',
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{total_w:.0f}pt" height="{total_h:.0f}pt" '
+        f'viewBox="0 0 {total_w:.1f} {total_h:.1f}" font-family="Helvetica,Arial,sans-serif">',
+        '<defs><marker id="arrow" viewBox="0 0 10 10" refX="10" refY="5" markerWidth="8" '
+        'markerHeight="8" orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z"/>'
+        "</marker></defs>",
+        f'<g class="graph"><title>{_xml_escape(g.name)}</title>',
+        f'<rect x="0" y="0" width="{total_w:.1f}" height="{total_h:.1f}" fill="white"/>',
+    ]
+    if title:
+        out.append(f'<text x="{total_w / 2:.1f}" y="{_MARGIN:.1f}" text-anchor="middle" '
+                   f'font-size="14">{_xml_escape(title)}</text>')
+    for src, dst, eattrs in g.edges:
+        ba, bb = boxes[src], boxes[dst]
+        shape_a = g.nodes[src].get("shape", "ellipse")
+        shape_b = g.nodes[dst].get("shape", "ellipse")
+        if src == dst:  # self loop: a small arc on the right
+            x, y0 = ba.x + ba.w / 2, ba.y
+            path = (f"M{x:.1f},{y0 - 6:.1f} C{x + 30:.1f},{y0 - 20:.1f} "
+                    f"{x + 30:.1f},{y0 + 20:.1f} {x:.1f},{y0 + 6:.1f}")
+            lx, ly = x + 26, y0
+        else:
+            x1, y1 = _clip(ba, shape_a, bb.x, bb.y)
+            x2, y2 = _clip(bb, shape_b, ba.x, ba.y)
+            path = f"M{x1:.1f},{y1:.1f} L{x2:.1f},{y2:.1f}"
+            lx, ly = (x1 + x2) / 2 + 4, (y1 + y2) / 2
+        pen = eattrs.get("penwidth", "1")
+        out.append(f'<g class="edge"><title>{_xml_escape(src)}-&gt;{_xml_escape(dst)}</title>'
+                   f'<path d="{path}" fill="none" stroke="black" '
+                   f'stroke-width="{_xml_escape(pen)}"'
+                   f'{_dash(eattrs.get("style", ""))} marker-end="url(#arrow)"/>')
+        if eattrs.get("label"):
+            out.append(f'<text x="{lx:.1f}" y="{ly:.1f}" font-size="9">'
+                       f'{_xml_escape(eattrs["label"])}</text>')
+        out.append("</g>")
+    for n in names:
+        attrs = g.nodes[n]
+        b = boxes[n]
+        shape = attrs.get("shape", "ellipse")
+        filled = "filled" in attrs.get("style", "filled")
+        fill = attrs.get("fillcolor", "white") if filled else "white"
+        common = f'fill="{_xml_escape(fill)}" stroke="black"{_dash(attrs.get("style", ""))}'
+        out.append(f'<g class="node"><title>{_xml_escape(n)}</title>')
+        if shape in ("box", "rect", "rectangle", "square"):
+            out.append(f'<rect x="{b.x - b.w / 2:.1f}" y="{b.y - b.h / 2:.1f}" width="{b.w:.1f}" '
+                       f'height="{b.h:.1f}" {common}/>')
+        elif shape in ("diamond", "triangle", "cds", "larrow"):
+            out.append(f'<polygon points="{_shape_points(shape, b)}" {common}/>')
+        else:
+            out.append(f'<ellipse cx="{b.x:.1f}" cy="{b.y:.1f}" rx="{b.w / 2:.1f}" '
+                       f'ry="{b.h / 2:.1f}" {common}/>')
+        first = b.y - (len(b.lines) - 1) * _LINE_H / 2 + 3.5
+        if shape == "triangle":
+            first += b.h / 6  # the wide part of a triangle is at the bottom
+        for k, line in enumerate(b.lines):
+            out.append(f'<text x="{b.x:.1f}" y="{first + k * _LINE_H:.1f}" text-anchor="middle" '
+                       f'font-size="10">{_xml_escape(line)}</text>')
+        out.append("</g>")
+    out.append("</g>")
+    out.append("</svg>")
+    return "\n".join(out) + "\n"
+
+
+__all__ = [
+    "GraphKind",
+    "builtin_svg",
+    "drone_colours",
+    "graphml_ready",
+    "parse_dot",
+    "render_svg",
+    "to_dot",
+    "to_graphml",
+]

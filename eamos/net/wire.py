@@ -1,0 +1,514 @@
+"""The EAMOS wire format, version 1: the only place messages become bytes and back.
+
+Every message crossing the network between participants (drones and the ground
+station) is one of the frozen dataclasses below.  On the wire it is a two-frame
+ZeroMQ multipart message ``[topic, payload]``:
+
+* ``topic`` (UTF-8 bytes) decides who receives it (SUB sockets filter on it):
+
+  ========================  =====================================================
+  ``to/<participant>``      addressed to one participant: Trigger, Interrupt,
+                            Ready, Progress, Resolved, Report (``<participant>`` is
+                            the message's ``dest``)
+  ``tm/<drone>``            telemetry published by ``<drone>`` (the ``sender``)
+  ``all``                   broadcasts to everyone: Start, Abort, Complete
+  ========================  =====================================================
+
+  ZeroMQ subscriptions match topic *prefixes* (``to/D1`` also matches
+  ``to/D10``), so receivers must compare topics exactly; :class:`InBridge
+  <eamos.net.bridges.InBridge>` does.  Participant names (``sender``,
+  ``dest``) are therefore non-empty and contain no ``/``.
+
+* ``payload`` is a msgpack map with short string keys.  Keys present in every
+  message:
+
+  =====  ======  ========================================================
+  key    type    meaning
+  =====  ======  ========================================================
+  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 1)
+  ``t``  str     message type code (table below)
+  ``m``  str     mission id; receivers drop messages of other missions
+  ``s``  str     sender: name of the participant that sent the message
+  =====  ======  ========================================================
+
+  Per-type keys (all required; unknown keys are rejected):
+
+  =========  ==============  ======================  ========  ================================
+  code       class           field                   key       type / constraint
+  =========  ==============  ======================  ========  ================================
+  ``trg``    Trigger         dest                    ``d``     str, receiving participant
+                             src_node                ``sn``    str, node on the sender
+                             dst_node                ``dn``    str, node on the receiver
+                             iteration               ``i``     array of int (loop indices)
+                             status                  ``st``    "done" | "skipped" | "failed"
+  ``int``    Interrupt       dest                    ``d``     str
+                             scope                   ``sc``    str, scope being interrupted
+                             iteration               ``i``     array of int
+                             mode                    ``md``    "all" | "waits"
+  ``tel``    TelemetrySample time_s                  ``ts``    float, sender clock (s)
+                             x_m, y_m, z_m           ``x``     float, local frame (m);
+                                                     ``y``     keys ``x`` ``y`` ``z``
+                                                     ``z``
+                             lat_deg, lon_deg        ``lat``   float (deg)
+                                                     ``lon``
+                             alt_m                   ``alt``   float (m)
+                             battery_pct             ``bat``   float (%)
+                             armed                   ``arm``   bool
+                             landed                  ``lnd``   bool
+  ``rdy``    Ready           dest                    ``d``     str (default ``"GCS"``)
+                             program_checksum        ``ck``    str
+  ``sta``    Start           (none)
+  ``abt``    Abort           reason                  ``r``     str
+  ``cmp``    Complete        (none)                            the whole mission is over
+  ``prg``    Progress        dest                    ``d``     str (default ``"GCS"``)
+                             state                   ``st``    str, e.g. "started", "done"
+                             node                    ``n``     str
+                             action                  ``a``     str
+                             detail                  ``dt``    map str -> plain data
+  ``res``    Resolved        dest                    ``d``     str (default ``"GCS"``)
+  ``rep``    Report          dest                    ``d``     str (default ``"GCS"``)
+                             report                  ``rp``    map str -> plain data
+  =========  ==============  ======================  ========  ================================
+
+  Floats accept msgpack ints on decode (converted to float); bools are never
+  accepted where numbers are expected.  "Plain data" is nil, bool, int, float,
+  str, bin, array and str-keyed maps, nested at most :data:`MAX_DEPTH` deep
+  (arrays come back as lists).
+
+Ready, Progress, Resolved and Report are addressed to the ground station; their
+``dest`` defaults to :data:`GROUND_STATION` so their constructors stay short.
+
+:func:`decode` raises :class:`WireError`, and nothing else, for any malformed
+input: wrong frame count, oversize frames, payload that is not msgpack, wrong or
+missing version, unknown type, missing, extra or wrongly typed fields, or a topic
+that does not match the message.  Changing anything in this table means bumping
+:data:`WIRE_VERSION`; ``docs/wire-format.md`` holds the same table.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar, Final
+
+import msgpack
+
+from eamos.hal.uniform import GROUND_STATION as _GCS
+
+__all__ = [
+    "GROUND_STATION",
+    "INTERRUPT_MODES",
+    "MAX_DEPTH",
+    "MAX_PAYLOAD_BYTES",
+    "MAX_TOPIC_BYTES",
+    "MESSAGE_TYPES",
+    "TOPIC_ALL",
+    "TRIGGER_STATUSES",
+    "WIRE_VERSION",
+    "Abort",
+    "Complete",
+    "Interrupt",
+    "Message",
+    "Progress",
+    "Ready",
+    "Report",
+    "Resolved",
+    "Start",
+    "TelemetrySample",
+    "Trigger",
+    "WireError",
+    "decode",
+    "encode",
+    "topic_telemetry",
+    "topic_to",
+]
+
+WIRE_VERSION: Final = 1
+"""Version of this format, carried in every payload under key ``v``."""
+
+GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground station
+"""Default participant name of the ground station (``dest`` of status messages)."""
+
+TOPIC_ALL: Final = b"all"
+"""Topic of broadcasts (Start, Abort, Complete)."""
+
+TRIGGER_STATUSES: Final = frozenset({"done", "skipped", "failed"})
+INTERRUPT_MODES: Final = frozenset({"all", "waits"})
+
+# Limits applied before and during unpacking so a hostile or broken peer cannot
+# make a receiver allocate without bound.  Reports are the largest legitimate
+# messages and stay far below this.
+MAX_PAYLOAD_BYTES: Final = 1 << 20
+MAX_TOPIC_BYTES: Final = 256
+MAX_DEPTH: Final = 32
+_MAX_CONTAINER_LEN: Final = 1 << 16
+
+
+class WireError(ValueError):
+    """A message could not be encoded or decoded (the network layer's one error type)."""
+
+
+def topic_to(participant: str) -> bytes:
+    """Topic of messages addressed to ``participant`` (``b"to/<participant>"``)."""
+    return b"to/" + participant.encode("utf-8")
+
+
+def topic_telemetry(drone: str) -> bytes:
+    """Topic of the telemetry published by ``drone`` (``b"tm/<drone>"``)."""
+    return b"tm/" + drone.encode("utf-8")
+
+
+# ---------------------------------------------------------------------------
+# Field kinds: one validator per kind, used both when a message is constructed
+# (so a bad message fails at the sender, not at the receiver) and when decoded.
+
+
+def _check_name(value: Any, name: str) -> str:
+    # Participant names end up in topics: keep them non-empty and free of "/",
+    # which would make "to/<name>" ambiguous.
+    if not isinstance(value, str) or not value or "/" in value:
+        raise WireError(f"{name}: expected a non-empty name without '/', got {value!r}")
+    return value
+
+
+def _check_str(value: Any, name: str) -> str:
+    if not isinstance(value, str):
+        raise WireError(f"{name}: expected str, got {type(value).__name__}")
+    return value
+
+
+def _check_float(value: Any, name: str) -> float:
+    # bool is an int subclass; a True in a coordinate is a bug, not a 1.0.
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise WireError(f"{name}: expected a number, got {type(value).__name__}")
+    try:
+        return float(value)
+    except OverflowError as exc:  # ints beyond float range
+        raise WireError(f"{name}: number out of range") from exc
+
+
+def _check_bool(value: Any, name: str) -> bool:
+    if not isinstance(value, bool):
+        raise WireError(f"{name}: expected bool, got {type(value).__name__}")
+    return value
+
+
+def _check_iteration(value: Any, name: str) -> tuple[int, ...]:
+    # Lists are accepted because msgpack decodes arrays as lists; the message
+    # always holds a tuple so it stays hashable and compares equal after a trip.
+    if not isinstance(value, tuple | list):
+        raise WireError(f"{name}: expected a sequence of int, got {type(value).__name__}")
+    for item in value:
+        if isinstance(item, bool) or not isinstance(item, int):
+            raise WireError(f"{name}: expected int items, got {item!r}")
+    return tuple(value)
+
+
+def _check_plain(value: Any, name: str, depth: int) -> None:
+    if depth > MAX_DEPTH:
+        raise WireError(f"{name}: nested deeper than {MAX_DEPTH}")
+    if value is None or isinstance(value, bool | int | str | bytes):
+        return
+    if isinstance(value, float):
+        return
+    if isinstance(value, list | tuple):
+        for item in value:
+            _check_plain(item, name, depth + 1)
+        return
+    if isinstance(value, dict):
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise WireError(f"{name}: map keys must be str, got {key!r}")
+            _check_plain(item, name, depth + 1)
+        return
+    raise WireError(f"{name}: {type(value).__name__} is not plain data")
+
+
+def _check_map(value: Any, name: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise WireError(f"{name}: expected a map, got {type(value).__name__}")
+    _check_plain(value, name, 0)
+    return value
+
+
+def _check_choice(choices: frozenset[str]) -> Any:
+    def check(value: Any, name: str) -> str:
+        # isinstance first: membership of an unhashable value would raise TypeError.
+        if not isinstance(value, str) or value not in choices:
+            raise WireError(f"{name}: expected one of {sorted(choices)}, got {value!r}")
+        return str(value)
+
+    return check
+
+
+def _m(key: str, check: Any) -> dict[str, Any]:
+    """Field metadata: the field's wire key and its validator."""
+    return {"key": key, "check": check}
+
+
+# ---------------------------------------------------------------------------
+# Messages.
+
+
+@dataclass(frozen=True)
+class _Base:
+    """Fields shared by every message; subclasses set ``CODE`` and ``KIND``."""
+
+    CODE: ClassVar[str] = ""
+    # How the topic is derived: "to" (from dest), "tm" (from sender) or "all".
+    KIND: ClassVar[str] = ""
+
+    mission: str = field(metadata=_m("m", _check_str))
+    sender: str = field(metadata=_m("s", _check_name))
+
+    def __post_init__(self) -> None:
+        # Validate and normalise every field (e.g. list -> tuple, int -> float).
+        # object.__setattr__ is the documented way to do this in a frozen dataclass.
+        for f in fields(self):
+            value = f.metadata["check"](getattr(self, f.name), f"{type(self).__name__}.{f.name}")
+            object.__setattr__(self, f.name, value)
+
+    @property
+    def topic(self) -> bytes:
+        """The ZeroMQ topic this message is published on."""
+        if self.KIND == "to":
+            return topic_to(self.dest)  # type: ignore[attr-defined]
+        if self.KIND == "tm":
+            return topic_telemetry(self.sender)
+        return TOPIC_ALL
+
+
+@dataclass(frozen=True)
+class Trigger(_Base):
+    """External arc: ``src_node`` on ``sender`` resolved; trigger ``dst_node`` on ``dest``."""
+
+    CODE: ClassVar[str] = "trg"
+    KIND: ClassVar[str] = "to"
+
+    dest: str = field(metadata=_m("d", _check_name))
+    src_node: str = field(metadata=_m("sn", _check_str))
+    dst_node: str = field(metadata=_m("dn", _check_str))
+    iteration: tuple[int, ...] = field(metadata=_m("i", _check_iteration))
+    status: str = field(metadata=_m("st", _check_choice(TRIGGER_STATUSES)))
+
+
+@dataclass(frozen=True)
+class Interrupt(_Base):
+    """Interrupt ``scope`` (at ``iteration``) on ``dest``; mode "all" or only its "waits"."""
+
+    CODE: ClassVar[str] = "int"
+    KIND: ClassVar[str] = "to"
+
+    dest: str = field(metadata=_m("d", _check_name))
+    scope: str = field(metadata=_m("sc", _check_str))
+    iteration: tuple[int, ...] = field(metadata=_m("i", _check_iteration))
+    mode: str = field(metadata=_m("md", _check_choice(INTERRUPT_MODES)))
+
+
+@dataclass(frozen=True)
+class TelemetrySample(_Base):
+    """Latest state of the sender drone, read by other drones' conditions."""
+
+    CODE: ClassVar[str] = "tel"
+    KIND: ClassVar[str] = "tm"
+
+    time_s: float = field(metadata=_m("ts", _check_float))
+    x_m: float = field(metadata=_m("x", _check_float))
+    y_m: float = field(metadata=_m("y", _check_float))
+    z_m: float = field(metadata=_m("z", _check_float))
+    lat_deg: float = field(metadata=_m("lat", _check_float))
+    lon_deg: float = field(metadata=_m("lon", _check_float))
+    alt_m: float = field(metadata=_m("alt", _check_float))
+    battery_pct: float = field(metadata=_m("bat", _check_float))
+    armed: bool = field(metadata=_m("arm", _check_bool))
+    landed: bool = field(metadata=_m("lnd", _check_bool))
+
+
+@dataclass(frozen=True)
+class Ready(_Base):
+    """The sender loaded its program and every participant it sends to has subscribed."""
+
+    CODE: ClassVar[str] = "rdy"
+    KIND: ClassVar[str] = "to"
+
+    program_checksum: str = field(metadata=_m("ck", _check_str))
+    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+
+
+@dataclass(frozen=True)
+class Start(_Base):
+    """Broadcast by the ground station: every drone starts its program."""
+
+    CODE: ClassVar[str] = "sta"
+    KIND: ClassVar[str] = "all"
+
+
+@dataclass(frozen=True)
+class Abort(_Base):
+    """Broadcast: stop the mission now (drones run their failsafe)."""
+
+    CODE: ClassVar[str] = "abt"
+    KIND: ClassVar[str] = "all"
+
+    reason: str = field(metadata=_m("r", _check_str))
+
+
+@dataclass(frozen=True)
+class Complete(_Base):
+    """Broadcast by the ground station: the whole mission is over."""
+
+    CODE: ClassVar[str] = "cmp"
+    KIND: ClassVar[str] = "all"
+
+
+@dataclass(frozen=True)
+class Progress(_Base):
+    """A node/action event on the sender, for live display at the ground station."""
+
+    CODE: ClassVar[str] = "prg"
+    KIND: ClassVar[str] = "to"
+
+    state: str = field(metadata=_m("st", _check_str))
+    node: str = field(metadata=_m("n", _check_str))
+    action: str = field(metadata=_m("a", _check_str))
+    detail: dict[str, Any] = field(metadata=_m("dt", _check_map), default_factory=dict)
+    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+
+
+@dataclass(frozen=True)
+class Resolved(_Base):
+    """The sender's top-level nodes are all resolved."""
+
+    CODE: ClassVar[str] = "res"
+    KIND: ClassVar[str] = "to"
+
+    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+
+
+@dataclass(frozen=True)
+class Report(_Base):
+    """Final per-drone summary, sent to the ground station."""
+
+    CODE: ClassVar[str] = "rep"
+    KIND: ClassVar[str] = "to"
+
+    report: dict[str, Any] = field(metadata=_m("rp", _check_map))
+    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+
+
+Message = (
+    Trigger
+    | Interrupt
+    | TelemetrySample
+    | Ready
+    | Start
+    | Abort
+    | Complete
+    | Progress
+    | Resolved
+    | Report
+)
+"""Any message of the wire format."""
+
+MESSAGE_TYPES: Final[tuple[type[_Base], ...]] = (
+    Trigger,
+    Interrupt,
+    TelemetrySample,
+    Ready,
+    Start,
+    Abort,
+    Complete,
+    Progress,
+    Resolved,
+    Report,
+)
+
+_BY_CODE: Final[dict[str, type[_Base]]] = {cls.CODE: cls for cls in MESSAGE_TYPES}
+# Wire key -> field name, per type; computed once (immutable afterwards).
+_KEYS: Final[dict[type[_Base], dict[str, str]]] = {
+    cls: {f.metadata["key"]: f.name for f in fields(cls)} for cls in MESSAGE_TYPES
+}
+_ENVELOPE_KEYS: Final = frozenset({"v", "t"})
+
+
+# ---------------------------------------------------------------------------
+# Encode / decode: the seam where a later reliability layer (sequence numbers,
+# acks, signatures) would extend the envelope.
+
+
+def encode(msg: Message) -> list[bytes]:
+    """Encode ``msg`` as the multipart frames ``[topic, payload]``.
+
+    Raises :class:`WireError` if ``msg`` is not a wire message or its payload
+    does not fit in :data:`MAX_PAYLOAD_BYTES`.
+    """
+    cls = type(msg)
+    if cls not in _KEYS:
+        raise WireError(f"not a wire message: {cls.__name__}")
+    body: dict[str, Any] = {"v": WIRE_VERSION, "t": cls.CODE}
+    for key, name in _KEYS[cls].items():
+        value = getattr(msg, name)
+        # Tuples pack as arrays anyway; lists keep the packer on its fast path.
+        body[key] = list(value) if isinstance(value, tuple) else value
+    try:
+        payload = msgpack.packb(body, use_bin_type=True)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise WireError(f"cannot encode {cls.__name__}: {exc}") from exc
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        raise WireError(f"{cls.__name__} payload of {len(payload)} bytes exceeds the limit")
+    return [msg.topic, payload]
+
+
+def decode(frames: Sequence[bytes]) -> Message:
+    """Decode multipart ``frames`` (``[topic, payload]``) into a message.
+
+    Raises :class:`WireError`, and only that, for any malformed input.
+    """
+    if not isinstance(frames, list | tuple) or len(frames) != 2:
+        count = len(frames) if isinstance(frames, list | tuple) else type(frames).__name__
+        raise WireError(f"expected 2 frames [topic, payload], got {count}")
+    topic, payload = frames
+    if not isinstance(topic, bytes | bytearray | memoryview) or not isinstance(
+        payload, bytes | bytearray | memoryview
+    ):
+        raise WireError("frames must be bytes")
+    if len(topic) > MAX_TOPIC_BYTES:
+        raise WireError(f"topic of {len(topic)} bytes exceeds {MAX_TOPIC_BYTES}")
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        raise WireError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}")
+    try:
+        body = msgpack.unpackb(
+            payload,
+            raw=False,
+            strict_map_key=True,
+            max_str_len=MAX_PAYLOAD_BYTES,
+            max_bin_len=MAX_PAYLOAD_BYTES,
+            max_array_len=_MAX_CONTAINER_LEN,
+            max_map_len=_MAX_CONTAINER_LEN,
+            max_ext_len=0,
+        )
+    # msgpack signals bad input with ValueError subclasses (incl. UnicodeDecodeError),
+    # its own UnpackException family, TypeError (e.g. unhashable keys) and
+    # OverflowError; all mean "not a valid payload".
+    except (ValueError, TypeError, OverflowError, msgpack.UnpackException) as exc:
+        raise WireError(f"payload is not valid msgpack: {exc}") from exc
+    if not isinstance(body, dict):
+        raise WireError(f"payload must be a map, got {type(body).__name__}")
+    version = body.get("v")
+    # type() rather than isinstance: True and 1.0 both compare equal to 1.
+    if type(version) is not int or version != WIRE_VERSION:
+        raise WireError(f"unsupported wire version {version!r} (expected {WIRE_VERSION})")
+    code = body.get("t")
+    cls = _BY_CODE.get(code) if isinstance(code, str) else None
+    if cls is None:
+        raise WireError(f"unknown message type {code!r}")
+    keys = _KEYS[cls]
+    present = set(body) - _ENVELOPE_KEYS
+    if present != set(keys):
+        missing = sorted(set(keys) - present)
+        extra = sorted(map(repr, present - set(keys)))
+        raise WireError(f"{cls.__name__}: missing keys {missing}, unexpected keys {extra}")
+    msg: Message = cls(**{name: body[key] for key, name in keys.items()})  # type: ignore[assignment]
+    if bytes(topic) != msg.topic:
+        raise WireError(f"{cls.__name__} on topic {bytes(topic)!r}, expected {msg.topic!r}")
+    return msg
