@@ -26,8 +26,8 @@ from typing import Any
 from .actors.ground import DroneView, GroundStation
 from .actors.runtime import DroneRuntime, NetSettings
 from .compiler import CompiledMission, compile_file
-from .config import FleetConfig
-from .hal import make_adapter
+from .config import ConfigError, FleetConfig
+from .hal import AdapterError, make_adapter
 from .hal.uniform import GROUND_STATION
 from .logs import make_logger
 from .net import wire
@@ -65,6 +65,24 @@ def free_ports(n: int) -> list[int]:
 def _default_run_dir(compiled: CompiledMission) -> Path:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     return Path("runs") / f"{compiled.mission.name}-{stamp}"
+
+
+def check_hal_settings(drone: str, hal: dict[str, Any], fleet_path: Path | None) -> None:
+    """Validate a drone's hardware settings before any process starts (ConfigError if bad)."""
+    try:
+        adapter = make_adapter(drone, hal, make_logger(None))
+    except AdapterError as exc:
+        where = f"{fleet_path}: drones.{drone}." if fleet_path else f"{drone}: "
+        raise ConfigError(f"{where}{exc}") from exc
+    adapter.close()
+
+
+def _last_line(path: Path) -> str:
+    try:
+        lines = [ln for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return ""
+    return lines[-1] if lines else ""
 
 
 def _toml_value(value: Any) -> str:
@@ -238,6 +256,7 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
         hal = opts.fleet.hal_for(name)
         if opts.speedup is not None and hal.get("adapter", "sim") == "sim":
             hal["speedup"] = opts.speedup
+        check_hal_settings(name, hal, opts.fleet.path)
         peers = {n: e for n, e in endpoints.items() if n != name}
         text = node_config_text(name, f"../programs/{name}.program.json", f"../logs/{name}",
                                 endpoints[name], peers, hal, opts.ready_timeout_s)
@@ -265,7 +284,8 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
         exits[name] = code
         view = station.snapshot().get(name)
         if view is not None and view.report is None:
-            station.fail(name, f"process exited with code {code}")
+            why = _last_line(run_dir / "logs" / name / "node.out")
+            station.fail(name, f"process exited with code {code}" + (f": {why}" if why else ""))
 
     fleet = LocalFleet(on_exit)
     started = time.time()

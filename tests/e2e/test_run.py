@@ -1,0 +1,178 @@
+"""End to end through ``eamos run``: real processes (one per drone), real sockets, simulated drones."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+MISSIONS = REPO / "missions"
+RUN_TIMEOUT_S = 240
+pytestmark = pytest.mark.e2e
+
+LOOP_FREE = {"experiment_a", "experiment_b", "experiment_c", "listing01_demo", "inspection_if",
+             "relay_wait"}
+FLEETS = {"experiment_d": REPO / "configs" / "experiment_d_pilot.toml"}
+
+
+def eamos(*args: str, timeout: float = RUN_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "eamos.cli", *args], capture_output=True, text=True,
+                          timeout=timeout, cwd=REPO)
+
+
+def run_mission(tmp_path: Path, mission: Path, *extra: str) -> tuple[subprocess.CompletedProcess[str], dict]:
+    summary = tmp_path / "summary.json"
+    proc = eamos("run", str(mission), "--speedup", "20", "--plain", "--no-svg", "--timeout", "150",
+                 "--run-dir", str(tmp_path / "run"), "--summary", str(summary), *extra)
+    data = json.loads(summary.read_text()) if summary.exists() else {}
+    return proc, data
+
+
+def by_action(actions: list[dict]) -> list[dict]:
+    return sorted(actions, key=lambda a: a["start"])
+
+
+@pytest.mark.parametrize("mission", sorted(p.stem for p in MISSIONS.glob("*.go")))
+def test_every_mission_flies_and_finishes(tmp_path, mission):
+    extra = ("--fleet", str(FLEETS[mission])) if mission in FLEETS else ()
+    proc, summary = run_mission(tmp_path, MISSIONS / f"{mission}.go", *extra)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert summary["ok"] and summary["drones"]
+    for name, report in summary["drones"].items():
+        assert report["ok"], (name, report)
+        assert all(a["result"] in ("ok", "cancelled") for a in report["actions"])
+        final = report["final"]
+        # Listing 13 lands only D3; D1 and D2 end the paper's mission hovering.
+        if not (mission == "experiment_d" and name in ("D1", "D2")):
+            assert final is not None and final["z"] == pytest.approx(0.0, abs=0.15), (name, final)
+        if mission in LOOP_FREE:
+            # The paper's Table 7 check: triggers on the wire equal the MDG's external arcs.
+            assert report["triggers_sent"] == report["external_out"], name
+            assert report["triggers_received"] == report["external_in"], name
+    assert (Path(summary["run_dir"]) / "logs").is_dir()
+
+
+def test_experiment_b_happens_before(tmp_path):
+    proc, summary = run_mission(tmp_path, MISSIONS / "experiment_b.go")
+    assert proc.returncode == 0, proc.stderr
+    d1 = by_action(summary["drones"]["Drone1"]["actions"])
+    d2 = by_action(summary["drones"]["Drone2"]["actions"])
+    names = [a["action"] for a in d1]
+    assert names == ["Arm", "Takeoff", "FlyByX", "FlyByY", "FlyByX", "FlyByY", "FlyByZ", "Land", "Disarm"]
+    assert [a["action"] for a in d2] == names
+    assert d1[0]["end"] <= d2[0]["start"]  # armed one after the other
+    assert d1[1]["start"] < d2[1]["end"] and d2[1]["start"] < d1[1]["end"]  # take-offs overlap
+    for side in range(2, 6):  # each side of the square: both finish before either starts the next
+        assert max(d1[side]["end"], d2[side]["end"]) <= min(d1[side + 1]["start"], d2[side + 1]["start"])
+    assert d1[6]["end"] <= d2[6]["start"]  # Drone1 climbs before Drone2
+    for report in summary["drones"].values():
+        final = report["final"]
+        assert abs(final["x"]) < 0.2 and abs(final["y"]) < 0.2 and not final["armed"]
+
+
+def test_experiment_d_pilot_moves_the_real_drones(tmp_path):
+    proc, summary = run_mission(tmp_path, MISSIONS / "experiment_d.go", "--fleet", str(FLEETS["experiment_d"]))
+    assert proc.returncode == 0, proc.stderr
+    d1 = [a for a in summary["drones"]["D1"]["actions"] if a["action"] == "FlyByX"]
+    d2 = [a for a in summary["drones"]["D2"]["actions"] if a["action"] == "FlyByX"]
+    assert {a["args"][0] for a in d1} == {0.2, -0.2} and {a["args"][0] for a in d2} == {0.2, -0.2}
+    assert summary["drones"]["D3"]["final"]["x"] == pytest.approx(40.0, abs=0.5)  # landed outside
+    assert [a["action"] for a in summary["drones"]["D3"]["actions"]][-1] == "Land"
+
+
+INDEPENDENT = """
+func PAR_Main() {
+    SEQ_One()
+    SEQ_Two()
+}
+func SEQ_One() {
+    Drone1.Arm()
+    Drone1.Takeoff(2)
+    Drone1.FlyByX(2)
+    Drone1.Land()
+}
+func SEQ_Two() {
+    Drone2.Arm()
+    Drone2.Takeoff(2)
+    Drone2.FlyByY(2)
+    Drone2.Land()
+    Drone2.Disarm()
+}
+"""
+
+
+def test_failed_action_stops_dependents_and_independent_drone_finishes(tmp_path):
+    mission = tmp_path / "independent.go"
+    mission.write_text(INDEPENDENT)
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text('[drones.Drone1.hal]\nadapter = "sim"\nreject_actions = ["FlyByX"]\n')
+    proc, summary = run_mission(tmp_path, mission, "--fleet", str(fleet))
+    assert proc.returncode == 1
+    d1 = summary["drones"]["Drone1"]
+    assert [(a["action"], a["result"]) for a in d1["actions"]] == [
+        ("Arm", "ok"), ("Takeoff", "ok"), ("FlyByX", "failed")]
+    assert "rejected" in d1["actions"][-1]["reason"] and not d1["ok"] and d1["blocked_nodes"]
+    d2 = summary["drones"]["Drone2"]
+    assert d2["ok"] and [a["result"] for a in d2["actions"]] == ["ok"] * 5
+    assert "FlyByX failed" in proc.stdout
+
+
+def test_bad_mission_is_a_located_error_not_a_traceback(tmp_path):
+    mission = tmp_path / "bad.go"
+    mission.write_text("func SEQ_M() {\n    Drone1.Takeof(1)\n}\n")
+    proc = eamos("run", str(mission), "--plain")
+    assert proc.returncode == 2
+    assert f"{mission}:2:5" in proc.stderr and "did you mean Takeoff" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_bad_fleet_file_names_the_field(tmp_path):
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text("[drones.Drone1.hal]\nadapter = \"sim\"\nspeeedup = 3\n")
+    proc, _ = run_mission(tmp_path, MISSIONS / "experiment_a.go", "--fleet", str(fleet))
+    assert proc.returncode != 0
+    assert "speeedup" in proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_node_with_bad_config_names_the_field(tmp_path):
+    cfg = tmp_path / "d1.toml"
+    cfg.write_text('drone = "Drone1"\nprogram = "p.json"\n[net]\nbind = "nonsense"\n')
+    proc = subprocess.run([sys.executable, "-m", "eamos.node", "--config", str(cfg)], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 2
+    assert "net.bind" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_ctrl_c_lands_everyone_and_leaves_no_process(tmp_path):
+    run_dir = tmp_path / "run"
+    summary = tmp_path / "summary.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "eamos.cli", "run", str(MISSIONS / "experiment_b.go"), "--speedup", "2",
+         "--plain", "--no-svg", "--run-dir", str(run_dir), "--summary", str(summary)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO)
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:  # wait until the square is being flown
+            if "running   FlyByY" in line:
+                break
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=RUN_TIMEOUT_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, out
+    data = json.loads(summary.read_text())
+    assert data["outcome"] == "aborted by the operator"
+    for name, report in data["drones"].items():
+        assert report["aborted"], name
+        assert report["final"]["z"] == pytest.approx(0.0, abs=0.15), name
+    leftovers = subprocess.run(["pgrep", "-f", str(run_dir)], capture_output=True, text=True)
+    assert leftovers.stdout.strip() == "", f"processes left behind: {leftovers.stdout}"
+    assert os.path.exists(run_dir / "logs" / "Drone1" / "mission.log")
