@@ -7,6 +7,7 @@ tests) write to their own files.  The schema is documented in ``docs/logs.md``.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from dataclasses import dataclass
@@ -53,8 +54,13 @@ class _Discard:
         pass
 
 
-def make_logger(path: Path | None, **context: Any) -> structlog.typing.FilteringBoundLogger:
-    """A JSON-lines logger writing to ``path`` (or discarding, when ``path`` is None)."""
+def make_logger(path: Path | None, level: int = logging.INFO,
+                **context: Any) -> structlog.typing.FilteringBoundLogger:
+    """A JSON-lines logger writing to ``path`` (or discarding, when ``path`` is None).
+
+    ``level`` filters before any rendering happens: debug events (every internal
+    trigger) cost nothing unless asked for with ``level=logging.DEBUG``.
+    """
     sink: _LockedFile | _Discard
     if path is None:
         sink = _Discard()
@@ -70,7 +76,7 @@ def make_logger(path: Path | None, **context: Any) -> structlog.typing.Filtering
             structlog.processors.format_exc_info,
             structlog.processors.JSONRenderer(sort_keys=False, default=str),
         ],
-        wrapper_class=structlog.make_filtering_bound_logger(0),
+        wrapper_class=structlog.make_filtering_bound_logger(level),
         cache_logger_on_first_use=False,
     )
     return logger.bind(**context)  # type: ignore[no-any-return]

@@ -29,6 +29,7 @@ from .compiler import CompiledMission, compile_file
 from .config import ConfigError, FleetConfig
 from .hal import AdapterError, make_adapter
 from .hal.uniform import GROUND_STATION
+from .hal.vehicles import start_sim_vehicles
 from .logs import make_logger
 from .net import wire
 
@@ -252,8 +253,11 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
     configs_dir = run_dir / "configs"
     configs_dir.mkdir(exist_ok=True)
     configs: dict[str, Path] = {}
+    # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
+    vehicles = start_sim_vehicles({n: opts.fleet.hal_for(n) for n in drones}, run_dir / "logs",
+                                  opts.speedup)
     for name in drones:
-        hal = opts.fleet.hal_for(name)
+        hal = vehicles.hal_for(name)
         if opts.speedup is not None and hal.get("adapter", "sim") == "sim":
             hal["speedup"] = opts.speedup
         check_hal_settings(name, hal, opts.fleet.path)
@@ -327,6 +331,7 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
             display.refresh()
     finally:
         fleet.wait(30) or fleet.terminate()
+        vehicles.stop()
         gcs_report = runtime.report() if runtime.executive is not None else {}
         runtime.stop()
     duration = time.time() - started

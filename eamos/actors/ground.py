@@ -76,16 +76,12 @@ class GroundStation:
                 view.report = dict(msg.report)
             elif isinstance(msg, wire.Progress):
                 view.node = msg.node
-                if msg.state == "running":
-                    view.action, view.state = msg.action, "running"
-                elif msg.state == "waiting":
-                    view.action, view.state = msg.action, "waiting"
-                else:
-                    view.state = msg.state
-                    if msg.state == "ok":
-                        view.done_actions += 1
-                    elif msg.state == "failed":
-                        view.failed_actions += 1
+                view.action, view.state = msg.action, msg.state
+                finished = msg.detail.get("finished")
+                if isinstance(finished, int):
+                    view.done_actions = finished
+                if msg.state == "failed":
+                    view.failed_actions += 1
                 view.events.append({"t": time.time(), "state": msg.state, "node": msg.node,
                                     "action": msg.action, **msg.detail})
             elif isinstance(msg, wire.TelemetrySample):

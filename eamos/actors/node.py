@@ -14,11 +14,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-import pykka
-
 from ..hal.actor import ActionFinished, CancelAction, RunAction
 from ..program.conditions import Unknown, evaluate, properties, to_text
 from ..program.format import ProgramNode
+from .dispatch import Dispatcher, PooledActor
 from .messages import (
     AbortMission,
     ActionRecord,
@@ -95,12 +94,13 @@ class _Pending:
     since: float = field(default_factory=time.monotonic)
 
 
-class MissionNode(pykka.ThreadingActor):
-    """The actor executing one native node of a drone's MDG."""
+class MissionNode(PooledActor):
+    """The actor executing one native node of a drone's MDG (on the runtime's dispatcher)."""
 
-    def __init__(self, spec: ProgramNode, routes: tuple[Route, ...], entry: frozenset[str],
-                 loop: frozenset[str], drone: str, log: Any, begin_kind: str = "") -> None:
-        super().__init__()
+    def __init__(self, dispatcher: Dispatcher, spec: ProgramNode, routes: tuple[Route, ...],
+                 entry: frozenset[str], loop: frozenset[str], drone: str, log: Any,
+                 begin_kind: str = "") -> None:
+        super().__init__(dispatcher)
         self.spec = spec
         self.key = spec.key
         self.routes = routes
@@ -240,9 +240,9 @@ class MissionNode(pykka.ThreadingActor):
             return
         assert self.links is not None
         result = msg.result
+        # The record doubles as the "finished" progress event (one message, not two).
         self.links.executive.tell(ActionRecord(self.key, msg.action, tuple(msg.args), act,
                                                msg.start_s, msg.end_s, result.status, result.reason))
-        self._event(act, result.status, result.reason)
         if self.aborted:
             return
         status = _RESULT_STATUS[result.status]

@@ -3,7 +3,7 @@
 :class:`DroneRuntime` loads a drone program and builds, for that drone only:
 one :class:`~.node.MissionNode` actor per native MDG node, the uniform-API
 actor over its adapter, a :class:`TelemetryBoard` (latest property values,
-pushed to the conditions that read them), an :class:`OutBridgeActor` and an
+pushed to the conditions that read them), an :class:`Outbox` (the Out-Bridge) and an
 In-Bridge to the other participants, and a :class:`DroneExecutive` that keeps
 the records.  It holds no global state: two runtimes live happily in one
 process (as the tests do).
@@ -45,6 +45,7 @@ from .messages import (
     Unwatch,
     Watch,
 )
+from .dispatch import Dispatcher
 from .node import BroadcastInterrupt, Links, MissionNode, Route, Wire
 
 
@@ -129,26 +130,33 @@ class _WhenLanded:
     event: threading.Event
 
 
-class OutBridgeActor(pykka.ThreadingActor):
-    """The Out-Bridge (paper Figures 10, 11): packs triggers for remote drones onto the wire."""
+class Outbox:
+    """The Out-Bridge (paper Figures 10, 11): packs messages for remote drones onto the wire.
+
+    It takes messages with ``tell`` like an actor, but handles them in the
+    caller's thread: the network Out-Bridge's ``send`` is already a thread-safe
+    hand-over to its own socket thread, and a second queue would only add a
+    context switch to every cross-drone trigger.
+    """
 
     def __init__(self, bridge: OutBridge, drone: str, mission_id: str, log: Any) -> None:
-        super().__init__()
         self.bridge = bridge
         self.drone = drone
         self.mission_id = mission_id
         self.log = log
+        self._lock = threading.Lock()
         self.triggers_sent = 0
         self.sent_by_dest: dict[str, int] = {}
 
-    def on_receive(self, message: Any) -> Any:
+    def tell(self, message: Any) -> None:
         if isinstance(message, SendTrigger):
             t = message.trigger
             self.bridge.send(wire.Trigger(mission=self.mission_id, sender=self.drone, dest=message.dest,
                                           src_node=t.src, dst_node=t.dst, iteration=t.iteration,
                                           status=t.status))
-            self.triggers_sent += 1
-            self.sent_by_dest[message.dest] = self.sent_by_dest.get(message.dest, 0) + 1
+            with self._lock:
+                self.triggers_sent += 1
+                self.sent_by_dest[message.dest] = self.sent_by_dest.get(message.dest, 0) + 1
             self.log.info("mission.outbridge.sent", dest=message.dest, src=t.src, dst=t.dst,
                           iteration=list(t.iteration), status=t.status)
         elif isinstance(message, SendInterrupt):
@@ -157,16 +165,19 @@ class OutBridgeActor(pykka.ThreadingActor):
                                             scope=str(i.scope), iteration=i.iteration, mode=i.mode))
             self.log.info("mission.outbridge.interrupt", dest=message.dest, scope=i.scope,
                           iteration=list(i.iteration), mode=i.mode)
-        elif isinstance(message, wire.TelemetrySample | wire.Progress | wire.Resolved | wire.Ready
-                        | wire.Report | wire.Start | wire.Abort | wire.Complete):
+        else:
             self.bridge.send(message)
-        elif isinstance(message, _Counts):
+
+    def counts(self) -> dict[str, Any]:
+        with self._lock:
             return {"triggers_sent": self.triggers_sent, "by_dest": dict(self.sent_by_dest)}
-        return None
+
+
+PROGRESS_INTERVAL_S = 0.1
 
 
 @dataclass(frozen=True)
-class _Counts:
+class _FlushProgress:
     pass
 
 
@@ -198,6 +209,7 @@ class DroneExecutive(pykka.ThreadingActor):
         self.to_ground = to_ground
         self.log = log
         self.top_level = {n.key for n in program.native_nodes() if not n.loops}
+        self.labels = {n.key: n.label for n in program.native_nodes()}
         self.resolved: dict[str, str] = {}
         self.records: list[ActionRecord] = []
         self.triggers_received = 0
@@ -206,6 +218,10 @@ class DroneExecutive(pykka.ThreadingActor):
         for node in program.native_nodes():
             for scope in node.scopes:
                 self.scope_index.setdefault(scope, []).append(nodes[node.key])
+        self.finished_actions = 0
+        self._pending_progress: wire.Progress | None = None
+        self._last_progress = float("-inf")
+        self._flush_timer: threading.Timer | None = None
         self.resolved_event = threading.Event()
         if not self.top_level:
             self.resolved_event.set()
@@ -218,16 +234,20 @@ class DroneExecutive(pykka.ThreadingActor):
         if isinstance(message, NodeResolved):
             self.resolved[message.node] = message.status
             if self.top_level <= self.resolved.keys() and not self.resolved_event.is_set():
+                self._flush_progress()
                 self.resolved_event.set()
                 self.log.info("mission.resolved", nodes=len(self.resolved))
                 self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
         elif isinstance(message, ActionRecord):
             self.records.append(message)
+            self._progress(message.result, message.node, self.labels.get(message.node, message.action),
+                           message.iteration, message.reason, urgent=message.result != "ok")
         elif isinstance(message, NodeEvent):
-            self.to_ground(wire.Progress(
-                mission=self.program.mission_id, sender=self.drone, state=message.state,
-                node=message.node, action=message.action,
-                detail={"iteration": list(message.iteration), "detail": message.detail}))
+            self._progress(message.state, message.node, message.action, message.iteration,
+                           message.detail, urgent=message.state in ("failed", "blocked"))
+        elif isinstance(message, _FlushProgress):
+            self._flush_timer = None
+            self._flush_progress()
         elif isinstance(message, BroadcastInterrupt):
             for drone in message.drones:
                 if drone == self.drone:
@@ -246,6 +266,38 @@ class DroneExecutive(pykka.ThreadingActor):
                 "all_resolved": self.resolved_event.is_set(),
             }
         return None
+
+    def _progress(self, state: str, node: str, action: str, iteration: tuple[int, ...], detail: str,
+                  urgent: bool) -> None:
+        """Tell the ground station, at most every PROGRESS_INTERVAL_S unless it matters.
+
+        Progress is for people watching; bursts of instant actions would otherwise
+        flood the link and slow the mission itself.  The latest state always
+        arrives: a pending update is flushed by a timer, or before Resolved.
+        """
+        if state in ("ok", "failed", "cancelled"):
+            self.finished_actions += 1
+        self._pending_progress = wire.Progress(
+            mission=self.program.mission_id, sender=self.drone, state=state, node=node, action=action,
+            detail={"iteration": list(iteration), "detail": detail, "finished": self.finished_actions})
+        now = time.monotonic()
+        if urgent or now - self._last_progress >= PROGRESS_INTERVAL_S:
+            self._flush_progress()
+        elif self._flush_timer is None:
+            delay = PROGRESS_INTERVAL_S - (now - self._last_progress)
+            self._flush_timer = threading.Timer(delay, self.actor_ref.tell, (_FlushProgress(),))
+            self._flush_timer.daemon = True
+            self._flush_timer.start()
+
+    def _flush_progress(self) -> None:
+        if self._pending_progress is not None:
+            self.to_ground(self._pending_progress)
+            self._pending_progress = None
+            self._last_progress = time.monotonic()
+
+    def on_stop(self) -> None:
+        if self._flush_timer is not None:
+            self._flush_timer.cancel()
 
     def _deliver(self, interrupt: Interrupt) -> None:
         for ref in self.scope_index.get(interrupt.scope, ()):
@@ -288,6 +340,7 @@ class DroneRuntime:
         self.hal: Any = None
         self.executive: Any = None
         self.nodes: dict[str, Any] = {}
+        self.dispatcher: Dispatcher | None = None
         self.completed = threading.Event()
         self.aborted = threading.Event()
         self.abort_reason = ""
@@ -306,7 +359,8 @@ class DroneRuntime:
         except zmq.ZMQError as exc:
             raise DroneRuntimeError(f"cannot bind the out-bridge at {self.net.bind}: {exc}") from exc
         self.out.start()
-        self.out_actor = OutBridgeActor.start(self.out, self.drone, program.mission_id, self.logs.mission)
+        self.out_actor = Outbox(self.out, self.drone, program.mission_id, self.logs.mission)
+        self.dispatcher = Dispatcher(workers=2, name=f"eamos-{self.drone}")
         self.board = TelemetryBoard.start(self.drone, self.out_actor, program.mission_id)
         start_error: list[AdapterError] = []
         board = self.board
@@ -336,7 +390,7 @@ class DroneRuntime:
             (loop if arc.kind == "loop" else entry).setdefault(arc.dst, set()).add(arc.src)
         for node in program.native_nodes():
             self.nodes[node.key] = MissionNode.start(
-                node, tuple(routes.get(node.key, ())), frozenset(entry.get(node.key, ())),
+                self.dispatcher, node, tuple(routes.get(node.key, ())), frozenset(entry.get(node.key, ())),
                 frozenset(loop.get(node.key, ())), self.drone, self.logs.mission,
                 kind_of.get(f"n{node.begin}", "") if node.begin is not None else "")
         to_ground = self._to_ground
@@ -464,7 +518,7 @@ class DroneRuntime:
         """This drone's part of the run summary."""
         snap = self.executive.ask(_Snapshot(), timeout=30) if self.executive else {
             "records": [], "triggers_received": 0, "resolved": {}, "all_resolved": False}
-        counts = self.out_actor.ask(_Counts(), timeout=30) if self.out_actor else {"triggers_sent": 0}
+        counts = self.out_actor.counts() if self.out_actor else {"triggers_sent": 0}
         local = self.board.ask(_LatestLocal(), timeout=30) if self.board else None
         stats = self.program.stats()
         actions = [
@@ -498,12 +552,14 @@ class DroneRuntime:
         self._stopped = True
         if self.inb is not None:
             self.inb.close()
-        for ref in [*self.nodes.values(), self.executive, self.board, self.hal, self.out_actor]:
+        for ref in [*self.nodes.values(), self.executive, self.board, self.hal]:
             if ref is not None:
                 try:
                     ref.stop(block=True, timeout=30)
                 except (pykka.ActorDeadError, pykka.Timeout):
                     pass
+        if self.dispatcher is not None:
+            self.dispatcher.shutdown()
         if self.out is not None:
             self.out.close()
         if self._own_context:

@@ -117,9 +117,11 @@ def add_graph_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _source_text(path: str) -> str | None:
     """The mission text for error rendering (None if it cannot be read)."""
     try:
-        return Path(path).read_bytes().decode("utf-8", errors="replace")
+        text = Path(path).read_bytes().decode("utf-8", errors="replace")
     except OSError:
         return None
+    # Never echo a binary file's bytes to the terminal.
+    return None if "\x00" in text else text
 
 
 def _print_warnings(warnings: tuple[Diagnostic, ...] | list[Diagnostic], path: str,

@@ -39,18 +39,59 @@ def node_key(meg: nx.DiGraph, node: int, drone: str) -> str:
     return f"n{node}@{drone}" if meg.nodes[node]["kind"] == "fork" else f"n{node}"
 
 
-class _Slicer:
-    def __init__(self, meg: nx.DiGraph, drone: str) -> None:
+class _MegIndex:
+    """What every drone's slicing reads from the MEG, computed once for all drones.
+
+    Slicing runs once per drone; looking nodes, arcs and fork leaves up in
+    plain dicts here (instead of networkx views, per drone) keeps the whole
+    slicing linear in the MEG's size times the drones a node talks to.
+    """
+
+    def __init__(self, meg: nx.DiGraph) -> None:
         self.meg = meg
+        self.forks = frozenset(n for n, a in meg.nodes(data=True) if a["kind"] == "fork")
+        self.host: dict[int, str] = {n: str(a["drone"]) for n, a in meg.nodes(data=True)}
+        # Each drone's own nodes, in MEG order (the paper's loop visits only these).
+        self.by_drone: dict[str, list[int]] = {}
+        for n in meg:
+            if n not in self.forks:
+                self.by_drone.setdefault(self.host[n], []).append(n)
+        self.succ: dict[int, list[int]] = {n: list(meg.successors(n)) for n in meg}
+        self.pred: dict[int, list[int]] = {n: list(meg.predecessors(n)) for n in meg}
+        self.arc_kind: dict[tuple[int, int], str] = {
+            (a, b): d["kind"] for a, b, d in meg.edges(data=True)
+        }
+        self._leaves: dict[int, frozenset[str]] = {}
+
+    def key(self, node: int, drone: str) -> str:
+        return f"n{node}@{drone}" if node in self.forks else f"n{node}"
+
+    def leaf_drones(self, fork: int) -> frozenset[str]:
+        """Drones of the non-fork nodes reachable from ``fork`` through forks only."""
+        cached = self._leaves.get(fork)
+        if cached is None:
+            drones: set[str] = set()
+            for child in self.succ[fork]:
+                if child in self.forks:
+                    drones |= self.leaf_drones(child)
+                else:
+                    drones.add(self.host[child])
+            cached = self._leaves[fork] = frozenset(drones)
+        return cached
+
+
+class _Slicer:
+    def __init__(self, index: _MegIndex, drone: str) -> None:
+        self.ix = index
+        self.meg = index.meg
         self.drone = drone
-        self.mdg = nx.DiGraph(drone=drone, **meg.graph)
-        self._leaf_cache: dict[int, frozenset[str]] = {}
+        self.mdg = nx.DiGraph(drone=drone, **index.meg.graph)
 
     def is_fork(self, node: int) -> bool:
-        return bool(self.meg.nodes[node]["kind"] == "fork")
+        return node in self.ix.forks
 
     def ensure(self, node: int, drone: str) -> str:
-        key = node_key(self.meg, node, drone)
+        key = self.ix.key(node, drone)
         if key not in self.mdg:
             attrs = dict(self.meg.nodes[node])
             attrs["drone"] = drone
@@ -58,55 +99,42 @@ class _Slicer:
         return key
 
     def host(self, node: int) -> str:
-        return str(self.meg.nodes[node]["drone"])
+        return self.ix.host[node]
 
     def link(self, src: int, src_drone: str, dst: int, dst_drone: str, kind: str) -> None:
         a = self.ensure(src, src_drone)
         b = self.ensure(dst, dst_drone)
         self.mdg.add_edge(a, b, kind=kind, external=(src_drone != dst_drone))
 
-    def leaf_drones(self, fork: int) -> frozenset[str]:
-        """Drones of the non-fork nodes reachable from ``fork`` through forks only."""
-        if fork not in self._leaf_cache:
-            drones: set[str] = set()
-            for child in self.meg.successors(fork):
-                if self.is_fork(child):
-                    drones |= self.leaf_drones(child)
-                else:
-                    drones.add(self.host(child))
-            self._leaf_cache[fork] = frozenset(drones)
-        return self._leaf_cache[fork]
-
     def forward(self, n: int) -> None:
-        for s in self.meg.successors(n):
+        for s in self.ix.succ[n]:
             if not self.is_fork(s):
                 continue
-            kind = self.meg.edges[n, s]["kind"]
-            for other in sorted(self.leaf_drones(s) - {self.drone}):
+            kind = self.ix.arc_kind[n, s]
+            for other in sorted(self.ix.leaf_drones(s) - {self.drone}):
                 self.link(n, self.drone, s, other, kind)
 
     def current(self, n: int) -> None:
         self.ensure(n, self.drone)
-        for s in self.meg.successors(n):
+        for s in self.ix.succ[n]:
             if not self.is_fork(s):
-                self.link(n, self.drone, s, self.host(s), self.meg.edges[n, s]["kind"])
-        for p in self.meg.predecessors(n):
+                self.link(n, self.drone, s, self.host(s), self.ix.arc_kind[n, s])
+        for p in self.ix.pred[n]:
             if not self.is_fork(p):
-                self.link(p, self.host(p), n, self.drone, self.meg.edges[p, n]["kind"])
+                self.link(p, self.host(p), n, self.drone, self.ix.arc_kind[p, n])
 
     def backward(self, n: int) -> None:
-        for p in self.meg.predecessors(n):
+        for p in self.ix.pred[n]:
             if not self.is_fork(p):
                 continue
             child = n
             fork = p
             while True:
-                already = node_key(self.meg, fork, self.drone) in self.mdg
-                self.link(fork, self.drone, child, self.drone if child != n else self.drone,
-                          self.meg.edges[fork, child]["kind"])
+                already = self.ix.key(fork, self.drone) in self.mdg
+                self.link(fork, self.drone, child, self.drone, self.ix.arc_kind[fork, child])
                 if already:
                     break  # the chain above was replicated by an earlier node
-                parents = list(self.meg.predecessors(fork))
+                parents = self.ix.pred[fork]
                 fork_parents = [q for q in parents if self.is_fork(q)]
                 if fork_parents:
                     if len(parents) != 1:
@@ -114,13 +142,11 @@ class _Slicer:
                     child, fork = fork, fork_parents[0]
                     continue
                 for q in parents:
-                    self.link(q, self.host(q), fork, self.drone, self.meg.edges[q, fork]["kind"])
+                    self.link(q, self.host(q), fork, self.drone, self.ix.arc_kind[q, fork])
                 break
 
     def run(self) -> nx.DiGraph:
-        for n, attrs in self.meg.nodes(data=True):
-            if attrs["kind"] == "fork" or attrs["drone"] != self.drone:
-                continue
+        for n in self.ix.by_drone.get(self.drone, ()):
             self.forward(n)
             self.current(n)
             self.backward(n)
@@ -130,19 +156,20 @@ class _Slicer:
 def fleet(meg: nx.DiGraph) -> list[str]:
     """Every participant hosting MEG nodes: the ground station first, then drones by name."""
     drones = {a["drone"] for _, a in meg.nodes(data=True) if a["kind"] != "fork"}
-    return [GROUND_STATION] + sorted(drones - {GROUND_STATION})
+    return [GROUND_STATION, *sorted(drones - {GROUND_STATION})]
 
 
 def slice_dependency_graphs(meg: nx.DiGraph) -> dict[str, nx.DiGraph]:
     """Slice the MEG into one MDG per participant (ground station included)."""
-    return {drone: _Slicer(meg, drone).run() for drone in fleet(meg)}
+    index = _MegIndex(meg)
+    return {drone: _Slicer(index, drone).run() for drone in fleet(meg)}
 
 
 def mdg_stats(mdg: nx.DiGraph) -> dict[str, int]:
     """Paper Table 7's columns for one MDG: nodes, internal arcs, external in/out arcs."""
     drone = mdg.graph["drone"]
     internal = ext_in = ext_out = 0
-    for a, b, data in mdg.edges(data=True):
+    for _, b, data in mdg.edges(data=True):
         if not data["external"]:
             internal += 1
         elif mdg.nodes[b]["drone"] == drone:

@@ -305,15 +305,17 @@ def render_svg(
     """SVG text for ``dot_text``: Graphviz ``dot -Tsvg`` if installed, else the built-in renderer.
 
     Graphviz failing, timing out or missing (with ``engine="dot"``) falls back
-    to the built-in renderer; the reason is logged and appended to
-    ``warnings`` when a list is given.  Very large graphs (more than
+    to the built-in renderer; the reason is appended to ``warnings`` when a
+    list is given, and logged otherwise.  Very large graphs (more than
     :data:`MAX_DOT_STATEMENTS` nodes and arcs) skip Graphviz, which could run for minutes.
     """
 
     def warn(message: str) -> None:
-        log.warning(message)
+        # A caller that collects warnings reports them itself; otherwise log them.
         if warnings is not None:
             warnings.append(message)
+        else:
+            log.warning(message)
 
     if engine != "builtin":
         exe = shutil.which("dot")
@@ -472,6 +474,7 @@ _LINE_H = 13.0
 _LAYER_GAP = 56.0
 _NODE_GAP = 22.0
 _MARGIN = 24.0
+_BOW_MAX = 110.0  # how far an arc over several layers bows sideways, at most
 
 
 def _layers(names: list[str], edges: list[tuple[str, str, dict[str, str]]]) -> dict[str, int]:
@@ -603,7 +606,10 @@ def builtin_svg(dot_text: str) -> str:
     title = g.graph.get("label", "")
     top = _MARGIN + (24.0 if title else 0.0)
     widths = [sum(boxes[n].w for n in row) + _NODE_GAP * max(len(row) - 1, 0) for row in rows]
-    total_w = max([*widths, len(title) * 7.5, 80.0]) + 2 * _MARGIN
+    # Room on both sides for arcs that bow around the nodes they skip.
+    long_arcs = any(abs(layer[a] - layer[b]) > 1 for a, b, _ in g.edges)
+    side = _MARGIN + (_BOW_MAX if long_arcs else 0.0)
+    total_w = max([*widths, len(title) * 7.5, 80.0]) + 2 * side
     y = top
     for row, width in zip(rows, widths, strict=True):
         row_h = max((boxes[n].h for n in row), default=0.0)
@@ -637,11 +643,25 @@ def builtin_svg(dot_text: str) -> str:
             path = (f"M{x:.1f},{y0 - 6:.1f} C{x + 30:.1f},{y0 - 20:.1f} "
                     f"{x + 30:.1f},{y0 + 20:.1f} {x:.1f},{y0 + 6:.1f}")
             lx, ly = x + 26, y0
-        else:
+        elif abs(layer[dst] - layer[src]) <= 1:
             x1, y1 = _clip(ba, shape_a, bb.x, bb.y)
             x2, y2 = _clip(bb, shape_b, ba.x, ba.y)
             path = f"M{x1:.1f},{y1:.1f} L{x2:.1f},{y2:.1f}"
             lx, ly = (x1 + x2) / 2 + 4, (y1 + y2) / 2
+        else:
+            # Arcs over several layers (and back arcs) bow sideways, so they do not
+            # run through the nodes between their ends.
+            span = abs(layer[dst] - layer[src])
+            sign = 1.0 if bb.x >= ba.x else -1.0
+            off = sign * min(_BOW_MAX, 30.0 + 14.0 * span)
+            c1 = (ba.x + off, ba.y + (bb.y - ba.y) / 3)
+            c2 = (bb.x + off, bb.y - (bb.y - ba.y) / 3)
+            x1, y1 = _clip(ba, shape_a, *c1)
+            x2, y2 = _clip(bb, shape_b, *c2)
+            path = (f"M{x1:.1f},{y1:.1f} C{c1[0]:.1f},{c1[1]:.1f} {c2[0]:.1f},{c2[1]:.1f} "
+                    f"{x2:.1f},{y2:.1f}")
+            lx = 0.125 * x1 + 0.375 * c1[0] + 0.375 * c2[0] + 0.125 * x2 + 4
+            ly = 0.125 * y1 + 0.375 * c1[1] + 0.375 * c2[1] + 0.125 * y2
         pen = eattrs.get("penwidth", "1")
         out.append(f'<g class="edge"><title>{_xml_escape(src)}-&gt;{_xml_escape(dst)}</title>'
                    f'<path d="{path}" fill="none" stroke="black" '

@@ -184,16 +184,23 @@ def build_execution_graph(amt: nx.DiGraph) -> nx.DiGraph:
     closer = _Closer(amt)
     closer.build(amt.graph.get("root", 0), (), ())
     meg = closer.meg
+    # One pass over the nodes (not one per structure: experiment D has a loop per
+    # square, stress missions thousands): each node tells the structures whose
+    # body holds it that its drone must hear of an interruption.
+    scoped: dict[int, set[str]] = {}
+    waiting: dict[int, set[str]] = {}
+    for attrs in meg.nodes.values():
+        if attrs["kind"] == "fork":
+            continue
+        for scope in attrs["scopes"]:
+            scoped.setdefault(scope, set()).add(attrs["drone"])
+            if attrs["kind"] in WAIT_KINDS:
+                waiting.setdefault(scope, set()).add(attrs["drone"])
     for node, attrs in meg.nodes(data=True):
         kind = attrs["kind"]
         if kind in DO_KINDS or kind in LOOP_KINDS:
             mode = "all" if kind in DO_KINDS else "waits"
-            drones = {
-                meg.nodes[n]["drone"]
-                for n, a in meg.nodes(data=True)
-                if node in a["scopes"] and a["kind"] != "fork"
-                and (mode == "all" or a["kind"] in WAIT_KINDS)
-            }
+            drones = scoped.get(node, set()) if mode == "all" else waiting.get(node, set())
             attrs["interrupt_mode"] = mode
             attrs["interrupt_drones"] = tuple(sorted(drones))
     return meg

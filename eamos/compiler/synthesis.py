@@ -42,7 +42,8 @@ def synthesize_program(mdg: nx.DiGraph, *, mission_id: str, fleet: list[str],
         ProgramArc(a, b, d["kind"], bool(d["external"]))
         for a, b, d in sorted(mdg.edges(data=True), key=lambda e: (mdg.nodes[e[0]]["meg"], mdg.nodes[e[1]]["meg"], e[0], e[1]))
     )
-    reads = sorted({d for n in nodes if n.native for d, _ in properties(n.cond)} - {drone})
+    reads = sorted({d for n in nodes if n.native and n.cond is not None
+                    for d, _ in properties(n.cond)} - {drone})
     return DroneProgram(
         mission=str(mdg.graph.get("mission", "mission")), mission_id=mission_id, drone=drone,
         drone_type=GROUND_TYPE.name if drone == GROUND_STATION else drone_type, fleet=tuple(fleet),

@@ -37,8 +37,7 @@ ADAPTERS: Mapping[str, AdapterFactory] = MappingProxyType(
         "sim": _lazy("eamos.hal.sim", "sim_adapter_from_settings"),
         "ground": _lazy("eamos.hal.ground", "ground_adapter_from_settings"),
         "fake": _lazy("eamos.hal.fake", "fake_adapter_from_settings"),
-        # "mavlink": _lazy("eamos.hal.mavlink", "mavlink_adapter_from_settings"),
-        # (added by the MAVLink issue; keep the factory signature above)
+        "mavlink": _lazy("eamos.hal.mavlink", "mavlink_adapter_from_settings"),
     }
 )
 

@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -104,13 +105,22 @@ class DroneProgram:
 
     def body(self) -> dict[str, Any]:
         """The JSON document without its checksum."""
-        doc = asdict(self)
-        doc["nodes"] = [_compact(n) for n in doc["nodes"]]
-        return {"format": FORMAT, "version": VERSION, **doc}
+        doc: dict[str, Any] = {"format": FORMAT, "version": VERSION}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name == "nodes":
+                value = [_compact({g.name: getattr(n, g.name) for g in _NODE_FIELDS}) for n in value]
+            elif f.name == "arcs":
+                value = [{"src": a.src, "dst": a.dst, "kind": a.kind, "external": a.external}
+                         for a in value]
+            elif isinstance(value, tuple):
+                value = list(value)
+            doc[f.name] = value
+        return doc
 
-    @property
+    @cached_property
     def checksum(self) -> str:
-        """``sha256:<hex>`` of the canonical JSON body."""
+        """``sha256:<hex>`` of the canonical JSON body (computed once: programs are immutable)."""
         return "sha256:" + hashlib.sha256(_canonical(self.body())).hexdigest()
 
     def to_json(self) -> str:
@@ -146,6 +156,9 @@ class DroneProgram:
         ext_out = sum(1 for a in self.arcs if a.external and a.src in native)
         return {"nodes": len(self.nodes), "internal_arcs": sum(1 for a in self.arcs if not a.external),
                 "external_in": ext_in, "external_out": ext_out}
+
+
+_NODE_FIELDS = fields(ProgramNode)
 
 
 def _compact(node: dict[str, Any]) -> dict[str, Any]:

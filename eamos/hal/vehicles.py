@@ -1,0 +1,177 @@
+"""Simulated MAVLink vehicles for ``eamos run``: hybrid fleets without PX4 or ArduPilot installed.
+
+A drone whose merged ``hal`` settings say ``adapter = "mavlink"`` and
+``sim_vehicle = {autopilot = "px4" | "ardupilot", ...}`` gets its own
+``eamos-sim-vehicle`` process on a free loopback port, started before the
+drone's node; the node's config then carries the matching ``connection``
+(PX4 style: the vehicle sends UDP to the node, ``udpin:127.0.0.1:PORT``;
+ArduPilot style: the vehicle serves TCP, ``tcp:127.0.0.1:PORT``) and no
+``sim_vehicle`` table.  :meth:`SimVehicleFleet.stop` ends the processes.
+
+``sim_vehicle`` keys: ``autopilot`` (required), ``speedup`` (default: the
+run's ``--speedup``), ``prearm_delay_s`` (3), ``disarm_after_s`` (10),
+``sysid`` (1), ``home`` ([lat, lon, alt]), ``reject`` (list of commands,
+e.g. ``["MAV_CMD_NAV_LAND=FAILED"]``).  Each vehicle logs to
+``<log_dir>/<drone>/sim-vehicle.log`` (its console to ``sim-vehicle.out``).
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import socket
+import subprocess
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from eamos.config import ConfigError
+from eamos.hal.api import AdapterError
+from eamos.hal.mavlink import MavlinkSettings
+
+SIM_VEHICLE_KEYS = frozenset(
+    {"autopilot", "speedup", "prearm_delay_s", "disarm_after_s", "sysid", "home", "reject"}
+)
+
+
+def free_port(kind: int) -> int:
+    """A free loopback port for ``kind`` (``socket.SOCK_DGRAM`` or ``socket.SOCK_STREAM``)."""
+    with socket.socket(socket.AF_INET, kind) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@dataclass
+class SimVehicleFleet:
+    """The simulated vehicles of one run and the node ``hal`` settings that reach them."""
+
+    hals: dict[str, dict[str, Any]]
+    procs: dict[str, subprocess.Popen[bytes]] = field(default_factory=dict)
+
+    def hal_for(self, drone: str) -> dict[str, Any]:
+        """The ``[hal]`` table to write into ``drone``'s node config."""
+        return dict(self.hals[drone])
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """SIGTERM every vehicle (a clean exit), then SIGKILL what is left."""
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+        for proc in self.procs.values():
+            try:
+                proc.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(timeout_s)
+            if proc.stdin is not None:
+                proc.stdin.close()
+
+
+def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
+    """Command-line options of one vehicle from its ``sim_vehicle`` table (validated)."""
+    where = f"drones.{drone}.hal.sim_vehicle"
+    if not isinstance(spec, Mapping):
+        raise ConfigError(f"{where}: must be a table such as {{autopilot = \"px4\"}}")
+    unknown = set(spec) - SIM_VEHICLE_KEYS
+    if unknown:
+        raise ConfigError(f"{where}.{sorted(unknown)[0]}: unknown field; valid: "
+                          f"{', '.join(sorted(SIM_VEHICLE_KEYS))}")
+    autopilot = spec.get("autopilot")
+    if autopilot not in ("px4", "ardupilot"):
+        raise ConfigError(f"{where}.autopilot: must be \"px4\" or \"ardupilot\", got {autopilot!r}")
+    args = ["--autopilot", autopilot]
+
+    def number(key: str, low: float) -> float | None:
+        value = spec.get(key)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float) or not value >= low \
+                or not math.isfinite(value):
+            raise ConfigError(f"{where}.{key}: must be a number >= {low:g}, got {value!r}")
+        return float(value)
+
+    run_speedup = number("speedup", 1e-9) or speedup
+    if run_speedup:
+        args += ["--speedup", repr(float(run_speedup))]
+    for key, option in (("prearm_delay_s", "--prearm-delay"), ("disarm_after_s", "--disarm-after")):
+        value = number(key, 0.0)
+        if value is not None:
+            args += [option, repr(value)]
+    if "sysid" in spec:
+        sysid = spec["sysid"]
+        if isinstance(sysid, bool) or not isinstance(sysid, int) or not 1 <= sysid <= 255:
+            raise ConfigError(f"{where}.sysid: must be an integer from 1 to 255, got {sysid!r}")
+        args += ["--sysid", str(sysid)]
+    if "home" in spec:
+        home = spec["home"]
+        if not isinstance(home, list | tuple) or len(home) != 3 or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in home
+        ):
+            raise ConfigError(f"{where}.home: must be [lat, lon, alt], got {home!r}")
+        args += ["--home", ",".join(repr(float(v)) for v in home)]
+    if "reject" in spec:
+        reject = spec["reject"]
+        if isinstance(reject, str) or not isinstance(reject, list | tuple) or not all(
+            isinstance(v, str) for v in reject
+        ):
+            raise ConfigError(f"{where}.reject: must be a list of command names, got {reject!r}")
+        if reject:
+            args += ["--reject", *reject]
+    return args
+
+
+def start_sim_vehicles(
+    hals: Mapping[str, Mapping[str, Any]], log_dir: Path, speedup: float | None = None
+) -> SimVehicleFleet:
+    """Start an ``eamos-sim-vehicle`` for every drone whose ``hal`` asks for one.
+
+    ``hals`` maps each drone to its merged ``hal`` settings; the result's
+    :meth:`SimVehicleFleet.hal_for` gives the settings to write into the
+    node's config.  Raises :class:`~eamos.config.ConfigError` for a bad
+    ``sim_vehicle`` table (no process is left running then).
+    """
+    fleet = SimVehicleFleet({})
+    plans: list[tuple[str, list[str], Path]] = []
+    for drone, hal in hals.items():
+        node_hal = {k: v for k, v in hal.items() if k != "sim_vehicle"}
+        fleet.hals[drone] = node_hal
+        if "sim_vehicle" not in hal:
+            continue
+        if hal.get("adapter") != "mavlink":
+            raise ConfigError(f"drones.{drone}.hal.sim_vehicle: only for adapter = \"mavlink\"")
+        if "connection" in hal:
+            raise ConfigError(f"drones.{drone}.hal.connection: leave it out with sim_vehicle "
+                              "(eamos run picks a free port)")
+        args = _vehicle_args(drone, hal["sim_vehicle"], speedup)
+        if args[1] == "px4":
+            # PX4 SITL style: the vehicle sends UDP to the companion's port.
+            port = free_port(socket.SOCK_DGRAM)
+            args += ["--connection", f"udpout:127.0.0.1:{port}"]
+            node_hal["connection"] = f"udpin:127.0.0.1:{port}"
+        else:
+            # ArduPilot SITL style: the vehicle serves TCP, the companion dials in.
+            port = free_port(socket.SOCK_STREAM)
+            args += ["--connection", f"tcpin:127.0.0.1:{port}"]
+            node_hal["connection"] = f"tcp:127.0.0.1:{port}"
+        try:
+            # Check the node's settings now, so a typo starts no process at all.
+            MavlinkSettings.from_mapping(node_hal)
+        except AdapterError as exc:
+            raise ConfigError(f"drones.{drone}.{exc}") from exc
+        plans.append((drone, args, log_dir / drone))
+    for drone, args, folder in plans:
+        folder.mkdir(parents=True, exist_ok=True)
+        with (folder / "sim-vehicle.out").open("wb") as out:
+            fleet.procs[drone] = subprocess.Popen(
+                [sys.executable, "-m", "eamos.hal.sim_vehicle", *args,
+                 "--log", str(folder / "sim-vehicle.log"), "--watch-stdin"],
+                # A pipe nobody writes to: when eamos run dies, it closes and the vehicle exits.
+                stdin=subprocess.PIPE, stdout=out, stderr=subprocess.STDOUT,
+                start_new_session=True,  # Ctrl-C goes to eamos run, which stops us in order
+            )
+    return fleet
+
+
+__all__ = ["SIM_VEHICLE_KEYS", "SimVehicleFleet", "free_port", "start_sim_vehicles"]
