@@ -1,4 +1,4 @@
-"""EAMOS: multi-drone missions written as short Go-syntax text, compiled per drone, run decentralized.
+"""EAMOS: multi-drone missions as short Go-syntax text, compiled per drone, run decentralized.
 
 Packages: :mod:`eamos.compiler` (mission text to drone programs),
 :mod:`eamos.program` (the program format drones load), :mod:`eamos.actors`

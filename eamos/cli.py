@@ -52,29 +52,61 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="eamos",
         description="EAMOS: write a multi-drone mission as a short Go-syntax text file, "
-                    "compile it into one program per drone, and run it decentralized.",
+        "compile it into one program per drone, and run it decentralized.",
     )
     parser.add_argument("--version", action="version", version=f"eamos {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_compile_parser(sub)
     add_graph_parser(sub)
-    run = sub.add_parser("run", help="fly a mission on simulated drones (one process per drone)",
-                         description=_RUN_HELP, epilog=_RUN_EPILOG,
-                         formatter_class=argparse.RawDescriptionHelpFormatter)
+    run = sub.add_parser(
+        "run",
+        help="fly a mission on simulated drones (one process per drone)",
+        description=_RUN_HELP,
+        epilog=_RUN_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     run.add_argument("mission", metavar="MISSION.go", type=Path, help="the mission file")
-    run.add_argument("--fleet", type=Path, metavar="FLEET.toml",
-                     help="per-drone hardware settings (default: every drone simulated)")
-    run.add_argument("--speedup", type=_positive, metavar="K",
-                     help="simulated time runs K times faster than real time (default 1)")
-    run.add_argument("--summary", type=Path, metavar="PATH", help="also write the summary JSON here")
-    run.add_argument("--run-dir", type=Path, metavar="DIR",
-                     help="the run folder (default: runs/<mission>-<date-time>/)")
-    run.add_argument("--timeout", type=_positive, default=600.0, metavar="SECONDS",
-                     help="abort (everyone lands) if the mission is not over after this long (600)")
-    run.add_argument("--ready-timeout", type=_positive, default=60.0, metavar="SECONDS",
-                     help="how long drones may take to start and connect (60)")
-    run.add_argument("--plain", action="store_true", help="plain progress lines instead of a live table")
-    run.add_argument("--no-svg", dest="svg", action="store_false", help="skip drawing graph pictures")
+    run.add_argument(
+        "--fleet",
+        type=Path,
+        metavar="FLEET.toml",
+        help="per-drone hardware settings (default: every drone simulated)",
+    )
+    run.add_argument(
+        "--speedup",
+        type=_positive,
+        metavar="K",
+        help="simulated time runs K times faster than real time (default 1)",
+    )
+    run.add_argument(
+        "--summary", type=Path, metavar="PATH", help="also write the summary JSON here"
+    )
+    run.add_argument(
+        "--run-dir",
+        type=Path,
+        metavar="DIR",
+        help="the run folder (default: runs/<mission>-<date-time>/)",
+    )
+    run.add_argument(
+        "--timeout",
+        type=_positive,
+        default=600.0,
+        metavar="SECONDS",
+        help="abort (everyone lands) if the mission is not over after this long (600)",
+    )
+    run.add_argument(
+        "--ready-timeout",
+        type=_positive,
+        default=60.0,
+        metavar="SECONDS",
+        help="how long drones may take to start and connect (60)",
+    )
+    run.add_argument(
+        "--plain", action="store_true", help="plain progress lines instead of a live table"
+    )
+    run.add_argument(
+        "--no-svg", dest="svg", action="store_false", help="skip drawing graph pictures"
+    )
     run.add_argument("-v", "--verbose", action="store_true", help="tracebacks of internal errors")
     run.set_defaults(func=cmd_run)
     return parser
@@ -91,9 +123,17 @@ def cmd_run(args: argparse.Namespace) -> int:
         return 2
     stop = threading.Event()
     install_stop_handler(stop)
-    opts = RunOptions(mission=args.mission, fleet=fleet, speedup=args.speedup, summary=args.summary,
-                      run_dir=args.run_dir, timeout_s=args.timeout, ready_timeout_s=args.ready_timeout,
-                      live=False if args.plain else None, svg=args.svg)
+    opts = RunOptions(
+        mission=args.mission,
+        fleet=fleet,
+        speedup=args.speedup,
+        summary=args.summary,
+        run_dir=args.run_dir,
+        timeout_s=args.timeout,
+        ready_timeout_s=args.ready_timeout,
+        live=False if args.plain else None,
+        svg=args.svg,
+    )
     try:
         summary = run_mission(opts, stop)
     except MissionError as exc:
@@ -115,9 +155,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         blocked = report.get("blocked_nodes") or []
         if blocked:
             extra += f"; blocked: {len(blocked)} node(s)"
-        print(f"  {name}: {'ok' if report.get('ok') else 'not ok'}, {len(report.get('actions', []))} actions, "
-              f"triggers sent/received {report.get('triggers_sent')}/{report.get('triggers_received')}"
-              f"{extra}")
+        print(
+            f"  {name}: {'ok' if report.get('ok') else 'not ok'}, "
+            f"{len(report.get('actions', []))} actions, triggers sent/received "
+            f"{report.get('triggers_sent')}/{report.get('triggers_received')}"
+            f"{extra}"
+        )
     print(f"summary: {summary['run_dir']}/summary.json")
     return 0 if summary["ok"] else 1
 
@@ -134,8 +177,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # an internal error: one line, the trace only with -v
         if getattr(args, "verbose", False):
             traceback.print_exc()
-        print(f"eamos: internal error: {exc!r} (run with -v for details); please report it",
-              file=sys.stderr)
+        print(
+            f"eamos: internal error: {exc!r} (run with -v for details); please report it",
+            file=sys.stderr,
+        )
         return 4
 
 

@@ -1,4 +1,4 @@
-"""Configuration files: one per drone (``eamos-node --config``) and one per fleet (``eamos run --fleet``).
+"""Configuration files: one per drone (eamos-node --config), one per fleet (eamos run --fleet).
 
 Drone config (TOML)::
 
@@ -66,7 +66,7 @@ def _check_keys(where: str, table: Mapping[str, Any], allowed: set[str]) -> None
 
 def _endpoint(where: str, value: Any) -> str:
     if not isinstance(value, str) or "://" not in value:
-        raise ConfigError(f"{where}: must be a ZeroMQ endpoint such as \"tcp://127.0.0.1:6001\"")
+        raise ConfigError(f'{where}: must be a ZeroMQ endpoint such as "tcp://127.0.0.1:6001"')
     return value
 
 
@@ -90,10 +90,16 @@ class NodeConfig:
         path = Path(path)
         doc = read_toml(path)
         w = f"{path}: "
-        _check_keys(w, doc, {"drone", "program", "log_dir", "ready_timeout_s", "land_timeout_s", "net", "hal"})
+        _check_keys(
+            w,
+            doc,
+            {"drone", "program", "log_dir", "ready_timeout_s", "land_timeout_s", "net", "hal"},
+        )
         drone = doc.get("drone")
         if not isinstance(drone, str) or not drone:
-            raise ConfigError(f"{w}drone: required, the drone's name as in the mission (e.g. \"Drone1\")")
+            raise ConfigError(
+                f'{w}drone: required, the drone\'s name as in the mission (e.g. "Drone1")'
+            )
         program = doc.get("program")
         if not isinstance(program, str) or not program:
             raise ConfigError(f"{w}program: required, the path of the drone's .program.json")
@@ -120,8 +126,16 @@ class NodeConfig:
         log_dir = doc.get("log_dir", f"logs/{drone}")
         if not isinstance(log_dir, str):
             raise ConfigError(f"{w}log_dir: must be a path")
-        return cls(path=path, drone=drone, program=(base / program).resolve(),
-                   log_dir=(base / log_dir).resolve(), bind=bind, peers=peers, hal=dict(hal), **timeouts)
+        return cls(
+            path=path,
+            drone=drone,
+            program=(base / program).resolve(),
+            log_dir=(base / log_dir).resolve(),
+            bind=bind,
+            peers=peers,
+            hal=dict(hal),
+            **timeouts,
+        )
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -19,7 +20,7 @@ import structlog
 LOG_NAMES = ("mission", "uniform", "adapter")
 
 
-def _add_time(_: Any, __: str, event: dict[str, Any]) -> dict[str, Any]:
+def _add_time(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
     event.setdefault("ts", round(time.time(), 6))
     return event
 
@@ -54,8 +55,9 @@ class _Discard:
         pass
 
 
-def make_logger(path: Path | None, level: int = logging.INFO,
-                **context: Any) -> structlog.typing.FilteringBoundLogger:
+def make_logger(
+    path: Path | None, level: int = logging.INFO, **context: Any
+) -> structlog.typing.FilteringBoundLogger:
     """A JSON-lines logger writing to ``path`` (or discarding, when ``path`` is None).
 
     ``level`` filters before any rendering happens: debug events (every internal

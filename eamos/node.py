@@ -35,10 +35,12 @@ def build_parser() -> argparse.ArgumentParser:
         prog="eamos-node",
         description="Run one drone's part of an EAMOS mission (its compiled drone program).",
         epilog="The config names the drone, its program, its out-bridge endpoint, its peers' "
-               "endpoints, the hardware adapter and the log folder; see eamos/config.py.",
+        "endpoints, the hardware adapter and the log folder; see eamos/config.py.",
     )
     parser.add_argument("--config", required=True, type=Path, help="the drone's TOML config file")
-    parser.add_argument("-v", "--verbose", action="store_true", help="show tracebacks of internal errors")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="show tracebacks of internal errors"
+    )
     parser.add_argument("--version", action="version", version=f"eamos {__version__}")
     return parser
 
@@ -47,8 +49,9 @@ def run_node(config: NodeConfig, stop: threading.Event | None = None) -> int:
     """Run one drone until the mission completes or is aborted; return the exit code."""
     program = load_program(config.program)
     if program.drone != config.drone:
-        raise ConfigError(f"{config.path}: drone: is {config.drone!r} but the program is for "
-                          f"{program.drone!r}")
+        raise ConfigError(
+            f"{config.path}: drone: is {config.drone!r} but the program is for {program.drone!r}"
+        )
     config.log_dir.mkdir(parents=True, exist_ok=True)
     adapter_log = make_logger(config.log_dir / "adapter.log", drone=config.drone)
     adapter = make_adapter(config.drone, config.hal, adapter_log)
@@ -57,8 +60,12 @@ def run_node(config: NodeConfig, stop: threading.Event | None = None) -> int:
     try:
         runtime.start()
         if not runtime.announce_ready(config.ready_timeout_s):
-            print(f"eamos-node {config.drone}: peers never subscribed: {', '.join(runtime.destinations())} "
-                  f"(waited {config.ready_timeout_s:g} s)", file=sys.stderr)
+            print(
+                f"eamos-node {config.drone}: peers never subscribed: "
+                f"{', '.join(runtime.destinations())} "
+                f"(waited {config.ready_timeout_s:g} s)",
+                file=sys.stderr,
+            )
             return 3
         while not (runtime.completed.is_set() or runtime.aborted.is_set()):
             if stop.is_set():

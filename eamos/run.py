@@ -96,16 +96,35 @@ def _toml_value(value: Any) -> str:
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{json.dumps(str(k))} = {_toml_value(v)}" for k, v in value.items()) + "}"
+        return (
+            "{"
+            + ", ".join(f"{json.dumps(str(k))} = {_toml_value(v)}" for k, v in value.items())
+            + "}"
+        )
     raise TypeError(f"cannot write {value!r} to TOML")
 
 
-def node_config_text(drone: str, program: str, log_dir: str, bind: str, peers: dict[str, str],
-                     hal: dict[str, Any], ready_timeout_s: float) -> str:
+def node_config_text(
+    drone: str,
+    program: str,
+    log_dir: str,
+    bind: str,
+    peers: dict[str, str],
+    hal: dict[str, Any],
+    ready_timeout_s: float,
+) -> str:
     """The TOML text of one drone's config."""
-    lines = [f"drone = {_toml_value(drone)}", f"program = {_toml_value(program)}",
-             f"log_dir = {_toml_value(log_dir)}", f"ready_timeout_s = {ready_timeout_s!r}", "",
-             "[net]", f"bind = {_toml_value(bind)}", "", "[net.peers]"]
+    lines = [
+        f"drone = {_toml_value(drone)}",
+        f"program = {_toml_value(program)}",
+        f"log_dir = {_toml_value(log_dir)}",
+        f"ready_timeout_s = {ready_timeout_s!r}",
+        "",
+        "[net]",
+        f"bind = {_toml_value(bind)}",
+        "",
+        "[net.peers]",
+    ]
     lines += [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in peers.items()]
     lines += ["", "[hal]"]
     lines += [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in hal.items()]
@@ -131,15 +150,20 @@ class LocalFleet:
         out = (log_dir / "node.out").open("wb")
         env = dict(os.environ)
         env.setdefault("PYTHONUNBUFFERED", "1")
-        popen = subprocess.Popen(  # noqa: S603 - our own interpreter and module
+        popen = subprocess.Popen(
             [sys.executable, "-m", "eamos.node", "--config", str(config)],
-            stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=env,
             start_new_session=True,  # Ctrl-C reaches the ground station only; it lands everyone
         )
         out.close()
         proc = _Proc(name, popen)
         self.procs[name] = proc
-        threading.Thread(target=self._watch, args=(proc,), name=f"watch-{name}", daemon=True).start()
+        threading.Thread(
+            target=self._watch, args=(proc,), name=f"watch-{name}", daemon=True
+        ).start()
 
     def _watch(self, proc: _Proc) -> None:
         proc.exit_code = proc.popen.wait()
@@ -231,8 +255,9 @@ class _Display:
                 print(text, file=self.stream, flush=True)
 
 
-def run_mission(opts: RunOptions, stop: threading.Event | None = None,
-                say: Callable[[str], None] | None = None) -> dict[str, Any]:
+def run_mission(
+    opts: RunOptions, stop: threading.Event | None = None, say: Callable[[str], None] | None = None
+) -> dict[str, Any]:
     """Run a mission end to end; return the summary (also written to the run folder)."""
     stop = stop or threading.Event()
     compiled = compile_file(opts.mission)
@@ -254,16 +279,24 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
     configs_dir.mkdir(exist_ok=True)
     configs: dict[str, Path] = {}
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
-    vehicles = start_sim_vehicles({n: opts.fleet.hal_for(n) for n in drones}, run_dir / "logs",
-                                  opts.speedup)
+    vehicles = start_sim_vehicles(
+        {n: opts.fleet.hal_for(n) for n in drones}, run_dir / "logs", opts.speedup
+    )
     for name in drones:
         hal = vehicles.hal_for(name)
         if opts.speedup is not None and hal.get("adapter", "sim") == "sim":
             hal["speedup"] = opts.speedup
         check_hal_settings(name, hal, opts.fleet.path)
         peers = {n: e for n, e in endpoints.items() if n != name}
-        text = node_config_text(name, f"../programs/{name}.program.json", f"../logs/{name}",
-                                endpoints[name], peers, hal, opts.ready_timeout_s)
+        text = node_config_text(
+            name,
+            f"../programs/{name}.program.json",
+            f"../logs/{name}",
+            endpoints[name],
+            peers,
+            hal,
+            opts.ready_timeout_s,
+        )
         configs[name] = configs_dir / f"{name}.toml"
         configs[name].write_text(text)
 
@@ -272,15 +305,18 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
     station = GroundStation(drones, compiled.mission_id, on_change=display.event)
     display.station = station
     speak = say or display.say
-    gcs_hal = {"adapter": "ground"}
+    gcs_hal: dict[str, Any] = {"adapter": "ground"}
     if opts.speedup:
         gcs_hal["speedup"] = opts.speedup
     gcs_log_dir = run_dir / "logs" / GROUND_STATION
     adapter_log = make_logger(gcs_log_dir / "adapter.log", drone=GROUND_STATION)
     runtime = DroneRuntime(
-        compiled.programs[GROUND_STATION], make_adapter(GROUND_STATION, gcs_hal, adapter_log),
-        NetSettings(endpoints[GROUND_STATION], {n: endpoints[n] for n in drones}), gcs_log_dir,
-        ground_handler=station.handle, extra_topics=tuple(wire.topic_telemetry(d) for d in drones),
+        compiled.programs[GROUND_STATION],
+        make_adapter(GROUND_STATION, gcs_hal, adapter_log),
+        NetSettings(endpoints[GROUND_STATION], {n: endpoints[n] for n in drones}),
+        gcs_log_dir,
+        ground_handler=station.handle,
+        extra_topics=tuple(wire.topic_telemetry(d) for d in drones),
     )
     exits: dict[str, int] = {}
 
@@ -302,8 +338,9 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
         with display:
             speak(f"mission {compiled.mission.name}: {len(drones)} drone(s), run folder {run_dir}")
             if not station.wait_ready(opts.ready_timeout_s, stop):
-                outcome = "not ready: " + (", ".join(station.failures) or
-                                           "waiting for " + ", ".join(station.not_ready()))
+                outcome = "not ready: " + (
+                    ", ".join(station.failures) or "waiting for " + ", ".join(station.not_ready())
+                )
                 station.abort(outcome)
             else:
                 speak("all drones ready: start")
@@ -316,8 +353,10 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
                         outcome = "aborted by the operator"
                         break
                     if time.monotonic() > deadline:
-                        outcome = f"timed out after {opts.timeout_s:g} s (unresolved: " \
-                                  f"{', '.join(station.unresolved())})"
+                        outcome = (
+                            f"timed out after {opts.timeout_s:g} s (unresolved: "
+                            f"{', '.join(station.unresolved())})"
+                        )
                         break
                 if outcome == "ok":
                     station.complete()
@@ -326,11 +365,14 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
                     station.abort(outcome)
             alive = [n for n in drones if n not in exits]
             if not station.wait_reports(alive, 60 if outcome == "ok" else 180):
-                speak("some drones sent no report: " + ", ".join(
-                    n for n in alive if station.snapshot()[n].report is None))
+                speak(
+                    "some drones sent no report: "
+                    + ", ".join(n for n in alive if station.snapshot()[n].report is None)
+                )
             display.refresh()
     finally:
-        fleet.wait(30) or fleet.terminate()
+        if not fleet.wait(30):
+            fleet.terminate()
         vehicles.stop()
         gcs_report = runtime.report() if runtime.executive is not None else {}
         runtime.stop()
@@ -338,11 +380,18 @@ def run_mission(opts: RunOptions, stop: threading.Event | None = None,
     views = station.snapshot()
     drone_reports: dict[str, Any] = {}
     for name in drones:
-        report = views[name].report or {"ok": False, "error": "no report",
-                                         "exit_code": exits.get(name)}
+        report = views[name].report or {
+            "ok": False,
+            "error": "no report",
+            "exit_code": exits.get(name),
+        }
         report.setdefault("exit_code", exits.get(name))
         drone_reports[name] = report
-    ok = outcome == "ok" and all(r.get("ok") for r in drone_reports.values()) and bool(gcs_report.get("ok"))
+    ok = (
+        outcome == "ok"
+        and all(r.get("ok") for r in drone_reports.values())
+        and bool(gcs_report.get("ok"))
+    )
     summary = {
         "ok": ok,
         "mission": compiled.mission.name,

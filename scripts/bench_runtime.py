@@ -21,6 +21,7 @@ Usage: ``python scripts/bench_runtime.py --json`` (``--quick`` for a smaller run
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import statistics
 import subprocess
@@ -94,8 +95,18 @@ def bench_startup(tmp: Path) -> dict:
     sizes = {name: len(p.nodes) for name, p in compiled.programs.items() if name != "GCS"}
     drone = min(sizes, key=lambda n: abs(sizes[n] - 634))
     path = compiled.programs[drone].save(tmp / f"{drone}.program.json")
-    runs = [json.loads(subprocess.run([sys.executable, "-c", _STARTUP_CHILD, str(path)], capture_output=True,
-                                      text=True, check=True, timeout=300).stdout) for _ in range(3)]
+    runs = [
+        json.loads(
+            subprocess.run(
+                [sys.executable, "-c", _STARTUP_CHILD, str(path)],
+                capture_output=True,
+                text=True,
+                check=True,
+                timeout=300,
+            ).stdout
+        )
+        for _ in range(3)
+    ]
     best = min(runs, key=lambda r: r["startup_s"])
     best["meg_nodes"] = compiled.meg.number_of_nodes()
     best["startup_s_runs"] = [r["startup_s"] for r in runs]
@@ -110,10 +121,30 @@ def eamos_run(tmp: Path, name: str, source: str, timeout_s: float = 900) -> dict
     summary = tmp / f"{name}.summary.json"
     t0 = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, "-m", "eamos.cli", "run", str(mission), "--fleet", str(fleet), "--plain",
-         "--no-svg", "--run-dir", str(tmp / name), "--summary", str(summary), "--ready-timeout", "300",
-         "--timeout", str(timeout_s)],
-        capture_output=True, text=True, timeout=timeout_s + 300, cwd=REPO)
+        [
+            sys.executable,
+            "-m",
+            "eamos.cli",
+            "run",
+            str(mission),
+            "--fleet",
+            str(fleet),
+            "--plain",
+            "--no-svg",
+            "--run-dir",
+            str(tmp / name),
+            "--summary",
+            str(summary),
+            "--ready-timeout",
+            "300",
+            "--timeout",
+            str(timeout_s),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=timeout_s + 300,
+        cwd=REPO,
+    )
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise RuntimeError(f"eamos run {name} failed: {proc.stdout[-2000:]} {proc.stderr[-2000:]}")
@@ -131,11 +162,17 @@ def bench_local(tmp: Path, n: int) -> dict:
 
 def bench_cross(tmp: Path, hops: int) -> dict:
     data = eamos_run(tmp, "pingpong", ping_pong_mission(hops))
-    acts = sorted((a for d in ("D1", "D2") for a in data["drones"][d]["actions"]), key=lambda a: a["start"])
-    lat = [(b["start"] - a["end"]) * 1e3 for a, b in zip(acts, acts[1:], strict=False)]
+    acts = sorted(
+        (a for d in ("D1", "D2") for a in data["drones"][d]["actions"]), key=lambda a: a["start"]
+    )
+    lat = [(b["start"] - a["end"]) * 1e3 for a, b in itertools.pairwise(acts)]
     lat.sort()
-    return {"hops": len(lat), "p50_ms": round(statistics.median(lat), 3),
-            "p99_ms": round(lat[int(0.99 * (len(lat) - 1))], 3), "max_ms": round(lat[-1], 3)}
+    return {
+        "hops": len(lat),
+        "p50_ms": round(statistics.median(lat), 3),
+        "p99_ms": round(lat[int(0.99 * (len(lat) - 1))], 3),
+        "max_ms": round(lat[-1], 3),
+    }
 
 
 def bench_mission(tmp: Path, drones: int, blocks: int, per_drone: int) -> dict:
@@ -146,15 +183,21 @@ def bench_mission(tmp: Path, drones: int, blocks: int, per_drone: int) -> dict:
     data = eamos_run(tmp, "stress", source)
     starts = [a["start"] for r in data["drones"].values() for a in r["actions"]]
     ends = [a["end"] for r in data["drones"].values() for a in r["actions"]]
-    return {"drones": drones, "meg_nodes": meg_nodes, "actions": len(starts),
-            "overhead_s": round(data["duration_s"], 3),
-            "first_to_last_action_s": round(max(ends) - min(starts), 3),
-            "eamos_run_wall_s": round(data["_wall_s"], 2),
-            "triggers_sent": sum(r["triggers_sent"] for r in data["drones"].values())}
+    return {
+        "drones": drones,
+        "meg_nodes": meg_nodes,
+        "actions": len(starts),
+        "overhead_s": round(data["duration_s"], 3),
+        "first_to_last_action_s": round(max(ends) - min(starts), 3),
+        "eamos_run_wall_s": round(data["_wall_s"], 2),
+        "triggers_sent": sum(r["triggers_sent"] for r in data["drones"].values()),
+    }
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--json", action="store_true", help="print only the JSON result")
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a smoke run)")
     args = parser.parse_args()
@@ -165,8 +208,10 @@ def main() -> int:
             ("startup", lambda: bench_startup(tmp)),
             ("local_trigger", lambda: bench_local(tmp, 200 if args.quick else 2000)),
             ("cross_drone", lambda: bench_cross(tmp, 100 if args.quick else 1000)),
-            ("mission_5000", lambda: bench_mission(tmp, 4 if args.quick else 20, 5 if args.quick else 10,
-                                                   25)),
+            (
+                "mission_5000",
+                lambda: bench_mission(tmp, 4 if args.quick else 20, 5 if args.quick else 10, 25),
+            ),
         ]
         for name, step in steps:
             if not args.json:

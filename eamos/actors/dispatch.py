@@ -25,7 +25,7 @@ from typing import Any
 
 import pykka
 from pykka import ActorDeadError, messages
-from pykka._envelope import Envelope  # noqa: PLC2701 - the inbox holds Pykka's envelopes
+from pykka._envelope import Envelope
 
 logger = logging.getLogger(__name__)
 
@@ -39,8 +39,10 @@ class Dispatcher:
         self._ready: deque[PooledActor] = deque()
         self._cond = threading.Condition()
         self._stopping = False
-        self._threads = [threading.Thread(target=self._work, name=f"{name}-worker-{i}", daemon=True)
-                         for i in range(workers)]
+        self._threads = [
+            threading.Thread(target=self._work, name=f"{name}-worker-{i}", daemon=True)
+            for i in range(workers)
+        ]
         for thread in self._threads:
             thread.start()
 
@@ -57,7 +59,7 @@ class Dispatcher:
                 if not self._ready:
                     return
                 actor = self._ready.popleft()
-            actor._run_slice()  # noqa: SLF001 - the dispatcher drives its actors
+            actor._run_slice()
 
     def shutdown(self, timeout_s: float = 10.0) -> None:
         """Finish the scheduled work, then stop the workers (stop the actors first)."""
@@ -84,7 +86,7 @@ class _Inbox:
             if self._scheduled:
                 return
             self._scheduled = True
-        self._actor._dispatcher.schedule(self._actor)  # noqa: SLF001
+        self._actor._dispatcher.schedule(self._actor)
 
     def get(self, block: bool = True, timeout: float | None = None) -> Envelope[Any]:
         with self._lock:
@@ -130,8 +132,8 @@ class PooledActor(pykka.Actor):
     def _start_actor_loop(self) -> None:
         # on_start runs on a worker, before any message, like a thread's first step.
         inbox: _Inbox = self.actor_inbox  # type: ignore[assignment]
-        with inbox._lock:  # noqa: SLF001
-            inbox._scheduled = True  # noqa: SLF001
+        with inbox._lock:
+            inbox._scheduled = True
         self._dispatcher.schedule(self)
 
     def _run_slice(self) -> None:
@@ -163,15 +165,19 @@ class PooledActor(pykka.Actor):
                 self._handle_failure(*sys.exc_info())
                 try:
                     self.on_failure(*sys.exc_info())
-                except Exception:  # noqa: BLE001 - on_failure itself failed: log and stop
+                except Exception:
                     self._handle_failure(*sys.exc_info())
 
     def _reject(self, envelope: Envelope[Any]) -> None:
         if envelope.reply_to is None:
             return
-        if isinstance(envelope.message, messages._ActorStop):  # noqa: SLF001
+        if isinstance(envelope.message, messages._ActorStop):
             envelope.reply_to.set(None)
         else:
-            envelope.reply_to.set_exception(exc_info=(
-                ActorDeadError, ActorDeadError(f"{self.actor_ref} stopped before handling the message"),
-                None))
+            envelope.reply_to.set_exception(
+                exc_info=(
+                    ActorDeadError,
+                    ActorDeadError(f"{self.actor_ref} stopped before handling the message"),
+                    None,
+                )
+            )

@@ -44,8 +44,12 @@ class DroneView:
 class GroundStation:
     """Coordinates one mission run from the ground; thread-safe, waits on a Condition."""
 
-    def __init__(self, drones: Iterable[str], mission_id: str,
-                 on_change: Callable[[str, DroneView, Any], None] | None = None) -> None:
+    def __init__(
+        self,
+        drones: Iterable[str],
+        mission_id: str,
+        on_change: Callable[[str, DroneView, Any], None] | None = None,
+    ) -> None:
         self.mission_id = mission_id
         self.views = {name: DroneView(name) for name in drones}
         self.views.setdefault(GROUND_STATION, DroneView(GROUND_STATION))
@@ -82,8 +86,15 @@ class GroundStation:
                     view.done_actions = finished
                 if msg.state == "failed":
                     view.failed_actions += 1
-                view.events.append({"t": time.time(), "state": msg.state, "node": msg.node,
-                                    "action": msg.action, **msg.detail})
+                view.events.append(
+                    {
+                        "t": time.time(),
+                        "state": msg.state,
+                        "node": msg.node,
+                        "action": msg.action,
+                        **msg.detail,
+                    }
+                )
             elif isinstance(msg, wire.TelemetrySample):
                 view.position = (msg.x_m, msg.y_m, msg.z_m)
                 view.armed = msg.armed
@@ -101,8 +112,13 @@ class GroundStation:
 
     # -- phases ---------------------------------------------------------------------------
 
-    def _wait(self, predicate: Callable[[], bool], timeout_s: float | None,
-              stop: threading.Event | None = None, fail_fast: bool = False) -> bool:
+    def _wait(
+        self,
+        predicate: Callable[[], bool],
+        timeout_s: float | None,
+        stop: threading.Event | None = None,
+        fail_fast: bool = False,
+    ) -> bool:
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         with self._cond:
             while not predicate():
@@ -123,8 +139,9 @@ class GroundStation:
 
     def wait_ready(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
         """Every drone reported ready, and every drone listens to the ground station."""
-        ok = self._wait(lambda: all(self.views[d].ready for d in self.drones()), timeout_s, stop,
-                        fail_fast=True)
+        ok = self._wait(
+            lambda: all(self.views[d].ready for d in self.drones()), timeout_s, stop, fail_fast=True
+        )
         if not ok or self.runtime is None or self.runtime.out is None:
             return ok
         topics = [wire.topic_to(d) for d in self.drones()]
@@ -146,8 +163,11 @@ class GroundStation:
         A lost drone does not stop the others: drones that do not depend on it finish,
         and those that do stay unresolved until the timeout.
         """
-        return self._wait(lambda: all(v.resolved or v.state == "lost" for v in self.views.values()),
-                          timeout_s, stop)
+        return self._wait(
+            lambda: all(v.resolved or v.state == "lost" for v in self.views.values()),
+            timeout_s,
+            stop,
+        )
 
     def unresolved(self) -> list[str]:
         with self._cond:
@@ -161,7 +181,9 @@ class GroundStation:
     def abort(self, reason: str) -> None:
         """Every drone stops its mission and lands now."""
         if self.runtime is not None:
-            self.runtime.send(wire.Abort(mission=self.mission_id, sender=GROUND_STATION, reason=reason))
+            self.runtime.send(
+                wire.Abort(mission=self.mission_id, sender=GROUND_STATION, reason=reason)
+            )
             self.runtime.abort(reason)
 
     def wait_reports(self, names: Iterable[str], timeout_s: float) -> bool:
@@ -178,4 +200,7 @@ class GroundStation:
 
     def snapshot(self) -> dict[str, DroneView]:
         with self._cond:
-            return {n: DroneView(**{**v.__dict__, "events": list(v.events)}) for n, v in self.views.items()}
+            return {
+                n: DroneView(**{**v.__dict__, "events": list(v.events)})
+                for n, v in self.views.items()
+            }

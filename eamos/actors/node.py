@@ -97,9 +97,17 @@ class _Pending:
 class MissionNode(PooledActor):
     """The actor executing one native node of a drone's MDG (on the runtime's dispatcher)."""
 
-    def __init__(self, dispatcher: Dispatcher, spec: ProgramNode, routes: tuple[Route, ...],
-                 entry: frozenset[str], loop: frozenset[str], drone: str, log: Any,
-                 begin_kind: str = "") -> None:
+    def __init__(
+        self,
+        dispatcher: Dispatcher,
+        spec: ProgramNode,
+        routes: tuple[Route, ...],
+        entry: frozenset[str],
+        loop: frozenset[str],
+        drone: str,
+        log: Any,
+        begin_kind: str = "",
+    ) -> None:
         super().__init__(dispatcher)
         self.spec = spec
         self.key = spec.key
@@ -122,12 +130,19 @@ class MissionNode(PooledActor):
 
     def on_receive(self, message: Any) -> Any:
         if isinstance(message, Trigger):
-            self.log.debug("mission.trigger.in", src=message.src, iteration=list(message.iteration),
-                           status=message.status)
+            self.log.debug(
+                "mission.trigger.in",
+                src=message.src,
+                iteration=list(message.iteration),
+                status=message.status,
+            )
             fired = self.pre.receive(message.src, message.iteration, message.status)
             if fired is None:
-                self.log.debug("mission.precondition", src=message.src,
-                               waiting=sorted(map(str, self.pre.waiting())))
+                self.log.debug(
+                    "mission.precondition",
+                    src=message.src,
+                    waiting=sorted(map(str, self.pre.waiting())),
+                )
             else:
                 self._fired(fired)
         elif isinstance(message, ActionFinished):
@@ -160,8 +175,12 @@ class MissionNode(PooledActor):
             self._loop_body_done(fired)
             return
         status = fired.status
-        self.log.info("mission.node.triggered", iteration=list(act), status=status,
-                      preconditions=dict(sorted(fired.statuses.items())))
+        self.log.info(
+            "mission.node.triggered",
+            iteration=list(act),
+            status=status,
+            preconditions=dict(sorted(fired.statuses.items())),
+        )
         if spec.kind == "end" and self._begin_kind() in DO_KINDS:
             self._do_end(act, fired)
             return
@@ -200,21 +219,33 @@ class MissionNode(PooledActor):
 
     # -- emitting ---------------------------------------------------------------
 
-    def _emit(self, act: Iteration, status_for: Callable[[Route], Status | None],
-              body_iteration: Iteration | None = None) -> None:
+    def _emit(
+        self,
+        act: Iteration,
+        status_for: Callable[[Route], Status | None],
+        body_iteration: Iteration | None = None,
+    ) -> None:
         assert self.links is not None
         for route in self.routes:
             status = status_for(route)
             if status is None:
                 continue
-            iteration = body_iteration if (route.kind == "body" and body_iteration is not None) else act
+            iteration = (
+                body_iteration if (route.kind == "body" and body_iteration is not None) else act
+            )
             trigger = Trigger(self.key, route.dst, iteration, status)
             if route.external:
                 self.links.out_bridge.tell(SendTrigger(route.drone, trigger))
             else:
                 self.links.nodes[route.dst].tell(trigger)
-            self.log.debug("mission.trigger.out", dst=route.dst, drone=route.drone,
-                           external=route.external, iteration=list(iteration), status=status)
+            self.log.debug(
+                "mission.trigger.out",
+                dst=route.dst,
+                drone=route.drone,
+                external=route.external,
+                iteration=list(iteration),
+                status=status,
+            )
 
     def _resolved(self, act: Iteration, status: Status) -> None:
         self.log.info("mission.node.finished", iteration=list(act), status=status)
@@ -235,20 +266,34 @@ class MissionNode(PooledActor):
         self.links.hal.tell(RunAction(token, self.spec.action, self.spec.args, self.actor_ref))
 
     def _action_finished(self, msg: ActionFinished) -> None:
-        act = msg.token[1]
+        act: Iteration = msg.token[1]  # type: ignore[index]  # our own (key, activation)
         if self.running.pop(act, None) is None:
             return
         assert self.links is not None
         result = msg.result
         # The record doubles as the "finished" progress event (one message, not two).
-        self.links.executive.tell(ActionRecord(self.key, msg.action, tuple(msg.args), act,
-                                               msg.start_s, msg.end_s, result.status, result.reason))
+        self.links.executive.tell(
+            ActionRecord(
+                self.key,
+                msg.action,
+                tuple(msg.args),
+                act,
+                msg.start_s,
+                msg.end_s,
+                result.status,
+                result.reason,
+            )
+        )
         if self.aborted:
             return
         status = _RESULT_STATUS[result.status]
         if result.status == "failed":
-            self.log.error("mission.action.failed", action=msg.action, reason=result.reason,
-                           iteration=list(act))
+            self.log.error(
+                "mission.action.failed",
+                action=msg.action,
+                reason=result.reason,
+                iteration=list(act),
+            )
         self._emit(act, lambda r: status)
         self._resolved(act, status)
 
@@ -305,16 +350,26 @@ class MissionNode(PooledActor):
         purpose = entry.purpose
         if purpose == "if":
             self._drop_pending(act)
-            self.log.info("mission.condition", cond=to_text(spec.cond), value=value, iteration=list(act))
+            self.log.info(
+                "mission.condition", cond=to_text(spec.cond), value=value, iteration=list(act)
+            )
             branch = "then" if value else "else"
-            self._emit(act, lambda r: "done" if r.kind == branch
-                       else ("skipped" if r.kind in ("then", "else") else "done"))
+            self._emit(
+                act,
+                lambda r: (
+                    "done"
+                    if r.kind == branch
+                    else ("skipped" if r.kind in ("then", "else") else "done")
+                ),
+            )
             self._resolved(act, "done")
         elif purpose == "wait":
             if holds(spec.kind, value):
                 return
             self._drop_pending(act)
-            self.log.info("mission.condition", cond=to_text(spec.cond), value=value, iteration=list(act))
+            self.log.info(
+                "mission.condition", cond=to_text(spec.cond), value=value, iteration=list(act)
+            )
             self._event(act, "ok")
             self._emit(act, lambda r: "done")
             self._resolved(act, "done")
@@ -323,30 +378,41 @@ class MissionNode(PooledActor):
             self._loop_go(act, holds(spec.kind, value))
         elif purpose == "loop-watch":
             state = self.loops.get(act)
-            if state is not None and state.in_body and not state.stop_sent and not holds(spec.kind, value):
+            if (
+                state is not None
+                and state.in_body
+                and not state.stop_sent
+                and not holds(spec.kind, value)
+            ):
                 state.stop_sent = True
                 self._drop_pending(act, "loop-watch")
-                self._broadcast_interrupt(act + (state.counter,), "waits")
+                self._broadcast_interrupt((*act, state.counter), "waits")
         elif purpose == "do":
             self._drop_pending(act)
             go = holds(spec.kind, value)
-            self.log.info("mission.condition", cond=to_text(spec.cond), value=value, iteration=list(act))
+            self.log.info(
+                "mission.condition", cond=to_text(spec.cond), value=value, iteration=list(act)
+            )
             self._emit(act, lambda r: ("done" if go else "skipped") if r.kind == "body" else "done")
             self._resolved(act, "done")
             if go:
                 self.pending[act] = _Pending("do-watch")
                 self._watch()
                 self._check(act)
-        elif purpose == "do-watch":
-            if not holds(spec.kind, value):
-                self._drop_pending(act, "do-watch")
-                self.log.info("mission.interrupt", cond=to_text(spec.cond), value=value, iteration=list(act))
-                self._broadcast_interrupt(act, "all")
+        elif purpose == "do-watch" and not holds(spec.kind, value):
+            self._drop_pending(act, "do-watch")
+            self.log.info(
+                "mission.interrupt", cond=to_text(spec.cond), value=value, iteration=list(act)
+            )
+            self._broadcast_interrupt(act, "all")
 
     def _broadcast_interrupt(self, iteration: Iteration, mode: str) -> None:
         assert self.links is not None
-        self.links.executive.tell(BroadcastInterrupt(
-            Interrupt(self.spec.meg, iteration, mode), self.spec.interrupt_drones))
+        self.links.executive.tell(
+            BroadcastInterrupt(
+                Interrupt(self.spec.meg, iteration, mode), self.spec.interrupt_drones
+            )
+        )
 
     # -- loops -------------------------------------------------------------------------
 
@@ -365,14 +431,16 @@ class MissionNode(PooledActor):
             state.in_body = True
             state.stop_sent = False
             self.log.info("mission.loop.iteration", iteration=list(act), counter=state.counter)
-            self._emit(act, lambda r: "done" if r.kind == "body" else None, act + (state.counter,))
+            self._emit(act, lambda r: "done" if r.kind == "body" else None, (*act, state.counter))
             if self.spec.interrupt_drones and self.spec.kind != "repeat_for":
                 self.pending[act] = _Pending("loop-watch")
                 self._watch()
                 self._check(act)
         else:
             final: Status = "skipped" if state.interrupted else "done"
-            self.log.info("mission.loop.exit", iteration=list(act), counter=state.counter, status=final)
+            self.log.info(
+                "mission.loop.exit", iteration=list(act), counter=state.counter, status=final
+            )
             del self.loops[act]
             self._emit(act, lambda r: final if r.kind == "exit" else None)
             self._resolved(act, final)
@@ -411,7 +479,9 @@ class MissionNode(PooledActor):
             return
         completed = all(s == "done" for s in body)
         self.log.info("mission.do.end", iteration=list(act), interrupted=not completed)
-        self._emit(act, lambda r: ("skipped" if completed else "done") if r.kind == "exit" else "done")
+        self._emit(
+            act, lambda r: ("skipped" if completed else "done") if r.kind == "exit" else "done"
+        )
         self._resolved(act, "done")
 
     # -- interruption and abort ---------------------------------------------------------
@@ -426,8 +496,12 @@ class MissionNode(PooledActor):
         if msg.scope not in self.spec.scopes or not self._applies(msg.mode):
             return
         self.interrupts.add((msg.scope, msg.iteration))
-        self.log.info("mission.node.interrupted", scope=msg.scope, iteration=list(msg.iteration),
-                      mode=msg.mode)
+        self.log.info(
+            "mission.node.interrupted",
+            scope=msg.scope,
+            iteration=list(msg.iteration),
+            mode=msg.mode,
+        )
         assert self.links is not None
         for act, (token, _) in list(self.running.items()):
             if within(act, msg.iteration):

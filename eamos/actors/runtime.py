@@ -29,6 +29,7 @@ from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
 from ..program.format import DroneProgram
+from .dispatch import Dispatcher
 from .messages import (
     AbortMission,
     ActionRecord,
@@ -45,7 +46,6 @@ from .messages import (
     Unwatch,
     Watch,
 )
-from .dispatch import Dispatcher
 from .node import BroadcastInterrupt, Links, MissionNode, Route, Wire
 
 
@@ -83,11 +83,22 @@ class TelemetryBoard(pykka.ThreadingActor):
             self.local = sample
             self._update(self.drone, telemetry_values(sample))
             if self.out_bridge is not None:
-                self.out_bridge.tell(wire.TelemetrySample(
-                    mission=self.mission_id, sender=self.drone, time_s=sample.time_s, x_m=sample.x_m,
-                    y_m=sample.y_m, z_m=sample.z_m, lat_deg=sample.lat_deg, lon_deg=sample.lon_deg,
-                    alt_m=sample.alt_m, battery_pct=sample.battery_pct, armed=sample.armed,
-                    landed=sample.landed))
+                self.out_bridge.tell(
+                    wire.TelemetrySample(
+                        mission=self.mission_id,
+                        sender=self.drone,
+                        time_s=sample.time_s,
+                        x_m=sample.x_m,
+                        y_m=sample.y_m,
+                        z_m=sample.z_m,
+                        lat_deg=sample.lat_deg,
+                        lon_deg=sample.lon_deg,
+                        alt_m=sample.alt_m,
+                        battery_pct=sample.battery_pct,
+                        armed=sample.armed,
+                        landed=sample.landed,
+                    )
+                )
             if sample.landed:
                 for event in self.landed_waiters:
                     event.set()
@@ -113,7 +124,9 @@ class TelemetryBoard(pykka.ThreadingActor):
     def _update(self, drone: str, values: dict[str, Any]) -> None:
         old = self.latest.get(drone)
         self.latest[drone] = values
-        if old is not None and all(old.get(k) == v for k, v in values.items() if not k.startswith("_")):
+        if old is not None and all(
+            old.get(k) == v for k, v in values.items() if not k.startswith("_")
+        ):
             return  # nothing a condition reads changed
         for watcher, drones in list(self.watchers.items()):
             if drone in drones:
@@ -151,20 +164,47 @@ class Outbox:
     def tell(self, message: Any) -> None:
         if isinstance(message, SendTrigger):
             t = message.trigger
-            self.bridge.send(wire.Trigger(mission=self.mission_id, sender=self.drone, dest=message.dest,
-                                          src_node=t.src, dst_node=t.dst, iteration=t.iteration,
-                                          status=t.status))
+            self.bridge.send(
+                wire.Trigger(
+                    mission=self.mission_id,
+                    sender=self.drone,
+                    dest=message.dest,
+                    src_node=t.src,
+                    dst_node=t.dst,
+                    iteration=t.iteration,
+                    status=t.status,
+                )
+            )
             with self._lock:
                 self.triggers_sent += 1
                 self.sent_by_dest[message.dest] = self.sent_by_dest.get(message.dest, 0) + 1
-            self.log.info("mission.outbridge.sent", dest=message.dest, src=t.src, dst=t.dst,
-                          iteration=list(t.iteration), status=t.status)
+            self.log.info(
+                "mission.outbridge.sent",
+                dest=message.dest,
+                src=t.src,
+                dst=t.dst,
+                iteration=list(t.iteration),
+                status=t.status,
+            )
         elif isinstance(message, SendInterrupt):
             i = message.interrupt
-            self.bridge.send(wire.Interrupt(mission=self.mission_id, sender=self.drone, dest=message.dest,
-                                            scope=str(i.scope), iteration=i.iteration, mode=i.mode))
-            self.log.info("mission.outbridge.interrupt", dest=message.dest, scope=i.scope,
-                          iteration=list(i.iteration), mode=i.mode)
+            self.bridge.send(
+                wire.Interrupt(
+                    mission=self.mission_id,
+                    sender=self.drone,
+                    dest=message.dest,
+                    scope=str(i.scope),
+                    iteration=i.iteration,
+                    mode=i.mode,
+                )
+            )
+            self.log.info(
+                "mission.outbridge.interrupt",
+                dest=message.dest,
+                scope=i.scope,
+                iteration=list(i.iteration),
+                mode=i.mode,
+            )
         else:
             self.bridge.send(message)
 
@@ -199,8 +239,14 @@ class _Snapshot:
 class DroneExecutive(pykka.ThreadingActor):
     """Keeps the drone's records and tells the ground station how it is doing."""
 
-    def __init__(self, program: DroneProgram, nodes: Mapping[str, Any], out_bridge: Any,
-                 to_ground: Callable[[Any], None], log: Any) -> None:
+    def __init__(
+        self,
+        program: DroneProgram,
+        nodes: Mapping[str, Any],
+        out_bridge: Any,
+        to_ground: Callable[[Any], None],
+        log: Any,
+    ) -> None:
         super().__init__()
         self.program = program
         self.drone = program.drone
@@ -240,11 +286,23 @@ class DroneExecutive(pykka.ThreadingActor):
                 self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
         elif isinstance(message, ActionRecord):
             self.records.append(message)
-            self._progress(message.result, message.node, self.labels.get(message.node, message.action),
-                           message.iteration, message.reason, urgent=message.result != "ok")
+            self._progress(
+                message.result,
+                message.node,
+                self.labels.get(message.node, message.action),
+                message.iteration,
+                message.reason,
+                urgent=message.result != "ok",
+            )
         elif isinstance(message, NodeEvent):
-            self._progress(message.state, message.node, message.action, message.iteration,
-                           message.detail, urgent=message.state in ("failed", "blocked"))
+            self._progress(
+                message.state,
+                message.node,
+                message.action,
+                message.iteration,
+                message.detail,
+                urgent=message.state in ("failed", "blocked"),
+            )
         elif isinstance(message, _FlushProgress):
             self._flush_timer = None
             self._flush_progress()
@@ -267,8 +325,15 @@ class DroneExecutive(pykka.ThreadingActor):
             }
         return None
 
-    def _progress(self, state: str, node: str, action: str, iteration: tuple[int, ...], detail: str,
-                  urgent: bool) -> None:
+    def _progress(
+        self,
+        state: str,
+        node: str,
+        action: str,
+        iteration: tuple[int, ...],
+        detail: str,
+        urgent: bool,
+    ) -> None:
         """Tell the ground station, at most every PROGRESS_INTERVAL_S unless it matters.
 
         Progress is for people watching; bursts of instant actions would otherwise
@@ -278,8 +343,17 @@ class DroneExecutive(pykka.ThreadingActor):
         if state in ("ok", "failed", "cancelled"):
             self.finished_actions += 1
         self._pending_progress = wire.Progress(
-            mission=self.program.mission_id, sender=self.drone, state=state, node=node, action=action,
-            detail={"iteration": list(iteration), "detail": detail, "finished": self.finished_actions})
+            mission=self.program.mission_id,
+            sender=self.drone,
+            state=state,
+            node=node,
+            action=action,
+            detail={
+                "iteration": list(iteration),
+                "detail": detail,
+                "finished": self.finished_actions,
+            },
+        )
         now = time.monotonic()
         if urgent or now - self._last_progress >= PROGRESS_INTERVAL_S:
             self._flush_progress()
@@ -318,10 +392,17 @@ class NetSettings:
 class DroneRuntime:
     """Everything one drone runs for one mission; build, :meth:`start`, then :meth:`stop`."""
 
-    def __init__(self, program: DroneProgram, adapter: Adapter, net: NetSettings,
-                 log_dir: Path | None = None, *, context: zmq.Context[Any] | None = None,
-                 ground_handler: Callable[[Any], None] | None = None,
-                 extra_topics: tuple[bytes, ...] = ()) -> None:
+    def __init__(
+        self,
+        program: DroneProgram,
+        adapter: Adapter,
+        net: NetSettings,
+        log_dir: Path | None = None,
+        *,
+        context: zmq.Context[Any] | None = None,
+        ground_handler: Callable[[Any], None] | None = None,
+        extra_topics: tuple[bytes, ...] = (),
+    ) -> None:
         self.program = program
         self.drone = program.drone
         self.adapter = adapter
@@ -357,16 +438,21 @@ class DroneRuntime:
         try:
             self.out = OutBridge(self.context, self.net.bind, self.logs.mission)
         except zmq.ZMQError as exc:
-            raise DroneRuntimeError(f"cannot bind the out-bridge at {self.net.bind}: {exc}") from exc
+            raise DroneRuntimeError(
+                f"cannot bind the out-bridge at {self.net.bind}: {exc}"
+            ) from exc
         self.out.start()
         self.out_actor = Outbox(self.out, self.drone, program.mission_id, self.logs.mission)
         self.dispatcher = Dispatcher(workers=2, name=f"eamos-{self.drone}")
         self.board = TelemetryBoard.start(self.drone, self.out_actor, program.mission_id)
         start_error: list[AdapterError] = []
         board = self.board
-        self.hal = UniformAPI.start(self.adapter, self.logs.uniform,
-                                    lambda sample: board.tell(LocalTelemetry(sample)),
-                                    start_error.append)
+        self.hal = UniformAPI.start(
+            self.adapter,
+            self.logs.uniform,
+            lambda sample: board.tell(LocalTelemetry(sample)),
+            start_error.append,
+        )
         # on_start has run once a first message is answered; an adapter that could
         # not start stops the actor, which the ask below reveals.
         try:
@@ -386,16 +472,25 @@ class DroneRuntime:
         drone_of = {n.key: n.drone for n in program.nodes}
         kind_of = {n.key: n.kind for n in program.nodes}
         for arc in program.arcs:
-            routes.setdefault(arc.src, []).append(Route(arc.dst, drone_of[arc.dst], arc.kind, arc.external))
+            routes.setdefault(arc.src, []).append(
+                Route(arc.dst, drone_of[arc.dst], arc.kind, arc.external)
+            )
             (loop if arc.kind == "loop" else entry).setdefault(arc.dst, set()).add(arc.src)
         for node in program.native_nodes():
             self.nodes[node.key] = MissionNode.start(
-                self.dispatcher, node, tuple(routes.get(node.key, ())), frozenset(entry.get(node.key, ())),
-                frozenset(loop.get(node.key, ())), self.drone, self.logs.mission,
-                kind_of.get(f"n{node.begin}", "") if node.begin is not None else "")
+                self.dispatcher,
+                node,
+                tuple(routes.get(node.key, ())),
+                frozenset(entry.get(node.key, ())),
+                frozenset(loop.get(node.key, ())),
+                self.drone,
+                self.logs.mission,
+                kind_of.get(f"n{node.begin}", "") if node.begin is not None else "",
+            )
         to_ground = self._to_ground
-        self.executive = DroneExecutive.start(program, dict(self.nodes), self.out_actor, to_ground,
-                                              self.logs.mission)
+        self.executive = DroneExecutive.start(
+            program, dict(self.nodes), self.out_actor, to_ground, self.logs.mission
+        )
         links = Links(dict(self.nodes), self.hal, self.board, self.out_actor, self.executive)
         for ref in self.nodes.values():
             ref.tell(Wire(links))
@@ -404,14 +499,19 @@ class DroneRuntime:
         topics += [t for t in self.extra_topics if t not in topics]
         peers = {name: ep for name, ep in self.net.peers.items() if name != self.drone}
         try:
-            self.inb = InBridge(self.context, peers, topics, self._on_message, program.mission_id,
-                                self.logs.mission)
+            self.inb = InBridge(
+                self.context, peers, topics, self._on_message, program.mission_id, self.logs.mission
+            )
         except zmq.ZMQError as exc:
             self.stop()
             raise DroneRuntimeError(f"cannot connect the in-bridge to {peers}: {exc}") from exc
         self.inb.start()
-        self.log.info("mission.runtime.started", nodes=len(self.nodes), program=program.checksum,
-                      seconds=round(time.monotonic() - self.started_at, 4))
+        self.log.info(
+            "mission.runtime.started",
+            nodes=len(self.nodes),
+            program=program.checksum,
+            seconds=round(time.monotonic() - self.started_at, 4),
+        )
 
     # -- readiness ---------------------------------------------------------------------
 
@@ -436,8 +536,13 @@ class DroneRuntime:
         if not self.wait_subscribed(timeout_s):
             self.log.error("mission.not_ready", waiting_for=self.destinations())
             return False
-        self._to_ground(wire.Ready(mission=self.program.mission_id, sender=self.drone,
-                                   program_checksum=self.program.checksum))
+        self._to_ground(
+            wire.Ready(
+                mission=self.program.mission_id,
+                sender=self.drone,
+                program_checksum=self.program.checksum,
+            )
+        )
         self.log.info("mission.ready")
         return True
 
@@ -487,8 +592,14 @@ class DroneRuntime:
             if ref is None or msg.dest != self.drone:
                 self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
                 return
-            self.log.info("mission.inbridge.received", src_drone=msg.sender, src=msg.src_node,
-                          dst=msg.dst_node, iteration=list(msg.iteration), status=msg.status)
+            self.log.info(
+                "mission.inbridge.received",
+                src_drone=msg.sender,
+                src=msg.src_node,
+                dst=msg.dst_node,
+                iteration=list(msg.iteration),
+                status=msg.status,
+            )
             self.executive.tell(_TriggerReceived(msg.sender))
             ref.tell(Trigger(msg.src_node, msg.dst_node, tuple(msg.iteration), msg.status))  # type: ignore[arg-type]
         elif isinstance(msg, wire.TelemetrySample):
@@ -516,20 +627,34 @@ class DroneRuntime:
 
     def report(self) -> dict[str, Any]:
         """This drone's part of the run summary."""
-        snap = self.executive.ask(_Snapshot(), timeout=30) if self.executive else {
-            "records": [], "triggers_received": 0, "resolved": {}, "all_resolved": False}
+        snap: dict[str, Any] = (
+            self.executive.ask(_Snapshot(), timeout=30)
+            if self.executive
+            else {"records": [], "triggers_received": 0, "resolved": {}, "all_resolved": False}
+        )
         counts = self.out_actor.counts() if self.out_actor else {"triggers_sent": 0}
         local = self.board.ask(_LatestLocal(), timeout=30) if self.board else None
         stats = self.program.stats()
         actions = [
-            {"node": r.node, "action": r.action, "args": list(r.args), "iteration": list(r.iteration),
-             "start": r.start, "end": r.end, "result": r.result, **({"reason": r.reason} if r.reason else {})}
+            {
+                "node": r.node,
+                "action": r.action,
+                "args": list(r.args),
+                "iteration": list(r.iteration),
+                "start": r.start,
+                "end": r.end,
+                "result": r.result,
+                **({"reason": r.reason} if r.reason else {}),
+            }
             for r in sorted(snap["records"], key=lambda r: (r.start, r.node))
         ]
         failed = [a for a in actions if a["result"] == "failed"]
         blocked = sorted(k for k, s in snap["resolved"].items() if s == "failed")
         return {
-            "ok": bool(snap["all_resolved"]) and not failed and not blocked and not self.aborted.is_set(),
+            "ok": bool(snap["all_resolved"])
+            and not failed
+            and not blocked
+            and not self.aborted.is_set(),
             "resolved": bool(snap["all_resolved"]),
             "aborted": self.aborted.is_set(),
             "abort_reason": self.abort_reason,
@@ -540,8 +665,15 @@ class DroneRuntime:
             "mdg": stats,
             "blocked_nodes": blocked,
             "actions": actions,
-            "final": None if local is None else {"x": local.x_m, "y": local.y_m, "z": local.z_m,
-                                                 "armed": local.armed, "battery": local.battery_pct},
+            "final": None
+            if local is None
+            else {
+                "x": local.x_m,
+                "y": local.y_m,
+                "z": local.z_m,
+                "armed": local.armed,
+                "battery": local.battery_pct,
+            },
             "adapter_error": str(self.adapter_error) if self.adapter_error else "",
         }
 
@@ -565,4 +697,3 @@ class DroneRuntime:
         if self._own_context:
             self.context.term()
         self.logs.close()
-

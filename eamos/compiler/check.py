@@ -77,21 +77,41 @@ class _Checker:
         m = self.mission
         for decl in m.drones.values():
             if decl.type not in DRONE_TYPES:
-                self.error(decl.loc, f"unknown drone type '{decl.type}'", did_you_mean(decl.type, DRONE_TYPES))
+                self.error(
+                    decl.loc,
+                    f"unknown drone type '{decl.type}'",
+                    did_you_mean(decl.type, DRONE_TYPES),
+                )
             if decl.name == GROUND_STATION:
-                self.error(decl.loc, f"'{GROUND_STATION}' is the ground station's name", "name the drone differently")
+                self.error(
+                    decl.loc,
+                    f"'{GROUND_STATION}' is the ground station's name",
+                    "name the drone differently",
+                )
         for name, block in m.blocks.items():
             if not block.statements:
-                self.error(block.loc, f"block '{name}' is empty",
-                           "give it at least one statement, or remove it and its calls")
+                self.error(
+                    block.loc,
+                    f"block '{name}' is empty",
+                    "give it at least one statement, or remove it and its calls",
+                )
             for stmt in block.statements:
                 self.statement(stmt)
         self.recursion()
         self.reachability()
-        used = {s.drone for b in m.blocks.values() for s in b.statements
-                if isinstance(s, ActionCall) and s.drone is not None}
-        used |= {p.drone for b in m.blocks.values() for s in b.statements
-                 if isinstance(s, Control) for p in _props(s.cond)}
+        used = {
+            s.drone
+            for b in m.blocks.values()
+            for s in b.statements
+            if isinstance(s, ActionCall) and s.drone is not None
+        }
+        used |= {
+            p.drone
+            for b in m.blocks.values()
+            for s in b.statements
+            if isinstance(s, Control)
+            for p in _props(s.cond)
+        }
         for decl in m.drones.values():
             if decl.name not in used:
                 self.warn(decl.loc, f"drone '{decl.name}' is declared but never used")
@@ -118,31 +138,51 @@ class _Checker:
         spec = ACTIONS.get(call.action)
         if call.drone is None:
             if call.action != "PauseFor":  # pragma: no cover - the parser only makes bare PauseFor
-                self.error(call.loc, f"'{call.action}' needs a drone", f"write Drone1.{call.action}(...)")
+                self.error(
+                    call.loc, f"'{call.action}' needs a drone", f"write Drone1.{call.action}(...)"
+                )
                 return
         elif call.drone == GROUND_STATION:
-            self.error(call.loc, f"the ground station '{GROUND_STATION}' does not fly",
-                       "call actions on drones; a bare PauseFor(s) pauses at the ground station")
+            self.error(
+                call.loc,
+                f"the ground station '{GROUND_STATION}' does not fly",
+                "call actions on drones; a bare PauseFor(s) pauses at the ground station",
+            )
             return
         if spec is None:
-            self.error(call.loc, f"unknown action '{call.action}'", did_you_mean(call.action, ACTIONS))
+            self.error(
+                call.loc, f"unknown action '{call.action}'", did_you_mean(call.action, ACTIONS)
+            )
             return
         if call.drone is not None:
             dtype = self.types[call.drone]
             if call.action not in dtype.actions:
-                self.error(call.loc, f"{call.drone} ({dtype.name}) has no action '{call.action}'",
-                           did_you_mean(call.action, dtype.actions) if call.action not in ACTIONS
-                           else f"{dtype.name} offers: {', '.join(sorted(dtype.actions))}")
+                self.error(
+                    call.loc,
+                    f"{call.drone} ({dtype.name}) has no action '{call.action}'",
+                    did_you_mean(call.action, dtype.actions)
+                    if call.action not in ACTIONS
+                    else f"{dtype.name} offers: {', '.join(sorted(dtype.actions))}",
+                )
                 return
         if len(call.args) != len(spec.params):
             want = ", ".join(spec.params) or "no arguments"
-            self.error(call.loc, f"{call.action} takes {len(spec.params)} argument"
-                       f"{'s' if len(spec.params) != 1 else ''}, got {len(call.args)}",
-                       f"{call.action}({want})")
+            self.error(
+                call.loc,
+                f"{call.action} takes {len(spec.params)} argument"
+                f"{'s' if len(spec.params) != 1 else ''}, got {len(call.args)}",
+                f"{call.action}({want})",
+            )
             return
-        for value, param, loc in zip(call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args),
-                                     strict=False):
-            if param in ("height_m", "duration_s") and value < 0 or param == "height_m" and value == 0:
+        for value, param, loc in zip(
+            call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args), strict=False
+        ):
+            if (
+                (param in ("height_m", "duration_s")
+                and value < 0)
+                or (param == "height_m"
+                and value == 0)
+            ):
                 self.error(loc, f"{call.action}'s {param} must be positive, got {value:g}")
             if param == "lat_deg" and not -90 <= value <= 90:
                 self.error(loc, f"latitude must be within -90..90 degrees, got {value:g}")
@@ -157,12 +197,17 @@ class _Checker:
             if ctl.drone == GROUND_STATION:
                 pass
             elif ctl.drone not in self.types:
-                self.error(ctl.loc, f"unknown drone '{ctl.drone}'", did_you_mean(ctl.drone, self.types))
+                self.error(
+                    ctl.loc, f"unknown drone '{ctl.drone}'", did_you_mean(ctl.drone, self.types)
+                )
         if ctl.cond is not None:
             kind = self.expr_type(ctl.cond)
             if kind == "number":
-                self.error(ctl.cond.loc, f"the condition of {ctl.kind} is a number, not true/false",
-                           "compare it, e.g. D1.Z() > 1.5")
+                self.error(
+                    ctl.cond.loc,
+                    f"the condition of {ctl.kind} is a number, not true/false",
+                    "compare it, e.g. D1.Z() > 1.5",
+                )
 
     def expr_type(self, expr: Expr) -> str | None:
         """'number' or 'bool' (None after an error already reported)."""
@@ -172,23 +217,31 @@ class _Checker:
             return "bool"
         if isinstance(expr, Prop):
             if expr.drone not in self.types and expr.drone != GROUND_STATION:
-                self.error(expr.loc, f"unknown drone '{expr.drone}'",
-                           did_you_mean(expr.drone, self.types) or
-                           "declare it: var " + expr.drone + " Quadcopter")
+                self.error(
+                    expr.loc,
+                    f"unknown drone '{expr.drone}'",
+                    did_you_mean(expr.drone, self.types)
+                    or "declare it: var " + expr.drone + " Quadcopter",
+                )
                 return None
             dtype = self.types.get(expr.drone)
             spec = PROPERTIES.get(expr.name)
             if spec is None or dtype is None or expr.name not in dtype.properties:
                 offered = dtype.properties if dtype is not None else frozenset()
-                self.error(expr.loc, f"{expr.drone} has no property '{expr.name}'",
-                           did_you_mean(expr.name, offered or PROPERTIES))
+                self.error(
+                    expr.loc,
+                    f"{expr.drone} has no property '{expr.name}'",
+                    did_you_mean(expr.name, offered or PROPERTIES),
+                )
                 return None
             return spec.type
         if isinstance(expr, Unary):
             inner = self.expr_type(expr.operand)
             want = "bool" if expr.op == "!" else "number"
             if inner is not None and inner != want:
-                self.error(expr.loc, f"'{expr.op}' needs a {'condition' if want == 'bool' else 'number'}")
+                self.error(
+                    expr.loc, f"'{expr.op}' needs a {'condition' if want == 'bool' else 'number'}"
+                )
                 return None
             return want
         if isinstance(expr, Binary):
@@ -197,8 +250,11 @@ class _Checker:
                 return None
             if expr.op in _LOGIC:
                 if left != "bool" or right != "bool":
-                    self.error(expr.loc, f"'{expr.op}' joins conditions, not numbers",
-                               "compare the numbers first, e.g. D1.X() > 1 && D1.Y() < 2")
+                    self.error(
+                        expr.loc,
+                        f"'{expr.op}' joins conditions, not numbers",
+                        "compare the numbers first, e.g. D1.X() > 1 && D1.Y() < 2",
+                    )
                     return None
                 return "bool"
             if expr.op in _EQUALITY:
@@ -227,9 +283,12 @@ class _Checker:
                     if ref.name not in blocks:
                         continue
                     if state.get(ref.name) == 1:
-                        cycle = path[path.index(ref.name):] + [ref.name]
-                        self.error(ref.loc, "recursion between blocks: " + " -> ".join(cycle),
-                                   "a mission is finite: use RepeatWhile/RepeatFor to repeat a block")
+                        cycle = [*path[path.index(ref.name):], ref.name]
+                        self.error(
+                            ref.loc,
+                            "recursion between blocks: " + " -> ".join(cycle),
+                            "a mission is finite: use RepeatWhile/RepeatFor to repeat a block",
+                        )
                     elif ref.name not in state:
                         visit(ref.name)
             path.pop()
@@ -253,8 +312,11 @@ class _Checker:
                         todo.append(ref.name)
         for name, block in blocks.items():
             if name not in seen:
-                self.warn(block.loc, f"block '{name}' is never reached from {self.mission.entry}",
-                          "call it from another block, or remove it")
+                self.warn(
+                    block.loc,
+                    f"block '{name}' is never reached from {self.mission.entry}",
+                    "call it from another block, or remove it",
+                )
 
 
 def _props(expr: Expr | None) -> Iterator[Prop]:

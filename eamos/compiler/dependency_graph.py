@@ -176,5 +176,9 @@ def mdg_stats(mdg: nx.DiGraph) -> dict[str, int]:
             ext_in += 1
         else:
             ext_out += 1
-    return {"nodes": mdg.number_of_nodes(), "internal_arcs": internal,
-            "external_in": ext_in, "external_out": ext_out}
+    return {
+        "nodes": mdg.number_of_nodes(),
+        "internal_arcs": internal,
+        "external_in": ext_in,
+        "external_out": ext_out,
+    }

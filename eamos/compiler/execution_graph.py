@@ -40,6 +40,7 @@ Shapes per construct (C = begin, E = end, X = Exit block):
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import networkx as nx
@@ -64,12 +65,21 @@ class _Closer:
         self.shared: dict[int, _Fragment] = {}
 
     def children(self, node: int, role: str | None = None) -> list[int]:
-        out = [(d.get("order", 0), c) for _, c, d in self.amt.out_edges(node, data=True)
-               if role is None or d["role"] == role]
+        out = [
+            (d.get("order", 0), c)
+            for _, c, d in self.amt.out_edges(node, data=True)
+            if role is None or d["role"] == role
+        ]
         return [c for _, c in sorted(out)]
 
-    def add(self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...], **extra: object) -> int:
-        attrs = {k: v for k, v in self.amt.nodes[node].items() if k in _CARRIED} if node in self.amt else {}
+    def add(
+        self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...], **extra: object
+    ) -> int:
+        attrs = (
+            {k: v for k, v in self.amt.nodes[node].items() if k in _CARRIED}
+            if node in self.amt
+            else {}
+        )
         attrs.update(extra)
         if attrs.get("kind") == "par":
             attrs["kind"] = "fork"
@@ -81,14 +91,16 @@ class _Closer:
         for s in sources:
             for t in targets:
                 if self.meg.has_edge(s, t) and self.meg.edges[s, t]["kind"] != kind:
-                    raise CompilerBug(f"two arcs {s}->{t} of kinds {self.meg.edges[s, t]['kind']}/{kind}")
+                    raise CompilerBug(
+                        f"two arcs {s}->{t} of kinds {self.meg.edges[s, t]['kind']}/{kind}"
+                    )
                 self.meg.add_edge(s, t, kind=kind)
 
     def build(self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...]) -> _Fragment:
         kind = self.amt.nodes[node]["kind"]
         if kind == "seq":
             frags = [self.build(c, loops, scopes) for c in self.children(node)]
-            for a, b in zip(frags, frags[1:], strict=False):
+            for a, b in itertools.pairwise(frags):
                 self.connect(a.exits, b.entries, "seq")
             return _Fragment(frags[0].entries, frags[-1].exits)
         if kind == "par":
@@ -116,13 +128,24 @@ class _Closer:
         attrs = self.amt.nodes[begin]
         end = self.next_id
         self.next_id += 1
-        self.meg.add_node(end, kind="end", drone=attrs["drone"], label="end " + attrs["label"].split(" ")[0],
-                          block=attrs["block"], line=attrs["line"], col=attrs["col"],
-                          loops=loops, scopes=scopes, begin=begin)
+        self.meg.add_node(
+            end,
+            kind="end",
+            drone=attrs["drone"],
+            label="end " + attrs["label"].split(" ")[0],
+            block=attrs["block"],
+            line=attrs["line"],
+            col=attrs["col"],
+            loops=loops,
+            scopes=scopes,
+            begin=begin,
+        )
         self.meg.nodes[begin]["end"] = end
         return end
 
-    def exit_block(self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...]) -> _Fragment | None:
+    def exit_block(
+        self, node: int, loops: tuple[int, ...], scopes: tuple[int, ...]
+    ) -> _Fragment | None:
         exits = self.children(node, "exit")
         if not exits:
             return None
@@ -131,7 +154,9 @@ class _Closer:
             self.shared[exit_root] = self.build(exit_root, loops, scopes)
         return self.shared[exit_root]
 
-    def control(self, node: int, kind: str, loops: tuple[int, ...], scopes: tuple[int, ...]) -> _Fragment:
+    def control(
+        self, node: int, kind: str, loops: tuple[int, ...], scopes: tuple[int, ...]
+    ) -> _Fragment:
         begin = self.add(node, loops, scopes)
         if kind in WAIT_KINDS:
             bodies = self.children(node, "body")

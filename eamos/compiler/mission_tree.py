@@ -121,26 +121,47 @@ class _Builder:
 
     def block(self, name: str, parent: int, **edge: object) -> int:
         block = self.mission.blocks[name]
-        node = self.add(kind="par" if block.mode == "PAR" else "seq", drone="", label=name,
-                        block=name, line=block.loc.line, col=block.loc.col)
+        node = self.add(
+            kind="par" if block.mode == "PAR" else "seq",
+            drone="",
+            label=name,
+            block=name,
+            line=block.loc.line,
+            col=block.loc.col,
+        )
         self.tree.add_edge(parent, node, **edge)
         shared: dict[str, int] = {}
         for order, stmt in enumerate(block.statements, start=1):
             edge_attrs: dict[str, object] = {"role": "child"}
             if block.mode == "SEQ":
                 edge_attrs["order"] = order
-            self.statement(stmt, node, block.name, edge_attrs, shared if block.mode == "PAR" else None)
+            self.statement(
+                stmt, node, block.name, edge_attrs, shared if block.mode == "PAR" else None
+            )
         return node
 
-    def statement(self, stmt: object, parent: int, block: str, edge: dict[str, object],
-                  shared: dict[str, int] | None) -> None:
+    def statement(
+        self,
+        stmt: object,
+        parent: int,
+        block: str,
+        edge: dict[str, object],
+        shared: dict[str, int] | None,
+    ) -> None:
         if isinstance(stmt, BlockCall):
             self.block(stmt.name, parent, **edge)
         elif isinstance(stmt, ActionCall):
             drone = stmt.drone if stmt.drone is not None else self.last_drone
-            node = self.add(kind="action", drone=drone, action=stmt.action, args=stmt.args,
-                            label=f"{stmt.action}({_fmt_args(stmt.args)})", block=block,
-                            line=stmt.loc.line, col=stmt.loc.col)
+            node = self.add(
+                kind="action",
+                drone=drone,
+                action=stmt.action,
+                args=stmt.args,
+                label=f"{stmt.action}({_fmt_args(stmt.args)})",
+                block=block,
+                line=stmt.loc.line,
+                col=stmt.loc.col,
+            )
             self.tree.add_edge(parent, node, **edge)
             if drone != GROUND_STATION:
                 self.last_drone = drone
@@ -149,16 +170,27 @@ class _Builder:
         else:  # pragma: no cover
             raise CompilerBug(f"unknown statement {stmt!r}")
 
-    def control(self, ctl: Control, parent: int, block: str, edge: dict[str, object],
-                shared: dict[str, int] | None) -> None:
+    def control(
+        self,
+        ctl: Control,
+        parent: int,
+        block: str,
+        edge: dict[str, object],
+        shared: dict[str, int] | None,
+    ) -> None:
         kind = CONTROL_KIND[ctl.kind]
         drone = ctl.drone or host_of_condition(ctl.cond)
         if drone is None and ctl.body is not None:
             drone = self._first_drone(ctl.body.name) or self.last_drone
         if drone is None:
             drone = self.last_drone
-        attrs: dict[str, object] = {"kind": kind, "drone": drone, "block": block,
-                                    "line": ctl.loc.line, "col": ctl.loc.col}
+        attrs: dict[str, object] = {
+            "kind": kind,
+            "drone": drone,
+            "block": block,
+            "line": ctl.loc.line,
+            "col": ctl.loc.col,
+        }
         if ctl.cond is not None:
             attrs["cond"] = condition_of(ctl.cond)
             attrs["label"] = f"{ctl.kind} {to_text(attrs['cond'])}"  # type: ignore[arg-type]
@@ -186,9 +218,15 @@ class _Builder:
         for stmt in self.mission.blocks[name].statements:
             if isinstance(stmt, ActionCall) and stmt.drone is not None:
                 return stmt.drone
-            refs = [stmt.name] if isinstance(stmt, BlockCall) else (
-                [r.name for r in (stmt.body, stmt.orelse, stmt.exit) if r is not None]
-                if isinstance(stmt, Control) else [])
+            refs = (
+                [stmt.name]
+                if isinstance(stmt, BlockCall)
+                else (
+                    [r.name for r in (stmt.body, stmt.orelse, stmt.exit) if r is not None]
+                    if isinstance(stmt, Control)
+                    else []
+                )
+            )
             for ref in refs:
                 found = self._first_drone(ref, seen | {name})
                 if found:

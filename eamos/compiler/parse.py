@@ -8,7 +8,7 @@ control structure to use instead.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from ..hal.uniform import ACTIONS, PROPERTIES
 from .errors import Diagnostic, MissionError, SourceLocation
@@ -36,12 +36,24 @@ MAX_SOURCE_BYTES = 2_000_000
 
 # Go statements a mission cannot contain, and what to write instead.
 _UNSUPPORTED_STATEMENTS = {
-    "for_statement": ("a Go 'for' loop", "use RepeatWhile(cond, Body), RepeatUntil or RepeatFor(n, Body)"),
-    "if_statement": ("a Go 'if' statement", "use If(cond, Then, Else) with blocks named Then and Else"),
+    "for_statement": (
+        "a Go 'for' loop",
+        "use RepeatWhile(cond, Body), RepeatUntil or RepeatFor(n, Body)",
+    ),
+    "if_statement": (
+        "a Go 'if' statement",
+        "use If(cond, Then, Else) with blocks named Then and Else",
+    ),
     "go_statement": ("a 'go' statement", "put the calls in a PAR_ block to run them in parallel"),
     "assignment_statement": ("an assignment", "missions have no variables; use literal values"),
-    "short_var_declaration": ("a variable declaration", "missions have no variables; use literal values"),
-    "var_declaration": ("a variable declaration inside a block", "declare drones at the top: var Drone1 DroneType1"),
+    "short_var_declaration": (
+        "a variable declaration",
+        "missions have no variables; use literal values",
+    ),
+    "var_declaration": (
+        "a variable declaration inside a block",
+        "declare drones at the top: var Drone1 DroneType1",
+    ),
     "const_declaration": ("a constant", "missions have no constants; use literal values"),
     "inc_statement": ("an increment", "missions have no variables"),
     "dec_statement": ("a decrement", "missions have no variables"),
@@ -152,7 +164,9 @@ class _Reader:
             if kind == "comment" or kind == "ERROR":
                 continue
             if kind == "package_clause":
-                ident = next((c for c in node.named_children if c.type == "package_identifier"), None)
+                ident = next(
+                    (c for c in node.named_children if c.type == "package_identifier"), None
+                )
                 if ident is not None:
                     name = _text(ident)
             elif kind == "var_declaration":
@@ -160,7 +174,9 @@ class _Reader:
                     if decl.name in drones:
                         self.diags.append(
                             Diagnostic(
-                                "error", decl.loc, f"drone '{decl.name}' is declared twice",
+                                "error",
+                                decl.loc,
+                                f"drone '{decl.name}' is declared twice",
                                 f"first declared at line {drones[decl.name].loc.line}",
                             )
                         )
@@ -181,16 +197,26 @@ class _Reader:
             elif kind == "import_declaration":
                 self.error(node, "imports are not supported in missions", "remove the import")
             elif kind in ("type_declaration", "method_declaration", "const_declaration"):
-                self.error(node, f"a Go {kind.split('_')[0]} declaration is not supported here",
-                           "a mission has only drone declarations (var) and func blocks")
+                self.error(
+                    node,
+                    f"a Go {kind.split('_')[0]} declaration is not supported here",
+                    "a mission has only drone declarations (var) and func blocks",
+                )
             else:
-                self.error(node, "unexpected top-level statement",
-                           "a mission has only drone declarations (var) and func blocks")
+                self.error(
+                    node,
+                    "unexpected top-level statement",
+                    "a mission has only drone declarations (var) and func blocks",
+                )
         entry = "INIT" if "INIT" in blocks else (order[0] if order else "")
         if not blocks and not any(d.severity == "error" for d in self.diags):
             self.diags.append(
-                Diagnostic("error", SourceLocation(1, 1), "the mission has no blocks",
-                           "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }")
+                Diagnostic(
+                    "error",
+                    SourceLocation(1, 1),
+                    "the mission has no blocks",
+                    "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }",
+                )
             )
         return Mission(name=name, blocks=blocks, drones=drones, entry=entry, source=self.source)
 
@@ -198,17 +224,21 @@ class _Reader:
         specs = [c for c in node.named_children if c.type == "var_spec"]
         for group in (c for c in node.named_children if c.type == "var_spec_list"):
             specs.extend(c for c in group.named_children if c.type == "var_spec")
-        out = []
+        out: list[DroneDecl] = []
         for spec in specs:
             names = [c for c in spec.children_by_field_name("name")]
             type_node = spec.child_by_field_name("type")
             if spec.child_by_field_name("value") is not None or type_node is None:
-                self.error(spec, "a drone declaration names a drone and its type",
-                           "write: var Drone1 DroneType1")
+                self.error(
+                    spec,
+                    "a drone declaration names a drone and its type",
+                    "write: var Drone1 DroneType1",
+                )
                 continue
             if type_node.type != "type_identifier":
-                self.error(type_node, "a drone type is a plain name",
-                           "write: var Drone1 Quadcopter")
+                self.error(
+                    type_node, "a drone type is a plain name", "write: var Drone1 Quadcopter"
+                )
                 continue
             out.extend(DroneDecl(_text(n), _text(type_node), _loc(n)) for n in names)
         return out
@@ -220,18 +250,28 @@ class _Reader:
         name = _text(name_node)
         params = node.child_by_field_name("parameters")
         if params is not None and params.named_child_count:
-            self.error(params, f"block '{name}' takes no parameters",
-                       "missions have no variables; use literal values in the calls")
+            self.error(
+                params,
+                f"block '{name}' takes no parameters",
+                "missions have no variables; use literal values in the calls",
+            )
         if node.child_by_field_name("result") is not None:
-            self.error(node.child_by_field_name("result"), f"block '{name}' returns nothing",
-                       "remove the result type")
+            self.error(
+                node.child_by_field_name("result"),
+                f"block '{name}' returns nothing",
+                "remove the result type",
+            )
+        mode: Literal["SEQ", "PAR"]
         if name.startswith("PAR_"):
             mode = "PAR"
         else:
             mode = "SEQ"
             if not name.startswith("SEQ_") and name != "INIT":
-                self.warn(name_node, f"block '{name}' has no SEQ_ or PAR_ prefix; its statements run in order",
-                          f"rename it SEQ_{name} (in order) or PAR_{name} (in parallel)")
+                self.warn(
+                    name_node,
+                    f"block '{name}' has no SEQ_ or PAR_ prefix; its statements run in order",
+                    f"rename it SEQ_{name} (in order) or PAR_{name} (in parallel)",
+                )
         body = node.child_by_field_name("body")
         statements: list[Statement] = []
         if body is not None:
@@ -242,7 +282,7 @@ class _Reader:
         return Block(name=name, mode=mode, statements=tuple(statements), loc=_loc(name_node))
 
     def _statement_nodes(self, body: Node) -> list[Node]:
-        out = []
+        out: list[Node] = []
         for child in body.named_children:
             if child.type == "statement_list":
                 out.extend(c for c in child.named_children)
@@ -260,13 +300,19 @@ class _Reader:
             self.error(node, f"{what} is not supported in missions", hint)
             return None
         if node.type != "expression_statement" or node.named_child_count != 1:
-            self.error(node, "a statement is a block call, a drone action or a control structure",
-                       "e.g. SEQ_Fly(), Drone1.Takeoff(1.5) or WaitUntil(D1.Z() > 1, SEQ_Go)")
+            self.error(
+                node,
+                "a statement is a block call, a drone action or a control structure",
+                "e.g. SEQ_Fly(), Drone1.Takeoff(1.5) or WaitUntil(D1.Z() > 1, SEQ_Go)",
+            )
             return None
         call = node.named_children[0]
         if call.type != "call_expression":
-            self.error(call, "a statement is a block call, a drone action or a control structure",
-                       "e.g. SEQ_Fly(), Drone1.Takeoff(1.5) or WaitUntil(D1.Z() > 1, SEQ_Go)")
+            self.error(
+                call,
+                "a statement is a block call, a drone action or a control structure",
+                "e.g. SEQ_Fly(), Drone1.Takeoff(1.5) or WaitUntil(D1.Z() > 1, SEQ_Go)",
+            )
             return None
         function = call.child_by_field_name("function")
         args_node = call.child_by_field_name("arguments")
@@ -282,31 +328,42 @@ class _Reader:
                 # drone of the preceding statement (the ground station at the start).
                 return self._action_call(None, name, call, args)
             if name in ACTIONS:
-                self.error(function, f"'{name}' is an action and needs a drone",
-                           f"write Drone1.{name}(...)")
+                self.error(
+                    function,
+                    f"'{name}' is an action and needs a drone",
+                    f"write Drone1.{name}(...)",
+                )
                 return None
             if args:
-                self.error(args_node, f"block '{name}' takes no arguments",
-                           "blocks are called without arguments: " + f"{name}()")
+                self.error(
+                    args_node,
+                    f"block '{name}' takes no arguments",
+                    "blocks are called without arguments: " + f"{name}()",
+                )
                 return None
             return BlockCall(name, _loc(function))
         if function.type == "selector_expression":
             operand = function.child_by_field_name("operand")
             field = function.child_by_field_name("field")
             if operand is None or field is None or operand.type != "identifier":
-                self.error(function, "an action is called on a drone by name",
-                           "e.g. Drone1.Takeoff(1.5)")
+                self.error(
+                    function, "an action is called on a drone by name", "e.g. Drone1.Takeoff(1.5)"
+                )
                 return None
             drone, action = _text(operand), _text(field)
             if action in ("PauseWhile", "PauseUntil"):
                 return self._control(action, drone, call, args)
             return self._action_call(drone, action, call, args)
-        self.error(function, "a statement is a block call, a drone action or a control structure",
-                   "e.g. SEQ_Fly(), Drone1.Takeoff(1.5)")
+        self.error(
+            function,
+            "a statement is a block call, a drone action or a control structure",
+            "e.g. SEQ_Fly(), Drone1.Takeoff(1.5)",
+        )
         return None
 
-    def _action_call(self, drone: str | None, action: str, call: Node,
-                     args: list[Node]) -> ActionCall | None:
+    def _action_call(
+        self, drone: str | None, action: str, call: Node, args: list[Node]
+    ) -> ActionCall | None:
         """An action with literal number arguments (every bad argument is reported)."""
         values: list[float] = []
         locs: list[SourceLocation] = []
@@ -326,7 +383,10 @@ class _Reader:
         """A literal number argument (with an optional sign)."""
         sign = 1.0
         inner = node
-        while inner.type == "unary_expression" and _text(inner.child_by_field_name("operator")) in "+-":
+        while (
+            inner.type == "unary_expression"
+            and _text(inner.child_by_field_name("operator")) in "+-"
+        ):
             if _text(inner.child_by_field_name("operator")) == "-":
                 sign = -sign
             inner = inner.child_by_field_name("operand")
@@ -337,8 +397,11 @@ class _Reader:
                 text = _text(inner).replace("_", "")
                 value = float(int(text, 0)) if inner.type == "int_literal" else float(text)
             except ValueError:
-                self.error(inner, f"'{_text(inner)}' is not a number this compiler understands",
-                           "write decimal numbers like 1.5 or -2")
+                self.error(
+                    inner,
+                    f"'{_text(inner)}' is not a number this compiler understands",
+                    "write decimal numbers like 1.5 or -2",
+                )
                 return None
             return sign * value
         kind = {
@@ -348,23 +411,40 @@ class _Reader:
             "false": "a boolean",
             "identifier": "a name",
         }.get(inner.type, "an expression")
-        self.error(node, f"action arguments are literal numbers, not {kind}",
-                   "write the value itself, e.g. Drone1.Takeoff(1.5)")
+        self.error(
+            node,
+            f"action arguments are literal numbers, not {kind}",
+            "write the value itself, e.g. Drone1.Takeoff(1.5)",
+        )
         return None
 
-    def _control(self, kind: str, drone: str | None, call: Node, args: list[Node]) -> Control | None:
+    def _control(
+        self, kind: str, drone: str | None, call: Node, args: list[Node]
+    ) -> Control | None:
         sig = _CONTROL_SIGNATURES[kind]
         loc = _loc(call)
         needs_cond = kind != "RepeatFor"
         min_args, max_args = {
-            "If": (2, 3), "WaitWhile": (2, 2), "WaitUntil": (2, 2), "RepeatWhile": (2, 3),
-            "RepeatUntil": (2, 3), "RepeatFor": (2, 3), "PauseWhile": (1, 1), "PauseUntil": (1, 1),
-            "DoWhile": (2, 3), "DoUntil": (2, 3),
+            "If": (2, 3),
+            "WaitWhile": (2, 2),
+            "WaitUntil": (2, 2),
+            "RepeatWhile": (2, 3),
+            "RepeatUntil": (2, 3),
+            "RepeatFor": (2, 3),
+            "PauseWhile": (1, 1),
+            "PauseUntil": (1, 1),
+            "DoWhile": (2, 3),
+            "DoUntil": (2, 3),
         }[kind]
         if not (min_args <= len(args) <= max_args):
             self.diags.append(
-                Diagnostic("error", loc, f"{kind} takes {_count(min_args, max_args)}, got {len(args)}",
-                           f"write {sig}", _end_col(call))
+                Diagnostic(
+                    "error",
+                    loc,
+                    f"{kind} takes {_count(min_args, max_args)}, got {len(args)}",
+                    f"write {sig}",
+                    _end_col(call),
+                )
             )
             return None
         cond: Expr | None = None
@@ -378,8 +458,11 @@ class _Reader:
             if value is None:
                 return None
             if value != int(value) or value < 0:
-                self.error(args[0], "RepeatFor repeats a whole number of times (0 or more)",
-                           "e.g. RepeatFor(3, SEQ_Body)")
+                self.error(
+                    args[0],
+                    "RepeatFor repeats a whole number of times (0 or more)",
+                    "e.g. RepeatFor(3, SEQ_Body)",
+                )
                 return None
             count = int(value)
         refs: list[BlockRef] = []
@@ -389,8 +472,9 @@ class _Reader:
             elif arg.type == "call_expression":
                 fn = arg.child_by_field_name("function")
                 name = _text(fn) if fn is not None else "?"
-                self.error(arg, f"name the block without calling it: {name}, not {name}()",
-                           f"write {sig}")
+                self.error(
+                    arg, f"name the block without calling it: {name}, not {name}()", f"write {sig}"
+                )
                 return None
             else:
                 self.error(arg, f"{kind} expects a block name here", f"write {sig}")
@@ -422,8 +506,11 @@ class _Reader:
             if op == "+":
                 return operand
             if op not in ("!", "-"):
-                self.error(node, f"operator '{op}' is not supported in conditions",
-                           "use numbers, comparisons, &&, ||, ! and + - * /")
+                self.error(
+                    node,
+                    f"operator '{op}' is not supported in conditions",
+                    "use numbers, comparisons, &&, ||, ! and + - * /",
+                )
                 return None
             return Unary(op, operand, loc)  # type: ignore[arg-type]
         if kind == "binary_expression":
@@ -431,9 +518,11 @@ class _Reader:
             left = self.expr(node.child_by_field_name("left"))
             right = self.expr(node.child_by_field_name("right"))
             if op not in _BINARY_OPS:
-                self.error(node.child_by_field_name("operator"),
-                           f"operator '{op}' is not supported in conditions",
-                           "use comparisons, &&, ||, ! and + - * /")
+                self.error(
+                    node.child_by_field_name("operator"),
+                    f"operator '{op}' is not supported in conditions",
+                    "use comparisons, &&, ||, ! and + - * /",
+                )
                 return None
             if left is None or right is None:
                 return None
@@ -446,25 +535,36 @@ class _Reader:
                 field = fn.child_by_field_name("field")
                 if operand is not None and operand.type == "identifier" and field is not None:
                     if args is not None and args.named_child_count:
-                        self.error(args, "drone properties take no arguments",
-                                   f"write {_text(operand)}.{_text(field)}()")
+                        self.error(
+                            args,
+                            "drone properties take no arguments",
+                            f"write {_text(operand)}.{_text(field)}()",
+                        )
                         return None
                     return Prop(_text(operand), _text(field), loc)
-            self.error(node, "only drone properties can be called in a condition",
-                       "e.g. D3.X() > 10 && Drone1.Battery() > 30")
+            self.error(
+                node,
+                "only drone properties can be called in a condition",
+                "e.g. D3.X() > 10 && Drone1.Battery() > 30",
+            )
             return None
         if kind == "identifier":
             name = _text(node)
-            hint = (f"read it from a drone: Drone1.{name}()" if name in PROPERTIES
-                    else f"did you mean {name}.X()? properties are called with ()")
+            hint = (
+                f"read it from a drone: Drone1.{name}()"
+                if name in PROPERTIES
+                else f"did you mean {name}.X()? properties are called with ()"
+            )
             self.error(node, f"'{name}' is a bare name; conditions read drone properties", hint)
             return None
         if kind == "selector_expression":
-            self.error(node, "a property is read by calling it",
-                       f"write {_text(node)}()")
+            self.error(node, "a property is read by calling it", f"write {_text(node)}()")
             return None
-        self.error(node, "this expression is not supported in conditions",
-                   "use numbers, drone properties like D3.X(), comparisons, &&, ||, !")
+        self.error(
+            node,
+            "this expression is not supported in conditions",
+            "use numbers, drone properties like D3.X(), comparisons, &&, ||, !",
+        )
         return None
 
 
@@ -486,17 +586,39 @@ def parse_mission(source: str) -> Mission:
 def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
     """Parse mission text; return the mission and the warnings, or raise MissionError."""
     if not source.strip():
-        raise MissionError([Diagnostic("error", SourceLocation(1, 1), "the mission file is empty",
-                                       "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }")])
+        raise MissionError(
+            [
+                Diagnostic(
+                    "error",
+                    SourceLocation(1, 1),
+                    "the mission file is empty",
+                    "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }",
+                )
+            ]
+        )
     if "\x00" in source:
-        raise MissionError([Diagnostic("error", SourceLocation(1, 1),
-                                       "the mission file is not text (it contains NUL bytes)",
-                                       "give the path of a .go mission file")])
+        raise MissionError(
+            [
+                Diagnostic(
+                    "error",
+                    SourceLocation(1, 1),
+                    "the mission file is not text (it contains NUL bytes)",
+                    "give the path of a .go mission file",
+                )
+            ]
+        )
     encoded = source.encode("utf-8", errors="surrogatepass")
     if len(encoded) > MAX_SOURCE_BYTES:
-        raise MissionError([Diagnostic("error", SourceLocation(1, 1),
-                                       f"the mission file is too large ({len(encoded)} bytes)",
-                                       f"missions are limited to {MAX_SOURCE_BYTES} bytes")])
+        raise MissionError(
+            [
+                Diagnostic(
+                    "error",
+                    SourceLocation(1, 1),
+                    f"the mission file is too large ({len(encoded)} bytes)",
+                    f"missions are limited to {MAX_SOURCE_BYTES} bytes",
+                )
+            ]
+        )
     tree = _go_parser().parse(encoded)
     reader = _Reader(source)
     reader.syntax_errors(tree.root_node)

@@ -61,8 +61,13 @@ def compile_mission(source: str, source_file: str = "<mission>") -> CompiledMiss
     if not mission.entry:
         raise MissionError([Diagnostic("error", SourceLocation(1, 1), "the mission has no blocks")])
     if mission.name == "mission" and source_file not in ("", "<mission>"):
-        mission = Mission(name=Path(source_file).stem, blocks=mission.blocks, drones=mission.drones,
-                          entry=mission.entry, source=mission.source)
+        mission = Mission(
+            name=Path(source_file).stem,
+            blocks=mission.blocks,
+            drones=mission.drones,
+            entry=mission.entry,
+            source=mission.source,
+        )
     warnings = warnings + check_mission(mission)
     amt = build_mission_tree(mission)
     meg = build_execution_graph(amt)
@@ -72,14 +77,24 @@ def compile_mission(source: str, source_file: str = "<mission>") -> CompiledMiss
     types = drone_types(mission)
     programs = {
         name: synthesize_program(
-            mdg, mission_id=mission_id, fleet=participants,
+            mdg,
+            mission_id=mission_id,
+            fleet=participants,
             drone_type=types[name].name if name in types else "",
             source_file=Path(source_file).name,
         )
         for name, mdg in mdgs.items()
     }
-    return CompiledMission(mission=mission, mission_id=mission_id, amt=amt, meg=meg, mdgs=mdgs,
-                           programs=programs, warnings=tuple(warnings), source_file=source_file)
+    return CompiledMission(
+        mission=mission,
+        mission_id=mission_id,
+        amt=amt,
+        meg=meg,
+        mdgs=mdgs,
+        programs=programs,
+        warnings=tuple(warnings),
+        source_file=source_file,
+    )
 
 
 def compile_file(path: Path) -> CompiledMission:
@@ -87,18 +102,37 @@ def compile_file(path: Path) -> CompiledMission:
     try:
         data = Path(path).read_bytes()
     except FileNotFoundError as exc:
-        raise MissionError([Diagnostic("error", SourceLocation(1, 1), f"no such mission file: {path}")]) from exc
+        raise MissionError(
+            [Diagnostic("error", SourceLocation(1, 1), f"no such mission file: {path}")]
+        ) from exc
     except IsADirectoryError as exc:
-        raise MissionError([Diagnostic("error", SourceLocation(1, 1), f"{path} is a folder, not a mission file")]) from exc
+        raise MissionError(
+            [Diagnostic("error", SourceLocation(1, 1), f"{path} is a folder, not a mission file")]
+        ) from exc
     except OSError as exc:
-        raise MissionError([Diagnostic("error", SourceLocation(1, 1), f"cannot read {path}: {exc.strerror}")]) from exc
+        raise MissionError(
+            [Diagnostic("error", SourceLocation(1, 1), f"cannot read {path}: {exc.strerror}")]
+        ) from exc
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise MissionError([Diagnostic("error", SourceLocation(1, 1),
-                                       "the mission file is not UTF-8 text",
-                                       "give the path of a .go mission file")]) from exc
+        raise MissionError(
+            [
+                Diagnostic(
+                    "error",
+                    SourceLocation(1, 1),
+                    "the mission file is not UTF-8 text",
+                    "give the path of a .go mission file",
+                )
+            ]
+        ) from exc
     return compile_mission(text, str(path))
 
 
-__all__ = ["GROUND_STATION", "CompiledMission", "compile_file", "compile_mission", "mission_identity"]
+__all__ = [
+    "GROUND_STATION",
+    "CompiledMission",
+    "compile_file",
+    "compile_mission",
+    "mission_identity",
+]

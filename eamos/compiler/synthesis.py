@@ -7,6 +7,8 @@ runtime loads without the compiler.
 
 from __future__ import annotations
 
+from typing import Any
+
 import networkx as nx
 
 from .. import __version__
@@ -15,38 +17,61 @@ from ..program.conditions import properties
 from ..program.format import DroneProgram, ProgramArc, ProgramNode
 
 
-def _node(key: str, attrs: dict[str, object]) -> ProgramNode:
-    def tup(name: str) -> tuple:  # type: ignore[type-arg]
-        return tuple(attrs.get(name) or ())  # type: ignore[call-overload]
+def _node(key: str, attrs: dict[str, Any]) -> ProgramNode:
+    def tup(name: str) -> tuple[Any, ...]:
+        return tuple(attrs.get(name) or ())
 
     return ProgramNode(
-        key=key, meg=int(attrs["meg"]), kind=str(attrs["kind"]), drone=str(attrs["drone"]),  # type: ignore[call-overload]
-        native=bool(attrs["native"]), label=str(attrs.get("label", "")),
-        action=attrs.get("action"),  # type: ignore[arg-type]
-        args=tuple(float(a) for a in tup("args")), cond=attrs.get("cond"),  # type: ignore[arg-type]
-        count=attrs.get("count"), loops=tup("loops"), scopes=tup("scopes"),  # type: ignore[arg-type]
-        begin=attrs.get("begin"), end=attrs.get("end"),  # type: ignore[arg-type]
+        key=key,
+        meg=int(attrs["meg"]),
+        kind=str(attrs["kind"]),
+        drone=str(attrs["drone"]),
+        native=bool(attrs["native"]),
+        label=str(attrs.get("label", "")),
+        action=attrs.get("action"),
+        args=tuple(float(a) for a in tup("args")),
+        cond=attrs.get("cond"),
+        count=attrs.get("count"),
+        loops=tup("loops"),
+        scopes=tup("scopes"),
+        begin=attrs.get("begin"),
+        end=attrs.get("end"),
         interrupt_drones=tup("interrupt_drones"),
-        interrupt_mode=attrs.get("interrupt_mode"),  # type: ignore[arg-type]
-        line=int(attrs.get("line", 0)), col=int(attrs.get("col", 0)),  # type: ignore[call-overload]
+        interrupt_mode=attrs.get("interrupt_mode"),
+        line=int(attrs.get("line", 0)),
+        col=int(attrs.get("col", 0)),
         block=str(attrs.get("block", "")),
     )
 
 
-def synthesize_program(mdg: nx.DiGraph, *, mission_id: str, fleet: list[str],
-                       drone_type: str, source_file: str = "") -> DroneProgram:
+def synthesize_program(
+    mdg: nx.DiGraph, *, mission_id: str, fleet: list[str], drone_type: str, source_file: str = ""
+) -> DroneProgram:
     """Turn one drone's MDG into its drone mission program."""
     drone = mdg.graph["drone"]
-    nodes = tuple(_node(k, a) for k, a in sorted(mdg.nodes(data=True), key=lambda kv: (kv[1]["meg"], kv[0])))
+    nodes = tuple(
+        _node(k, a) for k, a in sorted(mdg.nodes(data=True), key=lambda kv: (kv[1]["meg"], kv[0]))
+    )
     arcs = tuple(
         ProgramArc(a, b, d["kind"], bool(d["external"]))
-        for a, b, d in sorted(mdg.edges(data=True), key=lambda e: (mdg.nodes[e[0]]["meg"], mdg.nodes[e[1]]["meg"], e[0], e[1]))
+        for a, b, d in sorted(
+            mdg.edges(data=True),
+            key=lambda e: (mdg.nodes[e[0]]["meg"], mdg.nodes[e[1]]["meg"], e[0], e[1]),
+        )
     )
-    reads = sorted({d for n in nodes if n.native and n.cond is not None
-                    for d, _ in properties(n.cond)} - {drone})
+    reads = sorted(
+        {d for n in nodes if n.native and n.cond is not None for d, _ in properties(n.cond)}
+        - {drone}
+    )
     return DroneProgram(
-        mission=str(mdg.graph.get("mission", "mission")), mission_id=mission_id, drone=drone,
-        drone_type=GROUND_TYPE.name if drone == GROUND_STATION else drone_type, fleet=tuple(fleet),
-        nodes=nodes, arcs=arcs, telemetry_from=tuple(reads), source_file=source_file,
+        mission=str(mdg.graph.get("mission", "mission")),
+        mission_id=mission_id,
+        drone=drone,
+        drone_type=GROUND_TYPE.name if drone == GROUND_STATION else drone_type,
+        fleet=tuple(fleet),
+        nodes=nodes,
+        arcs=arcs,
+        telemetry_from=tuple(reads),
+        source_file=source_file,
         compiler=__version__,
     )

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -42,10 +42,24 @@ from .conditions import ConditionError, validate
 FORMAT = "eamos-program"
 VERSION = 1
 
-NODE_KINDS = frozenset({
-    "init", "action", "fork", "end", "if", "wait_while", "wait_until", "pause_while",
-    "pause_until", "repeat_while", "repeat_until", "repeat_for", "do_while", "do_until",
-})
+NODE_KINDS = frozenset(
+    {
+        "init",
+        "action",
+        "fork",
+        "end",
+        "if",
+        "wait_while",
+        "wait_until",
+        "pause_while",
+        "pause_until",
+        "repeat_while",
+        "repeat_until",
+        "repeat_for",
+        "do_while",
+        "do_until",
+    }
+)
 ARC_KINDS = frozenset({"seq", "then", "else", "body", "exit", "loop", "begin"})
 
 
@@ -109,10 +123,14 @@ class DroneProgram:
         for f in fields(self):
             value = getattr(self, f.name)
             if f.name == "nodes":
-                value = [_compact({g.name: getattr(n, g.name) for g in _NODE_FIELDS}) for n in value]
+                value = [
+                    _compact({g.name: getattr(n, g.name) for g in _NODE_FIELDS}) for n in value
+                ]
             elif f.name == "arcs":
-                value = [{"src": a.src, "dst": a.dst, "kind": a.kind, "external": a.external}
-                         for a in value]
+                value = [
+                    {"src": a.src, "dst": a.dst, "kind": a.kind, "external": a.external}
+                    for a in value
+                ]
             elif isinstance(value, tuple):
                 value = list(value)
             doc[f.name] = value
@@ -154,20 +172,33 @@ class DroneProgram:
         native = {n.key for n in self.nodes if n.native}
         ext_in = sum(1 for a in self.arcs if a.external and a.dst in native)
         ext_out = sum(1 for a in self.arcs if a.external and a.src in native)
-        return {"nodes": len(self.nodes), "internal_arcs": sum(1 for a in self.arcs if not a.external),
-                "external_in": ext_in, "external_out": ext_out}
+        return {
+            "nodes": len(self.nodes),
+            "internal_arcs": sum(1 for a in self.arcs if not a.external),
+            "external_in": ext_in,
+            "external_out": ext_out,
+        }
 
 
 _NODE_FIELDS = fields(ProgramNode)
 
 
+_NODE_DEFAULTS: dict[str, Any] = {
+    f.name: (list(f.default) if isinstance(f.default, tuple) else f.default)
+    for f in _NODE_FIELDS
+    if f.default is not MISSING
+}
+
+
 def _compact(node: dict[str, Any]) -> dict[str, Any]:
     """Drop fields at their defaults to keep program files readable."""
-    defaults = {"action": None, "args": (), "cond": None, "count": None, "loops": (), "scopes": (),
-                "begin": None, "end": None, "interrupt_drones": (), "interrupt_mode": None,
-                "line": 0, "col": 0, "block": "", "label": ""}
-    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in node.items()
-            if k not in defaults or (v != defaults[k] and v != list(defaults[k] or []))}
+    out = {}
+    for key, value in node.items():
+        value = list(value) if isinstance(value, tuple) else value
+        if key in _NODE_DEFAULTS and value == _NODE_DEFAULTS[key]:
+            continue
+        out[key] = value
+    return out
 
 
 def _canonical(doc: dict[str, Any]) -> bytes:
@@ -191,14 +222,18 @@ def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
         raise ProgramError(f"{where}: not an EAMOS drone program (format is {doc.get('format')!r})")
     version = doc.get("version")
     if version != VERSION:
-        raise ProgramError(f"{where}: program version {version!r} is not supported "
-                           f"(this eamos reads version {VERSION}); recompile the mission")
+        raise ProgramError(
+            f"{where}: program version {version!r} is not supported "
+            f"(this eamos reads version {VERSION}); recompile the mission"
+        )
     checksum = _require(doc, "checksum", str, where)
     body = {k: v for k, v in doc.items() if k != "checksum"}
     actual = "sha256:" + hashlib.sha256(_canonical(body)).hexdigest()
     if checksum != actual:
-        raise ProgramError(f"{where}: checksum mismatch: the file was changed or damaged; "
-                           "recompile and redeploy it")
+        raise ProgramError(
+            f"{where}: checksum mismatch: the file was changed or damaged; "
+            "recompile and redeploy it"
+        )
     nodes = []
     for i, raw in enumerate(_require(doc, "nodes", list, where)):
         at = f"{where}: nodes[{i}]"
@@ -214,17 +249,29 @@ def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
             except ConditionError as exc:
                 raise ProgramError(f"{at}: bad condition: {exc}") from exc
         try:
-            nodes.append(ProgramNode(
-                key=_require(raw, "key", str, at), meg=_require(raw, "meg", int, at), kind=kind,
-                drone=_require(raw, "drone", str, at), native=_require(raw, "native", bool, at),
-                label=str(raw.get("label", "")), action=raw.get("action"),
-                args=tuple(float(a) for a in raw.get("args", ())), cond=cond,
-                count=raw.get("count"), loops=tuple(int(x) for x in raw.get("loops", ())),
-                scopes=tuple(int(x) for x in raw.get("scopes", ())), begin=raw.get("begin"),
-                end=raw.get("end"), interrupt_drones=tuple(str(d) for d in raw.get("interrupt_drones", ())),
-                interrupt_mode=raw.get("interrupt_mode"), line=int(raw.get("line", 0)),
-                col=int(raw.get("col", 0)), block=str(raw.get("block", "")),
-            ))
+            nodes.append(
+                ProgramNode(
+                    key=_require(raw, "key", str, at),
+                    meg=_require(raw, "meg", int, at),
+                    kind=kind,
+                    drone=_require(raw, "drone", str, at),
+                    native=_require(raw, "native", bool, at),
+                    label=str(raw.get("label", "")),
+                    action=raw.get("action"),
+                    args=tuple(float(a) for a in raw.get("args", ())),
+                    cond=cond,
+                    count=raw.get("count"),
+                    loops=tuple(int(x) for x in raw.get("loops", ())),
+                    scopes=tuple(int(x) for x in raw.get("scopes", ())),
+                    begin=raw.get("begin"),
+                    end=raw.get("end"),
+                    interrupt_drones=tuple(str(d) for d in raw.get("interrupt_drones", ())),
+                    interrupt_mode=raw.get("interrupt_mode"),
+                    line=int(raw.get("line", 0)),
+                    col=int(raw.get("col", 0)),
+                    block=str(raw.get("block", "")),
+                )
+            )
         except (TypeError, ValueError) as exc:
             raise ProgramError(f"{at}: {exc}") from exc
     keys = {n.key for n in nodes}
@@ -235,18 +282,27 @@ def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
         at = f"{where}: arcs[{i}]"
         if not isinstance(raw, dict):
             raise ProgramError(f"{at}: not an object")
-        arc = ProgramArc(_require(raw, "src", str, at), _require(raw, "dst", str, at),
-                         _require(raw, "kind", str, at), _require(raw, "external", bool, at))
+        arc = ProgramArc(
+            _require(raw, "src", str, at),
+            _require(raw, "dst", str, at),
+            _require(raw, "kind", str, at),
+            _require(raw, "external", bool, at),
+        )
         if arc.src not in keys or arc.dst not in keys:
             raise ProgramError(f"{at}: refers to a node that is not in the program")
         if arc.kind not in ARC_KINDS:
             raise ProgramError(f"{at}: unknown arc kind {arc.kind!r}")
         arcs.append(arc)
     return DroneProgram(
-        mission=_require(doc, "mission", str, where), mission_id=_require(doc, "mission_id", str, where),
-        drone=_require(doc, "drone", str, where), drone_type=_require(doc, "drone_type", str, where),
-        fleet=tuple(_require(doc, "fleet", list, where)), nodes=tuple(nodes), arcs=tuple(arcs),
-        telemetry_from=tuple(doc.get("telemetry_from", ())), source_file=str(doc.get("source_file", "")),
+        mission=_require(doc, "mission", str, where),
+        mission_id=_require(doc, "mission_id", str, where),
+        drone=_require(doc, "drone", str, where),
+        drone_type=_require(doc, "drone_type", str, where),
+        fleet=tuple(_require(doc, "fleet", list, where)),
+        nodes=tuple(nodes),
+        arcs=tuple(arcs),
+        telemetry_from=tuple(doc.get("telemetry_from", ())),
+        source_file=str(doc.get("source_file", "")),
         compiler=str(doc.get("compiler", "")),
     )
 
@@ -262,5 +318,7 @@ def load_program(path: Path) -> DroneProgram:
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ProgramError(f"{path}: not valid JSON (line {exc.lineno}): the file is damaged") from exc
+        raise ProgramError(
+            f"{path}: not valid JSON (line {exc.lineno}): the file is damaged"
+        ) from exc
     return program_from_dict(doc, str(path))

@@ -17,8 +17,8 @@ import zmq
 from eamos.actors.ground import GroundStation
 from eamos.actors.runtime import DroneRuntime, NetSettings
 from eamos.compiler import compile_mission
-from eamos.hal.fake import FakeAdapter
 from eamos.hal import make_adapter
+from eamos.hal.fake import FakeAdapter
 from eamos.hal.uniform import GROUND_STATION
 from eamos.logs import make_logger
 from eamos.net import wire
@@ -37,8 +37,11 @@ class Fleet:
     reports: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def start(self) -> None:
-        threads = [threading.Thread(target=rt.announce_ready, args=(WAIT_S,))
-                   for name, rt in self.runtimes.items() if name != GROUND_STATION]
+        threads = [
+            threading.Thread(target=rt.announce_ready, args=(WAIT_S,))
+            for name, rt in self.runtimes.items()
+            if name != GROUND_STATION
+        ]
         for t in threads:
             t.start()
         for t in threads:
@@ -60,8 +63,10 @@ class Fleet:
 
     def actions(self, drone: str) -> list[tuple[str, str]]:
         """(action label, result) in start order."""
-        return [(f"{a['action']}({', '.join(f'{x:g}' for x in a['args'])})", a["result"])
-                for a in self.reports[drone]["actions"]]
+        return [
+            (f"{a['action']}({', '.join(f'{x:g}' for x in a['args'])})", a["result"])
+            for a in self.reports[drone]["actions"]
+        ]
 
 
 def make_fleet(source: str, adapters: dict[str, Any] | None = None, *, auto: bool = True) -> Fleet:
@@ -81,9 +86,15 @@ def make_fleet(source: str, adapters: dict[str, Any] | None = None, *, auto: boo
         else:
             adapter = adapters.setdefault(name, FakeAdapter(name, auto=auto))
         runtimes[name] = DroneRuntime(
-            compiled.programs[name], adapter, NetSettings(endpoints[name], endpoints), None,
-            context=context, ground_handler=station.handle if name == GROUND_STATION else None,
-            extra_topics=tuple(wire.topic_telemetry(d) for d in drones) if name == GROUND_STATION else (),
+            compiled.programs[name],
+            adapter,
+            NetSettings(endpoints[name], endpoints),
+            None,
+            context=context,
+            ground_handler=station.handle if name == GROUND_STATION else None,
+            extra_topics=tuple(wire.topic_telemetry(d) for d in drones)
+            if name == GROUND_STATION
+            else (),
         )
     for rt in runtimes.values():
         rt.start()

@@ -1,4 +1,4 @@
-"""End to end through ``eamos run``: real processes (one per drone), real sockets, simulated drones."""
+"""End to end through ``eamos run``: one process per drone, real sockets, simulated drones."""
 
 from __future__ import annotations
 
@@ -16,20 +16,46 @@ MISSIONS = REPO / "missions"
 RUN_TIMEOUT_S = 240
 pytestmark = pytest.mark.e2e
 
-LOOP_FREE = {"experiment_a", "experiment_b", "experiment_c", "listing01_demo", "inspection_if",
-             "relay_wait"}
+LOOP_FREE = {
+    "experiment_a",
+    "experiment_b",
+    "experiment_c",
+    "listing01_demo",
+    "inspection_if",
+    "relay_wait",
+}
 FLEETS = {"experiment_d": REPO / "configs" / "experiment_d_pilot.toml"}
 
 
 def eamos(*args: str, timeout: float = RUN_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "eamos.cli", *args], capture_output=True, text=True,
-                          timeout=timeout, cwd=REPO)
+    return subprocess.run(
+        [sys.executable, "-m", "eamos.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
+    )
 
 
-def run_mission(tmp_path: Path, mission: Path, *extra: str) -> tuple[subprocess.CompletedProcess[str], dict]:
+def run_mission(
+    tmp_path: Path, mission: Path, *extra: str
+) -> tuple[subprocess.CompletedProcess[str], dict]:
     summary = tmp_path / "summary.json"
-    proc = eamos("run", str(mission), "--speedup", "20", "--plain", "--no-svg", "--timeout", "150",
-                 "--run-dir", str(tmp_path / "run"), "--summary", str(summary), *extra)
+    proc = eamos(
+        "run",
+        str(mission),
+        "--speedup",
+        "20",
+        "--plain",
+        "--no-svg",
+        "--timeout",
+        "150",
+        "--run-dir",
+        str(tmp_path / "run"),
+        "--summary",
+        str(summary),
+        *extra,
+    )
     data = json.loads(summary.read_text()) if summary.exists() else {}
     return proc, data
 
@@ -64,12 +90,24 @@ def test_experiment_b_happens_before(tmp_path):
     d1 = by_action(summary["drones"]["Drone1"]["actions"])
     d2 = by_action(summary["drones"]["Drone2"]["actions"])
     names = [a["action"] for a in d1]
-    assert names == ["Arm", "Takeoff", "FlyByX", "FlyByY", "FlyByX", "FlyByY", "FlyByZ", "Land", "Disarm"]
+    assert names == [
+        "Arm",
+        "Takeoff",
+        "FlyByX",
+        "FlyByY",
+        "FlyByX",
+        "FlyByY",
+        "FlyByZ",
+        "Land",
+        "Disarm",
+    ]
     assert [a["action"] for a in d2] == names
     assert d1[0]["end"] <= d2[0]["start"]  # armed one after the other
     assert d1[1]["start"] < d2[1]["end"] and d2[1]["start"] < d1[1]["end"]  # take-offs overlap
     for side in range(2, 6):  # each side of the square: both finish before either starts the next
-        assert max(d1[side]["end"], d2[side]["end"]) <= min(d1[side + 1]["start"], d2[side + 1]["start"])
+        assert max(d1[side]["end"], d2[side]["end"]) <= min(
+            d1[side + 1]["start"], d2[side + 1]["start"]
+        )
     assert d1[6]["end"] <= d2[6]["start"]  # Drone1 climbs before Drone2
     for report in summary["drones"].values():
         final = report["final"]
@@ -77,7 +115,9 @@ def test_experiment_b_happens_before(tmp_path):
 
 
 def test_experiment_d_pilot_moves_the_real_drones(tmp_path):
-    proc, summary = run_mission(tmp_path, MISSIONS / "experiment_d.go", "--fleet", str(FLEETS["experiment_d"]))
+    proc, summary = run_mission(
+        tmp_path, MISSIONS / "experiment_d.go", "--fleet", str(FLEETS["experiment_d"])
+    )
     assert proc.returncode == 0, proc.stderr
     d1 = [a for a in summary["drones"]["D1"]["actions"] if a["action"] == "FlyByX"]
     d2 = [a for a in summary["drones"]["D2"]["actions"] if a["action"] == "FlyByX"]
@@ -116,7 +156,10 @@ def test_failed_action_stops_dependents_and_independent_drone_finishes(tmp_path)
     assert proc.returncode == 1
     d1 = summary["drones"]["Drone1"]
     assert [(a["action"], a["result"]) for a in d1["actions"]] == [
-        ("Arm", "ok"), ("Takeoff", "ok"), ("FlyByX", "failed")]
+        ("Arm", "ok"),
+        ("Takeoff", "ok"),
+        ("FlyByX", "failed"),
+    ]
     assert "rejected" in d1["actions"][-1]["reason"] and not d1["ok"] and d1["blocked_nodes"]
     d2 = summary["drones"]["Drone2"]
     assert d2["ok"] and [a["result"] for a in d2["actions"]] == ["ok"] * 5
@@ -134,7 +177,7 @@ def test_bad_mission_is_a_located_error_not_a_traceback(tmp_path):
 
 def test_bad_fleet_file_names_the_field(tmp_path):
     fleet = tmp_path / "fleet.toml"
-    fleet.write_text("[drones.Drone1.hal]\nadapter = \"sim\"\nspeeedup = 3\n")
+    fleet.write_text('[drones.Drone1.hal]\nadapter = "sim"\nspeeedup = 3\n')
     proc, _ = run_mission(tmp_path, MISSIONS / "experiment_a.go", "--fleet", str(fleet))
     assert proc.returncode != 0
     assert "speeedup" in proc.stdout + proc.stderr
@@ -144,8 +187,12 @@ def test_bad_fleet_file_names_the_field(tmp_path):
 def test_node_with_bad_config_names_the_field(tmp_path):
     cfg = tmp_path / "d1.toml"
     cfg.write_text('drone = "Drone1"\nprogram = "p.json"\n[net]\nbind = "nonsense"\n')
-    proc = subprocess.run([sys.executable, "-m", "eamos.node", "--config", str(cfg)], capture_output=True,
-                          text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "eamos.node", "--config", str(cfg)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert "net.bind" in proc.stderr and "Traceback" not in proc.stderr
 
@@ -154,9 +201,26 @@ def test_ctrl_c_lands_everyone_and_leaves_no_process(tmp_path):
     run_dir = tmp_path / "run"
     summary = tmp_path / "summary.json"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "eamos.cli", "run", str(MISSIONS / "experiment_b.go"), "--speedup", "2",
-         "--plain", "--no-svg", "--run-dir", str(run_dir), "--summary", str(summary)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO)
+        [
+            sys.executable,
+            "-m",
+            "eamos.cli",
+            "run",
+            str(MISSIONS / "experiment_b.go"),
+            "--speedup",
+            "2",
+            "--plain",
+            "--no-svg",
+            "--run-dir",
+            str(run_dir),
+            "--summary",
+            str(summary),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO,
+    )
     try:
         assert proc.stdout is not None
         for line in proc.stdout:  # wait until the square is being flown
