@@ -89,7 +89,7 @@ class _Checker:
                     "name the drone differently",
                 )
         for name, block in m.blocks.items():
-            if not block.statements:
+            if not block.statements and name not in self.mission.incomplete_blocks:
                 self.error(
                     block.loc,
                     f"block '{name}' is empty",
@@ -334,6 +334,11 @@ def _props(expr: Expr | None) -> Iterator[Prop]:
 def props_read(expr: Expr | None) -> list[Prop]:
     """Every property read in a condition, in source order."""
     return list(_props(expr))
+
+
+def collect_diagnostics(mission: Mission) -> list[Diagnostic]:
+    """Every error and warning the checks find (without raising)."""
+    return _Checker(mission).run()
 
 
 def check_mission(mission: Mission) -> list[Diagnostic]:

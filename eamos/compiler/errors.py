@@ -64,6 +64,9 @@ class MissionError(Exception):
 
     def __init__(self, diagnostics: list[Diagnostic]) -> None:
         self.diagnostics = sorted(diagnostics, key=lambda d: (d.loc, d.severity))
+        # Set by the parser when later phases may still check what it could read.
+        self.partial: object | None = None
+        self.fatal = True
         errors = [d for d in self.diagnostics if d.severity == "error"]
         first = errors[0] if errors else self.diagnostics[0]
         more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""

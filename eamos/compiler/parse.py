@@ -124,6 +124,7 @@ class _Reader:
     def __init__(self, source: str) -> None:
         self.source = source
         self.diags: list[Diagnostic] = []
+        self.incomplete: set[str] = set()
 
     def error(self, node: Node, message: str, hint: str = "") -> None:
         self.diags.append(Diagnostic("error", _loc(node), message, hint, _end_col(node)))
@@ -218,7 +219,8 @@ class _Reader:
                     "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }",
                 )
             )
-        return Mission(name=name, blocks=blocks, drones=drones, entry=entry, source=self.source)
+        return Mission(name=name, blocks=blocks, drones=drones, entry=entry, source=self.source,
+                       incomplete_blocks=frozenset(self.incomplete))
 
     def _var_specs(self, node: Node) -> list[DroneDecl]:
         specs = [c for c in node.named_children if c.type == "var_spec"]
@@ -279,6 +281,8 @@ class _Reader:
                 stmt = self._statement(stmt_node)
                 if stmt is not None:
                     statements.append(stmt)
+                else:
+                    self.incomplete.add(name)
         return Block(name=name, mode=mode, statements=tuple(statements), loc=_loc(name_node))
 
     def _statement_nodes(self, body: Node) -> list[Node]:
@@ -622,8 +626,29 @@ def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
     tree = _go_parser().parse(encoded)
     reader = _Reader(source)
     reader.syntax_errors(tree.root_node)
+    syntax_broken = any(d.severity == "error" for d in reader.diags)
     mission = reader.mission(tree.root_node)
     errors = [d for d in reader.diags if d.severity == "error"]
     if errors:
-        raise MissionError(reader.diags)
+        exc = MissionError(reader.diags)
+        exc.partial = mission
+        exc.fatal = syntax_broken or not mission.entry
+        raise exc
     return mission, [d for d in reader.diags if d.severity == "warning"]
+
+
+def parse_partial(source: str) -> tuple[Mission, list[Diagnostic], bool]:
+    """Parse as far as possible: the mission, every diagnostic, and whether it is unusable.
+
+    Unsupported Go statements are dropped with an error, but the rest of the
+    mission is still returned so that later checks can report their errors too
+    (all errors of a file at once).  Real syntax errors make the mission
+    unusable: checking a broken tree would only add misleading errors.
+    """
+    try:
+        mission, warnings = parse_with_warnings(source)
+        return mission, warnings, False
+    except MissionError as exc:
+        if exc.partial is None:
+            raise
+        return exc.partial, exc.diagnostics, exc.fatal

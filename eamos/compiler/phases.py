@@ -9,6 +9,7 @@ Each phase raises :class:`~.errors.MissionError` for the user's mistakes and
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 import hashlib
 from dataclasses import dataclass, field
@@ -19,12 +20,12 @@ import networkx as nx
 from .. import __version__
 from ..hal.uniform import GROUND_STATION
 from ..program.format import DroneProgram
-from .check import check_mission, drone_types
+from .check import collect_diagnostics, drone_types
 from .dependency_graph import fleet, mdg_stats, slice_dependency_graphs
 from .errors import Diagnostic, MissionError, SourceLocation
 from .execution_graph import build_execution_graph
 from .mission_tree import build_mission_tree
-from .parse import parse_with_warnings
+from .parse import parse_partial
 from .syntax import Mission
 from .synthesis import synthesize_program
 
@@ -70,18 +71,18 @@ def compile_mission(source: str, source_file: str = "<mission>") -> CompiledMiss
 
 
 def _compile(source: str, source_file: str) -> CompiledMission:
-    mission, warnings = parse_with_warnings(source)
+    mission, parsed, fatal = parse_partial(source)
+    if fatal:
+        raise MissionError(parsed)
+    checked = collect_diagnostics(mission)
+    if any(d.severity == "error" for d in parsed + checked):
+        raise MissionError(parsed + checked)
+    warnings = parsed
     if not mission.entry:
         raise MissionError([Diagnostic("error", SourceLocation(1, 1), "the mission has no blocks")])
     if mission.name == "mission" and source_file not in ("", "<mission>"):
-        mission = Mission(
-            name=Path(source_file).stem,
-            blocks=mission.blocks,
-            drones=mission.drones,
-            entry=mission.entry,
-            source=mission.source,
-        )
-    warnings = warnings + check_mission(mission)
+        mission = dataclasses.replace(mission, name=Path(source_file).stem)
+    warnings = warnings + checked
     amt = build_mission_tree(mission)
     meg = build_execution_graph(amt)
     mdgs = slice_dependency_graphs(meg)

@@ -155,3 +155,5 @@ class Mission:
     drones: dict[str, DroneDecl] = field(hash=False)
     entry: str
     source: str = field(repr=False, compare=False)
+    # Blocks that lost statements to parse errors: an "empty block" there is a consequence.
+    incomplete_blocks: frozenset[str] = frozenset()

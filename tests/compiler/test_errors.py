@@ -166,3 +166,27 @@ def test_unreadable_files_are_mission_errors(tmp_path: Path) -> None:
     binary.write_bytes(b"\xff\xfe\x00\x01garbage")
     with pytest.raises(MissionError, match="not UTF-8 text"):
         compile_file(binary)
+
+
+def test_unsupported_go_and_check_errors_are_reported_together():
+    source = (
+        "var Drone1 DroneTyp1\n"
+        "func SEQ_Main() {\n"
+        "    Drone1.Takeof(1.5)\n"
+        "    for i := 0; i < 3; i++ {}\n"
+        "}\n"
+    )
+    with pytest.raises(MissionError) as info:
+        compile_mission(source, "m.go")
+    messages = [(d.loc.line, d.message) for d in info.value.diagnostics if d.severity == "error"]
+    assert [line for line, _ in messages] == [1, 3, 4]
+    assert "DroneTyp1" in messages[0][1] and "Takeof" in messages[1][1] and "for" in messages[2][1]
+
+
+def test_a_block_emptied_by_a_rejected_statement_is_not_also_reported_empty():
+    source = "func SEQ_Main() {\n    go SEQ_Main()\n}\n"
+    with pytest.raises(MissionError) as info:
+        compile_mission(source, "m.go")
+    assert [d.message for d in info.value.diagnostics if d.severity == "error"] == [
+        "a 'go' statement is not supported in missions"
+    ]
