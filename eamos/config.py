@@ -25,6 +25,11 @@ Fleet config (TOML), for ``eamos run``::
     [drones.Drone3.hal]                       # per drone, merged over the defaults
     pilot = [{x_m = 0, y_m = 0, z_m = 5, hold_s = 2}]
 
+A fleet file may also say how to reach real drones for ``eamos rollout``
+(``[ground]``, ``[defaults.ssh]``, ``[drones.X.ssh]``, ``drones.X.bind``); those
+tables are kept as written here and validated by :mod:`eamos.ops.targets`
+(see ``docs/operations.md``), so ``eamos run`` ignores them.
+
 Every error names the file and the field.
 """
 
@@ -36,7 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .compiler.errors import did_you_mean
+from .hal.settings import did_you_mean
 
 
 class ConfigError(Exception):
@@ -60,8 +65,7 @@ def read_toml(path: Path) -> dict[str, Any]:
 def _check_keys(where: str, table: Mapping[str, Any], allowed: set[str]) -> None:
     for key in table:
         if key not in allowed:
-            hint = did_you_mean(key, allowed)
-            raise ConfigError(f"{where}{key}: unknown field" + (f" ({hint})" if hint else ""))
+            raise ConfigError(f"{where}{key}: unknown field{did_you_mean(key, allowed)}")
 
 
 def _endpoint(where: str, value: Any) -> str:
@@ -145,6 +149,11 @@ class FleetConfig:
     path: Path | None
     defaults: dict[str, Any]
     drones: dict[str, dict[str, Any]]
+    # Roll-out over SSH (eamos rollout): the raw tables, validated by eamos.ops.targets.
+    ssh_defaults: dict[str, Any] = field(default_factory=dict)
+    ssh: dict[str, dict[str, Any]] = field(default_factory=dict)
+    binds: dict[str, Any] = field(default_factory=dict)
+    ground: dict[str, Any] = field(default_factory=dict)
 
     def hal_for(self, drone: str) -> dict[str, Any]:
         """The merged ``[hal]`` table of one drone."""
@@ -162,21 +171,33 @@ class FleetConfig:
         """Read and validate a fleet config file."""
         doc = read_toml(path)
         w = f"{path}: "
-        _check_keys(w, doc, {"defaults", "drones"})
+        _check_keys(w, doc, {"defaults", "drones", "ground"})
         defaults = doc.get("defaults", {})
         if not isinstance(defaults, dict):
             raise ConfigError(f"{w}defaults: must be a table")
-        _check_keys(f"{w}defaults.", defaults, {"hal"})
+        _check_keys(f"{w}defaults.", defaults, {"hal", "ssh"})
         drones: dict[str, dict[str, Any]] = {}
+        ssh: dict[str, dict[str, Any]] = {}
+        binds: dict[str, Any] = {}
         for name, table in doc.get("drones", {}).items():
             if not isinstance(table, dict):
                 raise ConfigError(f"{w}drones.{name}: must be a table")
-            _check_keys(f"{w}drones.{name}.", table, {"hal"})
+            _check_keys(f"{w}drones.{name}.", table, {"hal", "ssh", "bind"})
             hal = table.get("hal", {})
             if not isinstance(hal, dict):
                 raise ConfigError(f"{w}drones.{name}.hal: must be a table")
             drones[name] = dict(hal)
+            if not isinstance(table.get("ssh", {}), dict):
+                raise ConfigError(f"{w}drones.{name}.ssh: must be a table")
+            ssh[name] = dict(table.get("ssh", {}))
+            if "bind" in table:
+                binds[name] = table["bind"]
         default_hal = defaults.get("hal", {})
         if not isinstance(default_hal, dict):
             raise ConfigError(f"{w}defaults.hal: must be a table")
-        return cls(path, dict(default_hal), drones)
+        ssh_defaults = defaults.get("ssh", {})
+        ground = doc.get("ground", {})
+        for key, value in (("defaults.ssh", ssh_defaults), ("ground", ground)):
+            if not isinstance(value, dict):
+                raise ConfigError(f"{w}{key}: must be a table")
+        return cls(path, dict(default_hal), drones, dict(ssh_defaults), ssh, binds, dict(ground))

@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from ..hints import closest
+
 Severity = Literal["error", "warning"]
 
 
@@ -89,21 +91,15 @@ def _stem(name: str) -> str:
 
 def did_you_mean(word: str, choices: object) -> str:
     """A 'did you mean X?' hint for a misspelt name, or a list of valid names."""
-    import difflib
-
     names = sorted(str(c) for c in choices)  # type: ignore[attr-defined]
     # Block names share their SEQ_/PAR_ prefix, which would make any two look
     # alike ("SEQ_Nope" vs "SEQ_A"): compare what follows the prefix.
     stems: dict[str, str] = {}
     for name in names:
         stems.setdefault(_stem(name), name)
-    close = [stems[m] for m in difflib.get_close_matches(_stem(word), list(stems), n=1, cutoff=0.6)]
-    if not close:
-        lowered = {n.lower(): n for n in names}
-        if word.lower() in lowered:
-            close = [lowered[word.lower()]]
-    if close:
-        return f"did you mean {close[0]}?"
+    stem = closest(_stem(word), stems)
+    if stem is not None:
+        return f"did you mean {stems[stem]}?"
     if len(names) <= 12:
         return "valid names: " + ", ".join(names)
     return ""

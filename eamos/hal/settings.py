@@ -7,12 +7,12 @@ so the user can find it in the mission configuration.
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Iterable, Mapping
 from typing import Any
 
 from eamos.hal.api import AdapterError
+from eamos.hints import closest
 
 #: Keys every adapter accepts and ignores: ``adapter`` selects the adapter itself.
 COMMON_KEYS = frozenset({"adapter"})
@@ -25,8 +25,8 @@ def field_error(path: str, problem: str) -> AdapterError:
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """A ``" (did you mean 'x'?)"`` suffix, or ``""`` when nothing is close."""
-    close = difflib.get_close_matches(word, sorted(choices), n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
+    close = closest(word, choices)
+    return f" (did you mean '{close}'?)" if close else ""
 
 
 def require_mapping(value: Any, path: str) -> Mapping[str, Any]:
