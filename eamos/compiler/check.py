@@ -67,8 +67,9 @@ class _Checker:
         self.diags: list[Diagnostic] = []
         self.types = drone_types(mission)
 
-    def error(self, loc: SourceLocation, message: str, hint: str = "") -> None:
-        self.diags.append(Diagnostic("error", loc, message, hint))
+    def error(self, loc: SourceLocation, message: str, hint: str = "", width: int = 1) -> None:
+        end_col = loc.col + width if width > 1 else None
+        self.diags.append(Diagnostic("error", loc, message, hint, end_col))
 
     def warn(self, loc: SourceLocation, message: str, hint: str = "") -> None:
         self.diags.append(Diagnostic("warning", loc, message, hint))
@@ -78,9 +79,10 @@ class _Checker:
         for decl in m.drones.values():
             if decl.type not in DRONE_TYPES:
                 self.error(
-                    decl.loc,
+                    decl.type_loc or decl.loc,
                     f"unknown drone type '{decl.type}'",
                     did_you_mean(decl.type, DRONE_TYPES),
+                    len(decl.type),
                 )
             if decl.name == GROUND_STATION:
                 self.error(
@@ -151,14 +153,17 @@ class _Checker:
             return
         if spec is None:
             self.error(
-                call.loc, f"unknown action '{call.action}'", did_you_mean(call.action, ACTIONS)
+                call.action_loc or call.loc,
+                f"unknown action '{call.action}'",
+                did_you_mean(call.action, ACTIONS),
+                len(call.action),
             )
             return
         if call.drone is not None:
             dtype = self.types[call.drone]
             if call.action not in dtype.actions:
                 self.error(
-                    call.loc,
+                    call.action_loc or call.loc,
                     f"{call.drone} ({dtype.name}) has no action '{call.action}'",
                     did_you_mean(call.action, dtype.actions)
                     if call.action not in ACTIONS

@@ -219,8 +219,14 @@ class _Reader:
                     "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }",
                 )
             )
-        return Mission(name=name, blocks=blocks, drones=drones, entry=entry, source=self.source,
-                       incomplete_blocks=frozenset(self.incomplete))
+        return Mission(
+            name=name,
+            blocks=blocks,
+            drones=drones,
+            entry=entry,
+            source=self.source,
+            incomplete_blocks=frozenset(self.incomplete),
+        )
 
     def _var_specs(self, node: Node) -> list[DroneDecl]:
         specs = [c for c in node.named_children if c.type == "var_spec"]
@@ -242,7 +248,9 @@ class _Reader:
                     type_node, "a drone type is a plain name", "write: var Drone1 Quadcopter"
                 )
                 continue
-            out.extend(DroneDecl(_text(n), _text(type_node), _loc(n)) for n in names)
+            out.extend(
+                DroneDecl(_text(n), _text(type_node), _loc(n), _loc(type_node)) for n in names
+            )
         return out
 
     def _function(self, node: Node) -> Block | None:
@@ -330,7 +338,7 @@ class _Reader:
             if name == "PauseFor":
                 # A bare PauseFor(s) is an action without a drone: it runs on the
                 # drone of the preceding statement (the ground station at the start).
-                return self._action_call(None, name, call, args)
+                return self._action_call(None, name, call, args, function)
             if name in ACTIONS:
                 self.error(
                     function,
@@ -357,7 +365,7 @@ class _Reader:
             drone, action = _text(operand), _text(field)
             if action in ("PauseWhile", "PauseUntil"):
                 return self._control(action, drone, call, args)
-            return self._action_call(drone, action, call, args)
+            return self._action_call(drone, action, call, args, field)
         self.error(
             function,
             "a statement is a block call, a drone action or a control structure",
@@ -366,7 +374,7 @@ class _Reader:
         return None
 
     def _action_call(
-        self, drone: str | None, action: str, call: Node, args: list[Node]
+        self, drone: str | None, action: str, call: Node, args: list[Node], name_node: Node
     ) -> ActionCall | None:
         """An action with literal number arguments (every bad argument is reported)."""
         values: list[float] = []
@@ -381,7 +389,7 @@ class _Reader:
             locs.append(_loc(arg))
         if not ok:
             return None
-        return ActionCall(drone, action, tuple(values), _loc(call), tuple(locs))
+        return ActionCall(drone, action, tuple(values), _loc(call), tuple(locs), _loc(name_node))
 
     def _number(self, node: Node) -> float | None:
         """A literal number argument (with an optional sign)."""

@@ -65,6 +65,7 @@ class ActionCall:
     args: tuple[float, ...]
     loc: SourceLocation
     arg_locs: tuple[SourceLocation, ...] = ()
+    action_loc: SourceLocation | None = None  # where the action's name is, for the caret
 
 
 @dataclass(frozen=True)
@@ -144,6 +145,7 @@ class DroneDecl:
     name: str
     type: str
     loc: SourceLocation
+    type_loc: SourceLocation | None = None
 
 
 @dataclass(frozen=True)

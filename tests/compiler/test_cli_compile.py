@@ -100,7 +100,7 @@ def test_compile_bad_mission_exits_1_with_locations(tmp_path: Path) -> None:
     mission.write_text(BAD)
     code, out, err = _run(["compile", str(mission), "-o", str(tmp_path / "o")])
     assert code == 1 and out == ""
-    assert f"{mission}:2:2: error: unknown action 'Takof'" in err
+    assert f"{mission}:2:9: error: unknown action 'Takof'" in err
     assert f"{mission}:3:2: error: undefined block 'SEQ_Nope'" in err
     assert "2 errors in" in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
@@ -180,7 +180,7 @@ def test_graph_bad_mission_exits_1(tmp_path: Path) -> None:
     mission = tmp_path / "bad.go"
     mission.write_text(BAD)
     code, out, err = _run(["graph", str(mission)])
-    assert code == 1 and out == "" and f"{mission}:2:2:" in err
+    assert code == 1 and out == "" and f"{mission}:2:9:" in err
 
 
 def test_cli_in_a_subprocess(tmp_path: Path) -> None:
@@ -192,6 +192,6 @@ def test_cli_in_a_subprocess(tmp_path: Path) -> None:
     mission.write_text(BAD)
     done = _subprocess(["compile", str(mission)], cwd=tmp_path)
     assert done.returncode == 1
-    assert f"{mission}:2:2: error:" in done.stderr and "Traceback" not in done.stderr
+    assert f"{mission}:2:9: error:" in done.stderr and "Traceback" not in done.stderr
     done = _subprocess(["compile", "--help"], cwd=tmp_path)
     assert done.returncode == 0 and "--no-svg" in done.stdout

@@ -30,10 +30,10 @@ CASES = [
     Bad("undefined block",
         "func SEQ_A() {\n\tSEQ_Fyl()\n}\n\nfunc SEQ_Fly() {\n\tDrone1.Arm()\n}\n",
         "2:2", "undefined block 'SEQ_Fyl'", "did you mean SEQ_Fly?"),
-    Bad("unknown action", "func SEQ_A() {\n\tDrone1.Takof(1)\n}\n", "2:2", "unknown action 'Takof'",
+    Bad("unknown action", "func SEQ_A() {\n\tDrone1.Takof(1)\n}\n", "2:9", "unknown action 'Takof'",
         "did you mean Takeoff?"),
     Bad("action the drone type lacks",
-        "var Drone1 DroneType1\n\nfunc SEQ_A() {\n\tDrone1.TurnOnCamera()\n}\n", "4:2",
+        "var Drone1 DroneType1\n\nfunc SEQ_A() {\n\tDrone1.TurnOnCamera()\n}\n", "4:9",
         "Drone1 (DroneType1) has no action 'TurnOnCamera'", "DroneType1 offers: Arm"),
     Bad("wrong argument count", "func SEQ_A() {\n\tDrone1.Takeoff()\n}\n", "2:2",
         "Takeoff takes 1 argument, got 0", "Takeoff(height_m)"),
@@ -79,7 +79,7 @@ CASES = [
         "'Takeoff' is an action and needs a drone", "Drone1.Takeoff(...)"),
     Bad("ground station flies", "func SEQ_A() {\n\tGCS.Takeoff(1)\n}\n", "2:2",
         "the ground station 'GCS' does not fly", "bare PauseFor"),
-    Bad("unknown drone type", "var Drone1 Quadcoptr\nfunc SEQ_A() {\n\tDrone1.Land()\n}\n", "1:5",
+    Bad("unknown drone type", "var Drone1 Quadcoptr\nfunc SEQ_A() {\n\tDrone1.Land()\n}\n", "1:12",
         "unknown drone type 'Quadcoptr'", "did you mean Quadcopter?"),
     Bad("import", 'package m\nimport "fmt"\nfunc SEQ_A() {\n\tDrone1.Land()\n}\n', "2:1",
         "imports are not supported", "remove the import"),
@@ -128,7 +128,7 @@ def test_all_errors_of_a_file_are_reported_at_once() -> None:
     with pytest.raises(MissionError) as info:
         compile_mission(source, "m.go")
     errors = [d for d in info.value.diagnostics if d.severity == "error"]
-    assert [str(d.loc) for d in errors] == ["2:2", "3:2", "4:2"]
+    assert [str(d.loc) for d in errors] == ["2:9", "3:2", "4:2"]
     assert "(and 2 more)" in str(info.value)
     assert info.value.render("m.go", source).endswith("3 errors in m.go")
 

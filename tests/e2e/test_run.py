@@ -171,7 +171,7 @@ def test_bad_mission_is_a_located_error_not_a_traceback(tmp_path):
     mission.write_text("func SEQ_M() {\n    Drone1.Takeof(1)\n}\n")
     proc = eamos("run", str(mission), "--plain")
     assert proc.returncode == 2
-    assert f"{mission}:2:5" in proc.stderr and "did you mean Takeoff" in proc.stderr
+    assert f"{mission}:2:12" in proc.stderr and "did you mean Takeoff" in proc.stderr
     assert "Traceback" not in proc.stderr
 
 
