@@ -3,6 +3,8 @@
     eamos compile MISSION.go [-o OUT] [--stats]    compile to drone programs and graphs
     eamos graph MISSION.go [--which meg] ...         draw one graph
     eamos run MISSION.go [--fleet F] [--speedup K]   fly it on simulated drones, one process each
+    eamos rollout / start / status / abort / logs fetch / report   real drones over SSH
+    eamos keys OUT [--fleet NAMES...]                the fleet's network keys (CURVE)
 
 Every command prints clear errors and exits non-zero on bad input; a
 traceback appears only with ``-v``.
@@ -109,6 +111,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("-v", "--verbose", action="store_true", help="tracebacks of internal errors")
     run.set_defaults(func=cmd_run)
+    # --- fleet operations (eamos/ops/cli.py): rollout, start, status, abort, logs, report ---
+    from .ops.cli import add_fleet_commands
+
+    add_fleet_commands(sub)
+    # --- end of fleet operations ---
+    # --- network keys (eamos/net/keys.py): eamos keys ---
+    from .net.keys import add_keys_parser
+
+    add_keys_parser(sub)
+    # --- end of network keys ---
     return parser
 
 

@@ -7,9 +7,18 @@ Drone config (TOML)::
     log_dir = "logs/Drone1"                   # relative to this file (default: logs/<drone>)
     ready_timeout_s = 60                      # how long to wait for the peers' subscriptions
     land_timeout_s = 120                      # after an abort, how long to wait for touchdown
+    mission_timeout_s = 600                   # ground station only: abort after this long
 
     [net]
     bind = "tcp://127.0.0.1:6001"             # this drone's out-bridge
+    keys = "keys/Drone1"                      # from `eamos keys` (relative to this file)
+    # plain = true                            # instead of keys: no security, loopback only
+    heartbeat_s = 1                           # heartbeat period (and telemetry refresh)
+    peer_timeout_s = 3                        # a peer silent this long is reported lost
+    telemetry_stale_s = 2.5                   # older telemetry is not used by conditions
+    telemetry_max_hz = 20                     # outgoing telemetry cap (latest always sent)
+    peer_give_up_s = 30                       # ground station only: stop waiting for a
+                                              # drone silent this long (default: never)
     [net.peers]                               # every other participant's out-bridge
     GCS = "tcp://127.0.0.1:6000"
     Drone2 = "tcp://127.0.0.1:6002"
@@ -42,6 +51,8 @@ from pathlib import Path
 from typing import Any
 
 from .hal.settings import did_you_mean
+from .net.keys import FleetKeys, KeysError, plain_refusal
+from .net.link import LinkSettings
 
 
 class ConfigError(Exception):
@@ -87,6 +98,11 @@ class NodeConfig:
     hal: dict[str, Any] = field(default_factory=dict)
     ready_timeout_s: float = 60.0
     land_timeout_s: float = 120.0
+    mission_timeout_s: float = 600.0
+    keys_dir: Path | None = None
+    keys: FleetKeys | None = None  # None: plain sockets (asked for, loopback only)
+    link: LinkSettings = field(default_factory=LinkSettings)
+    peer_give_up_s: float | None = None
 
     @classmethod
     def load(cls, path: Path) -> NodeConfig:
@@ -97,7 +113,16 @@ class NodeConfig:
         _check_keys(
             w,
             doc,
-            {"drone", "program", "log_dir", "ready_timeout_s", "land_timeout_s", "net", "hal"},
+            {
+                "drone",
+                "program",
+                "log_dir",
+                "ready_timeout_s",
+                "land_timeout_s",
+                "mission_timeout_s",
+                "net",
+                "hal",
+            },
         )
         drone = doc.get("drone")
         if not isinstance(drone, str) or not drone:
@@ -110,22 +135,24 @@ class NodeConfig:
         net = doc.get("net")
         if not isinstance(net, dict):
             raise ConfigError(f"{w}net: required table with 'bind' and 'peers'")
-        _check_keys(f"{w}net.", net, {"bind", "peers"})
+        _check_keys(f"{w}net.", net, NET_FIELDS)
         bind = _endpoint(f"{w}net.bind", net.get("bind"))
         peers = net.get("peers", {})
         if not isinstance(peers, dict):
             raise ConfigError(f"{w}net.peers: must be a table of name = endpoint")
         peers = {str(k): _endpoint(f"{w}net.peers.{k}", v) for k, v in peers.items()}
+        keys_dir, keys = _net_security(w, net, path.parent, drone, bind, peers)
+        link = _link_settings(w, net)
+        give_up = net.get("peer_give_up_s")
+        if give_up is not None:
+            give_up = _seconds(f"{w}net.peer_give_up_s", give_up)
         hal = doc.get("hal", {"adapter": "sim"})
         if not isinstance(hal, dict):
             raise ConfigError(f"{w}hal: must be a table")
         timeouts = {}
-        for key in ("ready_timeout_s", "land_timeout_s"):
+        for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s"):
             if key in doc:
-                value = doc[key]
-                if not isinstance(value, int | float) or isinstance(value, bool) or value <= 0:
-                    raise ConfigError(f"{w}{key}: must be a positive number of seconds")
-                timeouts[key] = float(value)
+                timeouts[key] = _seconds(f"{w}{key}", doc[key])
         base = path.parent
         log_dir = doc.get("log_dir", f"logs/{drone}")
         if not isinstance(log_dir, str):
@@ -138,8 +165,79 @@ class NodeConfig:
             bind=bind,
             peers=peers,
             hal=dict(hal),
+            keys_dir=keys_dir,
+            keys=keys,
+            link=link,
+            peer_give_up_s=give_up,
             **timeouts,
         )
+
+
+NET_FIELDS = {
+    "bind",
+    "peers",
+    "keys",
+    "plain",
+    "heartbeat_s",
+    "peer_timeout_s",
+    "telemetry_stale_s",
+    "telemetry_max_hz",
+    "peer_give_up_s",
+}
+"""Fields of a drone config's ``[net]`` table."""
+
+_LINK_FIELDS = ("heartbeat_s", "peer_timeout_s", "telemetry_stale_s", "telemetry_max_hz")
+
+
+def _seconds(where: str, value: Any) -> float:
+    if not isinstance(value, int | float) or isinstance(value, bool) or not value > 0:
+        raise ConfigError(f"{where}: must be a positive number")
+    return float(value)
+
+
+def _net_security(
+    w: str, net: Mapping[str, Any], base: Path, drone: str, bind: str, peers: Mapping[str, str]
+) -> tuple[Path | None, FleetKeys | None]:
+    """``[net] keys`` (loaded and checked) or ``plain = true`` (loopback only): exactly one."""
+    plain = net.get("plain", False)
+    if not isinstance(plain, bool):
+        raise ConfigError(f"{w}net.plain: must be true or false")
+    if "keys" in net and plain:
+        raise ConfigError(f"{w}net.plain: cannot be combined with net.keys (choose one)")
+    if plain:
+        refusal = plain_refusal([bind, *peers.values()])
+        if refusal:
+            raise ConfigError(f"{w}net.plain: {refusal}")
+        return None, None
+    if "keys" not in net:
+        raise ConfigError(
+            f"{w}net.keys: required: the folder `eamos keys` made for {drone} "
+            "(or plain = true, for development on loopback only)"
+        )
+    if not isinstance(net["keys"], str) or not net["keys"]:
+        raise ConfigError(f"{w}net.keys: must be the path of a key folder")
+    folder = (base / net["keys"]).resolve()
+    try:
+        keys = FleetKeys.load(folder, drone)
+    except KeysError as exc:
+        raise ConfigError(f"{w}net.keys: {exc}") from exc
+    missing = keys.missing(p for p in peers if p != drone)
+    if missing:
+        raise ConfigError(
+            f"{w}net.keys: {folder} has no public key for peer(s) {', '.join(missing)}"
+        )
+    return folder, keys
+
+
+def _link_settings(w: str, net: Mapping[str, Any]) -> LinkSettings:
+    values: dict[str, Any] = {}
+    for key in _LINK_FIELDS:
+        if key in net:
+            values[key] = _seconds(f"{w}net.{key}", net[key])
+    try:
+        return LinkSettings(**values)
+    except ValueError as exc:  # the message starts with the field's name
+        raise ConfigError(f"{w}net.{exc}") from exc
 
 
 @dataclass(frozen=True)

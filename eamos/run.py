@@ -32,6 +32,8 @@ from .hal.uniform import GROUND_STATION
 from .hal.vehicles import start_sim_vehicles
 from .logs import make_logger
 from .net import wire
+from .net.keys import FleetKeys, create_fleet_keys
+from .program.format import DroneProgram
 
 
 @dataclass
@@ -112,8 +114,17 @@ def node_config_text(
     peers: dict[str, str],
     hal: dict[str, Any],
     ready_timeout_s: float,
+    *,
+    keys: str | None = None,
+    plain: bool = False,
+    net: dict[str, Any] | None = None,
 ) -> str:
-    """The TOML text of one drone's config."""
+    """The TOML text of one drone's config.
+
+    ``keys`` is the drone's key folder (relative to the config), ``plain``
+    asks for plain sockets instead (loopback only); ``net`` adds ``[net]``
+    settings such as ``peer_timeout_s``.
+    """
     lines = [
         f"drone = {_toml_value(drone)}",
         f"program = {_toml_value(program)}",
@@ -122,6 +133,13 @@ def node_config_text(
         "",
         "[net]",
         f"bind = {_toml_value(bind)}",
+    ]
+    if keys is not None:
+        lines.append(f"keys = {_toml_value(keys)}")
+    if plain:
+        lines.append("plain = true")
+    lines += [f"{k} = {_toml_value(v)}" for k, v in (net or {}).items()]
+    lines += [
         "",
         "[net.peers]",
     ]
@@ -191,7 +209,7 @@ class LocalFleet:
             self.wait(10)
 
 
-class _Display:
+class ProgressDisplay:
     """Live progress: a rich table on a terminal, plain lines otherwise."""
 
     def __init__(self, live: bool, names: list[str], stream: Any = None) -> None:
@@ -202,7 +220,7 @@ class _Display:
         self._lock = threading.Lock()
         self.station: GroundStation | None = None
 
-    def __enter__(self) -> _Display:
+    def __enter__(self) -> ProgressDisplay:
         if self.live:
             from rich.live import Live
 
@@ -255,6 +273,151 @@ class _Display:
                 print(text, file=self.stream, flush=True)
 
 
+def ground_runtime(
+    program: DroneProgram,
+    station: GroundStation,
+    bind: str,
+    drone_endpoints: dict[str, str],
+    log_dir: Path | None,
+    speedup: float | None,
+    keys: Any = None,
+) -> DroneRuntime:
+    """The ground station's own runtime: its program on the ground adapter, feeding ``station``.
+
+    Not started yet; it receives every drone's telemetry too (for the live table).
+    Shared by ``eamos run`` and ``eamos start`` (:mod:`eamos.ops.ground`), which
+    passes the fleet keys (``keys``, a :class:`eamos.net.keys.FleetKeys`).
+    """
+    hal: dict[str, Any] = {"adapter": "ground"}
+    if speedup:
+        hal["speedup"] = speedup
+    adapter_log = make_logger(
+        None if log_dir is None else log_dir / "adapter.log", drone=GROUND_STATION
+    )
+    return DroneRuntime(
+        program,
+        make_adapter(GROUND_STATION, hal, adapter_log),
+        NetSettings(bind, drone_endpoints, keys=keys),
+        log_dir,
+        ground_handler=station.handle,
+        extra_topics=tuple(wire.topic_telemetry(d) for d in drone_endpoints),
+    )
+
+
+@dataclass
+class GroundPhases:
+    """The ground station's part of a run, wherever the drones are (paper VI-G).
+
+    Wait until every drone is ready (else abort: no start trigger is sent), send
+    the start trigger, wait until every participant resolved (or the operator
+    stops, or the timeout), then complete or abort, and wait for the reports.
+    ``eamos run`` (drones on this machine) and ``eamos start`` (drones over SSH)
+    both fly through this.
+    """
+
+    ready_timeout_s: float
+    timeout_s: float
+    live: bool
+    stop: threading.Event
+    ready_s: float | None = None  # how long the drones took to become ready
+    on_ready: Callable[[float], None] | None = None  # told ready_s before the start trigger
+
+    def fly(
+        self,
+        station: GroundStation,
+        display: ProgressDisplay,
+        speak: Callable[[str], None],
+        alive: Callable[[], list[str]],
+    ) -> tuple[str, float]:
+        """Run the phases; return ``(outcome, start time)``; outcome ``"ok"`` on success.
+
+        ``alive()`` names the drones whose process still runs (they are waited
+        for their final report).
+        """
+        outcome = "ok"
+        started = time.time()
+        t0 = time.monotonic()
+        if not station.wait_ready(self.ready_timeout_s, self.stop):
+            outcome = "not ready: " + (
+                ", ".join(station.failures) or "waiting for " + ", ".join(station.not_ready())
+            )
+            station.abort(outcome)
+        else:
+            self.ready_s = time.monotonic() - t0
+            if self.on_ready is not None:
+                self.on_ready(self.ready_s)
+            speak("all drones ready: start")
+            started = time.time()
+            station.start()
+            deadline = time.monotonic() + self.timeout_s
+            while not station.wait_resolved(1.0 if self.live else 5.0, self.stop):
+                display.refresh()
+                if self.stop.is_set():
+                    outcome = "aborted by the operator"
+                    break
+                if time.monotonic() > deadline:
+                    outcome = (
+                        f"timed out after {self.timeout_s:g} s (unresolved: "
+                        f"{', '.join(station.unresolved())})"
+                    )
+                    break
+            if outcome == "ok":
+                station.complete()
+            else:
+                speak(f"aborting: {outcome}: every drone lands")
+                station.abort(outcome)
+        # A drone that never became ready sends no report (eamos-node gives up first).
+        views = station.snapshot()
+        waiting = [n for n in alive() if views[n].ready]
+        if not station.wait_reports(waiting, 60 if outcome == "ok" else 180):
+            speak(
+                "some drones sent no report: "
+                + ", ".join(n for n in waiting if station.snapshot()[n].report is None)
+            )
+        display.refresh()
+        return outcome, started
+
+
+def build_summary(
+    mission: str,
+    mission_id: str,
+    outcome: str,
+    started: float,
+    run_dir: Path,
+    views: dict[str, DroneView],
+    drones: list[str],
+    exits: dict[str, int],
+    gcs_report: dict[str, Any],
+) -> dict[str, Any]:
+    """The run summary (``summary.json``): outcome, and every participant's report."""
+    duration = time.time() - started
+    drone_reports: dict[str, Any] = {}
+    for name in drones:
+        report = views[name].report or {
+            "ok": False,
+            "error": "no report",
+            "exit_code": exits.get(name),
+        }
+        report.setdefault("exit_code", exits.get(name))
+        drone_reports[name] = report
+    ok = (
+        outcome == "ok"
+        and all(r.get("ok") for r in drone_reports.values())
+        and bool(gcs_report.get("ok"))
+    )
+    return {
+        "ok": ok,
+        "mission": mission,
+        "mission_id": mission_id,
+        "outcome": outcome,
+        "duration_s": round(duration, 3),
+        "started": started,
+        "run_dir": str(run_dir),
+        "drones": drone_reports,
+        "ground_station": gcs_report,
+    }
+
+
 def run_mission(
     opts: RunOptions, stop: threading.Event | None = None, say: Callable[[str], None] | None = None
 ) -> dict[str, Any]:
@@ -278,6 +441,9 @@ def run_mission(
     configs_dir = run_dir / "configs"
     configs_dir.mkdir(exist_ok=True)
     configs: dict[str, Path] = {}
+    # A fresh CURVE key pair per participant for every run: the links are
+    # encrypted and only this run's participants can connect (docs/network.md).
+    create_fleet_keys(run_dir / "keys", names, force=True)
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
     vehicles = start_sim_vehicles(
         {n: opts.fleet.hal_for(n) for n in drones}, run_dir / "logs", opts.speedup
@@ -296,27 +462,24 @@ def run_mission(
             peers,
             hal,
             opts.ready_timeout_s,
+            keys=f"../keys/{name}",
         )
         configs[name] = configs_dir / f"{name}.toml"
         configs[name].write_text(text)
 
     live = sys.stdout.isatty() if opts.live is None else opts.live
-    display = _Display(live, drones)
+    display = ProgressDisplay(live, drones)
     station = GroundStation(drones, compiled.mission_id, on_change=display.event)
     display.station = station
     speak = say or display.say
-    gcs_hal: dict[str, Any] = {"adapter": "ground"}
-    if opts.speedup:
-        gcs_hal["speedup"] = opts.speedup
-    gcs_log_dir = run_dir / "logs" / GROUND_STATION
-    adapter_log = make_logger(gcs_log_dir / "adapter.log", drone=GROUND_STATION)
-    runtime = DroneRuntime(
+    runtime = ground_runtime(
         compiled.programs[GROUND_STATION],
-        make_adapter(GROUND_STATION, gcs_hal, adapter_log),
-        NetSettings(endpoints[GROUND_STATION], {n: endpoints[n] for n in drones}),
-        gcs_log_dir,
-        ground_handler=station.handle,
-        extra_topics=tuple(wire.topic_telemetry(d) for d in drones),
+        station,
+        endpoints[GROUND_STATION],
+        {n: endpoints[n] for n in drones},
+        run_dir / "logs" / GROUND_STATION,
+        opts.speedup,
+        keys=FleetKeys.load(run_dir / "keys" / GROUND_STATION, GROUND_STATION),
     )
     exits: dict[str, int] = {}
 
@@ -337,72 +500,27 @@ def run_mission(
             fleet.spawn(name, configs[name], run_dir / "logs" / name)
         with display:
             speak(f"mission {compiled.mission.name}: {len(drones)} drone(s), run folder {run_dir}")
-            if not station.wait_ready(opts.ready_timeout_s, stop):
-                outcome = "not ready: " + (
-                    ", ".join(station.failures) or "waiting for " + ", ".join(station.not_ready())
-                )
-                station.abort(outcome)
-            else:
-                speak("all drones ready: start")
-                started = time.time()
-                station.start()
-                deadline = time.monotonic() + opts.timeout_s
-                while not station.wait_resolved(1.0 if live else 5.0, stop):
-                    display.refresh()
-                    if stop.is_set():
-                        outcome = "aborted by the operator"
-                        break
-                    if time.monotonic() > deadline:
-                        outcome = (
-                            f"timed out after {opts.timeout_s:g} s (unresolved: "
-                            f"{', '.join(station.unresolved())})"
-                        )
-                        break
-                if outcome == "ok":
-                    station.complete()
-                else:
-                    speak(f"aborting: {outcome}: every drone lands")
-                    station.abort(outcome)
-            alive = [n for n in drones if n not in exits]
-            if not station.wait_reports(alive, 60 if outcome == "ok" else 180):
-                speak(
-                    "some drones sent no report: "
-                    + ", ".join(n for n in alive if station.snapshot()[n].report is None)
-                )
-            display.refresh()
+            phases = GroundPhases(opts.ready_timeout_s, opts.timeout_s, live, stop)
+            outcome, started = phases.fly(
+                station, display, speak, alive=lambda: [n for n in drones if n not in exits]
+            )
     finally:
         if not fleet.wait(30):
             fleet.terminate()
         vehicles.stop()
         gcs_report = runtime.report() if runtime.executive is not None else {}
         runtime.stop()
-    duration = time.time() - started
-    views = station.snapshot()
-    drone_reports: dict[str, Any] = {}
-    for name in drones:
-        report = views[name].report or {
-            "ok": False,
-            "error": "no report",
-            "exit_code": exits.get(name),
-        }
-        report.setdefault("exit_code", exits.get(name))
-        drone_reports[name] = report
-    ok = (
-        outcome == "ok"
-        and all(r.get("ok") for r in drone_reports.values())
-        and bool(gcs_report.get("ok"))
+    summary = build_summary(
+        compiled.mission.name,
+        compiled.mission_id,
+        outcome,
+        started,
+        run_dir,
+        station.snapshot(),
+        drones,
+        exits,
+        gcs_report,
     )
-    summary = {
-        "ok": ok,
-        "mission": compiled.mission.name,
-        "mission_id": compiled.mission_id,
-        "outcome": outcome,
-        "duration_s": round(duration, 3),
-        "started": started,
-        "run_dir": str(run_dir),
-        "drones": drone_reports,
-        "ground_station": gcs_report,
-    }
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     if opts.summary is not None:
         opts.summary.parent.mkdir(parents=True, exist_ok=True)

@@ -14,6 +14,13 @@ Measures, each in fresh processes:
 * ``mission_5000``: framework overhead of a 20-drone, >5000-node mission whose
   actions take no time: start trigger to the last drone resolved, plus the whole
   wall time of ``eamos run`` (compile, spawn 20 processes, run, reports).
+* ``net_latency``: the cross-drone trigger latency again, p50/p99, between
+  ``eamos-node`` processes started from configs (:mod:`eamos.net.lab`), with
+  CURVE on and off (plain, loopback), and with CURVE under 10 % random packet
+  loss (iptables in a network namespace; needs root, else reported skipped).
+* ``net_bytes``: what one trigger costs on the network: its message (topic +
+  msgpack payload), its acknowledgement, and the bytes on the wire (IP packets
+  counted by iptables in a namespace, CURVE on and off; needs root).
 
 Usage: ``python scripts/bench_runtime.py --json`` (``--quick`` for a smaller run).
 """
@@ -77,7 +84,7 @@ t0 = time.perf_counter()
 program = load_program(Path(sys.argv[1]))
 t_load = time.perf_counter() - t0
 rt = DroneRuntime(program, FakeAdapter(program.drone, auto=True),
-                  NetSettings('tcp://127.0.0.1:0', {}), None)
+                  NetSettings('tcp://127.0.0.1:0', {}), None)  # plain, loopback
 rt.start()
 elapsed = time.perf_counter() - t0
 after = rss_mb()
@@ -194,12 +201,211 @@ def bench_mission(tmp: Path, drones: int, blocks: int, per_drone: int) -> dict:
     }
 
 
+# -- network: CURVE on/off, loss, bytes -------------------------------------------------
+
+
+def _fleet_run(
+    tmp: Path, name: str, source: str, secure: bool, loss: float = 0.0, net: dict | None = None
+) -> dict:
+    """Run ``source`` with eamos-node processes from configs; return the GCS summary.
+
+    With ``loss``, every process runs in one fresh network namespace whose
+    loopback drops incoming packets at random (iptables), which needs root.
+    """
+    from eamos.compiler import compile_mission
+    from eamos.net.lab import Netns, node_argv, write_fleet
+
+    compiled = compile_mission(source, f"{name}.go")
+    names = list(compiled.programs)
+    ports = _free_ports(len(names))
+    bind = {n: f"tcp://127.0.0.1:{p}" for n, p in zip(names, ports, strict=True)}
+    hal = {n: {"adapter": "fake"} for n in names if n != "GCS"}
+    files = write_fleet(
+        compiled.programs,
+        tmp / name,
+        bind,
+        hal=hal,
+        secure=secure,
+        net=net,
+        ready_timeout_s=300.0,
+        mission_timeout_s=900.0,
+    )
+    lab = Netns(["host"], tag=f"bench{name}") if loss else None
+    procs = []
+    try:
+        if lab is not None:
+            lab.up()
+            lab.run("host", "iptables", "-A", "INPUT", "-i", "lo", "-m", "statistic", "--mode",
+                    "random", "--probability", f"{loss:.3f}", "-j", "DROP")
+        for n in names:
+            argv = node_argv(files.configs[n])
+            argv = lab.argv("host", argv) if lab is not None else argv
+            out = (tmp / name / f"{n}.out").open("wb")
+            procs.append(subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT, cwd=REPO))
+            out.close()
+        procs[names.index("GCS")].wait(1200)
+        for proc in procs:
+            proc.wait(120)
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+        if lab is not None:
+            lab.down()
+    summary = files.summary()
+    if summary is None or not summary["ok"]:
+        raise RuntimeError(f"{name}: fleet run failed: {summary and summary['outcome']}")
+    return summary
+
+
+def _free_ports(n: int) -> list[int]:
+    import socket
+
+    socks = [socket.socket() for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+def _latencies(summary: dict) -> dict:
+    acts = sorted(
+        (a for d in ("D1", "D2") for a in summary["drones"][d]["actions"]), key=lambda a: a["start"]
+    )
+    lat = sorted((b["start"] - a["end"]) * 1e3 for a, b in itertools.pairwise(acts))
+    nets = [summary["drones"][d]["net"] for d in ("D1", "D2")]
+    return {
+        "hops": len(lat),
+        "p50_ms": round(statistics.median(lat), 3),
+        "p99_ms": round(lat[int(0.99 * (len(lat) - 1))], 3),
+        "max_ms": round(lat[-1], 3),
+        "retransmissions": sum(n["retransmissions"] for n in nets),
+        "duplicates_dropped": sum(n["duplicates_dropped"] for n in nets),
+    }
+
+
+def bench_net_latency(tmp: Path, hops: int, loss_hops: int) -> dict:
+    from eamos.net.lab import lab_unavailable
+
+    out = {
+        "curve": _latencies(_fleet_run(tmp, "curve", ping_pong_mission(hops), True)),
+        "plain": _latencies(_fleet_run(tmp, "plain", ping_pong_mission(hops), False)),
+    }
+    why = lab_unavailable()
+    if why is None:
+        summary = _fleet_run(tmp, "loss10", ping_pong_mission(loss_hops), True, loss=0.10)
+        out["curve_loss_10pct"] = _latencies(summary)
+    else:
+        out["curve_loss_10pct"] = {"skipped": why}
+    return out
+
+
+_BYTES_CHILD = r"""
+import json, subprocess, sys, threading, zmq
+from pathlib import Path
+from eamos.net import wire
+from eamos.net.keys import FleetKeys, create_fleet_keys
+from eamos.net.link import Link, LinkSettings
+secure, n, tmp = sys.argv[1] == "curve", int(sys.argv[2]), Path(sys.argv[3])
+keys = create_fleet_keys(tmp / "keys", ["A", "B"], force=True) if secure else None
+ep = {"A": "tcp://127.0.0.1:7101", "B": "tcp://127.0.0.1:7102"}
+got, cond = [], threading.Condition()
+def on_b(m):
+    with cond:
+        got.append(m); cond.notify_all()
+links = {}
+for me, other, cb in (("B", "A", on_b), ("A", "B", lambda m: None)):
+    ctx = zmq.Context()
+    link = Link(ctx, me, "bench", ep[me], keys=FleetKeys.load(keys / me, me) if keys else None,
+                settings=LinkSettings())  # the defaults: acks ride on 1 s heartbeats
+    link.connect({other: ep[other]}, (), cb)
+    links[me] = link
+assert links["A"].wait_subscribed([wire.topic_to("B")], 30)
+def counters():
+    out = subprocess.run(["iptables", "-L", "OUTPUT", "-v", "-x", "-n"], capture_output=True,
+                         text=True, check=True).stdout.splitlines()
+    pkts, byts = out[2].split()[:2]
+    return int(pkts), int(byts)
+assert links["B"].wait_subscribed([wire.topic_to("A")], 30)  # the acks' way back is open too
+p0, b0 = counters()
+for i in range(n):
+    links["A"].send(wire.Trigger("bench", "A", "B", "n1", "n2", (i,), "done"))
+    with cond:
+        assert cond.wait_for(lambda: len([m for m in got if isinstance(m, wire.Trigger)]) > i, 30)
+assert links["A"].flush(30)
+p1, b1 = counters()
+stats = links["A"].stats()
+acks = links["B"].stats()
+print(json.dumps({"packets": p1 - p0, "bytes": b1 - b0,
+                  "trigger_bytes": stats["bytes_sent_by_type"]["Trigger"] / n,
+                  "ack_bytes": (acks["bytes_sent_by_type"].get("Ack", 0)
+                                + acks["bytes_sent_by_type"].get("Heartbeat", 0)) / n}))
+for link in links.values():
+    link.close()
+"""
+
+
+def bench_net_bytes(tmp: Path, n: int) -> dict:
+    """Bytes per trigger, one trigger in flight at a time (as in a mission's chains)."""
+    from eamos.net.lab import Netns, lab_unavailable
+    from eamos.net.wire import Ack, Heartbeat, Trigger, encode
+
+    mission = "0123456789abcdef"  # ids are 16 hex digits
+    sample = Trigger(mission, "Drone1", "Drone2", "n12", "n34", (0,), "done", seq=12)
+    ack = Ack(mission, "Drone2", "Drone1", 12, 0)
+    beat = Heartbeat(mission, "Drone2", {"Drone1": 40, "GCS": 3}, 0, acks={"Drone1": 12})
+    out: dict = {
+        "trigger_message_bytes": sum(map(len, encode(sample))),
+        "explicit_ack_message_bytes": sum(map(len, encode(ack))),
+        "heartbeat_message_bytes": sum(map(len, encode(beat))),
+        "note": "message = topic + msgpack payload (wire v2).  Steady traffic is acked by the "
+        "1 s heartbeats, explicit acks only for gaps, duplicates and reports.  on_wire = IP "
+        "packets both ways on loopback per trigger, one trigger in flight at a time, incl. "
+        "ZMTP/CURVE framing, TCP/IP headers, TCP acks and the heartbeats meanwhile",
+    }
+    why = lab_unavailable()
+    if why is not None:
+        out["on_wire"] = {"skipped": why}
+        return out
+    out["on_wire"] = {}
+    for mode in ("plain", "curve"):
+        lab = Netns(["host"], tag=f"bytes{mode}")
+        try:
+            lab.up()
+            lab.run("host", "iptables", "-A", "OUTPUT", "-o", "lo")  # a counting rule
+            proc = subprocess.run(
+                lab.argv("host", [sys.executable, "-c", _BYTES_CHILD, mode, str(n), str(tmp)]),
+                capture_output=True,
+                text=True,
+                timeout=600,
+                cwd=REPO,
+            )
+        finally:
+            lab.down()
+        if proc.returncode != 0:
+            raise RuntimeError(f"net_bytes {mode}: {proc.stderr[-2000:]}")
+        data = json.loads(proc.stdout)
+        out["on_wire"][mode] = {
+            "bytes_per_trigger": round(data["bytes"] / n, 1),
+            "packets_per_trigger": round(data["packets"] / n, 2),
+            "trigger_message_bytes": round(data["trigger_bytes"], 1),
+            "ack_and_heartbeat_bytes_per_trigger": round(data["ack_bytes"], 1),
+        }
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--json", action="store_true", help="print only the JSON result")
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a smoke run)")
+    parser.add_argument(
+        "--only", nargs="+", metavar="SECTION", help="run only these sections (default: all)"
+    )
     args = parser.parse_args()
     out: dict = {}
     with tempfile.TemporaryDirectory() as tmp_name:
@@ -212,8 +418,17 @@ def main() -> int:
                 "mission_5000",
                 lambda: bench_mission(tmp, 4 if args.quick else 20, 5 if args.quick else 10, 25),
             ),
+            (
+                "net_latency",
+                lambda: bench_net_latency(
+                    tmp, 100 if args.quick else 1000, 50 if args.quick else 300
+                ),
+            ),
+            ("net_bytes", lambda: bench_net_bytes(tmp, 50 if args.quick else 500)),
         ]
         for name, step in steps:
+            if args.only and name not in args.only:
+                continue
             if not args.json:
                 print(f"... {name}", file=sys.stderr, flush=True)
             out[name] = step()

@@ -8,6 +8,12 @@ trigger only once every drone is ready (so no trigger is lost at start), and
 declares the mission complete once every participant resolved its top-level
 nodes.  There is no central master during the mission: drones trigger each
 other directly; the ground station only starts, watches and ends.
+
+Links: the network layer reports a drone that went silent (``lost``), came
+``back`` or ``left`` (:class:`~eamos.net.link.PeerStatus`).  A silent drone is
+still waited for -- it may be flying on behind a broken link and come back --
+unless it stays silent longer than ``give_up_s``: then it counts as failed
+(like a drone whose process died) and the others may complete without it.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from typing import Any
 
 from ..hal.uniform import GROUND_STATION
 from ..net import wire
+from ..net.link import PeerStatus
 from .runtime import DroneRuntime
 
 
@@ -39,6 +46,10 @@ class DroneView:
     failed_actions: int = 0
     report: dict[str, Any] | None = None
     events: list[dict[str, Any]] = field(default_factory=list)
+    link: str = "up"  # "up", "lost" (silent), "back" or "left" (said goodbye)
+    link_serial: int = 0
+    silent_since: float | None = None  # monotonic time the link was reported lost
+    given_up: bool = False  # silent for longer than give_up_s: not waited for
 
 
 class GroundStation:
@@ -49,8 +60,10 @@ class GroundStation:
         drones: Iterable[str],
         mission_id: str,
         on_change: Callable[[str, DroneView, Any], None] | None = None,
+        give_up_s: float | None = None,
     ) -> None:
         self.mission_id = mission_id
+        self.give_up_s = give_up_s
         self.views = {name: DroneView(name) for name in drones}
         self.views.setdefault(GROUND_STATION, DroneView(GROUND_STATION))
         self.runtime: DroneRuntime | None = None
@@ -98,6 +111,22 @@ class GroundStation:
             elif isinstance(msg, wire.TelemetrySample):
                 view.position = (msg.x_m, msg.y_m, msg.z_m)
                 view.armed = msg.armed
+            elif isinstance(msg, PeerStatus):
+                if msg.serial <= view.link_serial:
+                    return  # an older event overtaken by a newer one (two threads report)
+                view.link_serial = msg.serial
+                view.link = msg.state
+                view.events.append({"t": time.time(), "link": msg.state, "silent_s": msg.silent_s})
+                if msg.state == "lost":
+                    view.silent_since = time.monotonic() - msg.silent_s
+                else:
+                    view.silent_since = None
+                    if view.given_up and msg.state == "back":
+                        # It came back before the end: wait for it again.
+                        view.given_up = False
+                        view.state = "back"
+                        gone = f"{view.name}: silent"
+                        self.failures = [f for f in self.failures if not f.startswith(gone)]
             self._cond.notify_all()
         if self.on_change is not None:
             self.on_change(view.name, view, msg)
@@ -160,14 +189,39 @@ class GroundStation:
     def wait_resolved(self, timeout_s: float | None, stop: threading.Event | None = None) -> bool:
         """Every participant still alive (ground station included) resolved its top-level nodes.
 
-        A lost drone does not stop the others: drones that do not depend on it finish,
-        and those that do stay unresolved until the timeout.
+        A lost drone (its process died, or it was silent for longer than
+        ``give_up_s``) does not stop the others: drones that do not depend on it
+        finish, and those that do stay unresolved until the timeout.
         """
-        return self._wait(
-            lambda: all(v.resolved or v.state == "lost" for v in self.views.values()),
-            timeout_s,
-            stop,
-        )
+
+        def done() -> bool:
+            self._give_up_silent()
+            return all(v.resolved or v.state == "lost" for v in self.views.values())
+
+        return self._wait(done, timeout_s, stop)
+
+    def _give_up_silent(self) -> None:
+        """Count drones silent for longer than ``give_up_s`` as failed (lock held)."""
+        if self.give_up_s is None:
+            return
+        now = time.monotonic()
+        for view in self.views.values():
+            if (
+                view.link == "lost"
+                and not view.resolved
+                and not view.given_up
+                and view.silent_since is not None
+                and now - view.silent_since > self.give_up_s
+            ):
+                view.given_up = True
+                view.state = "lost"
+                reason = f"silent for more than {self.give_up_s:g} s"
+                self.failures.append(f"{view.name}: {reason}")
+
+    def lost_links(self) -> list[str]:
+        """Participants whose link is currently reported lost."""
+        with self._cond:
+            return [n for n, v in self.views.items() if v.link == "lost"]
 
     def unresolved(self) -> list[str]:
         with self._cond:

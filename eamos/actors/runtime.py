@@ -14,7 +14,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +28,8 @@ from ..hal.uniform import GROUND_STATION, PROPERTY_FIELDS
 from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
+from ..net.keys import FleetKeys, KeysError, plain_refusal
+from ..net.link import Link, LinkSettings, PeerStatus, TelemetryStale
 from ..program.format import DroneProgram
 from .dispatch import Dispatcher
 from .messages import (
@@ -58,6 +60,13 @@ def telemetry_values(sample: Telemetry | wire.TelemetrySample) -> dict[str, Any]
     values = {prop: getattr(sample, fld) for prop, fld in PROPERTY_FIELDS.items()}
     values["_time_s"] = sample.time_s
     values["_landed"] = sample.landed
+    return values
+
+
+def stale_values(age_s: float) -> dict[str, Any]:
+    """Property values of a drone whose telemetry went stale: none (conditions wait)."""
+    values: dict[str, Any] = dict.fromkeys(PROPERTY_FIELDS)
+    values["_stale_s"] = age_s
     return values
 
 
@@ -147,12 +156,15 @@ class Outbox:
     """The Out-Bridge (paper Figures 10, 11): packs messages for remote drones onto the wire.
 
     It takes messages with ``tell`` like an actor, but handles them in the
-    caller's thread: the network Out-Bridge's ``send`` is already a thread-safe
-    hand-over to its own socket thread, and a second queue would only add a
-    context switch to every cross-drone trigger.
+    caller's thread: the link's ``send`` (:class:`~eamos.net.link.Link`, which
+    numbers reliable messages and retransmits them until acknowledged) is
+    already a thread-safe hand-over to the bridge's socket thread, and a second
+    queue would only add a context switch to every cross-drone trigger.
+    ``triggers_sent`` counts each trigger once, however often the link had to
+    retransmit it (the Table 7 check).
     """
 
-    def __init__(self, bridge: OutBridge, drone: str, mission_id: str, log: Any) -> None:
+    def __init__(self, bridge: Link, drone: str, mission_id: str, log: Any) -> None:
         self.bridge = bridge
         self.drone = drone
         self.mission_id = mission_id
@@ -383,10 +395,29 @@ class DroneExecutive(pykka.ThreadingActor):
 
 @dataclass(frozen=True)
 class NetSettings:
-    """Where this participant binds its Out-Bridge and where its peers' are."""
+    """Where this participant binds its Out-Bridge, where its peers' are, and how to secure it.
+
+    ``keys`` (from ``eamos keys``) makes every link CURVE-encrypted and lets in
+    only the fleet.  Leaving them out asks for plain sockets, which are refused
+    unless every endpoint is local (loopback, ipc, inproc): development only.
+    (A drone config must also say ``plain = true``; see :mod:`eamos.config`.)
+    """
 
     bind: str
     peers: Mapping[str, str]
+    keys: FleetKeys | None = None
+    link: LinkSettings = field(default_factory=LinkSettings)
+
+    def refusal(self, me: str) -> str | None:
+        """Why these settings may not be used by participant ``me`` (None: fine)."""
+        if self.keys is None:
+            return plain_refusal([self.bind, *(e for n, e in self.peers.items() if n != me)])
+        if self.keys.me != me:
+            return f"the keys are {self.keys.me}'s, not {me}'s"
+        missing = self.keys.missing(n for n in self.peers if n != me)
+        if missing:
+            return f"the fleet keys have no public key for {', '.join(missing)}"
+        return None
 
 
 class DroneRuntime:
@@ -414,6 +445,7 @@ class DroneRuntime:
         self.extra_topics = extra_topics
         self.logs = DroneLogs.open(log_dir, self.drone)
         self.log = self.logs.mission
+        self.link: Link | None = None
         self.out: OutBridge | None = None
         self.inb: InBridge | None = None
         self.out_actor: Any = None
@@ -435,14 +467,27 @@ class DroneRuntime:
         """Build every actor and bridge; raise :class:`DroneRuntimeError` if the drone can't run."""
         program = self.program
         self.started_at = time.monotonic()
+        refusal = self.net.refusal(self.drone)
+        if refusal is not None:
+            self.stop()
+            raise DroneRuntimeError(f"{self.drone}: {refusal}")
         try:
-            self.out = OutBridge(self.context, self.net.bind, self.logs.mission)
-        except zmq.ZMQError as exc:
+            self.link = Link(
+                self.context,
+                self.drone,
+                program.mission_id,
+                self.net.bind,
+                self.logs.mission,
+                keys=self.net.keys,
+                settings=self.net.link,
+            )
+        except (zmq.ZMQError, KeysError) as exc:
+            self.stop()
             raise DroneRuntimeError(
                 f"cannot bind the out-bridge at {self.net.bind}: {exc}"
             ) from exc
-        self.out.start()
-        self.out_actor = Outbox(self.out, self.drone, program.mission_id, self.logs.mission)
+        self.out = self.link.out
+        self.out_actor = Outbox(self.link, self.drone, program.mission_id, self.logs.mission)
         self.dispatcher = Dispatcher(workers=2, name=f"eamos-{self.drone}")
         self.board = TelemetryBoard.start(self.drone, self.out_actor, program.mission_id)
         start_error: list[AdapterError] = []
@@ -499,19 +544,35 @@ class DroneRuntime:
         topics += [t for t in self.extra_topics if t not in topics]
         peers = {name: ep for name, ep in self.net.peers.items() if name != self.drone}
         try:
-            self.inb = InBridge(
-                self.context, peers, topics, self._on_message, program.mission_id, self.logs.mission
-            )
-        except zmq.ZMQError as exc:
+            self.link.connect(peers, topics, self._on_message, watch=self.watched_peers())
+        except (zmq.ZMQError, ValueError) as exc:
             self.stop()
             raise DroneRuntimeError(f"cannot connect the in-bridge to {peers}: {exc}") from exc
-        self.inb.start()
+        self.inb = self.link.inb
         self.log.info(
             "mission.runtime.started",
             nodes=len(self.nodes),
             program=program.checksum,
             seconds=round(time.monotonic() - self.started_at, 4),
+            secure=self.link.secure,
         )
+
+    def watched_peers(self) -> list[str] | None:
+        """Peers whose heartbeats this participant follows (None: every peer).
+
+        The ground station watches the whole fleet; a drone, the participants
+        it exchanges triggers, interrupts or telemetry with, and the ground
+        station.  (Each heartbeat wakes its receiver: all-to-all would grow
+        with the square of the fleet.)
+        """
+        if self.ground_handler is not None or self.drone == GROUND_STATION:
+            return None
+        native = {n.key for n in self.program.native_nodes()}
+        drone_of = {n.key: n.drone for n in self.program.nodes}
+        sources = {drone_of[a.src] for a in self.program.arcs if a.external and a.dst in native}
+        watch = {*self.destinations(), *sources, *self.program.telemetry_from, GROUND_STATION}
+        watch.discard(self.drone)
+        return sorted(watch)
 
     # -- readiness ---------------------------------------------------------------------
 
@@ -606,6 +667,15 @@ class DroneRuntime:
             self.board.tell(RemoteTelemetry(msg.sender, telemetry_values(msg)))
             if self.ground_handler is not None:
                 self.ground_handler(msg)
+        elif isinstance(msg, TelemetryStale):
+            # Withdraw the drone's values: a condition reading them now waits
+            # (Unknown) for a fresh sample instead of deciding on old data.
+            # The link logged mission.telemetry.stale.
+            self.board.tell(RemoteTelemetry(msg.sender, stale_values(msg.age_s)))
+        elif isinstance(msg, PeerStatus):
+            # The link logged mission.peer.<state>; the ground station shows it.
+            if self.ground_handler is not None:
+                self.ground_handler(msg)
         elif isinstance(msg, wire.Interrupt):
             try:
                 scope = int(msg.scope)
@@ -633,6 +703,7 @@ class DroneRuntime:
             else {"records": [], "triggers_received": 0, "resolved": {}, "all_resolved": False}
         )
         counts = self.out_actor.counts() if self.out_actor else {"triggers_sent": 0}
+        net = self.link.stats() if self.link is not None else {}
         local = self.board.ask(_LatestLocal(), timeout=30) if self.board else None
         stats = self.program.stats()
         actions = [
@@ -675,6 +746,10 @@ class DroneRuntime:
                 "battery": local.battery_pct,
             },
             "adapter_error": str(self.adapter_error) if self.adapter_error else "",
+            # Each trigger counts once above; what it took on the network is here.
+            "retransmissions": net.get("retransmissions", 0),
+            "duplicates_dropped": net.get("duplicates_dropped", 0),
+            "net": net,
         }
 
     def stop(self) -> None:
@@ -682,8 +757,10 @@ class DroneRuntime:
         if self._stopped:
             return
         self._stopped = True
-        if self.inb is not None:
-            self.inb.close()
+        if self.link is not None:
+            # Goodbye heartbeat, then the receive side closes (no callbacks into
+            # actors being stopped); the send side closes below, after the actors.
+            self.link.close_receiving()
         for ref in [*self.nodes.values(), self.executive, self.board, self.hal]:
             if ref is not None:
                 try:
@@ -692,8 +769,8 @@ class DroneRuntime:
                     pass
         if self.dispatcher is not None:
             self.dispatcher.shutdown()
-        if self.out is not None:
-            self.out.close()
+        if self.link is not None:
+            self.link.close()
         if self._own_context:
             self.context.term()
         self.logs.close()

@@ -153,6 +153,8 @@ def _tcp_client(
     """
 
     class TcpClient(mavutil.mavtcp):  # type: ignore[name-defined,misc]
+        port: Any  # the socket, None while disconnected
+        fd: int
         def handle_disconnect(self) -> None:
             self.drop()
 
@@ -172,6 +174,9 @@ def _tcp_client(
             if self.port is not None:
                 self.port.close()
                 self.port = None
+
+        def close(self) -> None:
+            self.drop()
 
         def redial(self) -> None:
             self.retries = 0

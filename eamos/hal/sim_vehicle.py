@@ -27,7 +27,9 @@ installed.  Its behaviour follows what was observed of the real SITL builds
   (MAV_CMD_NAV_TAKEOFF, param7 AMSL or MIS_TAKEOFF_ALT) climbs, then HOLD.
   MAV_CMD_DO_REPOSITION flies to a WGS84 point in HOLD.  LOCAL_POSITION_NED
   z is offset on the ground (``ground_offset_m``), as PX4 SIH's is.
-* ArduPilot: GUIDED follows position targets once airborne;
+* ArduPilot: streams little until asked (SYS_STATUS only; REQUEST_DATA_STREAM
+  and MAV_CMD_SET_MESSAGE_INTERVAL start the rest); GUIDED follows position
+  targets once airborne;
   MAV_CMD_NAV_TAKEOFF (param7 metres above home) works only in GUIDED and
   armed, else FAILED.
 * Both: MAV_CMD_NAV_LAND lands (mode AUTO.LAND / LAND) and the vehicle
@@ -119,7 +121,14 @@ DEFAULT_RATES: dict[str, dict[int, float]] = {
         MSG_GLOBAL_POSITION_INT: 10.0, MSG_ATTITUDE: 10.0, MSG_HOME_POSITION: 0.5,
         MSG_GPS_RAW_INT: 1.0, MSG_BATTERY_STATUS: 0.5,
     },
-    "ardupilot": {},
+    "ardupilot": {MSG_SYS_STATUS: 1.0},
+}
+#: ArduPilot's REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) of the messages simulated here.
+DATA_STREAMS: dict[int, tuple[int, ...]] = {
+    2: (MSG_SYS_STATUS, MSG_GPS_RAW_INT),  # EXTENDED_STATUS
+    6: (MSG_GLOBAL_POSITION_INT, MSG_LOCAL_POSITION_NED),  # POSITION
+    10: (MSG_ATTITUDE,),  # EXTRA1
+    12: (MSG_BATTERY_STATUS, MSG_EXTENDED_SYS_STATE, MSG_HOME_POSITION),  # EXTRA3
 }
 
 FRAME_GLOBAL, FRAME_LOCAL_NED, FRAME_GLOBAL_RELATIVE_ALT = 0, 1, 3
@@ -167,6 +176,7 @@ class VehicleOptions:
     reject: Mapping[int, int] = field(default_factory=dict)  # MAV_CMD -> MAV_RESULT
     disarm_after_s: float = 10.0
     ground_offset_m: float | None = None  # PX4 LOCAL z on the ground; None: 1.5 PX4, 0 ArduPilot
+    report_prearm: bool = True  # False: SYS_STATUS without the PREARM_CHECK bit (older firmware)
     limits: Limits = field(default_factory=Limits)
     log: Path | None = None
 
@@ -222,6 +232,8 @@ def _tcp_server(mavutil: ModuleType, address: str, source_system: int) -> Any:
     """pymavlink's TCP listener, able to accept a new client after one leaves."""
 
     class TcpServer(mavutil.mavtcpin):  # type: ignore[name-defined,misc]
+        port: Any  # the client's socket, None while nobody is connected
+        fd: int
         def recv(self, n: int | None = None) -> bytes:
             if self.port is None:
                 try:
@@ -339,7 +351,7 @@ class SimVehicle:
         with self._cond:
             self._cond.notify_all()
         if self._log is not None:
-            self._log.info("vehicle.stop", t_sim=round(self._t, 3))
+            self._log.info("vehicle.stop", t_sim=round(self._t, 3), received=dict(self.received))
             close_logger(self._log)
 
     def __enter__(self) -> SimVehicle:
@@ -459,7 +471,10 @@ class SimVehicle:
             self.received[kind] = self.received.get(kind, 0) + 1
             handler = getattr(self, f"_on_{kind.lower()}", None)
             if handler is not None:
-                handler(msg)
+                try:
+                    handler(msg)
+                except Exception as exc:  # one odd message must not stop the vehicle
+                    self._log.exception("vehicle.message_error", message=kind, error=repr(exc))
 
     def _send(self, message: str, *args: Any) -> None:
         conn = self._conn
@@ -661,7 +676,7 @@ class SimVehicle:
                    msg.get_srcComponent())
 
     def _cmd_arm_disarm(self, p: tuple[float, ...], frame: int | None) -> int:
-        force = round(p[1]) == FORCE_MAGIC
+        force = _int(p[1]) == FORCE_MAGIC
         if p[0] >= 0.5:
             if self._armed:
                 return ACCEPTED
@@ -691,10 +706,10 @@ class SimVehicle:
         return ACCEPTED
 
     def _cmd_set_mode(self, p: tuple[float, ...], frame: int | None) -> int:
-        if not int(p[0]) & MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+        if not _int(p[0]) & MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             return DENIED
         if self._px4:
-            main, sub = int(p[1]), int(p[2])
+            main, sub = _int(p[1]), _int(p[2])
             if main == 4 and sub == 0:
                 sub = 3  # AUTO without a sub mode: PX4 takes LOITER
             names = {pair: name for name, pair in PX4_MODES.items()}
@@ -717,7 +732,7 @@ class SimVehicle:
                 self._takeoff_z = self._params["MIS_TAKEOFF_ALT"][0]
         else:
             names_ap = {value: name for name, value in ARDUCOPTER_MODES.items()}
-            mode = names_ap.get(int(p[1]))
+            mode = names_ap.get(_int(p[1]))
             if mode is None or mode in ("AUTO", "ACRO", "THROW", "GUIDED_NOGPS"):
                 return FAILED
             if mode == self._mode:
@@ -772,14 +787,16 @@ class SimVehicle:
             if self._mode != "HOLD":
                 self._enter_mode("HOLD", "reposition")
         elif self._mode != "GUIDED":
-            if not int(p[1]) & 1:  # MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+            if not _int(p[1]) & 1:  # MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
                 return FAILED
             self._enter_mode("GUIDED", "reposition")
         model.set_target(tx, ty, max(tz, 0.5))
         return ACCEPTED
 
     def _cmd_message_interval(self, p: tuple[float, ...], frame: int | None) -> int:
-        msg_id, interval_us = int(p[0]), p[1]
+        msg_id, interval_us = _int(p[0], -1), p[1]
+        if not math.isfinite(interval_us):
+            interval_us = 0.0
         if msg_id == MSG_HEARTBEAT:
             return FAILED if 0 < interval_us < 1e6 else ACCEPTED  # PX4: HEARTBEAT stays 1 Hz
         if msg_id not in STREAMABLE:
@@ -795,7 +812,7 @@ class SimVehicle:
         return ACCEPTED
 
     def _cmd_request_message(self, p: tuple[float, ...], frame: int | None) -> int:
-        msg_id = int(p[0])
+        msg_id = _int(p[0], -1)
         if msg_id not in STREAMABLE and msg_id != MSG_AUTOPILOT_VERSION:
             return UNSUPPORTED
         return self._send_now(msg_id)
@@ -842,6 +859,21 @@ class SimVehicle:
         elif self._mode == "GUIDED" and self._armed and not self._model.landed:
             # ArduCopter ignores position targets until it has taken off.
             self._model.set_target(*target)
+
+    def _on_request_data_stream(self, msg: Any) -> None:
+        """ArduPilot's older way to ask for telemetry (PX4 ignores it)."""
+        if self._px4 or not self._for_us(msg):
+            return
+        if msg.req_stream_id == 0:
+            groups = list(DATA_STREAMS.values())
+        else:
+            groups = [DATA_STREAMS.get(msg.req_stream_id, ())]
+        for msg_id in (m for group in groups for m in group):
+            if msg.start_stop and msg.req_message_rate > 0:
+                self._rates[msg_id] = float(msg.req_message_rate)
+                self._due[msg_id] = self._t
+            else:
+                self._rates.pop(msg_id, None)
 
     def _on_param_request_list(self, msg: Any) -> None:
         if self._for_us(msg):
@@ -942,8 +974,9 @@ class SimVehicle:
                        round(amsl * 1000), round(st.z_m * 1000), round(st.vx_mps * 100),
                        round(st.vy_mps * 100), round(-st.vz_mps * 100), 0)
         elif msg_id == MSG_SYS_STATUS:
-            health = SENSORS | (PREARM_CHECK if self._armable() else 0)
-            self._send("sys_status", SENSORS | PREARM_CHECK, SENSORS | PREARM_CHECK, health,
+            reported = SENSORS | (PREARM_CHECK if o.report_prearm else 0)
+            health = SENSORS | (PREARM_CHECK if self._armable() and o.report_prearm else 0)
+            self._send("sys_status", reported, reported, health,
                        250, 12600, 500 if self._armed else 50, round(st.battery_pct), 0, 0,
                        0, 0, 0, 0)
         elif msg_id == MSG_EXTENDED_SYS_STATE:
@@ -989,6 +1022,11 @@ class SimVehicle:
             self._last_position_key = key
             self._log.info("vehicle.position", x_m=key[0], y_m=key[1], z_m=key[2],
                            armed=self._armed, mode=self._mode, t_sim=round(self._t, 3))
+
+
+def _int(value: float, default: int = 0) -> int:
+    """A command parameter as an integer; NaN ("unused", as MAVSDK sends) gives ``default``."""
+    return round(value) if math.isfinite(value) else default
 
 
 def _num(value: float) -> float | None:

@@ -9,7 +9,8 @@ ArduPilot style: the vehicle serves TCP, ``tcp:127.0.0.1:PORT``) and no
 ``sim_vehicle`` table.  :meth:`SimVehicleFleet.stop` ends the processes.
 
 ``sim_vehicle`` keys: ``autopilot`` (required), ``speedup`` (default: the
-run's ``--speedup``), ``prearm_delay_s`` (3), ``disarm_after_s`` (10),
+run's ``--speedup``), ``prearm_delay_s`` (3; ``inf``: never armable),
+``disarm_after_s`` (10),
 ``sysid`` (1), ``home`` ([lat, lon, alt]), ``reject`` (list of commands,
 e.g. ``["MAV_CMD_NAV_LAND=FAILED"]``).  Each vehicle logs to
 ``<log_dir>/<drone>/sim-vehicle.log`` (its console to ``sim-vehicle.out``).
@@ -83,12 +84,12 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
         raise ConfigError(f"{where}.autopilot: must be \"px4\" or \"ardupilot\", got {autopilot!r}")
     args = ["--autopilot", autopilot]
 
-    def number(key: str, low: float) -> float | None:
+    def number(key: str, low: float, infinite: bool = False) -> float | None:
         value = spec.get(key)
         if value is None:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float) or not value >= low \
-                or not math.isfinite(value):
+                or not (math.isfinite(value) or infinite):
             raise ConfigError(f"{where}.{key}: must be a number >= {low:g}, got {value!r}")
         return float(value)
 
@@ -96,7 +97,8 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
     if run_speedup:
         args += ["--speedup", repr(float(run_speedup))]
     for key, option in (("prearm_delay_s", "--prearm-delay"), ("disarm_after_s", "--disarm-after")):
-        value = number(key, 0.0)
+        # prearm_delay_s = inf: a vehicle that never passes its pre-arm checks (tests).
+        value = number(key, 0.0, infinite=key == "prearm_delay_s")
         if value is not None:
             args += [option, repr(value)]
     if "sysid" in spec:

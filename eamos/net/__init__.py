@@ -1,9 +1,17 @@
 """EAMOS network layer: the wire format and the Out-/In-Bridges between participants.
 
 * :mod:`eamos.net.wire` -- the one versioned wire format (``encode``/``decode``).
-* :mod:`eamos.net.bridges` -- :class:`OutBridge` (XPUB) and :class:`InBridge` (SUB).
+* :mod:`eamos.net.bridges` -- :class:`OutBridge` (XPUB) and :class:`InBridge` (SUB),
+  plain or CURVE.
+* :mod:`eamos.net.link` -- :class:`Link`: sequence numbers, acks, retransmission,
+  heartbeats, peer liveness, latest-value telemetry.
+* :mod:`eamos.net.keys` -- fleet key pairs (``eamos keys``), the ZAP
+  authenticator, the plain-on-loopback rule.
+* :mod:`eamos.net.lab` -- network namespaces and node processes for fault tests
+  and benchmarks (root only).
 
-See ``docs/wire-format.md`` for the message table.
+See ``docs/wire-format.md`` for the message table and ``docs/network.md`` for
+delivery, security and the fault tests.
 """
 
 from eamos.net.bridges import InBridge, OutBridge
@@ -12,7 +20,9 @@ from eamos.net.wire import (
     TOPIC_ALL,
     WIRE_VERSION,
     Abort,
+    Ack,
     Complete,
+    Heartbeat,
     Interrupt,
     Message,
     Progress,
@@ -25,6 +35,7 @@ from eamos.net.wire import (
     WireError,
     decode,
     encode,
+    topic_heartbeat,
     topic_telemetry,
     topic_to,
 )
@@ -34,7 +45,9 @@ __all__ = [
     "TOPIC_ALL",
     "WIRE_VERSION",
     "Abort",
+    "Ack",
     "Complete",
+    "Heartbeat",
     "InBridge",
     "Interrupt",
     "Message",
@@ -49,6 +62,7 @@ __all__ = [
     "WireError",
     "decode",
     "encode",
+    "topic_heartbeat",
     "topic_telemetry",
     "topic_to",
 ]

@@ -31,13 +31,28 @@ Closing sockets never blocks in ZeroMQ; only ``Context.term()`` waits for up to
 the linger time to flush messages still queued to peers, which is what lets a
 final Abort or Complete get out before the process exits.
 
-Seam for the reliability/security issue
----------------------------------------
-Messages become bytes only in :func:`~eamos.net.wire.encode` and
-:func:`~eamos.net.wire.decode`; frames touch the network only in
-``OutBridge._forward`` and ``InBridge._handle``.  Acks, retransmission,
-heartbeats and CURVE keys belong there (and in the socket set-up in the two
-constructors), without changing the callers' API.
+Security
+--------
+With ``curve=`` (a :class:`~eamos.net.keys.FleetKeys`) the Out-Bridge is a
+CURVE server (ZAP domain :data:`~eamos.net.keys.ZAP_DOMAIN`, enforced: a
+context without a ZAP handler admits nobody) and the In-Bridge opens one CURVE
+client socket per peer, each knowing that peer's public key, so a message read
+from a socket comes from that peer.  With ``check_sender=True`` the In-Bridge
+also drops messages whose ``sender`` is not the peer of the socket they came
+in on (a fleet member impersonating another).  Without ``curve`` the sockets
+are plain; *whether* plain is allowed is decided above (config, runtime), see
+:func:`eamos.net.keys.plain_refusal`.  Failed handshakes (wrong keys, a plain
+peer meeting a CURVE one) are seen through ZeroMQ socket monitors and logged
+as ``net.auth.failed``; unknown keys refused by ZAP as ``net.auth.denied``.
+
+Reliability (sequence numbers, acks, retransmission, heartbeats) lives one
+level up, in :mod:`eamos.net.link`, which uses ``on_subscription`` and
+``on_batch_end`` to react to reconnections and to acknowledge in batches.
+
+Connections: ZeroMQ heartbeats (``heartbeat_ms``) drop a connection whose
+peer went silent, and connection attempts time out after
+``CONNECT_TIMEOUT_MS``, so a link that comes back is reconnected within about
+a second instead of waiting for TCP's own back-off.
 """
 
 from __future__ import annotations
@@ -45,12 +60,16 @@ from __future__ import annotations
 import threading
 import uuid
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 import zmq
+from zmq.utils.monitor import parse_monitor_message
 
 from eamos.logs import make_logger
 from eamos.net.wire import MAX_PAYLOAD_BYTES, Message, WireError, decode, encode
+
+if TYPE_CHECKING:
+    from eamos.net.keys import FleetKeys
 
 __all__ = ["DEFAULT_HWM", "DEFAULT_LINGER_MS", "InBridge", "OutBridge"]
 
@@ -63,6 +82,28 @@ DEFAULT_LINGER_MS: Final = 500
 
 JOIN_TIMEOUT_S: Final = 5.0
 """Upper bound on how long ``close()`` waits for a bridge thread to finish."""
+
+DEFAULT_HEARTBEAT_MS: Final = 1000
+"""ZeroMQ (ZMTP) heartbeat interval; a connection silent for 5 of them is dropped."""
+
+CONNECT_TIMEOUT_MS: Final = 1000
+"""A TCP connect attempt is abandoned (and retried) after this long."""
+
+RECONNECT_IVL_MS: Final = 100
+RECONNECT_IVL_MAX_MS: Final = 1000
+
+_AUTH_FAILURES: Final[dict[int, str]] = {
+    zmq.EVENT_HANDSHAKE_FAILED_AUTH: "auth",
+    zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL: "protocol",
+    zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL: "no_detail",
+}
+_MONITOR_EVENTS: Final = (
+    zmq.EVENT_HANDSHAKE_FAILED_AUTH
+    | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
+    | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL
+    | zmq.EVENT_HANDSHAKE_SUCCEEDED
+    | zmq.EVENT_DISCONNECTED
+)
 
 # Control-pipe commands (first frame).  Never on the network.
 _CMD_SEND: Final = b"send"
@@ -93,6 +134,66 @@ def _should_log(count: int) -> bool:
     return count <= _LOG_FIRST or count % _LOG_EVERY == 0
 
 
+def _connection_options(sock: zmq.Socket[Any], heartbeat_ms: int) -> None:
+    """Liveness and reconnection settings shared by both bridges' network sockets."""
+    if heartbeat_ms > 0:
+        sock.setsockopt(zmq.HEARTBEAT_IVL, heartbeat_ms)
+        sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, 5 * heartbeat_ms)
+        sock.setsockopt(zmq.HEARTBEAT_TTL, 5 * heartbeat_ms)
+    sock.setsockopt(zmq.CONNECT_TIMEOUT, CONNECT_TIMEOUT_MS)
+    sock.setsockopt(zmq.RECONNECT_IVL, RECONNECT_IVL_MS)
+    sock.setsockopt(zmq.RECONNECT_IVL_MAX, RECONNECT_IVL_MAX_MS)
+
+
+class _Monitor:
+    """Reads one socket's monitor events on the bridge thread; logs handshake failures."""
+
+    def __init__(self, sock: zmq.Socket[Any], log: Any, peer: str) -> None:
+        self.socket = sock.get_monitor_socket(_MONITOR_EVENTS)
+        self._owner = sock
+        self._log = log
+        self._peer = peer
+        self.failures = 0
+        self.connections = 0
+
+    def drain(self) -> None:
+        while True:
+            try:
+                frames = self.socket.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            try:
+                event = parse_monitor_message(frames)
+            except (ValueError, IndexError):  # pragma: no cover - libzmq wrote it
+                continue
+            kind = int(event["event"])
+            raw = event["endpoint"]
+            endpoint = raw.decode("utf-8", "replace") if isinstance(raw, bytes) else str(raw)
+            if kind in _AUTH_FAILURES:
+                self.failures += 1
+                if _should_log(self.failures):
+                    self._log.warning(
+                        "net.auth.failed",
+                        peer=self._peer,
+                        endpoint=endpoint,
+                        failure=_AUTH_FAILURES[kind],
+                        code=event["value"],
+                        count=self.failures,
+                    )
+            elif kind == zmq.EVENT_HANDSHAKE_SUCCEEDED:
+                self.connections += 1
+                self._log.debug("net.connected", peer=self._peer, endpoint=endpoint)
+            elif kind == zmq.EVENT_DISCONNECTED:
+                self._log.debug("net.disconnected", peer=self._peer, endpoint=endpoint)
+
+    def close(self) -> None:
+        try:
+            self._owner.disable_monitor()
+        except zmq.ZMQError:
+            pass
+        self.socket.close(linger=0)
+
+
 class OutBridge:
     """The participant's outgoing side: one bound XPUB socket, fed by any thread.
 
@@ -109,17 +210,37 @@ class OutBridge:
         *,
         hwm: int = DEFAULT_HWM,
         linger_ms: int = DEFAULT_LINGER_MS,
+        curve: FleetKeys | None = None,
+        heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
+        on_subscription: Callable[[bytes, bool], None] | None = None,
     ) -> None:
         self._log = log if log is not None else make_logger(None)
+        self._on_subscription = on_subscription
+        self.secure = curve is not None
         self._xpub = context.socket(zmq.XPUB)
         self._xpub.setsockopt(zmq.LINGER, linger_ms)
         self._xpub.setsockopt(zmq.SNDHWM, hwm)
         # VERBOSE: pass every subscription up, not only the first per topic, so a
         # peer that reconnects (or a second peer) is seen too.
         self._xpub.setsockopt(zmq.XPUB_VERBOSE, 1)
+        _connection_options(self._xpub, heartbeat_ms)
+        self._monitor: _Monitor | None = None
         try:
+            if curve is not None:
+                from eamos.net.keys import ZAP_DOMAIN
+
+                self._xpub.setsockopt(zmq.CURVE_SERVER, 1)
+                self._xpub.setsockopt(zmq.CURVE_PUBLICKEY, curve.public)
+                self._xpub.setsockopt(zmq.CURVE_SECRETKEY, curve.secret)
+                self._xpub.setsockopt(zmq.ZAP_DOMAIN, ZAP_DOMAIN.encode())
+                # Without a ZAP handler on the context, refuse everyone (libzmq's
+                # default would be to accept any client key).
+                self._xpub.setsockopt(zmq.ZAP_ENFORCE_DOMAIN, 1)
+            self._monitor = _Monitor(self._xpub, self._log, "*")
             self._xpub.bind(bind)
         except zmq.ZMQError:
+            if self._monitor is not None:
+                self._monitor.close()
             self._xpub.close(linger=0)
             raise
         self.endpoint: str = self._xpub.getsockopt(zmq.LAST_ENDPOINT).decode()
@@ -131,6 +252,7 @@ class OutBridge:
         self._closed = False
         self._tx_open = True
         self._sent_counts: dict[str, int] = {}
+        self._sent_bytes_by_type: dict[str, int] = {}
         self._sent_bytes = 0
         # _cond guards the subscription set and _running; wait_subscribed waits on it.
         self._cond = threading.Condition()
@@ -169,6 +291,8 @@ class OutBridge:
                 self._ctrl_tx.close()
                 self._tx_open = False
                 self._ctrl_rx.close()
+                if self._monitor is not None:
+                    self._monitor.close()
                 self._xpub.close()
                 return
             if self._tx_open:
@@ -206,8 +330,10 @@ class OutBridge:
                 return False
             self._ctrl_tx.send_multipart([_CMD_SEND, *frames])
             name = type(msg).__name__
+            size = len(frames[0]) + len(frames[1])
             self._sent_counts[name] = self._sent_counts.get(name, 0) + 1
-            self._sent_bytes += len(frames[0]) + len(frames[1])
+            self._sent_bytes_by_type[name] = self._sent_bytes_by_type.get(name, 0) + size
+            self._sent_bytes += size
         return True
 
     @property
@@ -221,6 +347,17 @@ class OutBridge:
         """Bytes (topic + payload) accepted by :meth:`send`."""
         with self._lock:
             return self._sent_bytes
+
+    @property
+    def sent_bytes_by_type(self) -> dict[str, int]:
+        """Bytes (topic + payload) accepted by :meth:`send`, per message class name."""
+        with self._lock:
+            return dict(self._sent_bytes_by_type)
+
+    @property
+    def auth_failures(self) -> int:
+        """Handshakes with this bridge that failed (wrong keys, plain peer, ZAP denial)."""
+        return self._monitor.failures if self._monitor is not None else 0
 
     # -- subscriptions -----------------------------------------------------
 
@@ -255,11 +392,16 @@ class OutBridge:
         poller = zmq.Poller()
         poller.register(self._ctrl_rx, zmq.POLLIN)
         poller.register(self._xpub, zmq.POLLIN)
+        monitor = self._monitor
+        if monitor is not None:
+            poller.register(monitor.socket, zmq.POLLIN)
         try:
             while True:
                 events = dict(poller.poll())
                 if self._xpub in events:
                     self._read_subscriptions()
+                if monitor is not None and monitor.socket in events:
+                    monitor.drain()
                 if self._ctrl_rx in events and not self._drain_control():
                     return
         except zmq.ContextTerminated:
@@ -271,6 +413,8 @@ class OutBridge:
                 self._ctrl_tx.close()
                 self._tx_open = False
             self._ctrl_rx.close()
+            if monitor is not None:
+                monitor.close()
             self._xpub.close()
             with self._cond:
                 self._running = False
@@ -293,7 +437,7 @@ class OutBridge:
         self._xpub.send_multipart(frames)
 
     def _read_subscriptions(self) -> None:
-        changed = False
+        changed: list[tuple[bytes, bool]] = []
         while True:
             try:
                 frame = self._xpub.recv(zmq.NOBLOCK)
@@ -309,17 +453,23 @@ class OutBridge:
                     # Without XPUB_VERBOSER, an unsubscribe only arrives once the
                     # last subscriber of this topic is gone.
                     self._subscriptions.discard(topic)
-                changed = True
+            changed.append((topic, frame[0] == 1))
             self._log.debug(
                 "net.out.subscription", topic=topic.decode("utf-8", "replace"), on=frame[0] == 1
             )
         if changed:
             with self._cond:
                 self._cond.notify_all()
+            if self._on_subscription is not None:
+                for topic, on in changed:
+                    try:
+                        self._on_subscription(topic, on)
+                    except Exception:  # the bridge thread must survive its callback
+                        self._log.exception("net.out.callback_error")
 
 
 class InBridge:
-    """The participant's incoming side: one SUB socket connected to its peers.
+    """The participant's incoming side: one SUB socket per peer it connects to.
 
     ``connect`` maps peer names to their Out-Bridge endpoints; ``subscribe``
     lists the topics to receive (see :func:`~eamos.net.wire.topic_to`,
@@ -330,8 +480,16 @@ class InBridge:
 
     Every message that decodes, whose topic was subscribed and whose mission is
     ``mission`` is passed to ``on_message`` on the receive thread.  Malformed
-    messages and those of other missions are dropped, logged and counted in
-    :attr:`dropped`.
+    messages, messages of another wire version or mission, and (with
+    ``check_sender``) messages whose sender is not the peer they came from are
+    dropped, logged (``net.in.drop`` with a ``reason``) and counted in
+    :attr:`dropped` and :attr:`dropped_by_reason`.  ``on_batch_end`` is called
+    on the receive thread after each batch of messages (the reliability layer
+    acknowledges there, once per batch instead of once per message).
+
+    One socket per peer (rather than one for all) is what lets a CURVE client
+    know each peer's public key, and lets the bridge know which peer a message
+    came from.
     """
 
     def __init__(
@@ -344,31 +502,51 @@ class InBridge:
         log: Any = None,
         *,
         hwm: int = DEFAULT_HWM,
+        curve: FleetKeys | None = None,
+        check_sender: bool = False,
+        heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
+        on_batch_end: Callable[[], None] | None = None,
     ) -> None:
         self.mission = mission
         self.peers: dict[str, str] = dict(connect)
+        self.secure = curve is not None
         self._on_message = on_message
+        self._on_batch_end = on_batch_end
+        self._check_sender = check_sender
         self._log = log if log is not None else make_logger(None)
-        self._sub = context.socket(zmq.SUB)
-        self._sub.setsockopt(zmq.LINGER, 0)
-        self._sub.setsockopt(zmq.RCVHWM, hwm)
-        # ZeroMQ refuses (and disconnects) peers sending frames larger than any
-        # valid message, before they are buffered in full.
-        self._sub.setsockopt(zmq.MAXMSGSIZE, MAX_PAYLOAD_BYTES)
+        if curve is not None:
+            missing = curve.missing(self.peers)
+            if missing:
+                raise ValueError(f"no public key for peer(s) {', '.join(missing)}")
+        self._subs: dict[zmq.Socket[Any], str] = {}
+        self._monitors: list[_Monitor] = []
         self._ctrl_rx, self._ctrl_tx = _control_pair(context, "in")
         # Owned by the receive thread once started; before that, by the caller
         # under _lock (the thread start is the hand-over).
         self._exact: set[bytes] = set()
         self._prefixes: set[bytes] = set()
+        topics = list(subscribe)
         try:
-            for topic in subscribe:
+            for peer, endpoint in self.peers.items():
+                sub = context.socket(zmq.SUB)
+                self._subs[sub] = peer
+                sub.setsockopt(zmq.LINGER, 0)
+                sub.setsockopt(zmq.RCVHWM, hwm)
+                # ZeroMQ refuses (and disconnects) peers sending frames larger than
+                # any valid message, before they are buffered in full.
+                sub.setsockopt(zmq.MAXMSGSIZE, MAX_PAYLOAD_BYTES)
+                _connection_options(sub, heartbeat_ms)
+                if curve is not None:
+                    sub.setsockopt(zmq.CURVE_SERVERKEY, curve.fleet[peer])
+                    sub.setsockopt(zmq.CURVE_PUBLICKEY, curve.public)
+                    sub.setsockopt(zmq.CURVE_SECRETKEY, curve.secret)
+                self._monitors.append(_Monitor(sub, self._log, peer))
+                sub.connect(endpoint)
+            for topic in topics:
                 self._subscribe(topic)
-            for endpoint in self.peers.values():
-                self._sub.connect(endpoint)
         except zmq.ZMQError:
-            # A bad endpoint must not leak three sockets (and block Context.term).
-            for sock in (self._sub, self._ctrl_rx, self._ctrl_tx):
-                sock.close(linger=0)
+            # A bad endpoint must not leak sockets (and block Context.term).
+            self._close_sockets()
             raise
 
         self._lock = threading.Lock()  # guards _ctrl_tx and the lifecycle flags
@@ -378,9 +556,16 @@ class InBridge:
         # Written only by the receive thread; plain ints are safe to read elsewhere.
         self._received = 0
         self._dropped = 0
+        self._dropped_by_reason: dict[str, int] = {}
         self._ignored = 0
         self._callback_errors = 0
         self._thread = threading.Thread(target=self._run, name="eamos-inbridge", daemon=True)
+
+    def _close_sockets(self) -> None:
+        for monitor in self._monitors:
+            monitor.close()
+        for sock in (*self._subs, self._ctrl_rx, self._ctrl_tx):
+            sock.close(linger=0)
 
     # -- lifecycle ---------------------------------------------------------
 
@@ -405,10 +590,8 @@ class InBridge:
                 return
             self._closed = True
             if not self._started:
-                self._ctrl_tx.close()
                 self._tx_open = False
-                self._ctrl_rx.close()
-                self._sub.close()
+                self._close_sockets()
                 return
             if self._tx_open:
                 self._ctrl_tx.send(_CMD_STOP)
@@ -443,7 +626,8 @@ class InBridge:
         return True
 
     def _subscribe(self, topic: bytes) -> None:
-        self._sub.setsockopt(zmq.SUBSCRIBE, topic)
+        for sub in self._subs:
+            sub.setsockopt(zmq.SUBSCRIBE, topic)
         if topic == b"" or topic.endswith(b"/"):
             self._prefixes.add(topic)
         else:
@@ -461,8 +645,13 @@ class InBridge:
 
     @property
     def dropped(self) -> int:
-        """Messages dropped as malformed or belonging to another mission."""
+        """Messages dropped (malformed, other version or mission, wrong sender)."""
         return self._dropped
+
+    @property
+    def dropped_by_reason(self) -> dict[str, int]:
+        """:attr:`dropped` per reason (a copy)."""
+        return dict(self._dropped_by_reason)
 
     @property
     def ignored(self) -> int:
@@ -474,19 +663,40 @@ class InBridge:
         """Calls of ``on_message`` that raised."""
         return self._callback_errors
 
+    @property
+    def auth_failures(self) -> int:
+        """Handshakes with peers that failed (e.g. an impostor at a peer's address)."""
+        return sum(m.failures for m in self._monitors)
+
     # -- receive thread ----------------------------------------------------
 
     def _run(self) -> None:
         poller = zmq.Poller()
         poller.register(self._ctrl_rx, zmq.POLLIN)
-        poller.register(self._sub, zmq.POLLIN)
+        for sub in self._subs:
+            poller.register(sub, zmq.POLLIN)
+        monitors = {m.socket: m for m in self._monitors}
+        for mon in monitors:
+            poller.register(mon, zmq.POLLIN)
         try:
             while True:
                 events = dict(poller.poll())
                 if self._ctrl_rx in events and not self._drain_control():
                     return
-                if self._sub in events:
-                    self._drain_sub()
+                delivered = False
+                for sock in events:
+                    peer = self._subs.get(sock)
+                    if peer is not None:
+                        delivered = self._drain_sub(sock, peer) or delivered
+                    elif sock in monitors:
+                        monitors[sock].drain()
+                if self._closed:
+                    return  # close() was called from on_message
+                if delivered and self._on_batch_end is not None:
+                    try:
+                        self._on_batch_end()
+                    except Exception:
+                        self._log.exception("net.in.callback_error", type="batch_end")
         except zmq.ContextTerminated:
             self._log.warning("net.in.context_terminated")
         except zmq.ZMQError:
@@ -496,7 +706,10 @@ class InBridge:
                 self._ctrl_tx.close()
                 self._tx_open = False
             self._ctrl_rx.close()
-            self._sub.close()
+            for monitor in self._monitors:
+                monitor.close()
+            for sub in self._subs:
+                sub.close()
 
     def _drain_control(self) -> bool:
         while True:
@@ -509,29 +722,36 @@ class InBridge:
             if frames[0] == _CMD_SUB:
                 self._subscribe(frames[1])
 
-    def _drain_sub(self) -> None:
-        # Bounded batch so a stop or subscribe command is not starved by a flood.
+    def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
+        # Bounded batch so a stop or subscribe command, or another peer, is not
+        # starved by a flood.
+        got = False
         for _ in range(256):
             if self._closed:
-                return  # close() was called from on_message: deliver nothing more
+                return got  # close() was called from on_message: deliver nothing more
             try:
-                frames = self._sub.recv_multipart(zmq.NOBLOCK)
+                frames = sub.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
-                return
-            self._handle(frames)
+                return got
+            got = True
+            self._handle(frames, peer)
+        return got
 
-    def _handle(self, frames: list[bytes]) -> None:
-        """Filter, decode and deliver one received multipart message."""
+    def _handle(self, frames: list[bytes], peer: str = "") -> None:
+        """Filter, decode and deliver one received multipart message from ``peer``."""
         if not self._wanted(frames[0]):
             self._ignored += 1
             return
         try:
             msg = decode(frames)
         except WireError as exc:
-            self._drop("malformed", frames[0], str(exc))
+            self._drop(exc.reason, frames[0], str(exc), peer=peer)
             return
         if msg.mission != self.mission:
-            self._drop("other_mission", frames[0], msg.mission, sender=msg.sender)
+            self._drop("other_mission", frames[0], msg.mission, sender=msg.sender, peer=peer)
+            return
+        if self._check_sender and msg.sender != peer:
+            self._drop("sender", frames[0], f"{msg.sender!r} on {peer!r}'s link", peer=peer)
             return
         self._received += 1
         try:
@@ -544,6 +764,7 @@ class InBridge:
 
     def _drop(self, reason: str, topic: bytes, detail: str, **extra: Any) -> None:
         self._dropped += 1
+        self._dropped_by_reason[reason] = self._dropped_by_reason.get(reason, 0) + 1
         if _should_log(self._dropped):
             self._log.warning(
                 "net.in.drop",

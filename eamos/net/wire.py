@@ -1,4 +1,4 @@
-"""The EAMOS wire format, version 1: the only place messages become bytes and back.
+"""The EAMOS wire format, version 2: the only place messages become bytes and back.
 
 Every message crossing the network between participants (drones and the ground
 station) is one of the frozen dataclasses below.  On the wire it is a two-frame
@@ -8,9 +8,11 @@ ZeroMQ multipart message ``[topic, payload]``:
 
   ========================  =====================================================
   ``to/<participant>``      addressed to one participant: Trigger, Interrupt,
-                            Ready, Progress, Resolved, Report (``<participant>`` is
-                            the message's ``dest``)
+                            Ready, Progress, Resolved, Report, Ack
+                            (``<participant>`` is the message's ``dest``)
   ``tm/<drone>``            telemetry published by ``<drone>`` (the ``sender``)
+  ``hb/<participant>``      heartbeats of ``<participant>`` (the ``sender``),
+                            for the peers watching it
   ``all``                   broadcasts to everyone: Start, Abort, Complete
   ========================  =====================================================
 
@@ -25,7 +27,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   =====  ======  ========================================================
   key    type    meaning
   =====  ======  ========================================================
-  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 1)
+  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 2)
   ``t``  str     message type code (table below)
   ``m``  str     mission id; receivers drop messages of other missions
   ``s``  str     sender: name of the participant that sent the message
@@ -41,10 +43,12 @@ ZeroMQ multipart message ``[topic, payload]``:
                              dst_node                ``dn``    str, node on the receiver
                              iteration               ``i``     array of int (loop indices)
                              status                  ``st``    "done" | "skipped" | "failed"
+                             seq                     ``q``     int >= 0, link sequence number
   ``int``    Interrupt       dest                    ``d``     str
                              scope                   ``sc``    str, scope being interrupted
                              iteration               ``i``     array of int
                              mode                    ``md``    "all" | "waits"
+                             seq                     ``q``     int >= 0
   ``tel``    TelemetrySample time_s                  ``ts``    float, sender clock (s)
                              x_m, y_m, z_m           ``x``     float, local frame (m);
                                                      ``y``     keys ``x`` ``y`` ``z``
@@ -57,18 +61,45 @@ ZeroMQ multipart message ``[topic, payload]``:
                              landed                  ``lnd``   bool
   ``rdy``    Ready           dest                    ``d``     str (default ``"GCS"``)
                              program_checksum        ``ck``    str
-  ``sta``    Start           (none)
+                             seq                     ``q``     int >= 0
+  ``sta``    Start           seq                     ``q``     int >= 0, broadcast sequence
   ``abt``    Abort           reason                  ``r``     str
-  ``cmp``    Complete        (none)                            the whole mission is over
+                             seq                     ``q``     int >= 0, broadcast sequence
+  ``cmp``    Complete        seq                     ``q``     int >= 0, broadcast sequence;
+                                                               the whole mission is over
   ``prg``    Progress        dest                    ``d``     str (default ``"GCS"``)
                              state                   ``st``    str, e.g. "started", "done"
                              node                    ``n``     str
                              action                  ``a``     str
                              detail                  ``dt``    map str -> plain data
   ``res``    Resolved        dest                    ``d``     str (default ``"GCS"``)
+                             seq                     ``q``     int >= 0
   ``rep``    Report          dest                    ``d``     str (default ``"GCS"``)
                              report                  ``rp``    map str -> plain data
+                             seq                     ``q``     int >= 0
+  ``ack``    Ack             dest                    ``d``     str, the sender being acked
+                             upto                    ``a``     int >= 0, every seq <= a of the
+                                                               link dest -> sender arrived
+                             bupto                   ``b``     int >= 0, same for dest's
+                                                               broadcasts
+                             nack                    ``nk``    bool, a gap is known: resend now
+  ``hb``     Heartbeat       sent                    ``hs``    map name -> int, highest seq
+                                                               sent on each link
+                             bsent                   ``bs``    int, highest broadcast seq sent
+                             leaving                 ``end``   bool, the sender is shutting down
+                             acks                    ``ak``    map name -> int, cumulative seq
+                                                               delivered from each link
+                             backs                   ``bk``    map name -> int, same for each
+                                                               participant's broadcasts
   =========  ==============  ======================  ========  ================================
+
+  ``seq`` (key ``q``) numbers the reliable messages: Trigger, Interrupt, Ready,
+  Resolved and Report per link (sender, dest), Start, Abort and Complete per
+  sender (broadcast sequence); 1, 2, 3 ... as the reliability layer
+  (:mod:`eamos.net.link`) sends them, 0 for a message sent outside it (not
+  acknowledged, not deduplicated).  Progress, TelemetrySample, Ack and
+  Heartbeat are never acknowledged: progress and telemetry are latest-value
+  data, acks and heartbeats are repeated anyway.
 
   Floats accept msgpack ints on decode (converted to float); bools are never
   accepted where numbers are expected.  "Plain data" is nil, bool, int, float,
@@ -81,8 +112,13 @@ Ready, Progress, Resolved and Report are addressed to the ground station; their
 :func:`decode` raises :class:`WireError`, and nothing else, for any malformed
 input: wrong frame count, oversize frames, payload that is not msgpack, wrong or
 missing version, unknown type, missing, extra or wrongly typed fields, or a topic
-that does not match the message.  Changing anything in this table means bumping
-:data:`WIRE_VERSION`; ``docs/wire-format.md`` holds the same table.
+that does not match the message; its ``reason`` is ``"version"`` for a payload of
+another wire version (an older or newer program) and ``"malformed"`` otherwise.
+Changing anything in this table means bumping :data:`WIRE_VERSION`;
+``docs/wire-format.md`` holds the same table.
+
+Version history: 1 (first format); 2 adds ``q`` (sequence numbers), Ack and
+Heartbeat for reliable delivery and peer liveness.
 """
 
 from __future__ import annotations
@@ -102,11 +138,15 @@ __all__ = [
     "MAX_PAYLOAD_BYTES",
     "MAX_TOPIC_BYTES",
     "MESSAGE_TYPES",
+    "RELIABLE_BROADCAST",
+    "RELIABLE_TO",
     "TOPIC_ALL",
     "TRIGGER_STATUSES",
     "WIRE_VERSION",
     "Abort",
+    "Ack",
     "Complete",
+    "Heartbeat",
     "Interrupt",
     "Message",
     "Progress",
@@ -119,11 +159,12 @@ __all__ = [
     "WireError",
     "decode",
     "encode",
+    "topic_heartbeat",
     "topic_telemetry",
     "topic_to",
 ]
 
-WIRE_VERSION: Final = 1
+WIRE_VERSION: Final = 2
 """Version of this format, carried in every payload under key ``v``."""
 
 GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground station
@@ -145,12 +186,25 @@ _MAX_CONTAINER_LEN: Final = 1 << 16
 
 
 class WireError(ValueError):
-    """A message could not be encoded or decoded (the network layer's one error type)."""
+    """A message could not be encoded or decoded (the network layer's one error type).
+
+    ``reason`` is ``"version"`` when the payload is of another wire version and
+    ``"malformed"`` for everything else; receivers log and count drops by it.
+    """
+
+    def __init__(self, message: str, reason: str = "malformed") -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 def topic_to(participant: str) -> bytes:
     """Topic of messages addressed to ``participant`` (``b"to/<participant>"``)."""
     return b"to/" + participant.encode("utf-8")
+
+
+def topic_heartbeat(participant: str) -> bytes:
+    """Topic of the heartbeats of ``participant`` (``b"hb/<participant>"``)."""
+    return b"hb/" + participant.encode("utf-8")
 
 
 def topic_telemetry(drone: str) -> bytes:
@@ -204,6 +258,25 @@ def _check_iteration(value: Any, name: str) -> tuple[int, ...]:
     return tuple(value)
 
 
+_MAX_SEQ: Final = (1 << 63) - 1
+
+
+def _check_seq(value: Any, name: str) -> int:
+    # Sequence numbers are compared and stored as ints; bools and floats are bugs.
+    if type(value) is not int or not 0 <= value <= _MAX_SEQ:
+        raise WireError(f"{name}: expected an int in [0, 2**63), got {value!r}")
+    return value
+
+
+def _check_seq_map(value: Any, name: str) -> dict[str, int]:
+    if not isinstance(value, dict) or len(value) > _MAX_CONTAINER_LEN:
+        raise WireError(f"{name}: expected a map of participant -> int")
+    for key, item in value.items():
+        _check_name(key, name)
+        _check_seq(item, name)
+    return value
+
+
 def _check_plain(value: Any, name: str, depth: int) -> None:
     if depth > MAX_DEPTH:
         raise WireError(f"{name}: nested deeper than {MAX_DEPTH}")
@@ -255,7 +328,7 @@ class _Base:
     """Fields shared by every message; subclasses set ``CODE`` and ``KIND``."""
 
     CODE: ClassVar[str] = ""
-    # How the topic is derived: "to" (from dest), "tm" (from sender) or "all".
+    # How the topic is derived: "to" (from dest), "tm" or "hb" (from sender), or "all".
     KIND: ClassVar[str] = ""
 
     mission: str = field(metadata=_m("m", _check_str))
@@ -275,6 +348,8 @@ class _Base:
             return topic_to(self.dest)  # type: ignore[attr-defined]
         if self.KIND == "tm":
             return topic_telemetry(self.sender)
+        if self.KIND == "hb":
+            return topic_heartbeat(self.sender)
         return TOPIC_ALL
 
 
@@ -290,6 +365,7 @@ class Trigger(_Base):
     dst_node: str = field(metadata=_m("dn", _check_str))
     iteration: tuple[int, ...] = field(metadata=_m("i", _check_iteration))
     status: str = field(metadata=_m("st", _check_choice(TRIGGER_STATUSES)))
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -303,6 +379,7 @@ class Interrupt(_Base):
     scope: str = field(metadata=_m("sc", _check_str))
     iteration: tuple[int, ...] = field(metadata=_m("i", _check_iteration))
     mode: str = field(metadata=_m("md", _check_choice(INTERRUPT_MODES)))
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -333,6 +410,7 @@ class Ready(_Base):
 
     program_checksum: str = field(metadata=_m("ck", _check_str))
     dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -341,6 +419,8 @@ class Start(_Base):
 
     CODE: ClassVar[str] = "sta"
     KIND: ClassVar[str] = "all"
+
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -351,6 +431,7 @@ class Abort(_Base):
     KIND: ClassVar[str] = "all"
 
     reason: str = field(metadata=_m("r", _check_str))
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -359,6 +440,8 @@ class Complete(_Base):
 
     CODE: ClassVar[str] = "cmp"
     KIND: ClassVar[str] = "all"
+
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -383,6 +466,7 @@ class Resolved(_Base):
     KIND: ClassVar[str] = "to"
 
     dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -394,6 +478,49 @@ class Report(_Base):
 
     report: dict[str, Any] = field(metadata=_m("rp", _check_map))
     dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
+
+
+@dataclass(frozen=True)
+class Ack(_Base):
+    """Cumulative acknowledgement from ``sender`` to ``dest`` (the reliability layer).
+
+    Every message of the link ``dest -> sender`` with ``seq <= upto`` and every
+    broadcast of ``dest`` with ``seq <= bupto`` arrived.  ``nack`` says the
+    sender of the Ack knows of a gap (it received a later message, or a
+    heartbeat announcing one): ``dest`` should resend what follows at once.
+    """
+
+    CODE: ClassVar[str] = "ack"
+    KIND: ClassVar[str] = "to"
+
+    dest: str = field(metadata=_m("d", _check_name))
+    upto: int = field(metadata=_m("a", _check_seq))
+    bupto: int = field(metadata=_m("b", _check_seq))
+    nack: bool = field(metadata=_m("nk", _check_bool), default=False)
+
+
+@dataclass(frozen=True)
+class Heartbeat(_Base):
+    """Periodic sign of life on ``hb/<sender>``, carrying the sender's acknowledgements.
+
+    ``sent`` maps each participant to the highest seq sent to it, ``bsent`` is
+    the highest broadcast seq; a receiver that has less asks for the rest with
+    a nack.  ``acks`` maps each participant P to the cumulative seq of the link
+    P -> sender delivered so far, ``backs`` the same for P's broadcasts: the
+    acknowledgements of steady traffic ride here, once per period, instead of
+    costing a message per trigger.  ``leaving`` is set once, when the sender
+    shuts down: peers then record it as gone rather than lost.
+    """
+
+    CODE: ClassVar[str] = "hb"
+    KIND: ClassVar[str] = "hb"
+
+    sent: dict[str, int] = field(metadata=_m("hs", _check_seq_map), default_factory=dict)
+    bsent: int = field(metadata=_m("bs", _check_seq), default=0)
+    leaving: bool = field(metadata=_m("end", _check_bool), default=False)
+    acks: dict[str, int] = field(metadata=_m("ak", _check_seq_map), default_factory=dict)
+    backs: dict[str, int] = field(metadata=_m("bk", _check_seq_map), default_factory=dict)
 
 
 Message = (
@@ -407,6 +534,8 @@ Message = (
     | Progress
     | Resolved
     | Report
+    | Ack
+    | Heartbeat
 )
 """Any message of the wire format."""
 
@@ -421,7 +550,17 @@ MESSAGE_TYPES: Final[tuple[type[_Base], ...]] = (
     Progress,
     Resolved,
     Report,
+    Ack,
+    Heartbeat,
 )
+
+RELIABLE_TO: Final[frozenset[type[_Base]]] = frozenset(
+    {Trigger, Interrupt, Ready, Resolved, Report}
+)
+"""Addressed messages the reliability layer numbers per link (sender, dest) and acknowledges."""
+
+RELIABLE_BROADCAST: Final[frozenset[type[_Base]]] = frozenset({Start, Abort, Complete})
+"""Broadcasts the reliability layer numbers per sender and has every peer acknowledge."""
 
 _BY_CODE: Final[dict[str, type[_Base]]] = {cls.CODE: cls for cls in MESSAGE_TYPES}
 # Wire key -> field name, per type; computed once (immutable afterwards).
@@ -432,8 +571,8 @@ _ENVELOPE_KEYS: Final = frozenset({"v", "t"})
 
 
 # ---------------------------------------------------------------------------
-# Encode / decode: the seam where a later reliability layer (sequence numbers,
-# acks, signatures) would extend the envelope.
+# Encode / decode.  Sequence numbers and acks are ordinary fields (above);
+# authentication and encryption happen below, in ZeroMQ's CURVE mechanism.
 
 
 def encode(msg: Message) -> list[bytes]:
@@ -497,7 +636,9 @@ def decode(frames: Sequence[bytes]) -> Message:
     version = body.get("v")
     # type() rather than isinstance: True and 1.0 both compare equal to 1.
     if type(version) is not int or version != WIRE_VERSION:
-        raise WireError(f"unsupported wire version {version!r} (expected {WIRE_VERSION})")
+        raise WireError(
+            f"unsupported wire version {version!r} (expected {WIRE_VERSION})", reason="version"
+        )
     code = body.get("t")
     cls = _BY_CODE.get(code) if isinstance(code, str) else None
     if cls is None:

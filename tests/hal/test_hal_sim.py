@@ -500,7 +500,7 @@ def test_make_adapter_rejects_unknown_kinds(settings: dict[str, Any], fragment: 
         make_adapter("D1", settings, make_logger(None))
     message = str(info.value)
     assert message.startswith("hal.adapter: ") and fragment in message
-    assert "fake, ground, sim" in message
+    assert "fake, ground, mavlink, sim" in message
 
 
 def test_make_adapter_validates_adapter_settings() -> None:

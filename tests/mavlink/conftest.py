@@ -16,7 +16,7 @@ from eamos.logs import close_logger, make_logger
 
 @pytest.fixture
 def make_vehicle(tmp_path: Path) -> Iterator[Callable[..., tuple[SimVehicle, str]]]:
-    """``make_vehicle("px4", speedup=10, **options)``: a started vehicle and the client's connection.
+    """``make_vehicle("px4", **options)``: a started vehicle and the client's connection string.
 
     PX4 vehicles send UDP to a free port (the client listens with ``udpin``),
     ArduPilot vehicles serve TCP (the client dials ``tcp:``), as the SITLs do.

@@ -68,7 +68,9 @@ class Sink:
             self.samples.append(sample)
             self._cond.notify_all()
 
-    def wait_for(self, predicate: Callable[[Telemetry], bool], timeout: float = WAIT_S) -> Telemetry:
+    def wait_for(
+        self, predicate: Callable[[Telemetry], bool], timeout: float = WAIT_S
+    ) -> Telemetry:
         with self._cond:
             assert self._cond.wait_for(
                 lambda: any(predicate(s) for s in self.samples), timeout
@@ -125,6 +127,7 @@ class RawClient:
         self._cond = threading.Condition()
         self.messages: dict[str, list[Any]] = defaultdict(list)
         self.times: dict[str, list[float]] = defaultdict(list)
+        self._chunks: dict[int, list[str]] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
@@ -144,7 +147,19 @@ class RawClient:
             with self._cond:
                 self.messages[msg.get_type()].append(msg)
                 self.times[msg.get_type()].append(time.monotonic())
+                if msg.get_type() == "STATUSTEXT":
+                    self._statustext(msg)
                 self._cond.notify_all()
+
+    def _statustext(self, msg: Any) -> None:
+        """Reassembled texts go to ``messages["TEXT"]`` (MAVLink 2 chunks share an id)."""
+        if not msg.id:
+            self.messages["TEXT"].append(msg.text)
+            return
+        parts = self._chunks.setdefault(msg.id, [])
+        parts.append(msg.text)
+        if len(msg.text) < 50:
+            self.messages["TEXT"].append("".join(self._chunks.pop(msg.id)))
 
     def close(self) -> None:
         self._stop.set()
@@ -181,5 +196,6 @@ class RawClient:
         return int(ack.result)
 
     def texts(self) -> list[str]:
+        """Every STATUSTEXT so far, chunks reassembled."""
         with self._cond:
-            return [m.text for m in self.messages["STATUSTEXT"]]
+            return list(self.messages["TEXT"])

@@ -109,7 +109,7 @@ def test_cancel_of_a_landing_holds_in_the_air(flight):
 def test_abort_lands_and_disarms(flight, autopilot):
     f = flight(autopilot)
     f.airborne(3.0)
-    handle, done = f.run("FlyByX", 50.0)
+    _handle, done = f.run("FlyByX", 50.0)
     f.adapter.abort()
     assert done.wait().status == "cancelled" and done.result.reason == "aborted"
     f.wait_vehicle(lambda v: not v.armed and v.position[2] == 0.0)
@@ -160,8 +160,8 @@ def test_two_vehicles_side_by_side(flight):
     b = flight("ardupilot")
     a.ok("Arm")
     b.ok("Arm")
-    ha, da = a.run("Takeoff", 1.5)
-    hb, db = b.run("Takeoff", 2.5)
+    _ha, da = a.run("Takeoff", 1.5)
+    _hb, db = b.run("Takeoff", 2.5)
     assert da.wait(WAIT_S).ok and db.wait(WAIT_S).ok
     assert a.vehicle.position[2] == pytest.approx(1.5, abs=0.3)
     assert b.vehicle.position[2] == pytest.approx(2.5, abs=0.3)

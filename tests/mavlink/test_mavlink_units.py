@@ -45,7 +45,7 @@ def test_ned_to_mission_examples():
     ground = NedOrigin(10.0, -4.0, 1.5)
     assert ned_to_mission((10.0, -4.0, 1.5), ground) == (0.0, 0.0, 0.0)
     assert ned_to_mission((12.0, -4.0, -3.5), ground) == (2.0, 0.0, 5.0)  # 5 m up, 2 m north
-    x, y, z = ned_to_mission((0.0, 0.0, 0.0), NedOrigin())
+    x, _y, z = ned_to_mission((0.0, 0.0, 0.0), NedOrigin())
     assert (math.copysign(1, x), math.copysign(1, z)) == (1, 1)  # no negative zeros
 
 
@@ -96,7 +96,7 @@ def test_ardupilot_modes():
 def test_autopilot_detected_from_heartbeat():
     assert autopilot_from_heartbeat(12).name == "px4"
     assert autopilot_from_heartbeat(3).name == "ardupilot"
-    with pytest.raises(ValueError, match="only PX4 .12. and ArduPilot .3."):
+    with pytest.raises(ValueError, match=r"only PX4 \(12\) and ArduPilot \(3\)"):
         autopilot_from_heartbeat(8)
 
 

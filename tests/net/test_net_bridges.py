@@ -206,9 +206,43 @@ def test_malformed_from_raw_socket_dropped(ctx: zmq.Context[Any], bridges: Bridg
         assert inbox.wait_count(1)
         assert inbox.messages == [trig("D1", "D2", 7)]
         assert inb.dropped == 5
+        assert inb.dropped_by_reason == {"malformed": 4, "version": 1}
         assert inb.ignored == 1
     finally:
         raw.close()
+
+
+def test_older_program_and_flood_never_stall_the_bridge(
+    ctx: zmq.Context[Any], bridges: Bridges, tmp_path: Any
+) -> None:
+    """A peer running an older program (wire version 1) floods; the bridge drops and goes on."""
+    log = make_logger(tmp_path / "net.log", drone="D2")
+    raw = ctx.socket(zmq.XPUB)
+    raw.setsockopt(zmq.LINGER, 0)
+    raw.setsockopt(zmq.SNDHWM, 0)  # the flood is not cut short at the sender
+    raw.bind("tcp://127.0.0.1:0")
+    try:
+        inbox = Collector()
+        inb = bridges.inb(
+            {"D1": raw.getsockopt(zmq.LAST_ENDPOINT).decode()}, [topic_to("D2")], inbox, log=log
+        )
+        assert raw.poll(int(WAIT_S * 1000), zmq.POLLIN)
+        raw.recv()
+        old = msgpack.unpackb(encode(trig("D1", "D2", 0))[1])
+        old["v"] = 1
+        del old["q"]
+        for _ in range(5000):
+            raw.send_multipart([b"to/D2", msgpack.packb(old)])
+        raw.send_multipart(encode(trig("D1", "D2", 9)))
+        assert inbox.wait_count(1)
+        assert inb.dropped_by_reason == {"version": 5000}
+    finally:
+        raw.close()
+        inb.close()
+        close_logger(log)
+    drops = [e for e in read_log(tmp_path / "net.log") if e["event"] == "net.in.drop"]
+    assert drops[0]["reason"] == "version" and "version 1" in drops[0]["detail"]
+    assert 100 <= len(drops) < 200  # logged one by one at first, then rarely: no log flood
 
 
 def test_callback_exception_does_not_kill_thread(bridges: Bridges, tmp_path: Any) -> None:

@@ -14,7 +14,9 @@ from eamos.net import (
     TOPIC_ALL,
     WIRE_VERSION,
     Abort,
+    Ack,
     Complete,
+    Heartbeat,
     Interrupt,
     Message,
     Progress,
@@ -50,6 +52,12 @@ SAMPLES: list[Message] = [
     Progress(M, "D2", "done", "n4", "goto"),
     Resolved(M, "D2"),
     Report(M, "D2", {"nodes": {"n1": "done"}, "time_s": 31.2, "blob": b"\x00\x01"}),
+    Trigger(M, "D1", "D2", "a", "b", (4,), "done", seq=17),
+    Start(M, "GCS", seq=1),
+    Ack(M, "D2", "D1", 17, 0),
+    Ack(M, "GCS", "D1", 3, 2, nack=True),
+    Heartbeat(M, "D1", {"D2": 17, "GCS": 4}, 0),
+    Heartbeat(M, "GCS", {}, 3, leaving=True),
 ]
 
 
@@ -81,6 +89,8 @@ def test_round_trip(msg: Message) -> None:
         (Abort(M, "D1", "battery"), b"all"),
         (Complete(M, "GCS"), b"all"),
         (Resolved(M, "D1"), b"to/GCS"),
+        (Ack(M, "D2", "D1", 1, 0), b"to/D1"),
+        (Heartbeat(M, "D2"), b"hb/D2"),
     ],
 )
 def test_topics(msg: Message, topic: bytes) -> None:
@@ -116,6 +126,14 @@ def test_construction_normalises() -> None:
         lambda: Progress(M, "D1", "s", "n", "a", {1: "x"}),
         lambda: Progress(M, "D1", "s", "n", "a", {"x": object()}),
         lambda: Report(M, "D1", ["not", "a", "map"]),
+        lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=-1),
+        lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=True),
+        lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=1.0),
+        lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=2**63),
+        lambda: Ack(M, "D1", "D2", 1, 0, nack=1),
+        lambda: Heartbeat(M, "D1", {"D2": -1}),
+        lambda: Heartbeat(M, "D1", {"D/2": 1}),
+        lambda: Heartbeat(M, "D1", {1: 1}),
     ],
 )
 def test_construction_rejects(make: Any) -> None:
@@ -175,10 +193,14 @@ MALFORMED: list[tuple[str, Any, str]] = [
     ("ext type", [TO, b"\xd6\xff\x00\x00\x00\x00"], "msgpack"),
     ("array payload", [TO, msgpack.packb([1, "trg"])], "map"),
     ("missing version", [TO, body(v=...)], "version"),
-    ("version 2", [TO, body(v=2)], "version"),
+    ("version 1", [TO, body(v=1)], "version"),
+    ("version 3", [TO, body(v=3)], "version"),
     ("version true", [TO, body(v=True)], "version"),
-    ("version float", [TO, body(v=1.0)], "version"),
-    ("version str", [TO, body(v="1")], "version"),
+    ("version float", [TO, body(v=2.0)], "version"),
+    ("version str", [TO, body(v="2")], "version"),
+    ("seq negative", [TO, body(q=-1)], "seq"),
+    ("seq float", [TO, body(q=1.0)], "seq"),
+    ("seq missing", [TO, body(q=...)], "missing"),
     ("missing type", [TO, body(t=...)], "type"),
     ("unknown type", [TO, body(t="zzz")], "type"),
     ("int type", [TO, body(t=3)], "type"),
@@ -211,6 +233,23 @@ MALFORMED: list[tuple[str, Any, str]] = [
 def test_decode_rejects(frames: Any, why: str) -> None:
     with pytest.raises(WireError, match=why):
         decode(frames)
+
+
+def test_version_errors_say_so() -> None:
+    """Receivers log "version" drops (an older or newer program) apart from garbage."""
+    with pytest.raises(WireError) as info:
+        decode([TO, body(v=1)])
+    assert info.value.reason == "version"
+    with pytest.raises(WireError) as info:
+        decode([TO, body(sn=...)])
+    assert info.value.reason == "malformed"
+
+
+def test_sequence_numbers_default_to_zero_and_survive() -> None:
+    assert Trigger(M, "D1", "D2", "a", "b", (), "done").seq == 0
+    assert Ready(M, "D1", "x").seq == 0
+    msg = decode(encode(Report(M, "D1", {}, seq=2**62)))
+    assert isinstance(msg, Report) and msg.seq == 2**62
 
 
 def test_bytes_keys_are_not_str_keys() -> None:
@@ -250,7 +289,7 @@ payload_maps = st.dictionaries(
     st.sampled_from(KNOWN_KEYS) | st.text(max_size=3),
     plain,
     max_size=12,
-).map(lambda d: {"v": 1, **d})
+).map(lambda d: {"v": WIRE_VERSION, **d})
 topics = st.sampled_from([b"to/D2", b"to/GCS", b"tm/D3", b"all", b""]) | st.binary(max_size=12)
 
 

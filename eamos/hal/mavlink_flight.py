@@ -1,0 +1,505 @@
+"""The MAVLink adapter's flight procedures: one uniform action, from command to real completion.
+
+:class:`Flight` runs each action on the caller's thread (the adapter gives
+every action a thread of its own) and returns its :class:`ActionResult` or
+raises why it failed.  Every wait is ``Condition.wait_for`` on the vehicle's
+condition against a ``time.monotonic()`` deadline, and ends early when the
+action is finished by someone else (cancel, abort, close), when HEARTBEATs
+stop, or when a guard sees that someone else took the vehicle over.
+
+What differs between PX4 and ArduPilot is asked of the vehicle's
+:class:`~eamos.hal.autopilots.Autopilot`, through a :class:`RunControl`: the
+:class:`~eamos.hal.autopilots.Controller` bound to one running action.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
+
+from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
+from eamos.hal.autopilots import CommandRejected
+from eamos.hal.mavlink_frames import Vector, mission_to_ned
+from eamos.hal.mavlink_link import (
+    MAV_RESULT_ACCEPTED,
+    MAV_RESULT_TEMPORARILY_REJECTED,
+    LinkState,
+    result_name,
+)
+from eamos.hal.mavlink_vehicle import MavlinkVehicle
+
+MAV_CMD_COMPONENT_ARM_DISARM = 400
+MAV_CMD_DO_SET_MODE = 176
+ARM = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+DISARM = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+#: After a refused arming (TEMPORARILY_REJECTED), try again this much later.
+ARM_RETRY_S = 1.0
+#: After a refused command, how long to wait for the STATUSTEXT explaining it.
+STATUSTEXT_GRACE_S = 0.3
+COMMAND_NAMES = {
+    400: "MAV_CMD_COMPONENT_ARM_DISARM",
+    176: "MAV_CMD_DO_SET_MODE",
+    22: "MAV_CMD_NAV_TAKEOFF",
+    21: "MAV_CMD_NAV_LAND",
+    511: "MAV_CMD_SET_MESSAGE_INTERVAL",
+}
+
+
+class Ended(Exception):
+    """The action was already finished (cancelled, aborted, closed): just stop."""
+
+
+class Failed(Exception):
+    """The action fails with this reason."""
+
+
+class TimedOut(Failed):
+    """The action fails because its deadline passed (the vehicle should then hold)."""
+
+
+RunKind = Literal["motion", "arm", "disarm", "timer", "internal"]
+
+
+@dataclass(eq=False)
+class Run:
+    """One running action, or an internal job (hold, abort) that nobody finishes early."""
+
+    handle: ActionHandle | None
+    done: DoneCallback | None
+    kind: RunKind
+    started: float  # time.monotonic()
+    finished: bool = False  # set (condition held) by whoever finishes it
+
+
+Check = Callable[[LinkState], bool]
+Guard = Callable[[LinkState], str | None]
+
+
+class RunControl:
+    """The :class:`~eamos.hal.autopilots.Controller` of one run: commands, targets, waits.
+
+    Every vehicle-changing step takes the vehicle's command lock and checks
+    that the run is still going, so a cancel's hold (which takes the same lock
+    afterwards) always has the last word.
+    """
+
+    def __init__(self, flight: Flight, run: Run) -> None:
+        self.flight = flight
+        self.v = flight.v
+        self.run = run
+
+    def mode(self) -> str:
+        with self.v.cond:
+            return self.v.mode_name()
+
+    def command(self, command: int, params: tuple[float, ...]) -> None:
+        v, run, s = self.v, self.run, self.v.settings
+        with v.cmd_lock:
+            with v.cond:
+                self.flight.raise_if_over(run)
+                text_seen = v.state.statustext_serial
+            result = v.link.command_long(
+                command, params, timeout_s=s.command_timeout_s, retries=s.command_retries,
+                abandon=lambda: run.finished or not v.state.link_ok,
+            )
+        name = COMMAND_NAMES.get(command, f"MAV_CMD({command})")
+        with v.cond:
+            self.flight.raise_if_over(run)
+            if result is None:
+                raise Failed(f"no COMMAND_ACK for {name} after {s.command_retries} tries")
+            if result != MAV_RESULT_ACCEPTED:
+                # The explanation (PX4's "Arming denied: ...") may trail the ack.
+                v.cond.wait_for(lambda: v.state.statustext_serial > text_seen,
+                                timeout=STATUSTEXT_GRACE_S)
+                fresh = v.state.statustext_serial - text_seen
+                texts = list(v.state.statustexts)[-fresh:] if fresh > 0 else []
+                raise CommandRejected(name, result_name(result), "; ".join(texts))
+
+    def set_mode(self, mode: str) -> None:
+        if self.mode() == mode:
+            return  # "already in that mode" is success
+        self.command(MAV_CMD_DO_SET_MODE, (*self.v.autopilot.mode_params(mode), 0.0, 0.0, 0.0, 0.0))
+        # An accepted mode change shows in the next HEARTBEAT; confirm it there.
+        self.flight.wait(
+            self.run, lambda st: self.v.mode_name(st) == mode, time.monotonic() +
+            self.flight.confirm_s(),
+            lambda st: f"vehicle accepted mode {mode} but its HEARTBEAT still shows "
+                       f"{self.v.mode_name(st)}",
+        )
+
+    def stream(self, target_ned: Vector | None) -> None:
+        v = self.v
+        with v.cmd_lock, v.cond:
+            self.flight.raise_if_over(self.run)
+            if target_ned is not None and v.stream_target is None:
+                v.stream_since = time.monotonic()
+            v.stream_target = target_ned
+        if target_ned is not None:
+            v.send_setpoint(target_ned)  # at once, not at the next tick
+
+    def wait_stream_warm(self, seconds: float) -> None:
+        with self.v.cond:
+            since = self.v.stream_since
+        self.flight.wait(self.run, lambda st: False, since + seconds, lambda st: "",
+                         quiet_timeout=True)
+
+    def position_target(self, target_ned: Vector) -> None:
+        self._guided(("local", target_ned))
+
+    def global_target(self, lat_deg: float, lon_deg: float, rel_alt_m: float) -> None:
+        self._guided(("global", (lat_deg, lon_deg, rel_alt_m)))
+
+    def _guided(self, target: tuple[str, Vector]) -> None:
+        v = self.v
+        with v.cmd_lock, v.cond:
+            self.flight.raise_if_over(self.run)
+            v.guided_target = target
+        v.send_guided_target(target)
+
+    def amsl_m(self, height_m: float) -> float:
+        v = self.v
+        with v.cond:
+            g = v.state.global_pos
+            if g is None:
+                raise Failed("no GLOBAL_POSITION_INT from the vehicle: cannot compute AMSL")
+            return g.alt_amsl_m - v.mission_position()[2] + height_m
+
+    def pause(self, seconds: float) -> None:
+        """Wait ``seconds`` (on the condition; a cancel or link loss ends it early)."""
+        self.flight.wait(self.run, lambda st: False, time.monotonic() + seconds, lambda st: "",
+                         quiet_timeout=True)
+
+
+class Flight:
+    """The flight procedures of one vehicle (see module docstring)."""
+
+    def __init__(self, vehicle: MavlinkVehicle) -> None:
+        self.v = vehicle
+        self.s = vehicle.settings
+        self._pending_hold: threading.Thread | None = None
+
+    def perform(self, run: Run) -> ActionResult:
+        """Run one action to its end: its result, or Failed/TimedOut/Ended/CommandRejected."""
+        assert run.handle is not None
+        name, args = run.handle.action, run.handle.args
+        ctl = RunControl(self, run)
+        if name == "PauseFor":
+            if args[0] < 0:
+                raise Failed("duration_s must be >= 0")
+            # A timer of our own: it does not need the vehicle, nor its link.
+            self.wait(run, lambda st: False, run.started + args[0], lambda st: "",
+                      quiet_timeout=True, watch_link=False)
+            return ActionResult("ok")
+        with self.v.cond:
+            self.raise_if_over(run)
+        if name == "Arm":
+            return self.arm(run, ctl)
+        if name == "Disarm":
+            return self.disarm(run, ctl)
+        self._await_hold()
+        if name == "Takeoff":
+            return self.takeoff(run, ctl, args[0])
+        if name == "Land":
+            return self.land(run, ctl)
+        return self.move(run, ctl, name, args)
+
+    # -- the actions -------------------------------------------------------------------
+
+    def arm(self, run: Run, ctl: RunControl) -> ActionResult:
+        """Wait until armable, prepare (mode, stream), arm, see the armed flag."""
+        v, s = self.v, self.s
+        with v.cond:
+            if v.state.armed:
+                return ActionResult("ok")  # already armed is success
+        deadline = run.started + s.armable_timeout_s
+        self.wait(
+            run, v.armable, deadline,
+            lambda st: f"vehicle never became armable within {s.armable_timeout_s:g} s: "
+                       f"{st.last_statustext or 'no STATUSTEXT from the vehicle'}",
+        )
+        with v.cond:
+            v.capture_origin(ground=True)
+            here = v.here_ned()
+        v.autopilot.prepare_arm(ctl, here)
+        while True:
+            try:
+                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, ARM)
+                break
+            except CommandRejected as exc:
+                with v.cond:
+                    if v.state.armed:
+                        break
+                temporary = exc.result == result_name(MAV_RESULT_TEMPORARILY_REJECTED)
+                if temporary and time.monotonic() + ARM_RETRY_S < deadline:
+                    ctl.pause(ARM_RETRY_S)  # not ready yet: PX4 says so, try again
+                    continue
+                why = f": {exc.statustext}" if exc.statustext else ""
+                until = f" until the {s.armable_timeout_s:g} s armable timeout" if temporary else ""
+                raise Failed(f"arming refused ({exc.result}{until}){why}") from exc
+        # PX4's HEARTBEAT may show the armed flag up to a second after the ack.
+        self.wait(run, lambda st: st.armed, time.monotonic() + self.confirm_s(),
+                  lambda st: "vehicle acknowledged arming but its HEARTBEAT never showed it armed")
+        return ActionResult("ok")
+
+    def disarm(self, run: Run, ctl: RunControl) -> ActionResult:
+        """Disarm on the ground ("in the air" otherwise); see the flag drop."""
+        v = self.v
+        with v.cond:
+            if not v.state.armed:
+                return ActionResult("ok")
+            if not v.on_ground(v.state):
+                raise Failed("in the air")
+        try:
+            ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
+        except CommandRejected:
+            with v.cond:
+                if not v.state.armed:  # it disarmed by itself meanwhile
+                    return ActionResult("ok")
+            raise
+        self.wait(run, lambda st: not st.armed, time.monotonic() + self.confirm_s(),
+                  lambda st: "vehicle acknowledged disarming but its HEARTBEAT still shows armed")
+        with v.cond:
+            v.stop_steering()
+        return ActionResult("ok")
+
+    def takeoff(self, run: Run, ctl: RunControl, height: float) -> ActionResult:
+        """Climb to ``height`` above the take-off ground at the current X/Y."""
+        v, s = self.v, self.s
+        if height <= 0:
+            raise Failed("height_m must be > 0")
+        with v.cond:
+            if not v.state.armed:
+                raise Failed("not armed")
+            if v.origin is None:
+                raise Failed("no LOCAL_POSITION_NED from the vehicle yet")
+            x, y, _ = v.mission_position()
+            v.commanded = (x, y, height)
+            target_ned = mission_to_ned(v.commanded, v.origin)
+        v.autopilot.takeoff(ctl, target_ned, height)
+        modes = v.autopilot.takeoff_modes()
+        self.confirm_modes(run, modes, done=lambda st: False)
+
+        def arrived(st: LinkState) -> bool:
+            # Vertical only: a real take-off may drift a little sideways.
+            return abs(v.mission_position(st)[2] - height) <= s.tolerance_m and \
+                v.speed(st) <= s.settle_speed_mps
+
+        self.wait(run, arrived, run.started + s.action_timeout_s,
+                  self.timeout_reason("take-off height not reached"), guard=self.guard(modes))
+        return ActionResult("ok")
+
+    def land(self, run: Run, ctl: RunControl) -> ActionResult:
+        """MAV_CMD_NAV_LAND; done on the ground (or disarmed)."""
+        v = self.v
+        with v.cond:
+            if v.on_ground(v.state):
+                return ActionResult("ok")
+            here = v.here_ned()
+        v.autopilot.land(ctl, here)
+        with v.cond:
+            v.guided_target = None
+        modes = frozenset({v.autopilot.land_mode})
+        self.confirm_modes(run, modes, done=v.landed)
+        self.wait(run, v.landed, run.started + self.s.action_timeout_s,
+                  self.timeout_reason("not landed"),
+                  guard=self.guard(modes, need_armed=False, unless=v.landed))
+        return ActionResult("ok")
+
+    def move(self, run: Run, ctl: RunControl, name: str, args: tuple[float, ...]) -> ActionResult:
+        """FlyByX/Y/Z, FlyToXYZ, FlyToLLA: go there, done within tolerance and slow."""
+        v, s = self.v, self.s
+        with v.cond:
+            if not v.state.armed:
+                raise Failed("not armed")
+            if v.on_ground(v.state) or v.origin is None:
+                raise Failed("not flying")
+            x, y, z = v.base_point()
+            lla: tuple[float, float, float] | None = None
+            if name == "FlyByX":
+                target = (x + args[0], y, z)
+            elif name == "FlyByY":
+                target = (x, y + args[0], z)
+            elif name == "FlyByZ":
+                target = (x, y, z + args[0])
+            elif name == "FlyToXYZ":
+                target = (args[0], args[1], args[2])
+            else:  # FlyToLLA
+                if v.geo is None:
+                    raise Failed("no GLOBAL_POSITION_INT from the vehicle: cannot fly to a "
+                                 "latitude/longitude")
+                lla = (args[0], args[1], args[2])
+                target = v.geo.from_lla(*lla)
+            if target[2] <= 0:
+                raise Failed(f"target z {target[2]:.2f} m is not above ground (use Land)")
+            v.commanded = target
+            target_ned = mission_to_ned(target, v.origin)
+        if lla is not None:
+            v.autopilot.goto_global(ctl, lla[0], lla[1], lla[2], target_ned)
+        else:
+            v.autopilot.goto(ctl, target_ned)
+        modes = frozenset({v.autopilot.motion_mode})
+        self.confirm_modes(run, modes, done=lambda st: False)
+
+        def arrived(st: LinkState) -> bool:
+            return math.dist(v.mission_position(st), target) <= s.tolerance_m and \
+                v.speed(st) <= s.settle_speed_mps
+
+        self.wait(run, arrived, run.started + s.action_timeout_s,
+                  self.timeout_reason("target not reached"), guard=self.guard(modes))
+        return ActionResult("ok")
+
+    # -- holding and aborting (their own threads) -----------------------------------------
+
+    def start_hold(self, name: str) -> None:
+        """Hold where the vehicle is, on a thread (a mode change may take a second).
+
+        Motion actions started later wait for it, so the hold never overrides them.
+        """
+        thread = threading.Thread(target=self._hold, name=name, daemon=True)
+        with self.v.cond:
+            self._pending_hold = thread
+        thread.start()
+
+    def _await_hold(self) -> None:
+        with self.v.cond:
+            hold = self._pending_hold
+        if hold is not None:
+            hold.join(self.confirm_s() * 3)
+
+    def _hold(self) -> None:
+        v = self.v
+        run = Run(None, None, "internal", time.monotonic())
+        try:
+            with v.cond:
+                if v.state.local is None:
+                    return
+                here = v.here_ned()
+                airborne = not v.on_ground(v.state)
+                v.commanded = v.mission_position() if v.origin else None
+            v.autopilot.hold(RunControl(self, run), here, airborne)
+            v.log.info("adapter.hold", north_m=round(here[0], 2), east_m=round(here[1], 2),
+                       down_m=round(here[2], 2))
+        except (Failed, Ended, CommandRejected) as exc:
+            v.log.warning("adapter.hold_failed", error=str(exc))
+
+    def abort(self) -> None:
+        """Land (if flying), then disarm; logs how it went (runs on the abort thread)."""
+        v = self.v
+        run = Run(None, None, "internal", time.monotonic())
+        ctl = RunControl(self, run)
+        self._await_hold()
+        try:
+            with v.cond:
+                known = v.state.local is not None
+                airborne = known and not v.on_ground(v.state)
+                here = v.here_ned() if known else (0.0, 0.0, 0.0)
+            if airborne:
+                v.autopilot.land(ctl, here)
+                with v.cond:
+                    v.guided_target = None
+                self.wait(run, v.landed, time.monotonic() + self.s.action_timeout_s,
+                          self.timeout_reason("not landed"))
+            with v.cond:
+                armed = v.state.armed
+            if armed:
+                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
+            v.log.info("adapter.abort.done")
+        except (Failed, Ended, CommandRejected) as exc:
+            v.log.error("adapter.abort.failed", error=str(exc))
+
+    # -- waiting --------------------------------------------------------------------------
+
+    def wait(
+        self,
+        run: Run,
+        until: Check,
+        deadline: float,
+        timeout_reason: Callable[[LinkState], str],
+        *,
+        guard: Guard | None = None,
+        quiet_timeout: bool = False,
+        watch_link: bool = True,
+    ) -> None:
+        """Wait on the condition until ``until(state)``; raise why not.
+
+        Ends early (raising) when the run is finished by someone else, the
+        link closes, HEARTBEATs stop (``watch_link``) or ``guard`` names a
+        problem.  At ``deadline`` it raises ``TimedOut(timeout_reason(state))``,
+        or returns quietly with ``quiet_timeout`` (a plain timer).
+        """
+        v, st = self.v, self.v.state
+
+        def ready() -> bool:
+            return (
+                run.finished or st.closed or (watch_link and not st.link_ok) or until(st)
+                or (guard is not None and guard(st) is not None)
+            )
+
+        with v.cond:
+            v.cond.wait_for(ready, timeout=max(0.0, deadline - time.monotonic()))
+            self.raise_if_over(run, watch_link=watch_link)
+            if until(st):
+                return
+            problem = guard(st) if guard is not None else None
+            if problem is not None:
+                raise Failed(problem)
+            if quiet_timeout:
+                return
+            raise TimedOut(timeout_reason(st))
+
+    def raise_if_over(self, run: Run, watch_link: bool = True) -> None:
+        """Raise if ``run`` must stop (condition held)."""
+        if run.finished:
+            raise Ended
+        if self.v.state.closed:
+            raise Failed("adapter closed")
+        if watch_link and not self.v.state.link_ok:
+            raise Failed(self.v.lost_reason())
+
+    def confirm_modes(self, run: Run, modes: frozenset[str], done: Check) -> None:
+        """Wait until a HEARTBEAT shows one of ``modes`` (or ``done``): acks run ahead of it."""
+        v = self.v
+        self.wait(
+            run, lambda st: v.mode_name(st) in modes or done(st),
+            time.monotonic() + self.confirm_s(),
+            lambda st: f"vehicle is in mode {v.mode_name(st)}, expected "
+                       f"{' or '.join(sorted(modes))}",
+        )
+
+    def guard(self, modes: frozenset[str], need_armed: bool = True,
+              unless: Check | None = None) -> Guard:
+        """A check that nobody else took the vehicle over mid-action (a reason, or None)."""
+        v, grace = self.v, self.s.heartbeat_timeout_s
+
+        def check(st: LinkState) -> str | None:
+            if unless is not None and unless(st):
+                return None
+            text = f" ({st.last_statustext})" if st.last_statustext else ""
+            if need_armed and not st.armed:
+                return f"vehicle disarmed{text}"
+            mode = v.mode_name(st)
+            if mode not in modes:
+                # PX4 leaves OFFBOARD when setpoints stop for a second and comes
+                # back when they resume: tolerate that after a gap or failsafe.
+                if time.monotonic() < max(st.gap_ended_at, st.failsafe_at) + grace:
+                    return None
+                return f"vehicle switched to mode {mode} under us{text}"
+            return None
+
+        return check
+
+    def timeout_reason(self, what: str) -> Callable[[LinkState], str]:
+        """The failure reason of an action that ran past ``action_timeout_s``."""
+        t = self.s.action_timeout_s
+        return lambda st: f"timeout after {t:g} s: {what}"
+
+    def confirm_s(self) -> float:
+        """How long a HEARTBEAT may take to confirm an acknowledged change."""
+        return max(2.5, self.s.command_timeout_s * self.s.command_retries)
+
+
+__all__ = ["Ended", "Failed", "Flight", "Run", "RunControl", "TimedOut"]

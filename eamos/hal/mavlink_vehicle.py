@@ -1,0 +1,360 @@
+"""One MAVLink autopilot in mission terms: home, frames, modes, and what it is being told.
+
+:class:`MavlinkVehicle` sits between the raw link (:mod:`eamos.hal.mavlink_link`)
+and the flight procedures (:mod:`eamos.hal.mavlink_flight`).  It connects
+(waits for the HEARTBEAT, detects PX4 or ArduPilot, requests telemetry), knows
+where home is in the vehicle's local NED frame, turns the link's state into
+mission-frame positions and :class:`~eamos.hal.api.Telemetry` samples, and
+keeps the vehicle steered: PX4's setpoint stream and ArduPilot's refreshed
+position target run on the link's ticker thread.
+
+Everything here is read and written under :attr:`MavlinkVehicle.cond` (the
+link's condition); methods documented "condition held" expect the caller to
+hold it.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from eamos.hal.api import AdapterError, Telemetry
+from eamos.hal.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
+from eamos.hal.kinematics import EARTH_RADIUS_M, GeoFrame
+from eamos.hal.mavlink_frames import NedOrigin, Vector, ned_to_mission
+from eamos.hal.mavlink_link import (
+    MAV_SYS_STATUS_PREARM_CHECK,
+    LinkError,
+    LinkState,
+    MavlinkLink,
+    result_name,
+)
+from eamos.hal.settings import field_error
+
+if TYPE_CHECKING:
+    from eamos.hal.mavlink import MavlinkSettings
+
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MAV_FRAME_LOCAL_NED = 1
+MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 6
+MAV_LANDED_STATE_ON_GROUND = 1
+#: SET_POSITION_TARGET_* type_mask: use the position only (ignore velocity,
+#: acceleration, yaw and yaw rate), so the vehicle keeps its heading.
+TYPE_MASK_POSITION = 0x0FF8
+#: Messages requested with MAV_CMD_SET_MESSAGE_INTERVAL, and their rate in Hz
+#: (None: ``telemetry_hz``).
+MSG_LOCAL_POSITION_NED = 32
+MSG_GLOBAL_POSITION_INT = 33
+MSG_SYS_STATUS = 1
+MSG_EXTENDED_SYS_STATE = 245
+MSG_BATTERY_STATUS = 147
+MSG_HOME_POSITION = 242
+TELEMETRY_INTERVALS: dict[int, float | None] = {
+    MSG_LOCAL_POSITION_NED: None,
+    MSG_GLOBAL_POSITION_INT: None,
+    MSG_EXTENDED_SYS_STATE: None,
+    MSG_SYS_STATUS: 2.0,
+    MSG_BATTERY_STATUS: 1.0,
+    MSG_HOME_POSITION: 0.5,
+}
+#: Below this height (m above the take-off ground) a vehicle without
+#: EXTENDED_SYS_STATE counts as on the ground.
+GROUND_Z_M = 0.1
+#: ArduPilot position targets are re-sent this often (they need not stream,
+#: but a lost UDP datagram must not strand the vehicle).
+TARGET_REFRESH_S = 1.0
+#: The adapter log gets the vehicle's position this often while it changes.
+POSITION_LOG_S = 1.0
+
+#: What the vehicle is told to go to: ("local", NED point) or ("global", (lat, lon, rel alt)).
+GuidedTarget = tuple[str, Vector]
+
+
+class MavlinkVehicle:
+    """An autopilot behind a :class:`MavlinkLink`, seen in the mission frame (module docstring)."""
+
+    def __init__(self, drone: str, settings: MavlinkSettings, log: Any) -> None:
+        self.drone = drone
+        self.settings = settings
+        self.log = log
+        self.link = MavlinkLink(
+            settings.connection, source_system=settings.source_system,
+            source_component=settings.source_component, system_id=settings.system_id,
+            component_id=settings.component_id, heartbeat_timeout_s=settings.heartbeat_timeout_s,
+            on_event=self._on_link_event,
+        )
+        # One condition for the link's state and everything below, so any
+        # predicate sees the vehicle and the adapter's bookkeeping at once.
+        self.cond = self.link.cond
+        self.state: LinkState = self.link.state
+        # Serializes vehicle-changing steps (commands, targets) between the
+        # action, hold and abort threads (see mavlink_flight.RunControl).
+        self.cmd_lock = threading.Lock()
+        self.autopilot: Autopilot = autopilot_named("px4")  # replaced by connect()
+        self.origin: NedOrigin | None = None  # home, in the vehicle's NED frame
+        self.geo: GeoFrame | None = None  # home, in WGS84
+        self.commanded: Vector | None = None  # last motion target, mission frame
+        self.stream_target: Vector | None = None  # PX4 setpoint stream (NED)
+        self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
+        self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
+        self._was_armed = False
+        self._last_position_key: tuple[Any, ...] | None = None
+
+    # -- connecting ----------------------------------------------------------------
+
+    def connect(self, extra_jobs: tuple[tuple[float, Callable[[], None], str], ...] = ()) -> None:
+        """Open the link, wait for the HEARTBEAT, detect the autopilot, request telemetry.
+
+        ``extra_jobs`` (period, job, name) run on the link's ticker too.
+        Raises :class:`AdapterError` ("no heartbeat from <connection> within
+        30 s", a transport that cannot open, an autopilot that is not the one
+        the settings name).
+        """
+        s = self.settings
+        deadline = time.monotonic() + s.connect_timeout_s
+        self.link.every(1.0 / s.setpoint_hz, self._steer_tick, "setpoints")
+        self.link.every(TARGET_REFRESH_S, self._refresh_tick, "target-refresh")
+        self.link.every(POSITION_LOG_S, self._position_log_tick, "position-log")
+        for period, job, name in extra_jobs:
+            self.link.every(period, job, name)
+        try:
+            self.link.open(deadline)
+        except LinkError as exc:
+            self.link.close()
+            if exc.unreachable:
+                raise AdapterError(f"{self.drone}: no heartbeat from {s.connection} within "
+                                   f"{s.connect_timeout_s:g} s ({exc})") from exc
+            raise AdapterError(f"{self.drone}: {exc}") from exc
+        if not self.link.wait_for(lambda: self.state.heartbeats > 0, deadline):
+            self.link.close()
+            raise AdapterError(
+                f"{self.drone}: no heartbeat from {s.connection} within {s.connect_timeout_s:g} s"
+            )
+        with self.cond:
+            detected, sysid = self.state.autopilot or 0, self.state.system_id
+        try:
+            found = autopilot_from_heartbeat(detected, s.takeoff_mode)
+        except ValueError as exc:
+            self.link.close()
+            raise AdapterError(f"{self.drone}: {exc}") from exc
+        if s.autopilot not in ("auto", found.name):
+            self.link.close()
+            raise field_error("hal.autopilot", f"is {s.autopilot!r} but the vehicle's HEARTBEAT "
+                                               f"announces {found.name} ({detected})")
+        self.autopilot = found
+        self.log.info("adapter.connected", system_id=sysid, autopilot=found.name,
+                      mode=self.mode_name())
+        self._request_intervals(deadline)
+
+    def _request_intervals(self, deadline: float) -> None:
+        """Ask for the telemetry the adapter reads (best effort; each answer is logged)."""
+        s = self.settings
+        for msg_id, hz in TELEMETRY_INTERVALS.items():
+            if time.monotonic() >= deadline:
+                break
+            rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
+            result = self.link.command_long(
+                MAV_CMD_SET_MESSAGE_INTERVAL, (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
+                timeout_s=s.command_timeout_s, retries=1,
+            )
+            self.log.info("adapter.interval", message=msg_id, hz=rate, result=result_name(result))
+
+    def close(self) -> None:
+        """Close the link (its threads end; waiters wake and see ``state.closed``)."""
+        self.link.close()
+
+    def wait_link_ok(self, timeout: float) -> bool:
+        """Block until HEARTBEATs arrive (again); False after ``timeout`` seconds."""
+        return self.link.wait_for(lambda: self.state.link_ok, time.monotonic() + timeout)
+
+    # -- the vehicle in mission terms (condition held) -------------------------------
+
+    def mode_name(self, st: LinkState | None = None) -> str:
+        """The current mode's name, from the latest HEARTBEAT."""
+        return self.autopilot.mode_name((st or self.state).custom_mode)
+
+    def armable(self, st: LinkState) -> bool:
+        """A position estimate, and the pre-arm bit of SYS_STATUS when the vehicle reports it."""
+        if st.local is None:
+            return False
+        present = st.sensors_present
+        if present is None or not present & MAV_SYS_STATUS_PREARM_CHECK:
+            # An autopilot that does not report the bit: try, and let it refuse.
+            return present is not None or st.local_count > 0
+        return bool((st.sensors_health or 0) & MAV_SYS_STATUS_PREARM_CHECK)
+
+    def mission_position(self, st: LinkState | None = None) -> Vector:
+        """Where the vehicle is, in the mission frame (needs a LOCAL_POSITION_NED)."""
+        st = st or self.state
+        assert st.local is not None
+        origin = self.origin or NedOrigin(st.local[0], st.local[1], st.local[2])
+        return ned_to_mission(st.local[:3], origin)
+
+    def here_ned(self) -> Vector:
+        """Where the vehicle is, in its local NED frame."""
+        local = self.state.local
+        assert local is not None
+        return (local[0], local[1], local[2])
+
+    def speed(self, st: LinkState) -> float:
+        """The 3-D speed from LOCAL_POSITION_NED."""
+        assert st.local is not None
+        return math.sqrt(st.local[3] ** 2 + st.local[4] ** 2 + st.local[5] ** 2)
+
+    def on_ground(self, st: LinkState) -> bool:
+        """EXTENDED_SYS_STATE says ON_GROUND (without it: below GROUND_Z_M)."""
+        if st.landed_state is not None and st.landed_state != 0:
+            return st.landed_state == MAV_LANDED_STATE_ON_GROUND
+        if st.local is None or self.origin is None:
+            return not st.armed
+        return self.mission_position(st)[2] < GROUND_Z_M
+
+    def landed(self, st: LinkState) -> bool:
+        """A landing is over: on the ground, or disarmed (it disarms itself after touchdown)."""
+        return not st.armed or self.on_ground(st)
+
+    def base_point(self) -> Vector:
+        """Where relative moves start: the last target if we are there, else here.
+
+        Using the target keeps FlyBy sequences from accumulating each leg's
+        tolerance (as the simulator does).
+        """
+        here = self.mission_position()
+        if self.commanded is not None and \
+                math.dist(here, self.commanded) <= self.settings.tolerance_m:
+            return self.commanded
+        return here
+
+    def capture_origin(self, ground: bool = False) -> None:
+        """Record home at the first fix and, with ``ground``, the ground height before arming."""
+        st = self.state
+        if st.local is None:
+            return
+        if self.origin is None:
+            self.origin = NedOrigin(st.local[0], st.local[1], st.local[2])
+            self.log.info("adapter.home", north_m=round(st.local[0], 3),
+                          east_m=round(st.local[1], 3), down_m=round(st.local[2], 3))
+        elif ground and not st.armed:
+            self.origin = self.origin.with_ground(st.local[2])
+        if self.geo is None and st.global_pos is not None:
+            # The WGS84 point of home: the vehicle's fix shifted back by where
+            # it stands in the mission frame.
+            g = st.global_pos
+            x, y, z = ned_to_mission(st.local[:3], self.origin)
+            lat0 = g.lat_deg - math.degrees(x / EARTH_RADIUS_M)
+            lon0 = g.lon_deg - math.degrees(
+                y / (EARTH_RADIUS_M * math.cos(math.radians(g.lat_deg)))
+            )
+            self.geo = GeoFrame(lat0, lon0, g.alt_amsl_m - z)
+
+    def sample(self) -> Telemetry | None:
+        """A telemetry sample of the current state (None before the first position)."""
+        st = self.state
+        if st.local is None:
+            return None
+        self.capture_origin()
+        x, y, z = self.mission_position(st)
+        if st.global_pos is not None:
+            lat, lon, alt = st.global_pos.lat_deg, st.global_pos.lon_deg, st.global_pos.rel_alt_m
+        elif self.geo is not None:
+            lat, lon, alt = self.geo.to_lla(x, y, z)
+        else:
+            lat, lon, alt = 0.0, 0.0, z
+        return Telemetry(
+            drone=self.drone, time_s=time.time(),
+            x_m=round(x, 2) + 0.0, y_m=round(y, 2) + 0.0, z_m=round(z, 2) + 0.0,
+            lat_deg=round(lat, 7), lon_deg=round(lon, 7), alt_m=round(alt, 2) + 0.0,
+            # Until SYS_STATUS/BATTERY_STATUS says otherwise, assume a full battery.
+            battery_pct=round(st.battery_pct, 1) if st.battery_pct is not None else 100.0,
+            armed=st.armed, landed=self.on_ground(st),
+        )
+
+    def lost_reason(self) -> str:
+        """Why an action ends when HEARTBEATs stop."""
+        text = self.state.last_statustext
+        why = f" (last STATUSTEXT: {text})" if text else ""
+        return (f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
+                f"{self.settings.heartbeat_timeout_s:g} s{why}")
+
+    # -- steering (link ticker thread) -------------------------------------------------
+
+    def send_setpoint(self, target: Vector) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED, position only, MAV_FRAME_LOCAL_NED."""
+        system, component = self.link.target
+        self.link.send(
+            "set_position_target_local_ned", self.link.time_boot_ms(), system, component,
+            MAV_FRAME_LOCAL_NED, TYPE_MASK_POSITION, target[0], target[1], target[2],
+            0, 0, 0, 0, 0, 0, 0, 0,
+        )
+
+    def send_guided_target(self, target: GuidedTarget) -> None:
+        """A local or global (relative altitude) position target."""
+        kind, point = target
+        if kind == "local":
+            self.send_setpoint(point)
+            return
+        system, component = self.link.target
+        lat, lon, alt = point
+        self.link.send(
+            "set_position_target_global_int", self.link.time_boot_ms(), system, component,
+            MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, TYPE_MASK_POSITION, round(lat * 1e7),
+            round(lon * 1e7), alt, 0, 0, 0, 0, 0, 0, 0, 0,
+        )
+
+    def stop_steering(self) -> None:
+        """No more setpoints or position targets (condition held)."""
+        self.stream_target = None
+        self.guided_target = None
+
+    def _steer_tick(self) -> None:
+        with self.cond:
+            if self._was_armed and not self.state.armed:
+                # Disarmed (landed, auto-disarm, or by someone else): stop steering.
+                self.stop_steering()
+            self._was_armed = self.state.armed
+            target = self.stream_target
+        if target is not None:
+            self.send_setpoint(target)
+
+    def _refresh_tick(self) -> None:
+        with self.cond:
+            target = self.guided_target
+        if target is not None:
+            self.send_guided_target(target)
+
+    def _position_log_tick(self) -> None:
+        with self.cond:
+            st = self.state
+            if st.local is None:
+                return
+            x, y, z = self.mission_position(st)
+            key = (round(x, 2), round(y, 2), round(z, 2), st.armed, self.on_ground(st))
+            if key == self._last_position_key:
+                return
+            self._last_position_key = key
+            fields = {"speed_mps": round(self.speed(st), 2), "mode": self.mode_name(st),
+                      "battery_pct": st.battery_pct}
+        self.log.info("adapter.position", x_m=key[0], y_m=key[1], z_m=key[2], armed=key[3],
+                      landed=key[4], **fields)
+
+    def _on_link_event(self, name: str, event: dict[str, Any]) -> None:
+        """Copy what the link saw into the adapter log (reader/ticker threads)."""
+        if name == "vehicle.mode":
+            self.log.info("adapter.mode", mode=self.autopilot.mode_name(event["custom_mode"]),
+                          previous=self.autopilot.mode_name(event["previous"]))
+        elif name == "vehicle.armed":
+            self.log.info("adapter.armed", armed=event["armed"])
+        elif name == "vehicle.statustext":
+            self.log.info("adapter.statustext", **event)
+        elif name == "vehicle.ack":
+            self.log.debug("adapter.ack", **event)
+        elif name in ("link.lost", "link.transport_error", "link.job_error", "link.send_error"):
+            self.log.warning(f"adapter.{name}", **event)
+        else:
+            self.log.info(f"adapter.{name}", **event)
+
+
+__all__ = ["GROUND_Z_M", "TYPE_MASK_POSITION", "GuidedTarget", "MavlinkVehicle"]

@@ -1,0 +1,23 @@
+"""Fleet operations: roll a mission out to real drones over SSH, start, watch, abort, collect.
+
+The paper's roll-out (Sections V-E, VI-E to VI-G, Table 7), for drones that are
+computers on a network rather than processes on this machine:
+
+* :mod:`.targets`  -- the fleet file's ``[ground]``, ``[defaults.ssh]``,
+  ``[drones.X.ssh]`` and ``drones.X.bind`` settings, validated;
+* :mod:`.ssh`      -- ``ssh``/``scp`` with timeouts and errors people can act on
+  ("unreachable", "wrong key", "disk full", ...);
+* :mod:`.rollout`  -- ``eamos rollout``: compile, probe, deploy only what changed,
+  launch ``eamos-node`` detached on every drone; writes ``rollout.json``;
+* :mod:`.ground`   -- ``eamos start`` (the ground station for a rolled-out fleet)
+  and ``eamos abort``;
+* :mod:`.status`   -- ``eamos status`` and ``eamos logs fetch``;
+* :mod:`.cli`      -- the argument parsers and handlers of those commands.
+
+``docs/operations.md`` is the operator's guide.
+"""
+
+from .ssh import DroneError, FleetError
+from .targets import FleetTargets, SshTarget, load_targets
+
+__all__ = ["DroneError", "FleetError", "FleetTargets", "SshTarget", "load_targets"]

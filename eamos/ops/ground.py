@@ -1,0 +1,459 @@
+"""``eamos start`` and ``eamos abort`` for a rolled-out fleet (paper VI-G: mission trigger).
+
+``eamos start RUN_DIR`` is the ground station of ``eamos run`` without local
+drone processes: it binds the ground station's endpoint (``[ground] bind``),
+waits until every drone's ``eamos-node`` (started by the roll-out) reports
+ready with the program the roll-out deployed, sends the start trigger, shows
+progress, declares completion, and writes ``summary.json`` -- the same file
+``eamos run`` writes.  If a drone never becomes ready (or its node dies) the
+start trigger is not sent: the others are told to abort and report.
+
+While it waits, one SSH connection per drone watches the node's process
+(``tail --pid`` on the drone), so a node that dies is noticed at once, with
+the last line of its ``node.out``, instead of after the ready timeout.
+
+``eamos abort`` makes every drone land now: if ``eamos start`` runs for this
+run folder it is signalled (it broadcasts the abort and collects the
+reports); otherwise ``eamos abort`` binds the ground station's endpoint
+itself -- the drones' sockets reconnect to it on their own -- broadcasts
+the abort and waits until every drone reports it has landed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import shlex
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..actors.ground import DroneView, GroundStation
+from ..actors.runtime import DroneRuntimeError
+from ..hal.uniform import GROUND_STATION
+from ..net import wire
+from ..program.format import DroneProgram, load_program
+from ..run import GroundPhases, ProgressDisplay, build_summary, ground_runtime
+from .deployment import Deployment, from_run_dir, resolve
+from .rollout import ROLLOUT_FILE, RUNNING_SH, paper_table, read_rollout
+from .ssh import FleetError, classify
+from .targets import SshTarget
+
+GROUND_PID_FILE = "ground.pid"
+WATCH_MARGIN_S = 600.0
+LANDED_Z_M = 0.3
+REPORT_GRACE_S = 5.0
+
+Say = Callable[[str], None]
+
+
+def short(checksum: str) -> str:
+    """``sha256:1a2b3c4d5e6f`` -> ``1a2b3c4d5e6f`` (12 hex digits are plenty for people)."""
+    return checksum.split(":", 1)[-1][:12]
+
+
+# -- watching the drones' processes ---------------------------------------------------------
+
+
+def watch_script(target: SshTarget, mission: str) -> str:
+    """Remote script: return when the drone's node exits, then show how it ended."""
+    d = shlex.quote(target.mission_dir(mission))
+    n = shlex.quote(target.drone)
+    return f"""
+cd {d} || exit 90
+N={n}
+{RUNNING_SH}p=$(cat "state/$N.pid" 2>/dev/null)
+if [ -n "$p" ] && running "$p"; then
+  echo "@@watching $p"
+  tail --pid="$p" -f /dev/null
+fi
+echo "@@exited"
+tail -n 3 "logs/$N/node.out" 2>/dev/null
+"""
+
+
+class NodeWatcher:
+    """One SSH connection per drone that returns when the drone's ``eamos-node`` exits."""
+
+    def __init__(
+        self,
+        targets: dict[str, SshTarget],
+        mission: str,
+        timeout_s: float,
+        on_exit: Callable[[str, str], None],
+        on_lost: Callable[[str, str], None],
+    ) -> None:
+        self.targets = targets
+        self.mission = mission
+        self.timeout_s = timeout_s
+        self.on_exit = on_exit
+        self.on_lost = on_lost
+        self._procs: dict[str, subprocess.Popen[str]] = {}
+        self._lock = threading.Lock()
+        self._closing = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    def start(self) -> None:
+        for name, target in self.targets.items():
+            thread = threading.Thread(
+                target=self._watch, args=(name, target), name=f"watch-{name}", daemon=True
+            )
+            self._threads.append(thread)
+            thread.start()
+
+    def _watch(self, name: str, target: SshTarget) -> None:
+        proc = subprocess.Popen(
+            target.ssh_argv(watch_script(target, self.mission)),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=subprocess.DEVNULL,
+            text=True,
+        )
+        with self._lock:
+            self._procs[name] = proc
+        try:
+            out, err = proc.communicate(timeout=self.timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+            return
+        if self._closing.is_set():
+            return
+        if "@@exited" in out:
+            tail = [ln for ln in out.split("@@exited", 1)[1].splitlines() if ln.strip()]
+            self.on_exit(name, tail[-1].strip() if tail else "")
+        else:
+            found = classify(err)
+            self.on_lost(
+                name, found[1] if found else (err.strip() or f"ssh exit {proc.returncode}")
+            )
+
+    def close(self) -> None:
+        """Stop watching (ends the SSH connections this object started)."""
+        self._closing.set()
+        with self._lock:
+            procs = list(self._procs.values())
+        for proc in procs:
+            if proc.poll() is None:
+                proc.terminate()
+        for proc in procs:
+            try:
+                proc.wait(5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        for thread in self._threads:
+            thread.join(5)
+
+
+# -- eamos start ---------------------------------------------------------------------------------
+
+
+@dataclass
+class StartOptions:
+    """What ``eamos start`` was asked to do."""
+
+    run_dir: Path
+    timeout_s: float = 600.0
+    ready_timeout_s: float | None = None  # default: the fleet file's [ground] ready_timeout_s
+    live: bool | None = None
+
+
+def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> dict[str, Any]:
+    """Be the ground station of a rolled-out mission; return the summary (also written)."""
+    run_dir = Path(opts.run_dir).resolve()
+    doc = read_rollout(run_dir)
+    dep = from_run_dir(run_dir)
+    drones = dep.drones
+    gcs_program = load_program(run_dir / "programs" / f"{GROUND_STATION}.program.json")
+    if gcs_program.mission_id != dep.mission_id:
+        raise FleetError(
+            f"{run_dir}: programs/{GROUND_STATION}.program.json is not the rolled-out mission "
+            f"({gcs_program.mission_id} != {dep.mission_id}); run `eamos rollout` again"
+        )
+    ready_timeout = opts.ready_timeout_s or float(doc["ground"]["ready_timeout_s"])
+    live = sys.stdout.isatty() if opts.live is None else opts.live
+    display = ProgressDisplay(live, drones)
+    speak = say or display.say
+    station: GroundStation
+
+    def on_change(name: str, view: DroneView, msg: Any) -> None:
+        if isinstance(msg, wire.Ready) and msg.program_checksum != dep.checksums.get(name):
+            station.fail(
+                name,
+                f"runs program {short(msg.program_checksum)}, the roll-out deployed "
+                f"{short(dep.checksums.get(name, ''))}: roll out again",
+            )
+        display.event(name, view, msg)
+
+    station = GroundStation(drones, dep.mission_id, on_change=on_change)
+    display.station = station
+    runtime = ground_runtime(
+        gcs_program,
+        station,
+        dep.ground_bind,
+        dict(dep.endpoints),
+        run_dir / "logs" / GROUND_STATION,
+        doc.get("speedup"),
+        dep.ground_keys(),
+    )
+    exited: dict[str, str] = {}
+
+    def on_exit(name: str, last_line: str) -> None:
+        exited[name] = last_line
+        view = station.snapshot().get(name)
+        if view is not None and view.report is None:
+            station.fail(
+                name,
+                f"eamos-node is not running on {dep.targets[name].label}"
+                + (f": {last_line}" if last_line else ""),
+            )
+
+    def on_lost(name: str, why: str) -> None:
+        speak(f"{name}: cannot watch its process any more ({why})")
+
+    watcher = NodeWatcher(
+        dep.targets, dep.mission, ready_timeout + opts.timeout_s + WATCH_MARGIN_S, on_exit, on_lost
+    )
+    pid_file = run_dir / GROUND_PID_FILE
+    started = time.time()
+    outcome = "not started"
+    phases = GroundPhases(
+        ready_timeout, opts.timeout_s, live, stop, on_ready=lambda s: speak(f"ready {s:.2f} s")
+    )
+    try:
+        try:
+            runtime.start()
+        except DroneRuntimeError as exc:
+            raise FleetError(
+                f"cannot be the ground station at {dep.ground_bind}: {exc} "
+                "([ground] bind must be an address of this machine that the drones reach; "
+                "is another `eamos start` running?)"
+            ) from exc
+        pid_file.write_text(f"{os.getpid()}\n")  # for `eamos abort RUN_DIR`
+        station.attach(runtime)
+        watcher.start()
+        with display:
+            speak(
+                f"mission {dep.mission}: waiting for {len(drones)} drone(s) "
+                f"(up to {ready_timeout:g} s): {', '.join(drones)}"
+            )
+            outcome, started = phases.fly(
+                station, display, speak, alive=lambda: [n for n in drones if n not in exited]
+            )
+    finally:
+        watcher.close()
+        gcs_report = runtime.report() if runtime.executive is not None else {}
+        runtime.stop()
+        pid_file.unlink(missing_ok=True)
+    durations = dict(doc.get("durations", {}))
+    if phases.ready_s is not None:
+        durations["ready"] = round(phases.ready_s, 3)
+    views = station.snapshot()
+    if outcome.startswith("not ready"):
+        for name in drones:
+            if not views[name].ready and name not in exited:
+                speak(
+                    f"{name}: never became ready; its eamos-node gives up by itself after "
+                    f"ready_timeout_s ({ready_timeout:g} s)"
+                )
+    summary = build_summary(
+        dep.mission, dep.mission_id, outcome, started, run_dir, views, drones, {}, gcs_report
+    )
+    for name in drones:
+        summary["drones"][name]["host"] = dep.targets[name].label
+        summary["drones"][name].pop("exit_code", None)  # unknown over SSH; report says ok
+    summary["rollout"] = {
+        "durations": durations,
+        "table": {row: value for row, value in paper_table(durations)},
+        "drones": {
+            n: {"state": e.get("state"), "durations": e.get("durations", {})}
+            for n, e in doc["drones"].items()
+        },
+    }
+    (run_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    doc["durations"] = durations
+    (run_dir / ROLLOUT_FILE).write_text(json.dumps(doc, indent=1) + "\n")
+    return summary
+
+
+# -- eamos abort --------------------------------------------------------------------------------
+
+
+def _is_alive_eamos(pid: int) -> bool:
+    try:
+        cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        try:
+            os.kill(pid, 0)
+        except OSError:
+            return False
+        return True  # no /proc: trust the pid file
+    return b"eamos" in cmdline
+
+
+def wait_pid_exit(pid: int, timeout_s: float) -> bool:
+    """Wait (on a pidfd, no polling) until process ``pid`` ends; False on timeout."""
+    try:
+        fd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        return True
+    except (AttributeError, OSError):  # pragma: no cover - not Linux >= 5.3: cannot wait
+        return False
+    try:
+        ready, _, _ = select.select([fd], [], [], timeout_s)
+        return bool(ready)
+    finally:
+        os.close(fd)
+
+
+@dataclass
+class AbortResult:
+    """How an abort went, per drone."""
+
+    via: str  # "ground station" or "broadcast"
+    landed: dict[str, bool]
+    notes: list[str]
+
+    @property
+    def ok(self) -> bool:
+        return all(self.landed.values())
+
+
+def abort(
+    source: Path,
+    mission: str | None,
+    reason: str,
+    timeout_s: float,
+    say: Say,
+) -> AbortResult:
+    """Every drone of the deployment lands now."""
+    dep = resolve(source, mission)
+    if dep.run_dir is not None:
+        pid_path = dep.run_dir / GROUND_PID_FILE
+        try:
+            pid = int(pid_path.read_text().strip())
+        except (OSError, ValueError):
+            pid = 0
+        if pid and _is_alive_eamos(pid):
+            say(f"signalling the ground station (eamos start, pid {pid}): every drone lands")
+            os.kill(pid, signal.SIGTERM)
+            done = wait_pid_exit(pid, timeout_s)
+            landed = _landed_from_summary(dep.run_dir) if done else {}
+            notes = [] if done else [f"the ground station did not end within {timeout_s:g} s"]
+            return AbortResult(
+                "ground station", {n: landed.get(n, False) for n in dep.drones}, notes
+            )
+    return broadcast_abort(dep, reason, timeout_s, say, dep.ground_keys())
+
+
+def _landed_from_summary(run_dir: Path) -> dict[str, bool]:
+    try:
+        summary = json.loads((run_dir / "summary.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return {}
+    out = {}
+    for name, report in summary.get("drones", {}).items():
+        final = report.get("final") or {}
+        out[name] = bool(final) and abs(float(final.get("z", 1.0))) < LANDED_Z_M
+    return out
+
+
+def abort_program(dep: Deployment) -> DroneProgram:
+    """The ground station's program for an abort: no nodes, only the mission's identity.
+
+    Aborting needs no mission logic, so ``eamos abort`` works from a fleet file
+    alone (without the run folder that holds the ground station's program).
+    """
+    return DroneProgram(
+        mission=dep.mission,
+        mission_id=dep.mission_id,
+        drone=GROUND_STATION,
+        drone_type="",
+        fleet=(GROUND_STATION, *dep.drones),
+        nodes=(),
+        arcs=(),
+    )
+
+
+def _landed(view: DroneView) -> bool:
+    final = (view.report or {}).get("final") or {}
+    if final:
+        return abs(float(final.get("z", 1.0))) < LANDED_Z_M
+    return view.position is not None and abs(view.position[2]) < LANDED_Z_M and not view.armed
+
+
+def broadcast_abort(
+    dep: Deployment, reason: str, timeout_s: float, say: Say, keys: Any = None
+) -> AbortResult:
+    """Be the ground station just long enough to broadcast Abort and see every drone land.
+
+    The drones' sockets reconnect to the ground station's endpoint on their
+    own; an abort is sent once each drone listens (PUB/SUB drops what is sent
+    before), and the drones then report (they land, report and exit).
+    """
+    changed = threading.Condition()
+
+    def on_change(name: str, view: DroneView, msg: Any) -> None:
+        with changed:
+            changed.notify_all()
+
+    station = GroundStation(dep.drones, dep.mission_id, on_change=on_change)
+    log_dir = (dep.run_dir / "logs" / f"{GROUND_STATION}.abort") if dep.run_dir else None
+    runtime = ground_runtime(
+        abort_program(dep), station, dep.ground_bind, dict(dep.endpoints), log_dir, None, keys
+    )
+    notes: list[str] = []
+    try:
+        try:
+            runtime.start()
+        except DroneRuntimeError as exc:
+            raise FleetError(
+                f"cannot be the ground station at {dep.ground_bind}: {exc} "
+                "(is `eamos start` running somewhere else?)"
+            ) from exc
+        station.attach(runtime)
+        say(f"broadcasting abort to {', '.join(dep.drones)} (waiting for them to listen)")
+        out = runtime.out
+        listening = list(dep.drones)
+        if out is not None:
+            out.wait_subscribed([wire.topic_to(d) for d in dep.drones], min(15.0, timeout_s))
+            listening = [d for d in dep.drones if out.wait_subscribed([wire.topic_to(d)], 0)]
+        deaf = [d for d in dep.drones if d not in listening]
+        if deaf:
+            notes.append(f"not listening (node not running, or unreachable): {', '.join(deaf)}")
+        station.abort(reason)
+
+        def settled() -> bool:
+            # Down is what matters; the report (sent once landed) may trail it.
+            views = station.snapshot()
+            return all(views[d].report is not None or _landed(views[d]) for d in listening)
+
+        with changed:
+            changed.wait_for(settled, timeout_s)
+        station.wait_reports(listening, REPORT_GRACE_S)
+        views = station.snapshot()
+        landed = {d: _landed(views[d]) for d in dep.drones}
+        for d in listening:
+            if views[d].report is None:
+                notes.append(f"{d}: no report (its node may still run: eamos status)")
+        return AbortResult("broadcast", landed, notes)
+    finally:
+        runtime.stop()
+
+
+__all__ = [
+    "AbortResult",
+    "NodeWatcher",
+    "StartOptions",
+    "abort",
+    "broadcast_abort",
+    "start",
+    "wait_pid_exit",
+]
