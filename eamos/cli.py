@@ -22,6 +22,7 @@ from . import __version__
 from .compiler import MissionError
 from .compiler.cli_compile import add_compile_parser, add_graph_parser
 from .config import ConfigError, FleetConfig
+from .config import positive_number as _positive
 
 _RUN_HELP = """\
 Fly a mission on this machine: compile it, start one eamos-node process per drone
@@ -37,16 +38,6 @@ _RUN_EPILOG = """\
 examples:
   eamos run missions/experiment_b.go --speedup 10
   eamos run missions/experiment_d.go --fleet configs/experiment_d_pilot.toml --summary out/d.json"""
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError("must be greater than 0")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:

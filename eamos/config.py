@@ -44,6 +44,7 @@ Every error names the file and the field.
 
 from __future__ import annotations
 
+import json
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -299,3 +300,35 @@ class FleetConfig:
             if not isinstance(value, dict):
                 raise ConfigError(f"{w}{key}: must be a table")
         return cls(path, dict(default_hal), drones, dict(ssh_defaults), ssh, binds, dict(ground))
+
+
+def toml_value(value: Any) -> str:
+    """A TOML literal for the plain values our config files hold (for writing configs)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return (
+            "{"
+            + ", ".join(f"{json.dumps(str(k))} = {toml_value(v)}" for k, v in value.items())
+            + "}"
+        )
+    raise TypeError(f"cannot write {value!r} to TOML")
+
+
+def positive_number(text: str) -> float:
+    """argparse type for a number greater than zero (seconds, speed-ups)."""
+    import argparse
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError("must be greater than 0")
+    return value

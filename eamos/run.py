@@ -26,7 +26,7 @@ from typing import Any
 from .actors.ground import DroneView, GroundStation
 from .actors.runtime import DroneRuntime, NetSettings
 from .compiler import CompiledMission, compile_file
-from .config import ConfigError, FleetConfig
+from .config import ConfigError, FleetConfig, toml_value
 from .hal import AdapterError, make_adapter
 from .hal.uniform import GROUND_STATION
 from .hal.vehicles import start_sim_vehicles
@@ -88,24 +88,6 @@ def _last_line(path: Path) -> str:
     return lines[-1] if lines else ""
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return (
-            "{"
-            + ", ".join(f"{json.dumps(str(k))} = {_toml_value(v)}" for k, v in value.items())
-            + "}"
-        )
-    raise TypeError(f"cannot write {value!r} to TOML")
-
-
 def node_config_text(
     drone: str,
     program: str,
@@ -126,26 +108,26 @@ def node_config_text(
     settings such as ``peer_timeout_s``.
     """
     lines = [
-        f"drone = {_toml_value(drone)}",
-        f"program = {_toml_value(program)}",
-        f"log_dir = {_toml_value(log_dir)}",
+        f"drone = {toml_value(drone)}",
+        f"program = {toml_value(program)}",
+        f"log_dir = {toml_value(log_dir)}",
         f"ready_timeout_s = {ready_timeout_s!r}",
         "",
         "[net]",
-        f"bind = {_toml_value(bind)}",
+        f"bind = {toml_value(bind)}",
     ]
     if keys is not None:
-        lines.append(f"keys = {_toml_value(keys)}")
+        lines.append(f"keys = {toml_value(keys)}")
     if plain:
         lines.append("plain = true")
-    lines += [f"{k} = {_toml_value(v)}" for k, v in (net or {}).items()]
+    lines += [f"{k} = {toml_value(v)}" for k, v in (net or {}).items()]
     lines += [
         "",
         "[net.peers]",
     ]
-    lines += [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in peers.items()]
+    lines += [f"{json.dumps(k)} = {toml_value(v)}" for k, v in peers.items()]
     lines += ["", "[hal]"]
-    lines += [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in hal.items()]
+    lines += [f"{json.dumps(k)} = {toml_value(v)}" for k, v in hal.items()]
     return "\n".join(lines) + "\n"
 
 

@@ -53,7 +53,7 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, fields
 from typing import Any, Literal
 
@@ -243,6 +243,28 @@ class _Request:
     handle: ActionHandle | None = None
 
 
+
+def paced_ticks(stop: threading.Event, speedup: float) -> Iterator[int]:
+    """The simulation clock: yields how many SIM_DT_S steps to run, until ``stop`` is set.
+
+    Each wait targets a fixed schedule on the monotonic clock (no drift); at high
+    speed-ups several steps run per wake-up.  A machine that falls behind by more
+    than MAX_LAG_S slows the simulation down instead of catching up in a burst.
+    The wait is the simulator's clock, not synchronisation: ``stop`` ends it early.
+    """
+    steps = max(1, round(MIN_WALL_TICK_S * speedup / SIM_DT_S))
+    wall_tick = steps * SIM_DT_S / speedup
+    next_tick = time.monotonic()
+    while True:
+        next_tick += wall_tick
+        delay = next_tick - time.monotonic()
+        if delay < -MAX_LAG_S:
+            next_tick = time.monotonic()
+            delay = 0.0
+        if stop.wait(max(0.0, delay)):
+            return
+        yield steps
+
 class SimAdapter:
     """An :class:`~eamos.hal.api.Adapter` driving a simulated quadcopter (see module doc)."""
 
@@ -381,19 +403,7 @@ class SimAdapter:
     # -- simulator thread ----------------------------------------------------
 
     def _loop(self) -> None:
-        speedup = self.settings.speedup
-        steps = max(1, round(MIN_WALL_TICK_S * speedup / SIM_DT_S))
-        wall_tick = steps * SIM_DT_S / speedup
-        next_tick = time.monotonic()
-        while True:
-            next_tick += wall_tick
-            delay = next_tick - time.monotonic()
-            if delay < -MAX_LAG_S:
-                next_tick = time.monotonic()
-                delay = 0.0
-            # The pacing wait is the simulator's clock; the stop event ends it early.
-            if self._stop.wait(max(0.0, delay)):
-                return
+        for steps in paced_ticks(self._stop, self.settings.speedup):
             try:
                 self._tick(steps)
             except Exception as exc:  # keep the adapter's promise: done is always called

@@ -77,7 +77,7 @@ from eamos.hal.autopilots import (
 )
 from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter
 from eamos.hal.mavlink_link import load_mavutil
-from eamos.hal.sim import MAX_LAG_S, MIN_WALL_TICK_S, SIM_DT_S
+from eamos.hal.sim import SIM_DT_S, paced_ticks
 from eamos.logs import close_logger, make_logger
 
 AutopilotName = Literal["px4", "ardupilot"]
@@ -431,19 +431,7 @@ class SimVehicle:
     # -- the simulation thread ----------------------------------------------------------
 
     def _loop(self) -> None:
-        speedup = self.options.speedup
-        steps = max(1, round(MIN_WALL_TICK_S * speedup / SIM_DT_S))
-        wall_tick = steps * SIM_DT_S / speedup
-        next_tick = time.monotonic()
-        while True:
-            next_tick += wall_tick
-            delay = next_tick - time.monotonic()
-            if delay < -MAX_LAG_S:
-                next_tick = time.monotonic()
-                delay = 0.0
-            # The pacing wait is the vehicle's clock; stop() ends it early.
-            if self._stop.wait(max(0.0, delay)):
-                return
+        for steps in paced_ticks(self._stop, self.options.speedup):
             try:
                 with self._cond:
                     self._receive()

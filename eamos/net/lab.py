@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from eamos.config import toml_value
 from eamos.hal.uniform import GROUND_STATION
 from eamos.net.keys import create_fleet_keys
 
@@ -255,20 +256,6 @@ class FleetFiles:
         return json.loads(path.read_text()) if path.exists() else None
 
 
-def _toml(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{json.dumps(str(k))} = {_toml(v)}" for k, v in value.items()) + "}"
-    raise TypeError(f"cannot write {value!r} to TOML")
-
-
 def write_fleet(
     programs: Mapping[str, Any],
     run_dir: Path,
@@ -307,22 +294,25 @@ def write_fleet(
             extra.update(ground_net or {})
         default_hal = {"adapter": "ground"} if name == GROUND_STATION else {"adapter": "sim"}
         lines = [
-            f"drone = {_toml(name)}",
+            f"drone = {toml_value(name)}",
             f'program = "../programs/{name}.program.json"',
             f'log_dir = "../logs/{name}"',
             f"ready_timeout_s = {ready_timeout_s!r}",
             f"mission_timeout_s = {mission_timeout_s!r}",
             "",
             "[net]",
-            f"bind = {_toml(bind[name])}",
+            f"bind = {toml_value(bind[name])}",
             f'keys = "../keys/{name}"' if secure else "plain = true",
-            *(f"{k} = {_toml(v)}" for k, v in extra.items()),
+            *(f"{k} = {toml_value(v)}" for k, v in extra.items()),
             "",
             "[net.peers]",
-            *(f"{json.dumps(p)} = {_toml(connect[p])}" for p in names if p != name),
+            *(f"{json.dumps(p)} = {toml_value(connect[p])}" for p in names if p != name),
             "",
             "[hal]",
-            *(f"{json.dumps(k)} = {_toml(v)}" for k, v in (hal.get(name) or default_hal).items()),
+            *(
+                f"{json.dumps(k)} = {toml_value(v)}"
+                for k, v in (hal.get(name) or default_hal).items()
+            ),
         ]
         configs[name] = run_dir / "configs" / f"{name}.toml"
         configs[name].write_text("\n".join(lines) + "\n")

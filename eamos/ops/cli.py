@@ -13,6 +13,8 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from eamos.config import positive_number as _positive
+
 _ROLLOUT_HELP = """\
 Roll a mission out to real drones over SSH (paper V-E, VI-E/F): compile it here
 into a run folder, check every drone (reachable, same eamos version, enough
@@ -70,16 +72,6 @@ def _source_arg(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "-v", "--verbose", action="store_true", help="tracebacks of internal errors"
     )
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError("must be greater than 0")
-    return value
 
 
 def add_fleet_commands(sub: Any) -> None:
