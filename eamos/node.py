@@ -77,7 +77,9 @@ def run_node(config: NodeConfig, stop: threading.Event | None = None) -> int:
     runtime = DroneRuntime(program, adapter, net_settings(config), config.log_dir)
     try:
         runtime.start()
-        if not runtime.announce_ready(config.ready_timeout_s):
+        if not runtime.announce_ready(config.ready_timeout_s, stop):
+            if stop.is_set():
+                return 1
             print(
                 f"eamos-node {config.drone}: peers never subscribed: "
                 f"{', '.join(runtime.destinations())} "

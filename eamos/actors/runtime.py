@@ -592,11 +592,17 @@ class DroneRuntime:
         assert self.out is not None
         return self.out.wait_subscribed([wire.topic_to(d) for d in self.destinations()], timeout_s)
 
-    def announce_ready(self, timeout_s: float) -> bool:
-        """Wait for the subscriptions, then tell the ground station this drone is ready."""
-        if not self.wait_subscribed(timeout_s):
-            self.log.error("mission.not_ready", waiting_for=self.destinations())
-            return False
+    def announce_ready(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
+        """Wait for the subscriptions, then tell the ground station this drone is ready.
+
+        ``stop`` (set by a signal handler) ends the wait early: a node asked to stop
+        while its peers are missing must not linger for the whole timeout.
+        """
+        deadline = time.monotonic() + timeout_s
+        while not self.wait_subscribed(min(0.5, max(0.0, deadline - time.monotonic()))):
+            if (stop is not None and stop.is_set()) or time.monotonic() >= deadline:
+                self.log.error("mission.not_ready", waiting_for=self.destinations())
+                return False
         self._to_ground(
             wire.Ready(
                 mission=self.program.mission_id,
