@@ -112,8 +112,15 @@ def fleet_mission(drones: int, steps: int, actions: int = 12, groups: int = 4) -
     drone climbs alone, so every round waits for all drones of the last one.
     MEG nodes: about ``steps * (1 + groups + drones * actions + 1)``.
     """
-    moves = ["FlyByX(1)", "FlyByY(1)", "FlyByX(-1)", "FlyByY(-1)", "PauseFor(1)",
-             "FlyByZ(0.5)", "FlyByZ(-0.5)"]
+    moves = [
+        "FlyByX(1)",
+        "FlyByY(1)",
+        "FlyByX(-1)",
+        "FlyByY(-1)",
+        "PauseFor(1)",
+        "FlyByZ(0.5)",
+        "FlyByZ(-0.5)",
+    ]
     names = [f"Drone{i}" for i in range(1, drones + 1)]
     per_group = -(-drones // groups)
     out = [f"package Stress{drones}x{steps}\n"]
@@ -126,7 +133,7 @@ def fleet_mission(drones: int, steps: int, actions: int = 12, groups: int = 4) -
     out += ["", *main]
     for s in range(steps):
         out += ["", f"func PAR_Round{s}() {{"]
-        gs = [names[g * per_group:(g + 1) * per_group] for g in range(groups)]
+        gs = [names[g * per_group : (g + 1) * per_group] for g in range(groups)]
         out += [f"\tPAR_Round{s}Group{g}()" for g, members in enumerate(gs) if members]
         out.append("}")
         for g, members in enumerate(gs):
@@ -158,10 +165,20 @@ def measure(text: str, timeout: float = 600.0) -> dict[str, object]:
         f.write(text)
         path = f.name
     try:
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-            p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)}
-        done = subprocess.run([sys.executable, "-c", _CHILD, path], capture_output=True,
-                              text=True, timeout=timeout, env=env, check=False)
+        env = {
+            **os.environ,
+            "PYTHONPATH": os.pathsep.join(
+                p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p
+            ),
+        }
+        done = subprocess.run(
+            [sys.executable, "-c", _CHILD, path],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env=env,
+            check=False,
+        )
     finally:
         os.unlink(path)
     if done.returncode != 0:
@@ -172,8 +189,9 @@ def measure(text: str, timeout: float = 600.0) -> dict[str, object]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the stress missions and print a table or (``--json``) a JSON list."""
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--json", action="store_true", help="print a JSON list")
     parser.add_argument("--quick", action="store_true", help="skip the 10000/20000-node missions")
     parser.add_argument("--write", metavar="DIR", help="also write the generated missions to DIR")
@@ -189,9 +207,12 @@ def main(argv: list[str] | None = None) -> int:
         results.append(figures)
         if not args.json:
             f = figures
-            print(f"{name:<26} {f['meg_nodes']:>6} MEG nodes  {f['seconds']:>7.3f} s  "
-                  f"{f['peak_rss_mb']:>6.1f} MB peak  (parse {f['parse_seconds']:.3f} s, "
-                  f"slice {f['slice_seconds']:.3f} s)", flush=True)
+            print(
+                f"{name:<26} {f['meg_nodes']:>6} MEG nodes  {f['seconds']:>7.3f} s  "
+                f"{f['peak_rss_mb']:>6.1f} MB peak  (parse {f['parse_seconds']:.3f} s, "
+                f"slice {f['slice_seconds']:.3f} s)",
+                flush=True,
+            )
     if args.json:
         print(json.dumps(results, indent=1))
     return 0

@@ -235,8 +235,22 @@ def _fleet_run(
     try:
         if lab is not None:
             lab.up()
-            lab.run("host", "iptables", "-A", "INPUT", "-i", "lo", "-m", "statistic", "--mode",
-                    "random", "--probability", f"{loss:.3f}", "-j", "DROP")
+            lab.run(
+                "host",
+                "iptables",
+                "-A",
+                "INPUT",
+                "-i",
+                "lo",
+                "-m",
+                "statistic",
+                "--mode",
+                "random",
+                "--probability",
+                f"{loss:.3f}",
+                "-j",
+                "DROP",
+            )
         for n in names:
             argv = node_argv(files.configs[n])
             argv = lab.argv("host", argv) if lab is not None else argv

@@ -109,8 +109,10 @@ def write_artifacts(
     for drone, program in compiled.programs.items():
         path = program.save(programs_dir / f"{drone}.program.json")
         written.append(path)
-        manifest["programs"][drone] = {"path": path.relative_to(out).as_posix(),
-                                       "checksum": program.checksum}
+        manifest["programs"][drone] = {
+            "path": path.relative_to(out).as_posix(),
+            "checksum": program.checksum,
+        }
 
     fleet = list(compiled.programs)
     dots: list[tuple[str, str]] = []

@@ -182,11 +182,8 @@ class _Checker:
         for value, param, loc in zip(
             call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args), strict=False
         ):
-            if (
-                (param in ("height_m", "duration_s")
-                and value < 0)
-                or (param == "height_m"
-                and value == 0)
+            if (param in ("height_m", "duration_s") and value < 0) or (
+                param == "height_m" and value == 0
             ):
                 self.error(loc, f"{call.action}'s {param} must be positive, got {value:g}")
             if param == "lat_deg" and not -90 <= value <= 90:
@@ -288,7 +285,7 @@ class _Checker:
                     if ref.name not in blocks:
                         continue
                     if state.get(ref.name) == 1:
-                        cycle = [*path[path.index(ref.name):], ref.name]
+                        cycle = [*path[path.index(ref.name) :], ref.name]
                         self.error(
                             ref.loc,
                             "recursion between blocks: " + " -> ".join(cycle),

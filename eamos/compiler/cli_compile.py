@@ -68,19 +68,37 @@ examples:
 def add_compile_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Register ``eamos compile`` on an ``add_subparsers()`` object; returns its parser."""
     p: argparse.ArgumentParser = subparsers.add_parser(
-        "compile", help="compile a mission file into drone programs and graphs",
-        description=_COMPILE_HELP, epilog=_COMPILE_EPILOG,
+        "compile",
+        help="compile a mission file into drone programs and graphs",
+        description=_COMPILE_HELP,
+        epilog=_COMPILE_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("mission", metavar="MISSION.go", help="the mission file")
-    p.add_argument("-o", "--out", metavar="OUT", default=None,
-                   help="output folder (default: out/<mission file name without .go>/)")
-    p.add_argument("--stats", action="store_true",
-                   help="print only the graph sizes as JSON on stdout (files are still written)")
-    p.add_argument("--no-svg", dest="svg", action="store_false",
-                   help="skip drawing the SVG pictures (faster for big missions)")
-    p.add_argument("-v", "--verbose", action="store_true",
-                   help="more detail, and the traceback of internal errors")
+    p.add_argument(
+        "-o",
+        "--out",
+        metavar="OUT",
+        default=None,
+        help="output folder (default: out/<mission file name without .go>/)",
+    )
+    p.add_argument(
+        "--stats",
+        action="store_true",
+        help="print only the graph sizes as JSON on stdout (files are still written)",
+    )
+    p.add_argument(
+        "--no-svg",
+        dest="svg",
+        action="store_false",
+        help="skip drawing the SVG pictures (faster for big missions)",
+    )
+    p.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="more detail, and the traceback of internal errors",
+    )
     p.set_defaults(func=run_compile)
     return p
 
@@ -88,25 +106,46 @@ def add_compile_parser(subparsers: Any) -> argparse.ArgumentParser:
 def add_graph_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Register ``eamos graph`` on an ``add_subparsers()`` object; returns its parser."""
     p: argparse.ArgumentParser = subparsers.add_parser(
-        "graph", help="draw one mission graph (AMT, MEG or a drone's MDG)",
-        description=_GRAPH_HELP, epilog=_GRAPH_EPILOG,
+        "graph",
+        help="draw one mission graph (AMT, MEG or a drone's MDG)",
+        description=_GRAPH_HELP,
+        epilog=_GRAPH_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("mission", metavar="MISSION.go", help="the mission file")
-    p.add_argument("--which", choices=("amt", "meg", "mdg"), default="meg",
-                   help="amt: mission tree, meg: execution graph (default), "
-                        "mdg: one drone's dependency graph (needs --drone)")
-    p.add_argument("--drone", metavar="NAME", default=None,
-                   help="the drone whose MDG to draw (GCS for the ground station)")
-    p.add_argument("--format", choices=("svg", "dot", "graphml"), default="svg",
-                   help="svg picture (default), Graphviz dot text, or GraphML")
-    p.add_argument("-o", "--out", metavar="FILE", default=None,
-                   help="write to FILE (default: print on stdout, or with --open "
-                        "out/<mission>/graphs/<graph>.<format>)")
-    p.add_argument("--open", action="store_true",
-                   help="open the written file in a browser (or print its path if none)")
-    p.add_argument("-v", "--verbose", action="store_true",
-                   help="the traceback of internal errors")
+    p.add_argument(
+        "--which",
+        choices=("amt", "meg", "mdg"),
+        default="meg",
+        help="amt: mission tree, meg: execution graph (default), "
+        "mdg: one drone's dependency graph (needs --drone)",
+    )
+    p.add_argument(
+        "--drone",
+        metavar="NAME",
+        default=None,
+        help="the drone whose MDG to draw (GCS for the ground station)",
+    )
+    p.add_argument(
+        "--format",
+        choices=("svg", "dot", "graphml"),
+        default="svg",
+        help="svg picture (default), Graphviz dot text, or GraphML",
+    )
+    p.add_argument(
+        "-o",
+        "--out",
+        metavar="FILE",
+        default=None,
+        help="write to FILE (default: print on stdout, or with --open "
+        "out/<mission>/graphs/<graph>.<format>)",
+    )
+    p.add_argument(
+        "--open",
+        action="store_true",
+        help="open the written file in a browser (or print its path if none)",
+    )
+    p.add_argument("-v", "--verbose", action="store_true", help="the traceback of internal errors")
     p.set_defaults(func=run_graph)
     return p
 
@@ -124,8 +163,9 @@ def _source_text(path: str) -> str | None:
     return None if "\x00" in text else text
 
 
-def _print_warnings(warnings: tuple[Diagnostic, ...] | list[Diagnostic], path: str,
-                    source: str | None, err: TextIO) -> None:
+def _print_warnings(
+    warnings: tuple[Diagnostic, ...] | list[Diagnostic], path: str, source: str | None, err: TextIO
+) -> None:
     for w in warnings:
         print(w.render(path, source), file=err)
 
@@ -158,8 +198,9 @@ def default_out_dir(mission: str) -> Path:
 # -- eamos compile ----------------------------------------------------------------------
 
 
-def run_compile(args: argparse.Namespace, out: TextIO | None = None,
-                err: TextIO | None = None) -> int:
+def run_compile(
+    args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None
+) -> int:
     """Handle ``eamos compile``; returns the exit code."""
     out = out or sys.stdout
     err = err or sys.stderr
@@ -173,8 +214,9 @@ def run_compile(args: argparse.Namespace, out: TextIO | None = None,
     out_dir = Path(args.out) if getattr(args, "out", None) else default_out_dir(path)
     notes: list[str] = []
     try:
-        manifest = write_artifacts(compiled, out_dir, svg=getattr(args, "svg", True),
-                                   warnings=notes)
+        manifest = write_artifacts(
+            compiled, out_dir, svg=getattr(args, "svg", True), warnings=notes
+        )
     except OSError as exc:
         print(f"error: cannot write the output to {out_dir}: {exc.strerror or exc}", file=err)
         return EXIT_MISSION
@@ -187,15 +229,21 @@ def run_compile(args: argparse.Namespace, out: TextIO | None = None,
         print(json.dumps(stats, indent=1), file=out)
         return EXIT_OK
     meg = stats["meg"]
-    print(f"compiled {compiled.mission.name} ({path}): MEG {meg['nodes']} nodes, "
-          f"{meg['arcs']} arcs, {len(compiled.programs)} participants", file=out)
+    print(
+        f"compiled {compiled.mission.name} ({path}): MEG {meg['nodes']} nodes, "
+        f"{meg['arcs']} arcs, {len(compiled.programs)} participants",
+        file=out,
+    )
     width = max(len(d) for d in compiled.programs)
     for drone, s in stats["drones"].items():
         arcs = s["internal_arcs"] + s["external_in"] + s["external_out"]
         prog = out_dir / manifest["programs"][drone]["path"]
-        print(f"  {drone:<{width}}  {s['nodes']:>5} nodes  {arcs:>5} arcs "
-              f"({s['internal_arcs']} internal, {s['external_in']} in, {s['external_out']} out)  "
-              f"{prog}", file=out)
+        print(
+            f"  {drone:<{width}}  {s['nodes']:>5} nodes  {arcs:>5} arcs "
+            f"({s['internal_arcs']} internal, {s['external_in']} in, {s['external_out']} out)  "
+            f"{prog}",
+            file=out,
+        )
     if verbose:
         print(f"  mission id {compiled.mission_id}; graphs in {out_dir / 'graphs'}", file=out)
     print(f"wrote {len(manifest['files'])} files to {out_dir}/", file=out)
@@ -222,8 +270,12 @@ def open_file(path: Path) -> bool:
     opener = shutil.which("xdg-open") if sys.platform.startswith("linux") else None
     if opener:
         try:
-            subprocess.Popen([opener, str(path)], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL, start_new_session=True)
+            subprocess.Popen(
+                [opener, str(path)],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                start_new_session=True,
+            )
             return True
         except OSError:
             pass
@@ -233,8 +285,9 @@ def open_file(path: Path) -> bool:
         return False
 
 
-def run_graph(args: argparse.Namespace, out: TextIO | None = None,
-              err: TextIO | None = None) -> int:
+def run_graph(
+    args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None
+) -> int:
     """Handle ``eamos graph``; returns the exit code."""
     out = out or sys.stdout
     err = err or sys.stderr

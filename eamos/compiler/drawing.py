@@ -243,14 +243,17 @@ def to_dot(
     colours = drone_colours(list(fleet or ()) + _drones_of(graph))
     if title is None:
         mission = graph.graph.get("mission", "mission")
-        title = {"amt": "Abstract Mission Tree", "meg": "Mission Execution Graph",
-                 "mdg": f"Mission Dependency Graph of {graph.graph.get('drone', '?')}"}[which]
+        title = {
+            "amt": "Abstract Mission Tree",
+            "meg": "Mission Execution Graph",
+            "mdg": f"Mission Dependency Graph of {graph.graph.get('drone', '?')}",
+        }[which]
         title = f"{mission}: {title}"
     lines = [
         f"digraph {_dot_quote(which)} {{",
-        f"  graph [rankdir=TB, fontname=\"Helvetica\", labelloc=t, label={_dot_quote(title)}];",
-        "  node [fontname=\"Helvetica\", fontsize=10, style=filled, fillcolor=\"#ffffff\"];",
-        "  edge [fontname=\"Helvetica\", fontsize=9];",
+        f'  graph [rankdir=TB, fontname="Helvetica", labelloc=t, label={_dot_quote(title)}];',
+        '  node [fontname="Helvetica", fontsize=10, style=filled, fillcolor="#ffffff"];',
+        '  edge [fontname="Helvetica", fontsize=9];',
     ]
     for node, attrs in sorted(graph.nodes(data=True), key=lambda na: _sort_key(*na)):
         kind = str(attrs.get("kind", ""))
@@ -323,13 +326,18 @@ def render_svg(
             if engine == "dot":
                 warn("Graphviz 'dot' is not installed; drawing with the built-in renderer")
         elif dot_text.count(";") > MAX_DOT_STATEMENTS:
-            warn(f"graph too large for Graphviz (over {MAX_DOT_STATEMENTS} nodes and arcs); "
-                 "drawing with the built-in renderer")
+            warn(
+                f"graph too large for Graphviz (over {MAX_DOT_STATEMENTS} nodes and arcs); "
+                "drawing with the built-in renderer"
+            )
         else:
             try:
                 done = subprocess.run(
-                    [exe, "-Tsvg"], input=dot_text.encode("utf-8"), capture_output=True,
-                    timeout=timeout, check=False,
+                    [exe, "-Tsvg"],
+                    input=dot_text.encode("utf-8"),
+                    capture_output=True,
+                    timeout=timeout,
+                    check=False,
                 )
             except subprocess.TimeoutExpired:
                 warn(f"Graphviz took longer than {timeout:g} s; drawing with the built-in renderer")
@@ -339,8 +347,10 @@ def render_svg(
                 if done.returncode == 0 and done.stdout.lstrip().startswith((b"<?xml", b"<svg")):
                     return done.stdout.decode("utf-8", errors="replace")
                 err = done.stderr.decode("utf-8", errors="replace").strip().splitlines()
-                warn(f"Graphviz failed ({err[0] if err else f'exit code {done.returncode}'}); "
-                     "drawing with the built-in renderer")
+                warn(
+                    f"Graphviz failed ({err[0] if err else f'exit code {done.returncode}'}); "
+                    "drawing with the built-in renderer"
+                )
     return builtin_svg(dot_text)
 
 
@@ -432,8 +442,9 @@ def parse_dot(text: str) -> _DotGraph:
 
     while i < len(toks):
         tok = toks[i]
-        if tok in ("}", "{", ";", "subgraph") or (tok not in ("[",) and i + 1 < len(toks)
-                                                   and toks[i + 1] == "{"):
+        if tok in ("}", "{", ";", "subgraph") or (
+            tok not in ("[",) and i + 1 < len(toks) and toks[i + 1] == "{"
+        ):
             i += 1
             continue
         if tok in ("graph", "node", "edge") and i + 1 < len(toks) and toks[i + 1] == "[":
@@ -515,8 +526,9 @@ def _layers(names: list[str], edges: list[tuple[str, str, dict[str, str]]]) -> d
     return layer
 
 
-def _order_layers(rows: list[list[str]], edges: list[tuple[str, str, dict[str, str]]],
-                  layer: dict[str, int]) -> None:
+def _order_layers(
+    rows: list[list[str]], edges: list[tuple[str, str, dict[str, str]]], layer: dict[str, int]
+) -> None:
     """Barycentre sweeps to reduce crossings (in place)."""
     up: dict[str, list[str]] = {}
     down: dict[str, list[str]] = {}
@@ -632,16 +644,20 @@ def builtin_svg(dot_text: str) -> str:
         f'<rect x="0" y="0" width="{total_w:.1f}" height="{total_h:.1f}" fill="white"/>',
     ]
     if title:
-        out.append(f'<text x="{total_w / 2:.1f}" y="{_MARGIN:.1f}" text-anchor="middle" '
-                   f'font-size="14">{_xml_escape(title)}</text>')
+        out.append(
+            f'<text x="{total_w / 2:.1f}" y="{_MARGIN:.1f}" text-anchor="middle" '
+            f'font-size="14">{_xml_escape(title)}</text>'
+        )
     for src, dst, eattrs in g.edges:
         ba, bb = boxes[src], boxes[dst]
         shape_a = g.nodes[src].get("shape", "ellipse")
         shape_b = g.nodes[dst].get("shape", "ellipse")
         if src == dst:  # self loop: a small arc on the right
             x, y0 = ba.x + ba.w / 2, ba.y
-            path = (f"M{x:.1f},{y0 - 6:.1f} C{x + 30:.1f},{y0 - 20:.1f} "
-                    f"{x + 30:.1f},{y0 + 20:.1f} {x:.1f},{y0 + 6:.1f}")
+            path = (
+                f"M{x:.1f},{y0 - 6:.1f} C{x + 30:.1f},{y0 - 20:.1f} "
+                f"{x + 30:.1f},{y0 + 20:.1f} {x:.1f},{y0 + 6:.1f}"
+            )
             lx, ly = x + 26, y0
         elif abs(layer[dst] - layer[src]) <= 1:
             x1, y1 = _clip(ba, shape_a, bb.x, bb.y)
@@ -658,18 +674,24 @@ def builtin_svg(dot_text: str) -> str:
             c2 = (bb.x + off, bb.y - (bb.y - ba.y) / 3)
             x1, y1 = _clip(ba, shape_a, *c1)
             x2, y2 = _clip(bb, shape_b, *c2)
-            path = (f"M{x1:.1f},{y1:.1f} C{c1[0]:.1f},{c1[1]:.1f} {c2[0]:.1f},{c2[1]:.1f} "
-                    f"{x2:.1f},{y2:.1f}")
+            path = (
+                f"M{x1:.1f},{y1:.1f} C{c1[0]:.1f},{c1[1]:.1f} {c2[0]:.1f},{c2[1]:.1f} "
+                f"{x2:.1f},{y2:.1f}"
+            )
             lx = 0.125 * x1 + 0.375 * c1[0] + 0.375 * c2[0] + 0.125 * x2 + 4
             ly = 0.125 * y1 + 0.375 * c1[1] + 0.375 * c2[1] + 0.125 * y2
         pen = eattrs.get("penwidth", "1")
-        out.append(f'<g class="edge"><title>{_xml_escape(src)}-&gt;{_xml_escape(dst)}</title>'
-                   f'<path d="{path}" fill="none" stroke="black" '
-                   f'stroke-width="{_xml_escape(pen)}"'
-                   f'{_dash(eattrs.get("style", ""))} marker-end="url(#arrow)"/>')
+        out.append(
+            f'<g class="edge"><title>{_xml_escape(src)}-&gt;{_xml_escape(dst)}</title>'
+            f'<path d="{path}" fill="none" stroke="black" '
+            f'stroke-width="{_xml_escape(pen)}"'
+            f'{_dash(eattrs.get("style", ""))} marker-end="url(#arrow)"/>'
+        )
         if eattrs.get("label"):
-            out.append(f'<text x="{lx:.1f}" y="{ly:.1f}" font-size="9">'
-                       f'{_xml_escape(eattrs["label"])}</text>')
+            out.append(
+                f'<text x="{lx:.1f}" y="{ly:.1f}" font-size="9">'
+                f"{_xml_escape(eattrs['label'])}</text>"
+            )
         out.append("</g>")
     for n in names:
         attrs = g.nodes[n]
@@ -680,19 +702,25 @@ def builtin_svg(dot_text: str) -> str:
         common = f'fill="{_xml_escape(fill)}" stroke="black"{_dash(attrs.get("style", ""))}'
         out.append(f'<g class="node"><title>{_xml_escape(n)}</title>')
         if shape in ("box", "rect", "rectangle", "square"):
-            out.append(f'<rect x="{b.x - b.w / 2:.1f}" y="{b.y - b.h / 2:.1f}" width="{b.w:.1f}" '
-                       f'height="{b.h:.1f}" {common}/>')
+            out.append(
+                f'<rect x="{b.x - b.w / 2:.1f}" y="{b.y - b.h / 2:.1f}" width="{b.w:.1f}" '
+                f'height="{b.h:.1f}" {common}/>'
+            )
         elif shape in ("diamond", "triangle", "cds", "larrow"):
             out.append(f'<polygon points="{_shape_points(shape, b)}" {common}/>')
         else:
-            out.append(f'<ellipse cx="{b.x:.1f}" cy="{b.y:.1f}" rx="{b.w / 2:.1f}" '
-                       f'ry="{b.h / 2:.1f}" {common}/>')
+            out.append(
+                f'<ellipse cx="{b.x:.1f}" cy="{b.y:.1f}" rx="{b.w / 2:.1f}" '
+                f'ry="{b.h / 2:.1f}" {common}/>'
+            )
         first = b.y - (len(b.lines) - 1) * _LINE_H / 2 + 3.5
         if shape == "triangle":
             first += b.h / 6  # the wide part of a triangle is at the bottom
         for k, line in enumerate(b.lines):
-            out.append(f'<text x="{b.x:.1f}" y="{first + k * _LINE_H:.1f}" text-anchor="middle" '
-                       f'font-size="10">{_xml_escape(line)}</text>')
+            out.append(
+                f'<text x="{b.x:.1f}" y="{first + k * _LINE_H:.1f}" text-anchor="middle" '
+                f'font-size="10">{_xml_escape(line)}</text>'
+            )
         out.append("</g>")
     out.append("</g>")
     out.append("</svg>")

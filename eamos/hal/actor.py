@@ -228,13 +228,20 @@ class UniformAPI(pykka.ThreadingActor):
     def _reply_now(self, req: RunAction, start_s: float, result: ActionResult) -> None:
         end_s = time.time()
         self._log.info(
-            "uniform.result", token=_jsonable(req.token), action=req.action, args=list(req.args),
-            status=result.status, reason=result.reason, start_s=round(start_s, 6),
-            end_s=round(end_s, 6), duration_s=round(end_s - start_s, 6),
+            "uniform.result",
+            token=_jsonable(req.token),
+            action=req.action,
+            args=list(req.args),
+            status=result.status,
+            reason=result.reason,
+            start_s=round(start_s, 6),
+            end_s=round(end_s, 6),
+            duration_s=round(end_s - start_s, 6),
         )
         try:
-            req.reply_to.tell(ActionFinished(req.token, req.action, req.args, result, start_s,
-                                             end_s))
+            req.reply_to.tell(
+                ActionFinished(req.token, req.action, req.args, result, start_s, end_s)
+            )
         except pykka.ActorDeadError:
             self._log.warning("uniform.reply_to_dead", token=_jsonable(req.token))
 
@@ -253,8 +260,10 @@ def _check_call(action: str, args: tuple[Any, ...]) -> str | None:
     if len(args) != len(spec.params):
         return f"{action} takes {len(spec.params)} argument(s) {spec.params}, got {len(args)}"
     for name, value in zip(spec.params, args, strict=True):
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
-            value
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
         ):
             return f"{action}: {name} must be a finite number, got {value!r}"
     return None

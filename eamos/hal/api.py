@@ -53,6 +53,20 @@ class Telemetry:
     armed: bool
     landed: bool = True
 
+    def state(self) -> tuple[float | bool, ...]:
+        """The sample without its timestamp: two samples with equal states carry no news."""
+        return (
+            self.x_m,
+            self.y_m,
+            self.z_m,
+            self.lat_deg,
+            self.lon_deg,
+            self.alt_m,
+            self.battery_pct,
+            self.armed,
+            self.landed,
+        )
+
     def value(self, field_name: str) -> float | bool:
         """The value of one telemetry field by name (see ``uniform.PROPERTY_FIELDS``)."""
         return getattr(self, field_name)  # type: ignore[no-any-return]

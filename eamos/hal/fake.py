@@ -74,9 +74,17 @@ class FakeAdapter:
         self._finished: dict[int, ActionResult] = {}
         self._on_telemetry: TelemetryCallback | None = None
         self._last = Telemetry(
-            drone=drone, time_s=time.time(), x_m=0.0, y_m=0.0, z_m=0.0,
-            lat_deg=46.6103, lon_deg=14.2640, alt_m=0.0, battery_pct=100.0,
-            armed=False, landed=True,
+            drone=drone,
+            time_s=time.time(),
+            x_m=0.0,
+            y_m=0.0,
+            z_m=0.0,
+            lat_deg=46.6103,
+            lon_deg=14.2640,
+            alt_m=0.0,
+            battery_pct=100.0,
+            armed=False,
+            landed=True,
         )
         self.closed = False
 
@@ -132,9 +140,7 @@ class FakeAdapter:
 
     # -- test controls -------------------------------------------------------
 
-    def finish(
-        self, which: ActionHandle | str, result: ActionResult | None = None
-    ) -> ActionHandle:
+    def finish(self, which: ActionHandle | str, result: ActionResult | None = None) -> ActionHandle:
         """Finish a running action (a handle, or the oldest running one with that name).
 
         Raises :class:`LookupError` if no such action is running.

@@ -40,14 +40,13 @@ class GroundSettings:
     def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "hal") -> GroundSettings:
         """Validate the ground station's ``hal`` settings (errors name the field)."""
         mapping = require_mapping(mapping, prefix)
-        check_keys(mapping, {"speedup", "home_lat_deg", "home_lon_deg", "home_alt_m"}
-                   | COMMON_KEYS, prefix)
+        check_keys(
+            mapping, {"speedup", "home_lat_deg", "home_lon_deg", "home_alt_m"} | COMMON_KEYS, prefix
+        )
         return cls(
             speedup=number(mapping, "speedup", cls.speedup, prefix, gt=0),
             home_lat_deg=number(mapping, "home_lat_deg", cls.home_lat_deg, prefix, ge=-90, le=90),
-            home_lon_deg=number(
-                mapping, "home_lon_deg", cls.home_lon_deg, prefix, ge=-180, le=180
-            ),
+            home_lon_deg=number(mapping, "home_lon_deg", cls.home_lon_deg, prefix, ge=-180, le=180),
             home_alt_m=number(mapping, "home_alt_m", cls.home_alt_m, prefix),
         )
 
@@ -89,8 +88,17 @@ class GroundAdapter:
         lat, lon, alt = GeoFrame(s.home_lat_deg, s.home_lon_deg, s.home_alt_m).to_lla(0, 0, 0)
         on_telemetry(
             Telemetry(
-                drone=self.drone, time_s=time.time(), x_m=0.0, y_m=0.0, z_m=0.0,
-                lat_deg=lat, lon_deg=lon, alt_m=alt, battery_pct=100.0, armed=False, landed=True,
+                drone=self.drone,
+                time_s=time.time(),
+                x_m=0.0,
+                y_m=0.0,
+                z_m=0.0,
+                lat_deg=lat,
+                lon_deg=lon,
+                alt_m=alt,
+                battery_pct=100.0,
+                armed=False,
+                landed=True,
             )
         )
 
@@ -101,7 +109,8 @@ class GroundAdapter:
         failure: str | None = None
         if action != "PauseFor":
             failure = (
-                f"the ground station cannot {action}" if action in ACTIONS
+                f"the ground station cannot {action}"
+                if action in ACTIONS
                 else f"unknown action {action!r}"
             )
         elif len(args) != 1:
@@ -153,8 +162,12 @@ class GroundAdapter:
 
     def _end(self, handle: ActionHandle, done: DoneCallback, result: ActionResult) -> None:
         self._log.info(
-            "adapter.action.end", action=handle.action, args=list(handle.args), handle=handle.id,
-            status=result.status, reason=result.reason,
+            "adapter.action.end",
+            action=handle.action,
+            args=list(handle.args),
+            handle=handle.id,
+            status=result.status,
+            reason=result.reason,
         )
         try:
             done(result)

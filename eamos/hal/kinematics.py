@@ -142,8 +142,15 @@ class Quadcopter:
     def state(self) -> VehicleState:
         """A frozen snapshot of the current state."""
         return VehicleState(
-            self._x, self._y, self._z, self._vx, self._vy, self._vz,
-            self._armed, self._landed, self._battery,
+            self._x,
+            self._y,
+            self._z,
+            self._vx,
+            self._vy,
+            self._vz,
+            self._armed,
+            self._landed,
+            self._battery,
         )
 
     @property
@@ -232,8 +239,12 @@ class Quadcopter:
             self._target = target
 
         (self._x, self._y), (self._vx, self._vy) = _channel(
-            (self._x, self._y), (self._vx, self._vy), target[:2],
-            lim.horizontal_speed_mps, lim.accel_mps2, dt_s,
+            (self._x, self._y),
+            (self._vx, self._vy),
+            target[:2],
+            lim.horizontal_speed_mps,
+            lim.accel_mps2,
+            dt_s,
         )
         vmax_z = lim.climb_speed_mps if target[2] >= self._z else lim.descent_speed_mps
         (self._z,), (self._vz,) = _channel(
@@ -289,3 +300,19 @@ class GeoFrame:
     def amsl_m(self, z_m: float) -> float:
         """Altitude above mean sea level of a point ``z_m`` above home."""
         return self.home_alt_m + z_m
+
+
+def relative_target(
+    action: str, args: tuple[float, ...], base: tuple[float, float, float]
+) -> tuple[float, float, float] | None:
+    """Where FlyByX/Y/Z or FlyToXYZ goes, starting from ``base`` (None for other actions)."""
+    x, y, z = base
+    if action == "FlyByX":
+        return (x + args[0], y, z)
+    if action == "FlyByY":
+        return (x, y + args[0], z)
+    if action == "FlyByZ":
+        return (x, y, z + args[0])
+    if action == "FlyToXYZ":
+        return (args[0], args[1], args[2])
+    return None

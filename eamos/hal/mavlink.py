@@ -72,7 +72,6 @@ from eamos.hal.api import (
     ActionResult,
     AdapterError,
     DoneCallback,
-    Telemetry,
     TelemetryCallback,
 )
 from eamos.hal.autopilots import CommandRejected, TakeoffMode
@@ -81,12 +80,8 @@ from eamos.hal.mavlink_frames import Vector
 from eamos.hal.mavlink_link import check_connection
 from eamos.hal.mavlink_vehicle import MavlinkVehicle
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, number, require_mapping
-from eamos.hal.uniform import ACTIONS
+from eamos.hal.uniform import ACTIONS, MOTION_ACTIONS
 from eamos.logs import make_logger
-
-MOTION_ACTIONS = frozenset(
-    {"Takeoff", "Land", "FlyByX", "FlyByY", "FlyByZ", "FlyToXYZ", "FlyToLLA"}
-)
 
 
 @dataclass(frozen=True)
@@ -209,9 +204,15 @@ class MavlinkAdapter:
                 raise AdapterError(f"{self.drone}: adapter already started")
             self._started = True
             self._on_telemetry = on_telemetry
-        self._log.info("adapter.start", adapter="mavlink", connection=s.connection,
-                       autopilot=s.autopilot, system_id=s.system_id,
-                       source_system=s.source_system, source_component=s.source_component)
+        self._log.info(
+            "adapter.start",
+            adapter="mavlink",
+            connection=s.connection,
+            autopilot=s.autopilot,
+            system_id=s.system_id,
+            source_system=s.source_system,
+            source_component=s.source_component,
+        )
         self.vehicle.connect(extra_jobs=((1.0 / s.telemetry_hz, self._publish, "telemetry"),))
 
     def run(self, action: str, args: tuple[float, ...], done: DoneCallback) -> ActionHandle:
@@ -229,8 +230,7 @@ class MavlinkAdapter:
             if self._closed:
                 raise AdapterError(f"{self.drone}: adapter closed")
             self._runs[handle.id] = run
-            self._log.info("adapter.action.start", action=action, args=list(args),
-                           handle=handle.id)
+            self._log.info("adapter.action.start", action=action, args=list(args), handle=handle.id)
             if spec is None:
                 immediate = ActionResult("failed", f"unknown action {action!r}")
             elif len(args) != len(spec.params) or not all(
@@ -241,8 +241,11 @@ class MavlinkAdapter:
                     f"{action} takes {len(spec.params)} finite number(s), got {list(args)}",
                 )
             elif spec.payload:
-                self._log.info("adapter.payload", action=action,
-                               note="no payload on this vehicle: acknowledged")
+                self._log.info(
+                    "adapter.payload",
+                    action=action,
+                    note="no payload on this vehicle: acknowledged",
+                )
                 immediate = ActionResult("ok")
             elif not self._started:
                 immediate = ActionResult("failed", "adapter not started")
@@ -256,8 +259,12 @@ class MavlinkAdapter:
         if immediate is not None:
             self._finish(run, immediate)
             return handle
-        threading.Thread(target=self._execute, args=(run,), daemon=True,
-                         name=f"mavlink-{self.drone}-{action}-{handle.id}").start()
+        threading.Thread(
+            target=self._execute,
+            args=(run,),
+            daemon=True,
+            name=f"mavlink-{self.drone}-{action}-{handle.id}",
+        ).start()
         return handle
 
     def cancel(self, handle: ActionHandle) -> None:
@@ -280,8 +287,9 @@ class MavlinkAdapter:
         self._log.info("adapter.abort", running=len(runs))
         for run in runs:
             self._finish(run, ActionResult("cancelled", "aborted"))
-        threading.Thread(target=self._abort, name=f"mavlink-{self.drone}-abort",
-                         daemon=True).start()
+        threading.Thread(
+            target=self._abort, name=f"mavlink-{self.drone}-abort", daemon=True
+        ).start()
 
     def close(self) -> None:
         """Stop the link's threads and close it; running actions end "cancelled"."""
@@ -366,10 +374,16 @@ class MavlinkAdapter:
             pos = self.vehicle.mission_position() if known else (math.nan,) * 3
         if run.handle is not None:
             self._log.info(
-                "adapter.action.end", action=run.handle.action, args=list(run.handle.args),
-                handle=run.handle.id, status=result.status, reason=result.reason,
+                "adapter.action.end",
+                action=run.handle.action,
+                args=list(run.handle.args),
+                handle=run.handle.id,
+                status=result.status,
+                reason=result.reason,
                 duration_s=round(time.monotonic() - run.started, 3),
-                x_m=round(pos[0], 3), y_m=round(pos[1], 3), z_m=round(pos[2], 3),
+                x_m=round(pos[0], 3),
+                y_m=round(pos[1], 3),
+                z_m=round(pos[2], 3),
             )
         if run.done is not None:
             # Publish the state the action ended in before anyone reacts to its end
@@ -390,7 +404,7 @@ class MavlinkAdapter:
                 sample = self.vehicle.sample()
                 if sample is None:
                     return
-                key = _sample_key(sample)
+                key = sample.state()
                 if key == self._last_key:
                     return
                 self._last_key = key
@@ -400,14 +414,6 @@ class MavlinkAdapter:
                     callback(sample)
                 except Exception as exc:
                     self._log.exception("adapter.telemetry_error", error=repr(exc))
-
-
-def _sample_key(sample: Telemetry) -> tuple[Any, ...]:
-    """A sample without its timestamp: equal keys carry no news."""
-    return (
-        sample.x_m, sample.y_m, sample.z_m, sample.lat_deg, sample.lon_deg, sample.alt_m,
-        sample.battery_pct, sample.armed, sample.landed,
-    )
 
 
 def mavlink_adapter_from_settings(

@@ -23,6 +23,7 @@ from typing import Literal
 
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
 from eamos.hal.autopilots import CommandRejected
+from eamos.hal.kinematics import relative_target
 from eamos.hal.mavlink_frames import Vector, mission_to_ned
 from eamos.hal.mavlink_link import (
     MAV_RESULT_ACCEPTED,
@@ -103,7 +104,10 @@ class RunControl:
                 self.flight.raise_if_over(run)
                 text_seen = v.state.statustext_serial
             result = v.link.command_long(
-                command, params, timeout_s=s.command_timeout_s, retries=s.command_retries,
+                command,
+                params,
+                timeout_s=s.command_timeout_s,
+                retries=s.command_retries,
                 abandon=lambda: run.finished or not v.state.link_ok,
             )
         name = COMMAND_NAMES.get(command, f"MAV_CMD({command})")
@@ -113,8 +117,9 @@ class RunControl:
                 raise Failed(f"no COMMAND_ACK for {name} after {s.command_retries} tries")
             if result != MAV_RESULT_ACCEPTED:
                 # The explanation (PX4's "Arming denied: ...") may trail the ack.
-                v.cond.wait_for(lambda: v.state.statustext_serial > text_seen,
-                                timeout=STATUSTEXT_GRACE_S)
+                v.cond.wait_for(
+                    lambda: v.state.statustext_serial > text_seen, timeout=STATUSTEXT_GRACE_S
+                )
                 fresh = v.state.statustext_serial - text_seen
                 texts = list(v.state.statustexts)[-fresh:] if fresh > 0 else []
                 raise CommandRejected(name, result_name(result), "; ".join(texts))
@@ -125,10 +130,12 @@ class RunControl:
         self.command(MAV_CMD_DO_SET_MODE, (*self.v.autopilot.mode_params(mode), 0.0, 0.0, 0.0, 0.0))
         # An accepted mode change shows in the next HEARTBEAT; confirm it there.
         self.flight.wait(
-            self.run, lambda st: self.v.mode_name(st) == mode, time.monotonic() +
-            self.flight.confirm_s(),
-            lambda st: f"vehicle accepted mode {mode} but its HEARTBEAT still shows "
-                       f"{self.v.mode_name(st)}",
+            self.run,
+            lambda st: self.v.mode_name(st) == mode,
+            time.monotonic() + self.flight.confirm_s(),
+            lambda st: (
+                f"vehicle accepted mode {mode} but its HEARTBEAT still shows {self.v.mode_name(st)}"
+            ),
         )
 
     def stream(self, target_ned: Vector | None) -> None:
@@ -144,8 +151,9 @@ class RunControl:
     def wait_stream_warm(self, seconds: float) -> None:
         with self.v.cond:
             since = self.v.stream_since
-        self.flight.wait(self.run, lambda st: False, since + seconds, lambda st: "",
-                         quiet_timeout=True)
+        self.flight.wait(
+            self.run, lambda st: False, since + seconds, lambda st: "", quiet_timeout=True
+        )
 
     def position_target(self, target_ned: Vector) -> None:
         self._guided(("local", target_ned))
@@ -170,8 +178,13 @@ class RunControl:
 
     def pause(self, seconds: float) -> None:
         """Wait ``seconds`` (on the condition; a cancel or link loss ends it early)."""
-        self.flight.wait(self.run, lambda st: False, time.monotonic() + seconds, lambda st: "",
-                         quiet_timeout=True)
+        self.flight.wait(
+            self.run,
+            lambda st: False,
+            time.monotonic() + seconds,
+            lambda st: "",
+            quiet_timeout=True,
+        )
 
 
 class Flight:
@@ -191,8 +204,14 @@ class Flight:
             if args[0] < 0:
                 raise Failed("duration_s must be >= 0")
             # A timer of our own: it does not need the vehicle, nor its link.
-            self.wait(run, lambda st: False, run.started + args[0], lambda st: "",
-                      quiet_timeout=True, watch_link=False)
+            self.wait(
+                run,
+                lambda st: False,
+                run.started + args[0],
+                lambda st: "",
+                quiet_timeout=True,
+                watch_link=False,
+            )
             return ActionResult("ok")
         with self.v.cond:
             self.raise_if_over(run)
@@ -217,9 +236,13 @@ class Flight:
                 return ActionResult("ok")  # already armed is success
         deadline = run.started + s.armable_timeout_s
         self.wait(
-            run, v.armable, deadline,
-            lambda st: f"vehicle never became armable within {s.armable_timeout_s:g} s: "
-                       f"{st.last_statustext or 'no STATUSTEXT from the vehicle'}",
+            run,
+            v.armable,
+            deadline,
+            lambda st: (
+                f"vehicle never became armable within {s.armable_timeout_s:g} s: "
+                f"{st.last_statustext or 'no STATUSTEXT from the vehicle'}"
+            ),
         )
         with v.cond:
             v.capture_origin(ground=True)
@@ -241,8 +264,12 @@ class Flight:
                 until = f" until the {s.armable_timeout_s:g} s armable timeout" if temporary else ""
                 raise Failed(f"arming refused ({exc.result}{until}){why}") from exc
         # PX4's HEARTBEAT may show the armed flag up to a second after the ack.
-        self.wait(run, lambda st: st.armed, time.monotonic() + self.confirm_s(),
-                  lambda st: "vehicle acknowledged arming but its HEARTBEAT never showed it armed")
+        self.wait(
+            run,
+            lambda st: st.armed,
+            time.monotonic() + self.confirm_s(),
+            lambda st: "vehicle acknowledged arming but its HEARTBEAT never showed it armed",
+        )
         return ActionResult("ok")
 
     def disarm(self, run: Run, ctl: RunControl) -> ActionResult:
@@ -260,8 +287,12 @@ class Flight:
                 if not v.state.armed:  # it disarmed by itself meanwhile
                     return ActionResult("ok")
             raise
-        self.wait(run, lambda st: not st.armed, time.monotonic() + self.confirm_s(),
-                  lambda st: "vehicle acknowledged disarming but its HEARTBEAT still shows armed")
+        self.wait(
+            run,
+            lambda st: not st.armed,
+            time.monotonic() + self.confirm_s(),
+            lambda st: "vehicle acknowledged disarming but its HEARTBEAT still shows armed",
+        )
         with v.cond:
             v.stop_steering()
         return ActionResult("ok")
@@ -285,11 +316,18 @@ class Flight:
 
         def arrived(st: LinkState) -> bool:
             # Vertical only: a real take-off may drift a little sideways.
-            return abs(v.mission_position(st)[2] - height) <= s.tolerance_m and \
-                v.speed(st) <= s.settle_speed_mps
+            return (
+                abs(v.mission_position(st)[2] - height) <= s.tolerance_m
+                and v.speed(st) <= s.settle_speed_mps
+            )
 
-        self.wait(run, arrived, run.started + s.action_timeout_s,
-                  self.timeout_reason("take-off height not reached"), guard=self.guard(modes))
+        self.wait(
+            run,
+            arrived,
+            run.started + s.action_timeout_s,
+            self.timeout_reason("take-off height not reached"),
+            guard=self.guard(modes),
+        )
         return ActionResult("ok")
 
     def land(self, run: Run, ctl: RunControl) -> ActionResult:
@@ -304,9 +342,13 @@ class Flight:
             v.guided_target = None
         modes = frozenset({v.autopilot.land_mode})
         self.confirm_modes(run, modes, done=v.landed)
-        self.wait(run, v.landed, run.started + self.s.action_timeout_s,
-                  self.timeout_reason("not landed"),
-                  guard=self.guard(modes, need_armed=False, unless=v.landed))
+        self.wait(
+            run,
+            v.landed,
+            run.started + self.s.action_timeout_s,
+            self.timeout_reason("not landed"),
+            guard=self.guard(modes, need_armed=False, unless=v.landed),
+        )
         return ActionResult("ok")
 
     def move(self, run: Run, ctl: RunControl, name: str, args: tuple[float, ...]) -> ActionResult:
@@ -317,20 +359,16 @@ class Flight:
                 raise Failed("not armed")
             if v.on_ground(v.state) or v.origin is None:
                 raise Failed("not flying")
-            x, y, z = v.base_point()
             lla: tuple[float, float, float] | None = None
-            if name == "FlyByX":
-                target = (x + args[0], y, z)
-            elif name == "FlyByY":
-                target = (x, y + args[0], z)
-            elif name == "FlyByZ":
-                target = (x, y, z + args[0])
-            elif name == "FlyToXYZ":
-                target = (args[0], args[1], args[2])
+            relative = relative_target(name, args, v.base_point())
+            if relative is not None:
+                target = relative
             else:  # FlyToLLA
                 if v.geo is None:
-                    raise Failed("no GLOBAL_POSITION_INT from the vehicle: cannot fly to a "
-                                 "latitude/longitude")
+                    raise Failed(
+                        "no GLOBAL_POSITION_INT from the vehicle: cannot fly to a "
+                        "latitude/longitude"
+                    )
                 lla = (args[0], args[1], args[2])
                 target = v.geo.from_lla(*lla)
             if target[2] <= 0:
@@ -345,11 +383,18 @@ class Flight:
         self.confirm_modes(run, modes, done=lambda st: False)
 
         def arrived(st: LinkState) -> bool:
-            return math.dist(v.mission_position(st), target) <= s.tolerance_m and \
-                v.speed(st) <= s.settle_speed_mps
+            return (
+                math.dist(v.mission_position(st), target) <= s.tolerance_m
+                and v.speed(st) <= s.settle_speed_mps
+            )
 
-        self.wait(run, arrived, run.started + s.action_timeout_s,
-                  self.timeout_reason("target not reached"), guard=self.guard(modes))
+        self.wait(
+            run,
+            arrived,
+            run.started + s.action_timeout_s,
+            self.timeout_reason("target not reached"),
+            guard=self.guard(modes),
+        )
         return ActionResult("ok")
 
     # -- holding and aborting (their own threads) -----------------------------------------
@@ -381,8 +426,12 @@ class Flight:
                 airborne = not v.on_ground(v.state)
                 v.commanded = v.mission_position() if v.origin else None
             v.autopilot.hold(RunControl(self, run), here, airborne)
-            v.log.info("adapter.hold", north_m=round(here[0], 2), east_m=round(here[1], 2),
-                       down_m=round(here[2], 2))
+            v.log.info(
+                "adapter.hold",
+                north_m=round(here[0], 2),
+                east_m=round(here[1], 2),
+                down_m=round(here[2], 2),
+            )
         except (Failed, Ended, CommandRejected) as exc:
             v.log.warning("adapter.hold_failed", error=str(exc))
 
@@ -401,8 +450,12 @@ class Flight:
                 v.autopilot.land(ctl, here)
                 with v.cond:
                     v.guided_target = None
-                self.wait(run, v.landed, time.monotonic() + self.s.action_timeout_s,
-                          self.timeout_reason("not landed"))
+                self.wait(
+                    run,
+                    v.landed,
+                    time.monotonic() + self.s.action_timeout_s,
+                    self.timeout_reason("not landed"),
+                )
             with v.cond:
                 armed = v.state.armed
             if armed:
@@ -435,7 +488,10 @@ class Flight:
 
         def ready() -> bool:
             return (
-                run.finished or st.closed or (watch_link and not st.link_ok) or until(st)
+                run.finished
+                or st.closed
+                or (watch_link and not st.link_ok)
+                or until(st)
                 or (guard is not None and guard(st) is not None)
             )
 
@@ -464,14 +520,17 @@ class Flight:
         """Wait until a HEARTBEAT shows one of ``modes`` (or ``done``): acks run ahead of it."""
         v = self.v
         self.wait(
-            run, lambda st: v.mode_name(st) in modes or done(st),
+            run,
+            lambda st: v.mode_name(st) in modes or done(st),
             time.monotonic() + self.confirm_s(),
-            lambda st: f"vehicle is in mode {v.mode_name(st)}, expected "
-                       f"{' or '.join(sorted(modes))}",
+            lambda st: (
+                f"vehicle is in mode {v.mode_name(st)}, expected {' or '.join(sorted(modes))}"
+            ),
         )
 
-    def guard(self, modes: frozenset[str], need_armed: bool = True,
-              unless: Check | None = None) -> Guard:
+    def guard(
+        self, modes: frozenset[str], need_armed: bool = True, unless: Check | None = None
+    ) -> Guard:
         """A check that nobody else took the vehicle over mid-action (a reason, or None)."""
         v, grace = self.v, self.s.heartbeat_timeout_s
 

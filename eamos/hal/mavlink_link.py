@@ -135,8 +135,11 @@ def open_transport(
     device, _, baud = connection.partition(",")
     if not _NET.match(connection):
         return mavutil.mavlink_connection(
-            device, baud=int(baud or 57600), source_system=source_system,
-            source_component=source_component, autoreconnect=False,
+            device,
+            baud=int(baud or 57600),
+            source_system=source_system,
+            source_component=source_component,
+            autoreconnect=False,
         )
     return mavutil.mavlink_connection(
         connection, source_system=source_system, source_component=source_component
@@ -155,6 +158,7 @@ def _tcp_client(
     class TcpClient(mavutil.mavtcp):  # type: ignore[name-defined,misc]
         port: Any  # the socket, None while disconnected
         fd: int
+
         def handle_disconnect(self) -> None:
             self.drop()
 
@@ -183,8 +187,9 @@ def _tcp_client(
             self.do_connect()
             self.fd = self.port.fileno()
 
-    return TcpClient(address, source_system=source_system, source_component=source_component,
-                     retries=0)
+    return TcpClient(
+        address, source_system=source_system, source_component=source_component, retries=0
+    )
 
 
 @dataclass
@@ -400,7 +405,8 @@ class MavlinkLink:
 
                     def answered(seen: int = seen) -> bool:
                         return (
-                            abandon() or self.state.closed
+                            abandon()
+                            or self.state.closed
                             or self.state.ack_since(command, seen) is not None
                         )
 
@@ -471,8 +477,9 @@ class MavlinkLink:
     def _transport_error(self, exc: BaseException) -> None:
         if not self._transport_down:
             self._transport_down = True
-            self._on_event("link.transport_error", {"connection": self.connection,
-                                                    "error": repr(exc)})
+            self._on_event(
+                "link.transport_error", {"connection": self.connection, "error": repr(exc)}
+            )
         now = time.monotonic()
         events: Events = []
         with self.cond:
@@ -486,8 +493,15 @@ class MavlinkLink:
         if st.link_ok and now - st.last_heartbeat > self.heartbeat_timeout_s:
             st.link_ok = False
             st.link_losses += 1
-            events.append(("link.lost", {"silent_s": round(now - st.last_heartbeat, 3),
-                                         "heartbeat_timeout_s": self.heartbeat_timeout_s}))
+            events.append(
+                (
+                    "link.lost",
+                    {
+                        "silent_s": round(now - st.last_heartbeat, 3),
+                        "heartbeat_timeout_s": self.heartbeat_timeout_s,
+                    },
+                )
+            )
             self.cond.notify_all()
 
     # -- message handling (reader thread, condition held) -----------------------
@@ -527,12 +541,17 @@ class MavlinkLink:
         st = self.state
         armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
         if st.heartbeats == 0:
-            events.append(("link.vehicle", {"system_id": st.system_id, "autopilot": msg.autopilot,
-                                            "type": msg.type}))
+            events.append(
+                (
+                    "link.vehicle",
+                    {"system_id": st.system_id, "autopilot": msg.autopilot, "type": msg.type},
+                )
+            )
         else:
             if msg.custom_mode != st.custom_mode:
-                events.append(("vehicle.mode", {"custom_mode": msg.custom_mode,
-                                                "previous": st.custom_mode}))
+                events.append(
+                    ("vehicle.mode", {"custom_mode": msg.custom_mode, "previous": st.custom_mode})
+                )
             if armed != st.armed:
                 events.append(("vehicle.armed", {"armed": armed}))
         if not st.link_ok:
@@ -559,8 +578,13 @@ class MavlinkLink:
 
     def _on_global_position_int(self, msg: Any, now: float, events: Events) -> None:
         self.state.global_pos = GlobalPosition(
-            msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000.0, msg.relative_alt / 1000.0,
-            msg.vx / 100.0, msg.vy / 100.0, msg.vz / 100.0,
+            msg.lat / 1e7,
+            msg.lon / 1e7,
+            msg.alt / 1000.0,
+            msg.relative_alt / 1000.0,
+            msg.vx / 100.0,
+            msg.vy / 100.0,
+            msg.vz / 100.0,
         )
 
     def _on_home_position(self, msg: Any, now: float, events: Events) -> None:

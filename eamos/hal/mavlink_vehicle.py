@@ -81,9 +81,12 @@ class MavlinkVehicle:
         self.settings = settings
         self.log = log
         self.link = MavlinkLink(
-            settings.connection, source_system=settings.source_system,
-            source_component=settings.source_component, system_id=settings.system_id,
-            component_id=settings.component_id, heartbeat_timeout_s=settings.heartbeat_timeout_s,
+            settings.connection,
+            source_system=settings.source_system,
+            source_component=settings.source_component,
+            system_id=settings.system_id,
+            component_id=settings.component_id,
+            heartbeat_timeout_s=settings.heartbeat_timeout_s,
             on_event=self._on_link_event,
         )
         # One condition for the link's state and everything below, so any
@@ -125,8 +128,10 @@ class MavlinkVehicle:
         except LinkError as exc:
             self.link.close()
             if exc.unreachable:
-                raise AdapterError(f"{self.drone}: no heartbeat from {s.connection} within "
-                                   f"{s.connect_timeout_s:g} s ({exc})") from exc
+                raise AdapterError(
+                    f"{self.drone}: no heartbeat from {s.connection} within "
+                    f"{s.connect_timeout_s:g} s ({exc})"
+                ) from exc
             raise AdapterError(f"{self.drone}: {exc}") from exc
         if not self.link.wait_for(lambda: self.state.heartbeats > 0, deadline):
             self.link.close()
@@ -142,11 +147,15 @@ class MavlinkVehicle:
             raise AdapterError(f"{self.drone}: {exc}") from exc
         if s.autopilot not in ("auto", found.name):
             self.link.close()
-            raise field_error("hal.autopilot", f"is {s.autopilot!r} but the vehicle's HEARTBEAT "
-                                               f"announces {found.name} ({detected})")
+            raise field_error(
+                "hal.autopilot",
+                f"is {s.autopilot!r} but the vehicle's HEARTBEAT "
+                f"announces {found.name} ({detected})",
+            )
         self.autopilot = found
-        self.log.info("adapter.connected", system_id=sysid, autopilot=found.name,
-                      mode=self.mode_name())
+        self.log.info(
+            "adapter.connected", system_id=sysid, autopilot=found.name, mode=self.mode_name()
+        )
         self._request_intervals(deadline)
 
     def _request_intervals(self, deadline: float) -> None:
@@ -157,8 +166,10 @@ class MavlinkVehicle:
                 break
             rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
             result = self.link.command_long(
-                MAV_CMD_SET_MESSAGE_INTERVAL, (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
-                timeout_s=s.command_timeout_s, retries=1,
+                MAV_CMD_SET_MESSAGE_INTERVAL,
+                (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
+                timeout_s=s.command_timeout_s,
+                retries=1,
             )
             self.log.info("adapter.interval", message=msg_id, hz=rate, result=result_name(result))
 
@@ -223,8 +234,10 @@ class MavlinkVehicle:
         tolerance (as the simulator does).
         """
         here = self.mission_position()
-        if self.commanded is not None and \
-                math.dist(here, self.commanded) <= self.settings.tolerance_m:
+        if (
+            self.commanded is not None
+            and math.dist(here, self.commanded) <= self.settings.tolerance_m
+        ):
             return self.commanded
         return here
 
@@ -235,8 +248,12 @@ class MavlinkVehicle:
             return
         if self.origin is None:
             self.origin = NedOrigin(st.local[0], st.local[1], st.local[2])
-            self.log.info("adapter.home", north_m=round(st.local[0], 3),
-                          east_m=round(st.local[1], 3), down_m=round(st.local[2], 3))
+            self.log.info(
+                "adapter.home",
+                north_m=round(st.local[0], 3),
+                east_m=round(st.local[1], 3),
+                down_m=round(st.local[2], 3),
+            )
         elif ground and not st.armed:
             self.origin = self.origin.with_ground(st.local[2])
         if self.geo is None and st.global_pos is not None:
@@ -264,20 +281,28 @@ class MavlinkVehicle:
         else:
             lat, lon, alt = 0.0, 0.0, z
         return Telemetry(
-            drone=self.drone, time_s=time.time(),
-            x_m=round(x, 2) + 0.0, y_m=round(y, 2) + 0.0, z_m=round(z, 2) + 0.0,
-            lat_deg=round(lat, 7), lon_deg=round(lon, 7), alt_m=round(alt, 2) + 0.0,
+            drone=self.drone,
+            time_s=time.time(),
+            x_m=round(x, 2) + 0.0,
+            y_m=round(y, 2) + 0.0,
+            z_m=round(z, 2) + 0.0,
+            lat_deg=round(lat, 7),
+            lon_deg=round(lon, 7),
+            alt_m=round(alt, 2) + 0.0,
             # Until SYS_STATUS/BATTERY_STATUS says otherwise, assume a full battery.
             battery_pct=round(st.battery_pct, 1) if st.battery_pct is not None else 100.0,
-            armed=st.armed, landed=self.on_ground(st),
+            armed=st.armed,
+            landed=self.on_ground(st),
         )
 
     def lost_reason(self) -> str:
         """Why an action ends when HEARTBEATs stop."""
         text = self.state.last_statustext
         why = f" (last STATUSTEXT: {text})" if text else ""
-        return (f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
-                f"{self.settings.heartbeat_timeout_s:g} s{why}")
+        return (
+            f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
+            f"{self.settings.heartbeat_timeout_s:g} s{why}"
+        )
 
     # -- steering (link ticker thread) -------------------------------------------------
 
@@ -285,9 +310,23 @@ class MavlinkVehicle:
         """SET_POSITION_TARGET_LOCAL_NED, position only, MAV_FRAME_LOCAL_NED."""
         system, component = self.link.target
         self.link.send(
-            "set_position_target_local_ned", self.link.time_boot_ms(), system, component,
-            MAV_FRAME_LOCAL_NED, TYPE_MASK_POSITION, target[0], target[1], target[2],
-            0, 0, 0, 0, 0, 0, 0, 0,
+            "set_position_target_local_ned",
+            self.link.time_boot_ms(),
+            system,
+            component,
+            MAV_FRAME_LOCAL_NED,
+            TYPE_MASK_POSITION,
+            target[0],
+            target[1],
+            target[2],
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
         )
 
     def send_guided_target(self, target: GuidedTarget) -> None:
@@ -299,9 +338,23 @@ class MavlinkVehicle:
         system, component = self.link.target
         lat, lon, alt = point
         self.link.send(
-            "set_position_target_global_int", self.link.time_boot_ms(), system, component,
-            MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, TYPE_MASK_POSITION, round(lat * 1e7),
-            round(lon * 1e7), alt, 0, 0, 0, 0, 0, 0, 0, 0,
+            "set_position_target_global_int",
+            self.link.time_boot_ms(),
+            system,
+            component,
+            MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            TYPE_MASK_POSITION,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            alt,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
         )
 
     def stop_steering(self) -> None:
@@ -335,16 +388,29 @@ class MavlinkVehicle:
             if key == self._last_position_key:
                 return
             self._last_position_key = key
-            fields = {"speed_mps": round(self.speed(st), 2), "mode": self.mode_name(st),
-                      "battery_pct": st.battery_pct}
-        self.log.info("adapter.position", x_m=key[0], y_m=key[1], z_m=key[2], armed=key[3],
-                      landed=key[4], **fields)
+            fields = {
+                "speed_mps": round(self.speed(st), 2),
+                "mode": self.mode_name(st),
+                "battery_pct": st.battery_pct,
+            }
+        self.log.info(
+            "adapter.position",
+            x_m=key[0],
+            y_m=key[1],
+            z_m=key[2],
+            armed=key[3],
+            landed=key[4],
+            **fields,
+        )
 
     def _on_link_event(self, name: str, event: dict[str, Any]) -> None:
         """Copy what the link saw into the adapter log (reader/ticker threads)."""
         if name == "vehicle.mode":
-            self.log.info("adapter.mode", mode=self.autopilot.mode_name(event["custom_mode"]),
-                          previous=self.autopilot.mode_name(event["previous"]))
+            self.log.info(
+                "adapter.mode",
+                mode=self.autopilot.mode_name(event["custom_mode"]),
+                previous=self.autopilot.mode_name(event["previous"]),
+            )
         elif name == "vehicle.armed":
             self.log.info("adapter.armed", armed=event["armed"])
         elif name == "vehicle.statustext":

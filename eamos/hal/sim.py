@@ -65,7 +65,7 @@ from eamos.hal.api import (
     Telemetry,
     TelemetryCallback,
 )
-from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter, VehicleState
+from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter, VehicleState, relative_target
 from eamos.hal.settings import (
     COMMON_KEYS,
     as_number,
@@ -76,7 +76,7 @@ from eamos.hal.settings import (
     require_mapping,
     string_list,
 )
-from eamos.hal.uniform import ACTIONS
+from eamos.hal.uniform import ACTIONS, MOTION_ACTIONS
 from eamos.logs import make_logger
 
 #: Simulated seconds per model step.
@@ -92,9 +92,6 @@ PAYLOAD_DELAY_S = 0.2
 #: Simulated seconds between position log lines.
 POSITION_LOG_PERIOD_S = 1.0
 
-MOTION_ACTIONS = frozenset(
-    {"Takeoff", "Land", "FlyByX", "FlyByY", "FlyByZ", "FlyToXYZ", "FlyToLLA"}
-)
 #: Motion actions that wait for the scripted pilot to finish its path (all of
 #: them: the pilot only starts after Takeoff, so only a repeated one can meet it).
 PILOT_DEFERRED = MOTION_ACTIONS
@@ -243,7 +240,6 @@ class _Request:
     handle: ActionHandle | None = None
 
 
-
 def paced_ticks(stop: threading.Event, speedup: float) -> Iterator[int]:
     """The simulation clock: yields how many SIM_DT_S steps to run, until ``stop`` is set.
 
@@ -264,6 +260,7 @@ def paced_ticks(stop: threading.Event, speedup: float) -> Iterator[int]:
         if stop.wait(max(0.0, delay)):
             return
         yield steps
+
 
 class SimAdapter:
     """An :class:`~eamos.hal.api.Adapter` driving a simulated quadcopter (see module doc)."""
@@ -310,13 +307,19 @@ class SimAdapter:
                 raise AdapterError(f"{self.drone}: simulator already started")
             self._on_telemetry = on_telemetry
             first = self._sample()
-            self._last_sample_key = _sample_key(first)
+            self._last_sample_key = first.state()
             self._next_sample_s = 1.0 / self.settings.telemetry_hz
             s = self.settings
             self._log.info(
-                "adapter.start", adapter="sim", speedup=s.speedup, home_lat_deg=s.home_lat_deg,
-                home_lon_deg=s.home_lon_deg, home_alt_m=s.home_alt_m, battery_pct=s.battery_pct,
-                pilot_waypoints=len(s.pilot), reject_actions=list(s.reject_actions),
+                "adapter.start",
+                adapter="sim",
+                speedup=s.speedup,
+                home_lat_deg=s.home_lat_deg,
+                home_lon_deg=s.home_lon_deg,
+                home_alt_m=s.home_alt_m,
+                battery_pct=s.battery_pct,
+                pilot_waypoints=len(s.pilot),
+                reject_actions=list(s.reject_actions),
             )
             self._thread = threading.Thread(
                 target=self._loop, name=f"sim-{self.drone}", daemon=True
@@ -468,10 +471,16 @@ class SimAdapter:
         if self._motion is act:
             self._motion = None
         self._log.info(
-            "adapter.action.end", action=act.handle.action, args=list(act.handle.args),
-            handle=act.handle.id, status=result.status, reason=result.reason,
-            t_sim=round(self._t, 3), duration_sim_s=round(self._t - act.started_s, 3),
-            x_m=round(self._model.position[0], 3), y_m=round(self._model.position[1], 3),
+            "adapter.action.end",
+            action=act.handle.action,
+            args=list(act.handle.args),
+            handle=act.handle.id,
+            status=result.status,
+            reason=result.reason,
+            t_sim=round(self._t, 3),
+            duration_sim_s=round(self._t - act.started_s, 3),
+            x_m=round(self._model.position[0], 3),
+            y_m=round(self._model.position[1], 3),
             z_m=round(self._model.position[2], 3),
         )
         finished.append((act.done, result))
@@ -506,7 +515,10 @@ class SimAdapter:
         name, args = act.handle.action, act.handle.args
         act.started_s = self._t
         self._log.info(
-            "adapter.action.start", action=name, args=list(args), handle=act.handle.id,
+            "adapter.action.start",
+            action=name,
+            args=list(args),
+            handle=act.handle.id,
             t_sim=round(self._t, 3),
         )
 
@@ -582,23 +594,20 @@ class SimAdapter:
             act.kind = "land"
             model.land()
             return None
-        x, y, z = self._base_point()
-        if name == "Takeoff":
-            target = (x, y, args[0])
-        elif name == "FlyByX":
-            target = (x + args[0], y, z)
-        elif name == "FlyByY":
-            target = (x, y + args[0], z)
-        elif name == "FlyByZ":
-            target = (x, y, z + args[0])
-        elif name == "FlyToXYZ":
-            target = (args[0], args[1], args[2])
-        else:  # FlyToLLA
-            target = self._frame.from_lla(args[0], args[1], args[2])
+        base = self._base_point()
+        target = relative_target(name, args, base)
+        if target is None:
+            if name == "Takeoff":
+                target = (base[0], base[1], args[0])
+            else:  # FlyToLLA
+                target = self._frame.from_lla(args[0], args[1], args[2])
         if target[2] <= 0:
             return self._finish(
-                act, ActionResult("failed", f"target z {target[2]:.2f} m is not above ground "
-                                  "(use Land)"), finished,
+                act,
+                ActionResult(
+                    "failed", f"target z {target[2]:.2f} m is not above ground (use Land)"
+                ),
+                finished,
             )
         act.kind = "motion"
         act.target = target
@@ -675,8 +684,12 @@ class SimAdapter:
                 self._pilot_hold_until = self._t + wp.hold_s
                 x, y, z = self._model.position
                 self._log.info(
-                    "adapter.pilot.waypoint", index=self._pilot_index, x_m=round(x, 3),
-                    y_m=round(y, 3), z_m=round(z, 3), t_sim=round(self._t, 3),
+                    "adapter.pilot.waypoint",
+                    index=self._pilot_index,
+                    x_m=round(x, 3),
+                    y_m=round(y, 3),
+                    z_m=round(z, 3),
+                    t_sim=round(self._t, 3),
                 )
             return
         if self._t < self._pilot_hold_until - 1e-9:
@@ -722,7 +735,7 @@ class SimAdapter:
             while self._next_sample_s <= self._t + 1e-9:
                 self._next_sample_s += 1.0 / self.settings.telemetry_hz
             sample = self._sample()
-            key = _sample_key(sample)
+            key = sample.state()
             if key != self._last_sample_key:
                 self._last_sample_key = key
                 samples.append(sample)
@@ -733,18 +746,16 @@ class SimAdapter:
             if key != self._last_position_key:
                 self._last_position_key = key
                 self._log.info(
-                    "adapter.position", x_m=key[0], y_m=key[1], z_m=key[2],
-                    speed_mps=round(st.speed_mps, 2), armed=st.armed, landed=st.landed,
-                    battery_pct=round(st.battery_pct, 1), t_sim=round(self._t, 3),
+                    "adapter.position",
+                    x_m=key[0],
+                    y_m=key[1],
+                    z_m=key[2],
+                    speed_mps=round(st.speed_mps, 2),
+                    armed=st.armed,
+                    landed=st.landed,
+                    battery_pct=round(st.battery_pct, 1),
+                    t_sim=round(self._t, 3),
                 )
-
-
-def _sample_key(sample: Telemetry) -> tuple[Any, ...]:
-    """A sample without its timestamp: two samples with equal keys carry no news."""
-    return (
-        sample.x_m, sample.y_m, sample.z_m, sample.lat_deg, sample.lon_deg, sample.alt_m,
-        sample.battery_pct, sample.armed, sample.landed,
-    )
 
 
 def sim_adapter_from_settings(

@@ -91,8 +91,11 @@ MAV_MODE_FLAG_STABILIZE_ENABLED = 16
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
 RESULTS = {
-    "ACCEPTED": ACCEPTED, "TEMPORARILY_REJECTED": TEMPORARILY_REJECTED, "DENIED": DENIED,
-    "UNSUPPORTED": UNSUPPORTED, "FAILED": FAILED,
+    "ACCEPTED": ACCEPTED,
+    "TEMPORARILY_REJECTED": TEMPORARILY_REJECTED,
+    "DENIED": DENIED,
+    "UNSUPPORTED": UNSUPPORTED,
+    "FAILED": FAILED,
 }
 SEV_CRITICAL, SEV_WARNING, SEV_NOTICE, SEV_INFO = 2, 4, 5, 6
 LANDED_ON_GROUND, LANDED_IN_AIR, LANDED_TAKEOFF, LANDED_LANDING = 1, 2, 3, 4
@@ -109,17 +112,30 @@ MSG_HEARTBEAT, MSG_SYS_STATUS, MSG_GPS_RAW_INT, MSG_ATTITUDE = 0, 1, 24, 30
 MSG_LOCAL_POSITION_NED, MSG_GLOBAL_POSITION_INT = 32, 33
 MSG_BATTERY_STATUS, MSG_AUTOPILOT_VERSION = 147, 148
 MSG_HOME_POSITION, MSG_EXTENDED_SYS_STATE = 242, 245
-STREAMABLE = frozenset({
-    MSG_SYS_STATUS, MSG_GPS_RAW_INT, MSG_ATTITUDE, MSG_LOCAL_POSITION_NED,
-    MSG_GLOBAL_POSITION_INT, MSG_BATTERY_STATUS, MSG_HOME_POSITION, MSG_EXTENDED_SYS_STATE,
-})
+STREAMABLE = frozenset(
+    {
+        MSG_SYS_STATUS,
+        MSG_GPS_RAW_INT,
+        MSG_ATTITUDE,
+        MSG_LOCAL_POSITION_NED,
+        MSG_GLOBAL_POSITION_INT,
+        MSG_BATTERY_STATUS,
+        MSG_HOME_POSITION,
+        MSG_EXTENDED_SYS_STATE,
+    }
+)
 #: What each autopilot streams unasked (message id -> Hz, simulated time).
 #: PX4's onboard link streams a lot by default; ArduPilot waits to be asked.
 DEFAULT_RATES: dict[str, dict[int, float]] = {
     "px4": {
-        MSG_SYS_STATUS: 1.0, MSG_EXTENDED_SYS_STATE: 1.0, MSG_LOCAL_POSITION_NED: 10.0,
-        MSG_GLOBAL_POSITION_INT: 10.0, MSG_ATTITUDE: 10.0, MSG_HOME_POSITION: 0.5,
-        MSG_GPS_RAW_INT: 1.0, MSG_BATTERY_STATUS: 0.5,
+        MSG_SYS_STATUS: 1.0,
+        MSG_EXTENDED_SYS_STATE: 1.0,
+        MSG_LOCAL_POSITION_NED: 10.0,
+        MSG_GLOBAL_POSITION_INT: 10.0,
+        MSG_ATTITUDE: 10.0,
+        MSG_HOME_POSITION: 0.5,
+        MSG_GPS_RAW_INT: 1.0,
+        MSG_BATTERY_STATUS: 0.5,
     },
     "ardupilot": {MSG_SYS_STATUS: 1.0},
 }
@@ -139,9 +155,19 @@ IGNORE_POSITION = 0x7
 PARAM_INT32, PARAM_REAL32 = 6, 9
 #: MAV_SYS_STATUS sensors every simulated vehicle has and reports healthy.
 SENSORS = (
-    0x1 | 0x2 | 0x4 | 0x8 | 0x20  # gyro, accel, mag, baro, GPS
-    | 0x400 | 0x800 | 0x1000 | 0x2000 | 0x4000 | 0x8000  # rate, attitude, yaw, z, xy, motors
-    | 0x200000 | 0x2000000  # AHRS, battery
+    0x1
+    | 0x2
+    | 0x4
+    | 0x8
+    | 0x20  # gyro, accel, mag, baro, GPS
+    | 0x400
+    | 0x800
+    | 0x1000
+    | 0x2000
+    | 0x4000
+    | 0x8000  # rate, attitude, yaw, z, xy, motors
+    | 0x200000
+    | 0x2000000  # AHRS, battery
 )
 PREARM_CHECK = 0x10000000
 
@@ -184,8 +210,9 @@ class VehicleOptions:
         if self.autopilot not in ("px4", "ardupilot"):
             raise ValueError(f"autopilot must be px4 or ardupilot, got {self.autopilot!r}")
         if not self.connection.startswith(("udpout:", "udpin:", "tcpin:")):
-            raise ValueError(f"connection must be udpout:, udpin: or tcpin:HOST:PORT, got "
-                             f"{self.connection!r}")
+            raise ValueError(
+                f"connection must be udpout:, udpin: or tcpin:HOST:PORT, got {self.connection!r}"
+            )
         if not 1 <= self.sysid <= 255:
             raise ValueError(f"sysid must be 1..255, got {self.sysid}")
         if not self.speedup > 0:
@@ -222,8 +249,10 @@ def parse_reject(specs: Iterable[str]) -> dict[int, int]:
             command = by_name[name]
         result_key = (result_text.strip().upper() or "DENIED").removeprefix("MAV_RESULT_")
         if result_key not in RESULTS or result_key == "ACCEPTED":
-            raise ValueError(f"--reject {spec!r}: result must be one of "
-                             f"{', '.join(k for k in RESULTS if k != 'ACCEPTED')}")
+            raise ValueError(
+                f"--reject {spec!r}: result must be one of "
+                f"{', '.join(k for k in RESULTS if k != 'ACCEPTED')}"
+            )
         out[command] = RESULTS[result_key]
     return out
 
@@ -234,6 +263,7 @@ def _tcp_server(mavutil: ModuleType, address: str, source_system: int) -> Any:
     class TcpServer(mavutil.mavtcpin):  # type: ignore[name-defined,misc]
         port: Any  # the client's socket, None while nobody is connected
         fd: int
+
         def recv(self, n: int | None = None) -> bytes:
             if self.port is None:
                 try:
@@ -325,15 +355,24 @@ class SimVehicle:
         if o.connection.startswith("tcpin:"):
             self._conn = _tcp_server(mavutil, o.connection[6:], o.sysid)
         else:
-            self._conn = mavutil.mavlink_connection(o.connection, source_system=o.sysid,
-                                                    source_component=1)
+            self._conn = mavutil.mavlink_connection(
+                o.connection, source_system=o.sysid, source_component=1
+            )
         self._boot_wall = time.monotonic()
-        self._log.info("vehicle.start", autopilot=o.autopilot, connection=o.connection,
-                       sysid=o.sysid, speedup=o.speedup, prearm_delay_s=o.prearm_delay_s,
-                       home=list(o.home), reject={str(k): v for k, v in o.reject.items()},
-                       disarm_after_s=o.disarm_after_s)
-        self._thread = threading.Thread(target=self._loop, name=f"sim-vehicle-{o.sysid}",
-                                        daemon=True)
+        self._log.info(
+            "vehicle.start",
+            autopilot=o.autopilot,
+            connection=o.connection,
+            sysid=o.sysid,
+            speedup=o.speedup,
+            prearm_delay_s=o.prearm_delay_s,
+            home=list(o.home),
+            reject={str(k): v for k, v in o.reject.items()},
+            disarm_after_s=o.disarm_after_s,
+        )
+        self._thread = threading.Thread(
+            target=self._loop, name=f"sim-vehicle-{o.sysid}", daemon=True
+        )
         self._thread.start()
 
     def stop(self) -> None:
@@ -417,10 +456,13 @@ class SimVehicle:
         """
         deadline = time.monotonic() + timeout
         with self._cond:
-            return self._cond.wait_for(
-                lambda: self._stop.is_set() or predicate(self),
-                timeout=max(0.0, deadline - time.monotonic()),
-            ) and not self._stop.is_set()
+            return (
+                self._cond.wait_for(
+                    lambda: self._stop.is_set() or predicate(self),
+                    timeout=max(0.0, deadline - time.monotonic()),
+                )
+                and not self._stop.is_set()
+            )
 
     @property
     def speed_mps(self) -> float:
@@ -479,7 +521,7 @@ class SimVehicle:
             self._send("statustext", severity, text.encode(), 0, 0)
             return
         self._text_id = self._text_id % 65535 + 1
-        chunks = [text[i:i + STATUSTEXT_LEN] for i in range(0, len(text), STATUSTEXT_LEN)]
+        chunks = [text[i : i + STATUSTEXT_LEN] for i in range(0, len(text), STATUSTEXT_LEN)]
         for seq, chunk in enumerate(chunks):
             self._send("statustext", severity, chunk.encode(), self._text_id, seq)
 
@@ -502,10 +544,15 @@ class SimVehicle:
         if self._px4:
             self._px4_logic()
         model = self._model
-        if self._armed and model.landed and not self._flew and \
-                t - self._armed_at >= o.disarm_after_s:
-            self._disarm("Disarmed by auto preflight disarming" if self._px4
-                         else "Disarming motors")
+        if (
+            self._armed
+            and model.landed
+            and not self._flew
+            and t - self._armed_at >= o.disarm_after_s
+        ):
+            self._disarm(
+                "Disarmed by auto preflight disarming" if self._px4 else "Disarming motors"
+            )
         model.step(SIM_DT_S)
         if not model.landed:
             self._flew = True
@@ -515,8 +562,12 @@ class SimVehicle:
             if not self._armed and model.armed:
                 model.disarm()  # a force-disarmed vehicle has now hit the ground
         self._was_landed = model.landed
-        if (self._touchdown_at is not None and self._armed and model.landed
-                and t - self._touchdown_at >= LAND_DISARM_S):
+        if (
+            self._touchdown_at is not None
+            and self._armed
+            and model.landed
+            and t - self._touchdown_at >= LAND_DISARM_S
+        ):
             self._disarm("Disarmed by landing" if self._px4 else "Disarming motors")
         self._log_position()
 
@@ -540,8 +591,10 @@ class SimVehicle:
 
     def _streaming(self) -> bool:
         """PX4: setpoints keep coming (within COM_OF_LOSS_T, see OFFBOARD_LOSS_*)."""
-        return (self._t - self._last_sp_t <= OFFBOARD_LOSS_S
-                or time.monotonic() - self._last_sp_wall <= OFFBOARD_LOSS_WALL_S)
+        return (
+            self._t - self._last_sp_t <= OFFBOARD_LOSS_S
+            or time.monotonic() - self._last_sp_wall <= OFFBOARD_LOSS_WALL_S
+        )
 
     def _armable(self) -> bool:
         if self._t < max(BOOT_S, self.options.prearm_delay_s):
@@ -553,8 +606,11 @@ class SimVehicle:
 
     def _prearm_reason(self) -> str:
         if self._t < self.options.prearm_delay_s:
-            return ("Preflight Fail: ekf2 missing data" if self._px4
-                    else "PreArm: EKF3 still initialising")
+            return (
+                "Preflight Fail: ekf2 missing data"
+                if self._px4
+                else "PreArm: EKF3 still initialising"
+            )
         return "Preflight Fail: no offboard setpoints"
 
     # -- state changes ------------------------------------------------------------------
@@ -629,14 +685,28 @@ class SimVehicle:
 
     def _on_command_long(self, msg: Any) -> None:
         if self._for_us(msg):
-            params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
-                      msg.param7)
+            params = (
+                msg.param1,
+                msg.param2,
+                msg.param3,
+                msg.param4,
+                msg.param5,
+                msg.param6,
+                msg.param7,
+            )
             self._command(msg, msg.command, params, None)
 
     def _on_command_int(self, msg: Any) -> None:
         if self._for_us(msg):
-            params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x),
-                      float(msg.y), msg.z)
+            params = (
+                msg.param1,
+                msg.param2,
+                msg.param3,
+                msg.param4,
+                float(msg.x),
+                float(msg.y),
+                msg.z,
+            )
             self._command(msg, msg.command, params, msg.frame)
 
     def _command(self, msg: Any, command: int, p: tuple[float, ...], frame: int | None) -> None:
@@ -653,15 +723,22 @@ class SimVehicle:
                 CMD_SET_MESSAGE_INTERVAL: self._cmd_message_interval,
                 CMD_REQUEST_MESSAGE: self._cmd_request_message,
                 CMD_GET_HOME_POSITION: lambda p, f: self._send_now(MSG_HOME_POSITION),
-                CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-                    lambda p, f: self._send_now(MSG_AUTOPILOT_VERSION),
+                CMD_REQUEST_AUTOPILOT_CAPABILITIES: lambda p, f: self._send_now(
+                    MSG_AUTOPILOT_VERSION
+                ),
             }.get(command)
             result = UNSUPPORTED if handler is None else handler(p, frame)
         self.commands.append((command, result))
-        self._log.info("vehicle.command", command=command, params=[_num(v) for v in p],
-                       result=result, t_sim=round(self._t, 3))
-        self._send("command_ack", command, result, 0, 0, msg.get_srcSystem(),
-                   msg.get_srcComponent())
+        self._log.info(
+            "vehicle.command",
+            command=command,
+            params=[_num(v) for v in p],
+            result=result,
+            t_sim=round(self._t, 3),
+        )
+        self._send(
+            "command_ack", command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+        )
 
     def _cmd_arm_disarm(self, p: tuple[float, ...], frame: int | None) -> int:
         force = _int(p[1]) == FORCE_MAGIC
@@ -670,27 +747,32 @@ class SimVehicle:
                 return ACCEPTED
             if not force and not self._armable():
                 if self._px4:
-                    self._text("Arming denied: Resolve system health failures first",
-                               SEV_CRITICAL)
+                    self._text("Arming denied: Resolve system health failures first", SEV_CRITICAL)
                     self._text(self._prearm_reason(), SEV_CRITICAL)
                     return TEMPORARILY_REJECTED
-                self._text(f"Arm: {self._prearm_reason().removeprefix('PreArm: ')}",
-                           SEV_CRITICAL)
+                self._text(f"Arm: {self._prearm_reason().removeprefix('PreArm: ')}", SEV_CRITICAL)
                 return FAILED
             if self._mode in ("AUTO.LAND", "AUTO.RTL", "LAND", "RTL", "AUTO"):
-                self._text("Arming denied: not in a mode that can arm" if self._px4
-                           else "Arm: Mode not armable", SEV_CRITICAL)
+                self._text(
+                    "Arming denied: not in a mode that can arm"
+                    if self._px4
+                    else "Arm: Mode not armable",
+                    SEV_CRITICAL,
+                )
                 return DENIED if self._px4 else FAILED
             self._arm()
             return ACCEPTED
         if not self._armed:
             return ACCEPTED
         if not self._model.landed and not force:
-            self._text("Disarming denied: not landed" if self._px4
-                       else "Disarm: vehicle in the air", SEV_CRITICAL)
+            self._text(
+                "Disarming denied: not landed" if self._px4 else "Disarm: vehicle in the air",
+                SEV_CRITICAL,
+            )
             return DENIED if self._px4 else FAILED
-        self._disarm("Disarmed by external command" if self._px4 else "Disarming motors",
-                     force=force)
+        self._disarm(
+            "Disarmed by external command" if self._px4 else "Disarming motors", force=force
+        )
         return ACCEPTED
 
     def _cmd_set_mode(self, p: tuple[float, ...], frame: int | None) -> int:
@@ -706,8 +788,11 @@ class SimVehicle:
                 return DENIED
             if mode == self._mode:
                 return ACCEPTED
-            if mode == "OFFBOARD" and (self._armed or not self._model.landed) \
-                    and not self._streaming():
+            if (
+                mode == "OFFBOARD"
+                and (self._armed or not self._model.landed)
+                and not self._streaming()
+            ):
                 self._text("Switching to Offboard is currently not available", SEV_CRITICAL)
                 return TEMPORARILY_REJECTED
             if mode in ("MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"):
@@ -733,8 +818,11 @@ class SimVehicle:
         x, y, _ = model.position
         if self._px4:
             alt = p[6]
-            height = alt - self.options.home[2] if math.isfinite(alt) else \
-                self._params["MIS_TAKEOFF_ALT"][0]
+            height = (
+                alt - self.options.home[2]
+                if math.isfinite(alt)
+                else self._params["MIS_TAKEOFF_ALT"][0]
+            )
             if height < 0.5:
                 return DENIED
             self._takeoff_z = height
@@ -768,8 +856,11 @@ class SimVehicle:
         if frame is not None:  # COMMAND_INT: degrees * 1e7
             lat, lon = lat / 1e7, lon / 1e7
         relative = frame in (FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_RELATIVE_ALT_INT)
-        tx, ty = (x, y) if not (math.isfinite(lat) and math.isfinite(lon) and (lat or lon)) \
+        tx, ty = (
+            (x, y)
+            if not (math.isfinite(lat) and math.isfinite(lon) and (lat or lon))
             else self._frame.from_lla(lat, lon, 0.0)[:2]
+        )
         tz = z if not math.isfinite(alt) else (alt if relative else alt - self.options.home[2])
         if self._px4:
             if self._mode != "HOLD":
@@ -939,14 +1030,24 @@ class SimVehicle:
 
     def _send_heartbeat(self) -> None:
         base = MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | MAV_MODE_FLAG_STABILIZE_ENABLED
-        if self._mode in ("OFFBOARD", "GUIDED") or self._mode.startswith("AUTO") \
-                or self._mode in ("HOLD", "LAND", "RTL"):
+        if (
+            self._mode in ("OFFBOARD", "GUIDED")
+            or self._mode.startswith("AUTO")
+            or self._mode in ("HOLD", "LAND", "RTL")
+        ):
             base |= MAV_MODE_FLAG_GUIDED_ENABLED
         if self._armed:
             base |= MAV_MODE_FLAG_SAFETY_ARMED
         autopilot = MAV_AUTOPILOT_PX4 if self._px4 else MAV_AUTOPILOT_ARDUPILOTMEGA
-        self._send("heartbeat", MAV_TYPE_QUADROTOR, autopilot, base, self._custom_mode(),
-                   MAV_STATE_ACTIVE if self._armed else MAV_STATE_STANDBY, 3)
+        self._send(
+            "heartbeat",
+            MAV_TYPE_QUADROTOR,
+            autopilot,
+            base,
+            self._custom_mode(),
+            MAV_STATE_ACTIVE if self._armed else MAV_STATE_STANDBY,
+            3,
+        )
 
     def _send_message(self, msg_id: int) -> None:
         st = self._model.state
@@ -955,40 +1056,124 @@ class SimVehicle:
         lat, lon, _ = self._frame.to_lla(st.x_m, st.y_m, st.z_m)
         amsl = o.home[2] + st.z_m
         if msg_id == MSG_LOCAL_POSITION_NED:
-            self._send("local_position_ned", ms, st.x_m, st.y_m, o.offset_m - st.z_m,
-                       st.vx_mps, st.vy_mps, -st.vz_mps)
+            self._send(
+                "local_position_ned",
+                ms,
+                st.x_m,
+                st.y_m,
+                o.offset_m - st.z_m,
+                st.vx_mps,
+                st.vy_mps,
+                -st.vz_mps,
+            )
         elif msg_id == MSG_GLOBAL_POSITION_INT:
-            self._send("global_position_int", ms, round(lat * 1e7), round(lon * 1e7),
-                       round(amsl * 1000), round(st.z_m * 1000), round(st.vx_mps * 100),
-                       round(st.vy_mps * 100), round(-st.vz_mps * 100), 0)
+            self._send(
+                "global_position_int",
+                ms,
+                round(lat * 1e7),
+                round(lon * 1e7),
+                round(amsl * 1000),
+                round(st.z_m * 1000),
+                round(st.vx_mps * 100),
+                round(st.vy_mps * 100),
+                round(-st.vz_mps * 100),
+                0,
+            )
         elif msg_id == MSG_SYS_STATUS:
             reported = SENSORS | (PREARM_CHECK if o.report_prearm else 0)
             health = SENSORS | (PREARM_CHECK if self._armable() and o.report_prearm else 0)
-            self._send("sys_status", reported, reported, health,
-                       250, 12600, 500 if self._armed else 50, round(st.battery_pct), 0, 0,
-                       0, 0, 0, 0)
+            self._send(
+                "sys_status",
+                reported,
+                reported,
+                health,
+                250,
+                12600,
+                500 if self._armed else 50,
+                round(st.battery_pct),
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
         elif msg_id == MSG_EXTENDED_SYS_STATE:
             self._send("extended_sys_state", 0, self._landed_state())
         elif msg_id == MSG_ATTITUDE:
             self._send("attitude", ms, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         elif msg_id == MSG_BATTERY_STATUS:
-            self._send("battery_status", 0, 0, 1, 32767, [12600] + [65535] * 9, -1, -1, -1,
-                       round(st.battery_pct), 0, 1, [0, 0, 0, 0], 0, 0)
+            self._send(
+                "battery_status",
+                0,
+                0,
+                1,
+                32767,
+                [12600] + [65535] * 9,
+                -1,
+                -1,
+                -1,
+                round(st.battery_pct),
+                0,
+                1,
+                [0, 0, 0, 0],
+                0,
+                0,
+            )
         elif msg_id == MSG_HOME_POSITION:
             hlat, hlon, halt = o.home
-            self._send("home_position", round(hlat * 1e7), round(hlon * 1e7),
-                       round(halt * 1000), 0.0, 0.0, o.offset_m, [1.0, 0.0, 0.0, 0.0],
-                       0.0, 0.0, 0.0, int(self._t * 1e6))
+            self._send(
+                "home_position",
+                round(hlat * 1e7),
+                round(hlon * 1e7),
+                round(halt * 1000),
+                0.0,
+                0.0,
+                o.offset_m,
+                [1.0, 0.0, 0.0, 0.0],
+                0.0,
+                0.0,
+                0.0,
+                int(self._t * 1e6),
+            )
         elif msg_id == MSG_GPS_RAW_INT:
-            self._send("gps_raw_int", int(self._t * 1e6), 3, round(lat * 1e7), round(lon * 1e7),
-                       round(amsl * 1000), 80, 120, round(st.horizontal_speed_mps * 100), 0, 12,
-                       0, 0, 0, 0, 0, 0)
+            self._send(
+                "gps_raw_int",
+                int(self._t * 1e6),
+                3,
+                round(lat * 1e7),
+                round(lon * 1e7),
+                round(amsl * 1000),
+                80,
+                120,
+                round(st.horizontal_speed_mps * 100),
+                0,
+                12,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
         elif msg_id == MSG_AUTOPILOT_VERSION:
             caps = 0x2000 | 0x8 | 0x2 | 0x4 | 0x80 | 0x100  # MAVLINK2, COMMAND_INT, PARAM_FLOAT...
             caps |= 0x10 if self._px4 else 0x20000  # param encoding: byte-wise / C cast
             version = (1 << 24 | 15 << 16 | 0 << 8 | 255) if self._px4 else (4 << 24 | 7 << 16)
-            self._send("autopilot_version", caps, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8,
-                       0, 0, o.sysid)
+            self._send(
+                "autopilot_version",
+                caps,
+                version,
+                0,
+                0,
+                0,
+                [0] * 8,
+                [0] * 8,
+                [0] * 8,
+                0,
+                0,
+                o.sysid,
+            )
 
     def _landed_state(self) -> int:
         model = self._model
@@ -1008,8 +1193,15 @@ class SimVehicle:
         key = (round(st.x_m, 2), round(st.y_m, 2), round(st.z_m, 2), self._armed, self._mode)
         if key != self._last_position_key:
             self._last_position_key = key
-            self._log.info("vehicle.position", x_m=key[0], y_m=key[1], z_m=key[2],
-                           armed=self._armed, mode=self._mode, t_sim=round(self._t, 3))
+            self._log.info(
+                "vehicle.position",
+                x_m=key[0],
+                y_m=key[1],
+                z_m=key[2],
+                armed=self._armed,
+                mode=self._mode,
+                t_sim=round(self._t, 3),
+            )
 
 
 def _int(value: float, default: int = 0) -> int:
@@ -1062,38 +1254,68 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="eamos-sim-vehicle",
         description="A simulated quadcopter speaking MAVLink 2 like PX4 SITL (udpout to the "
-                    "client, as PX4 does on 14540+N) or ArduCopter SITL (TCP server, as on "
-                    "5760+10N).",
+        "client, as PX4 does on 14540+N) or ArduCopter SITL (TCP server, as on "
+        "5760+10N).",
         epilog="examples:\n"
-               "  eamos-sim-vehicle --autopilot px4 --connection udpout:127.0.0.1:14540\n"
-               "  eamos-sim-vehicle --autopilot ardupilot --connection tcpin:127.0.0.1:5760 "
-               "--speedup 5\n"
-               "  eamos-sim-vehicle --autopilot px4 --connection udpout:127.0.0.1:14541 "
-               "--sysid 2 --reject MAV_CMD_NAV_LAND=FAILED",
+        "  eamos-sim-vehicle --autopilot px4 --connection udpout:127.0.0.1:14540\n"
+        "  eamos-sim-vehicle --autopilot ardupilot --connection tcpin:127.0.0.1:5760 "
+        "--speedup 5\n"
+        "  eamos-sim-vehicle --autopilot px4 --connection udpout:127.0.0.1:14541 "
+        "--sysid 2 --reject MAV_CMD_NAV_LAND=FAILED",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--autopilot", required=True, choices=("px4", "ardupilot"))
-    parser.add_argument("--connection", required=True,
-                        help="udpout:HOST:PORT (PX4 style), tcpin:HOST:PORT (ArduPilot style) "
-                             "or udpin:HOST:PORT")
+    parser.add_argument(
+        "--connection",
+        required=True,
+        help="udpout:HOST:PORT (PX4 style), tcpin:HOST:PORT (ArduPilot style) or udpin:HOST:PORT",
+    )
     parser.add_argument("--sysid", type=int, default=1, help="MAVLink system id (1)")
-    parser.add_argument("--speedup", type=_positive, default=1.0,
-                        help="simulated time runs K times faster than real time (1)")
-    parser.add_argument("--prearm-delay", type=_delay, default=3.0, metavar="S",
-                        help="simulated seconds until pre-arm checks pass (3; 'never' for a "
-                             "vehicle that never becomes armable; real SITLs take ~40)")
-    parser.add_argument("--home", type=_home, default=(46.6103, 14.2640, 450.0),
-                        metavar="LAT,LON,ALT", help="home position (alt AMSL, metres)")
-    parser.add_argument("--reject", nargs="+", action="extend", default=[], metavar="CMD",
-                        help="answer these commands with a failure: MAV_CMD name or number, "
-                             "optionally =RESULT (DENIED default, FAILED, TEMPORARILY_REJECTED, "
-                             "UNSUPPORTED)")
-    parser.add_argument("--disarm-after", type=_positive, default=10.0, metavar="S",
-                        help="armed on the ground without taking off, disarm after S simulated "
-                             "seconds (10, like COM_DISARM_PRFLT / DISARM_DELAY)")
+    parser.add_argument(
+        "--speedup",
+        type=_positive,
+        default=1.0,
+        help="simulated time runs K times faster than real time (1)",
+    )
+    parser.add_argument(
+        "--prearm-delay",
+        type=_delay,
+        default=3.0,
+        metavar="S",
+        help="simulated seconds until pre-arm checks pass (3; 'never' for a "
+        "vehicle that never becomes armable; real SITLs take ~40)",
+    )
+    parser.add_argument(
+        "--home",
+        type=_home,
+        default=(46.6103, 14.2640, 450.0),
+        metavar="LAT,LON,ALT",
+        help="home position (alt AMSL, metres)",
+    )
+    parser.add_argument(
+        "--reject",
+        nargs="+",
+        action="extend",
+        default=[],
+        metavar="CMD",
+        help="answer these commands with a failure: MAV_CMD name or number, "
+        "optionally =RESULT (DENIED default, FAILED, TEMPORARILY_REJECTED, "
+        "UNSUPPORTED)",
+    )
+    parser.add_argument(
+        "--disarm-after",
+        type=_positive,
+        default=10.0,
+        metavar="S",
+        help="armed on the ground without taking off, disarm after S simulated "
+        "seconds (10, like COM_DISARM_PRFLT / DISARM_DELAY)",
+    )
     parser.add_argument("--log", type=Path, metavar="FILE", help="JSON-lines log of the vehicle")
-    parser.add_argument("--watch-stdin", action="store_true",
-                        help="exit when standard input closes (the parent process died)")
+    parser.add_argument(
+        "--watch-stdin",
+        action="store_true",
+        help="exit when standard input closes (the parent process died)",
+    )
     return parser
 
 
@@ -1103,9 +1325,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         options = VehicleOptions(
-            autopilot=args.autopilot, connection=args.connection, sysid=args.sysid,
-            speedup=args.speedup, prearm_delay_s=args.prearm_delay, home=args.home,
-            reject=parse_reject(args.reject), disarm_after_s=args.disarm_after, log=args.log,
+            autopilot=args.autopilot,
+            connection=args.connection,
+            sysid=args.sysid,
+            speedup=args.speedup,
+            prearm_delay_s=args.prearm_delay,
+            home=args.home,
+            reject=parse_reject(args.reject),
+            disarm_after_s=args.disarm_after,
+            log=args.log,
         )
     except ValueError as exc:
         parser.error(str(exc))
@@ -1132,8 +1360,11 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"eamos-sim-vehicle: cannot open {options.connection}: {exc}", file=sys.stderr)
         return 3
-    print(f"eamos-sim-vehicle: {options.autopilot} sysid {options.sysid} on "
-          f"{options.connection}, speedup {options.speedup:g}", flush=True)
+    print(
+        f"eamos-sim-vehicle: {options.autopilot} sysid {options.sysid} on "
+        f"{options.connection}, speedup {options.speedup:g}",
+        flush=True,
+    )
     try:
         stop.wait()
     finally:

@@ -75,6 +75,11 @@ PROPERTIES: dict[str, PropertySpec] = {
     )
 }
 
+#: The actions that move the vehicle (one at a time; cancelling one holds position).
+MOTION_ACTIONS = frozenset(
+    {"Takeoff", "Land", "FlyByX", "FlyByY", "FlyByZ", "FlyToXYZ", "FlyToLLA"}
+)
+
 #: Telemetry field carrying each property (see :class:`eamos.hal.api.Telemetry`).
 PROPERTY_FIELDS: dict[str, str] = {
     "X": "x_m",
@@ -88,8 +93,18 @@ PROPERTY_FIELDS: dict[str, str] = {
 }
 
 _FLIGHT = frozenset(
-    {"Arm", "Disarm", "Takeoff", "Land", "FlyByX", "FlyByY", "FlyByZ", "FlyToXYZ", "FlyToLLA",
-     "PauseFor"}
+    {
+        "Arm",
+        "Disarm",
+        "Takeoff",
+        "Land",
+        "FlyByX",
+        "FlyByY",
+        "FlyByZ",
+        "FlyToXYZ",
+        "FlyToLLA",
+        "PauseFor",
+    }
 )
 _ALL_ACTIONS = frozenset(ACTIONS)
 _ALL_PROPERTIES = frozenset(PROPERTIES)
@@ -117,13 +132,17 @@ DRONE_TYPES: dict[str, DroneType] = {
     t.name: t
     for t in (
         DroneType(
-            "Quadcopter", _ALL_ACTIONS, _ALL_PROPERTIES,
+            "Quadcopter",
+            _ALL_ACTIONS,
+            _ALL_PROPERTIES,
             "A multicopter with every uniform action and property (the default type).",
         ),
         # The three types of the paper's Listing 1.  Their payloads differ: only
         # DroneType2 carries the camera, DroneType3 has no calibration routine.
         DroneType(
-            "DroneType1", _FLIGHT | {"TurnOn", "PreFlightCheck", "Calibrate"}, _ALL_PROPERTIES,
+            "DroneType1",
+            _FLIGHT | {"TurnOn", "PreFlightCheck", "Calibrate"},
+            _ALL_PROPERTIES,
             "Listing 1's Drone1: flight actions, power, pre-flight check, calibration.",
         ),
         DroneType(
@@ -133,7 +152,9 @@ DRONE_TYPES: dict[str, DroneType] = {
             "Listing 1's Drone2: as DroneType1 plus a camera.",
         ),
         DroneType(
-            "DroneType3", _FLIGHT | {"TurnOn", "PreFlightCheck"}, _ALL_PROPERTIES,
+            "DroneType3",
+            _FLIGHT | {"TurnOn", "PreFlightCheck"},
+            _ALL_PROPERTIES,
             "Listing 1's Drone3: flight actions, power and pre-flight check.",
         ),
     )

@@ -74,22 +74,28 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
     """Command-line options of one vehicle from its ``sim_vehicle`` table (validated)."""
     where = f"drones.{drone}.hal.sim_vehicle"
     if not isinstance(spec, Mapping):
-        raise ConfigError(f"{where}: must be a table such as {{autopilot = \"px4\"}}")
+        raise ConfigError(f'{where}: must be a table such as {{autopilot = "px4"}}')
     unknown = set(spec) - SIM_VEHICLE_KEYS
     if unknown:
-        raise ConfigError(f"{where}.{sorted(unknown)[0]}: unknown field; valid: "
-                          f"{', '.join(sorted(SIM_VEHICLE_KEYS))}")
+        raise ConfigError(
+            f"{where}.{sorted(unknown)[0]}: unknown field; valid: "
+            f"{', '.join(sorted(SIM_VEHICLE_KEYS))}"
+        )
     autopilot = spec.get("autopilot")
     if autopilot not in ("px4", "ardupilot"):
-        raise ConfigError(f"{where}.autopilot: must be \"px4\" or \"ardupilot\", got {autopilot!r}")
+        raise ConfigError(f'{where}.autopilot: must be "px4" or "ardupilot", got {autopilot!r}')
     args = ["--autopilot", autopilot]
 
     def number(key: str, low: float, infinite: bool = False) -> float | None:
         value = spec.get(key)
         if value is None:
             return None
-        if isinstance(value, bool) or not isinstance(value, int | float) or not value >= low \
-                or not (math.isfinite(value) or infinite):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not value >= low
+            or not (math.isfinite(value) or infinite)
+        ):
             raise ConfigError(f"{where}.{key}: must be a number >= {low:g}, got {value!r}")
         return float(value)
 
@@ -108,15 +114,19 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
         args += ["--sysid", str(sysid)]
     if "home" in spec:
         home = spec["home"]
-        if not isinstance(home, list | tuple) or len(home) != 3 or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) for v in home
+        if (
+            not isinstance(home, list | tuple)
+            or len(home) != 3
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in home)
         ):
             raise ConfigError(f"{where}.home: must be [lat, lon, alt], got {home!r}")
         args += ["--home", ",".join(repr(float(v)) for v in home)]
     if "reject" in spec:
         reject = spec["reject"]
-        if isinstance(reject, str) or not isinstance(reject, list | tuple) or not all(
-            isinstance(v, str) for v in reject
+        if (
+            isinstance(reject, str)
+            or not isinstance(reject, list | tuple)
+            or not all(isinstance(v, str) for v in reject)
         ):
             raise ConfigError(f"{where}.reject: must be a list of command names, got {reject!r}")
         if reject:
@@ -142,10 +152,12 @@ def start_sim_vehicles(
         if "sim_vehicle" not in hal:
             continue
         if hal.get("adapter") != "mavlink":
-            raise ConfigError(f"drones.{drone}.hal.sim_vehicle: only for adapter = \"mavlink\"")
+            raise ConfigError(f'drones.{drone}.hal.sim_vehicle: only for adapter = "mavlink"')
         if "connection" in hal:
-            raise ConfigError(f"drones.{drone}.hal.connection: leave it out with sim_vehicle "
-                              "(eamos run picks a free port)")
+            raise ConfigError(
+                f"drones.{drone}.hal.connection: leave it out with sim_vehicle "
+                "(eamos run picks a free port)"
+            )
         args = _vehicle_args(drone, hal["sim_vehicle"], speedup)
         if args[1] == "px4":
             # PX4 SITL style: the vehicle sends UDP to the companion's port.
@@ -167,10 +179,19 @@ def start_sim_vehicles(
         folder.mkdir(parents=True, exist_ok=True)
         with (folder / "sim-vehicle.out").open("wb") as out:
             fleet.procs[drone] = subprocess.Popen(
-                [sys.executable, "-m", "eamos.hal.sim_vehicle", *args,
-                 "--log", str(folder / "sim-vehicle.log"), "--watch-stdin"],
+                [
+                    sys.executable,
+                    "-m",
+                    "eamos.hal.sim_vehicle",
+                    *args,
+                    "--log",
+                    str(folder / "sim-vehicle.log"),
+                    "--watch-stdin",
+                ],
                 # A pipe nobody writes to: when eamos run dies, it closes and the vehicle exits.
-                stdin=subprocess.PIPE, stdout=out, stderr=subprocess.STDOUT,
+                stdin=subprocess.PIPE,
+                stdout=out,
+                stderr=subprocess.STDOUT,
                 start_new_session=True,  # Ctrl-C goes to eamos run, which stops us in order
             )
     return fleet

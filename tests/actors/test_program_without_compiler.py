@@ -39,7 +39,8 @@ print('ran', program.drone, len(program.native_nodes()))
 def test_program_runs_without_compiler_modules(tmp_path):
     compiled = compile_file(Path(__file__).parents[2] / "missions" / "experiment_b.go")
     path = compiled.programs["Drone1"].save(tmp_path / "Drone1.program.json")
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(path)], capture_output=True, text=True,
-                          timeout=WAIT_S)
+    proc = subprocess.run(
+        [sys.executable, "-c", CHILD, str(path)], capture_output=True, text=True, timeout=WAIT_S
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("ran Drone1")

@@ -29,8 +29,11 @@ def mission_files() -> list[Path]:
 
 def node_by_label(graph: nx.DiGraph, label: str, drone: str | None = None) -> Any:
     """The one node with this label (and drone); fails the test if not exactly one."""
-    found = [n for n, a in graph.nodes(data=True)
-             if a.get("label") == label and (drone is None or a.get("drone") == drone)]
+    found = [
+        n
+        for n, a in graph.nodes(data=True)
+        if a.get("label") == label and (drone is None or a.get("drone") == drone)
+    ]
     assert len(found) == 1, f"expected one node {label!r} on {drone}, found {found}"
     return found[0]
 

@@ -30,8 +30,15 @@ def _run(argv: list[str]) -> tuple[int, str, str]:
 
 def _subprocess(argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    return subprocess.run([sys.executable, "-m", "eamos.compiler.cli_compile", *argv], cwd=cwd,
-                          env=env, capture_output=True, text=True, timeout=120, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "eamos.compiler.cli_compile", *argv],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
 
 
 def test_parsers_register_with_a_host_cli() -> None:
@@ -40,13 +47,36 @@ def test_parsers_register_with_a_host_cli() -> None:
     compile_parser = cli_compile.add_compile_parser(sub)
     graph_parser = cli_compile.add_graph_parser(sub)
     args = parser.parse_args(["compile", "m.go", "-o", "x", "--stats", "--no-svg", "-v"])
-    assert (args.mission, args.out, args.stats, args.svg, args.verbose) == ("m.go", "x", True,
-                                                                             False, True)
+    assert (args.mission, args.out, args.stats, args.svg, args.verbose) == (
+        "m.go",
+        "x",
+        True,
+        False,
+        True,
+    )
     assert args.func is run_compile
-    args = parser.parse_args(["graph", "m.go", "--which", "mdg", "--drone", "D1", "--format",
-                              "dot", "-o", "f.dot", "--open"])
-    assert (args.which, args.drone, args.format, args.out, args.open) == ("mdg", "D1", "dot",
-                                                                          "f.dot", True)
+    args = parser.parse_args(
+        [
+            "graph",
+            "m.go",
+            "--which",
+            "mdg",
+            "--drone",
+            "D1",
+            "--format",
+            "dot",
+            "-o",
+            "f.dot",
+            "--open",
+        ]
+    )
+    assert (args.which, args.drone, args.format, args.out, args.open) == (
+        "mdg",
+        "D1",
+        "dot",
+        "f.dot",
+        True,
+    )
     assert args.func is run_graph
     assert "Table 7" in compile_parser.format_help()
     assert "dotted" in graph_parser.format_help()
@@ -66,8 +96,9 @@ def test_compile_writes_artifacts_and_prints_a_summary(tmp_path: Path) -> None:
 
 
 def test_compile_stats_prints_only_json(tmp_path: Path) -> None:
-    code, out, _ = _run(["compile", str(MISSIONS / "experiment_d.go"), "-o", str(tmp_path),
-                         "--stats", "--no-svg"])
+    code, out, _ = _run(
+        ["compile", str(MISSIONS / "experiment_d.go"), "-o", str(tmp_path), "--stats", "--no-svg"]
+    )
     assert code == 0
     stats = json.loads(out)
     assert set(stats) == {"meg", "drones"}
@@ -124,7 +155,8 @@ def test_compile_unwritable_output_is_a_clean_error(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("exc", [CompilerBug("broken invariant"), RuntimeError("boom")])
 def test_internal_errors_exit_2_in_one_line(
-    exc: Exception, monkeypatch: pytest.MonkeyPatch,
+    exc: Exception,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     def explode(path: Path) -> None:
         raise exc
@@ -144,12 +176,14 @@ def test_graph_prints_dot_and_writes_files(tmp_path: Path) -> None:
     code, out, _ = _run(["graph", mission, "--which", "amt", "--format", "dot"])
     assert code == 0 and out.startswith('digraph "amt" {')
     target = tmp_path / "d2.svg"
-    code, out, _ = _run(["graph", mission, "--which", "mdg", "--drone", "Drone2",
-                         "-o", str(target)])
+    code, out, _ = _run(
+        ["graph", mission, "--which", "mdg", "--drone", "Drone2", "-o", str(target)]
+    )
     assert code == 0 and str(target) in out
     assert target.read_text().lstrip().startswith(("<svg", "<?xml"))
-    code, _, _ = _run(["graph", mission, "--format", "graphml",
-                       "-o", str(tmp_path / "meg.graphml")])
+    code, _, _ = _run(
+        ["graph", mission, "--format", "graphml", "-o", str(tmp_path / "meg.graphml")]
+    )
     assert code == 0 and (tmp_path / "meg.graphml").read_text().startswith("<?xml")
     code, out, _ = _run(["graph", mission, "--format", "graphml"])
     assert code == 0 and "<graphml" in out
@@ -164,7 +198,8 @@ def test_graph_mdg_needs_a_known_drone() -> None:
 
 
 def test_graph_open_without_a_display_prints_the_path(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("DISPLAY", raising=False)
@@ -184,8 +219,10 @@ def test_graph_bad_mission_exits_1(tmp_path: Path) -> None:
 
 
 def test_cli_in_a_subprocess(tmp_path: Path) -> None:
-    done = _subprocess(["compile", str(MISSIONS / "listing01_demo.go"), "-o", str(tmp_path / "o"),
-                        "--stats"], cwd=tmp_path)
+    done = _subprocess(
+        ["compile", str(MISSIONS / "listing01_demo.go"), "-o", str(tmp_path / "o"), "--stats"],
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["meg"] == {"nodes": 12, "arcs": 14}
     mission = tmp_path / "bad.go"

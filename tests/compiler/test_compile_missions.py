@@ -35,8 +35,9 @@ def test_paper_listing_copies_compile(copy: str) -> None:
     compile_file(MISSIONS / copy)
 
 
-@pytest.mark.skipif(not SHARED_LISTINGS.is_dir(),
-                    reason=f"paper listings folder {SHARED_LISTINGS} is absent")
+@pytest.mark.skipif(
+    not SHARED_LISTINGS.is_dir(), reason=f"paper listings folder {SHARED_LISTINGS} is absent"
+)
 @pytest.mark.parametrize("copy,original", sorted(PAPER_COPIES.items()))
 def test_shared_paper_listings_compile_and_match_our_copies(copy: str, original: str) -> None:
     source = (SHARED_LISTINGS / original).read_text(encoding="utf-8")
@@ -45,8 +46,9 @@ def test_shared_paper_listings_compile_and_match_our_copies(copy: str, original:
     assert compiled.stats() == compile_file(MISSIONS / copy).stats()
 
 
-@pytest.mark.skipif(not SHARED_LISTINGS.is_dir(),
-                    reason=f"paper listings folder {SHARED_LISTINGS} is absent")
+@pytest.mark.skipif(
+    not SHARED_LISTINGS.is_dir(), reason=f"paper listings folder {SHARED_LISTINGS} is absent"
+)
 def test_every_shared_listing_compiles() -> None:
     listings = sorted(SHARED_LISTINGS.glob("*.go"))
     assert listings
@@ -63,8 +65,16 @@ def test_own_missions_use_every_control_structure() -> None:
         for _, a in compiled.meg.nodes(data=True):
             if a.get("action") == "PauseFor":
                 bare_pause_for_hosts.add(a["drone"])
-    assert {"if", "repeat_for", "repeat_until", "do_while", "do_until", "wait_until",
-            "pause_while", "pause_until"} <= kinds
+    assert {
+        "if",
+        "repeat_for",
+        "repeat_until",
+        "do_while",
+        "do_until",
+        "wait_until",
+        "pause_while",
+        "pause_until",
+    } <= kinds
     assert "GCS" in bare_pause_for_hosts  # relay_wait starts with a bare PauseFor
 
 

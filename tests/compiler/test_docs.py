@@ -42,8 +42,10 @@ def test_graph_size_tables_match_the_compiler() -> None:
         meg: dict[str, int] = stats["meg"]  # type: ignore[assignment]
         drones: dict[str, dict[str, int]] = stats["drones"]  # type: ignore[assignment]
         assert megs[mission] == (meg["nodes"], meg["arcs"]), mission
-        got = {d: (s["nodes"], s["internal_arcs"], s["external_in"], s["external_out"])
-               for d, s in drones.items()}
+        got = {
+            d: (s["nodes"], s["internal_arcs"], s["external_in"], s["external_out"])
+            for d, s in drones.items()
+        }
         assert participants == got, mission
 
 

@@ -64,7 +64,7 @@ def test_palette_follows_the_paper() -> None:
 
 def test_amt_shapes_labels_and_order(demo: CompiledMission) -> None:
     dot = to_dot(demo.amt, "amt")
-    assert _node_line(dot, "n0").count("shape=triangle") and '#c8c8c8' in _node_line(dot, "n0")
+    assert _node_line(dot, "n0").count("shape=triangle") and "#c8c8c8" in _node_line(dot, "n0")
     assert 'label="n0 INIT\\nGCS"' in _node_line(dot, "n0")
     start = _node_line(dot, "n2")  # SEQ_Start
     assert "shape=box" in start and '"#ffffff"' in start and "SEQ_Start" in start
@@ -198,9 +198,13 @@ def test_builtin_renderer_styles_and_shapes(exp_d: CompiledMission) -> None:
     assert "&amp;&amp;" in svg  # conditions are XML-escaped
     # Layers go down: the start is drawn above the take-off, the take-off above the landing.
     svg = builtin_svg(to_dot(exp_d.meg, "meg"))
-    ys = {m.group(2): float(m.group(1)) for m in re.finditer(
-        r'<text x="[\d.]+" y="([\d.]+)" text-anchor="middle" font-size="10">(n\d+ [^<]*)</text>',
-        svg)}
+    ys = {
+        m.group(2): float(m.group(1))
+        for m in re.finditer(
+            r'<text x="[\d.]+" y="([\d.]+)" text-anchor="middle" font-size="10">(n\d+ [^<]*)</text>',
+            svg,
+        )
+    }
     init = next(y for t, y in ys.items() if "INIT" in t)
     takeoff = next(y for t, y in ys.items() if "Takeoff" in t)
     land = next(y for t, y in ys.items() if "Land" in t)
@@ -208,7 +212,7 @@ def test_builtin_renderer_styles_and_shapes(exp_d: CompiledMission) -> None:
 
 
 def test_builtin_renderer_reads_general_dot() -> None:
-    svg = builtin_svg('digraph G { a -> b -> c; c -> a [style=dotted]; d; b [shape=box] }')
+    svg = builtin_svg("digraph G { a -> b -> c; c -> a [style=dotted]; d; b [shape=box] }")
     assert _is_svg(svg)
     assert svg.count('<g class="node">') == 4 and svg.count('<g class="edge">') == 3
 
@@ -221,7 +225,8 @@ def test_graphviz_is_used_when_installed(demo: CompiledMission) -> None:
 
 
 def test_missing_graphviz_falls_back_to_the_builtin_renderer(
-    demo: CompiledMission, monkeypatch: pytest.MonkeyPatch,
+    demo: CompiledMission,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setattr("eamos.compiler.drawing.shutil.which", lambda name: None)
     warnings: list[str] = []
@@ -240,7 +245,9 @@ def _fake_dot(folder: Path, script: str, monkeypatch: pytest.MonkeyPatch) -> Non
 
 
 def test_failing_graphviz_falls_back_with_a_warning(
-    demo: CompiledMission, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    demo: CompiledMission,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     _fake_dot(tmp_path, "echo 'Error: something broke' >&2; exit 3", monkeypatch)
     warnings: list[str] = []
@@ -250,7 +257,9 @@ def test_failing_graphviz_falls_back_with_a_warning(
 
 
 def test_hanging_graphviz_times_out_and_falls_back(
-    demo: CompiledMission, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    demo: CompiledMission,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     _fake_dot(tmp_path, "exec sleep 30", monkeypatch)
     warnings: list[str] = []
@@ -261,7 +270,9 @@ def test_hanging_graphviz_times_out_and_falls_back(
 
 
 def test_graphviz_printing_garbage_falls_back(
-    demo: CompiledMission, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    demo: CompiledMission,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     _fake_dot(tmp_path, "echo not-an-svg", monkeypatch)
     warnings: list[str] = []
@@ -307,7 +318,9 @@ def test_write_artifacts_without_svg_and_stale_files(tmp_path: Path) -> None:
     single = compile_file(MISSIONS / "experiment_a.go")
     manifest = write_artifacts(single, tmp_path, svg=False)
     assert sorted(p.name for p in (tmp_path / "programs").iterdir()) == [
-        "Drone1.program.json", "GCS.program.json"]
+        "Drone1.program.json",
+        "GCS.program.json",
+    ]
     assert not list((tmp_path / "graphs").glob("*.svg"))
     assert not (tmp_path / "graphs" / "mdg_Drone3.dot").exists()
     assert "svg" not in manifest["graphs"]["meg"]

@@ -33,26 +33,68 @@ def test_figure6_amt_of_listing1_node_by_node(listing1: CompiledMission) -> None
     amt = listing1.amt
     assert amt.graph["root"] == 0
     expected = (
-        "init", "INIT", "GCS", [
-            ("seq", "INIT", "", [
-                ("seq", "SEQ_Start", "", [
-                    ("par", "PAR_TurnOn", "", [
-                        _leaf("TurnOn()", "Drone1"), _leaf("TurnOn()", "Drone2"),
-                        _leaf("TurnOn()", "Drone3"),
-                    ]),
-                    ("par", "PAR_PreFlightChecks", "", [
-                        ("seq", "SEQ_PreFlight1", "", [
-                            _leaf("PreFlightCheck()", "Drone1"), _leaf("Calibrate()", "Drone1"),
-                        ]),
-                        ("seq", "SEQ_PreFlight2", "", [
-                            _leaf("PreFlightCheck()", "Drone2"), _leaf("Calibrate()", "Drone2"),
-                        ]),
-                    ]),
-                    ("seq", "SEQ_ActivateCamera", "", [
-                        _leaf("TurnOnCamera()", "Drone2"), _leaf("AdjustCamera()", "Drone2"),
-                    ]),
-                ]),
-            ]),
+        "init",
+        "INIT",
+        "GCS",
+        [
+            (
+                "seq",
+                "INIT",
+                "",
+                [
+                    (
+                        "seq",
+                        "SEQ_Start",
+                        "",
+                        [
+                            (
+                                "par",
+                                "PAR_TurnOn",
+                                "",
+                                [
+                                    _leaf("TurnOn()", "Drone1"),
+                                    _leaf("TurnOn()", "Drone2"),
+                                    _leaf("TurnOn()", "Drone3"),
+                                ],
+                            ),
+                            (
+                                "par",
+                                "PAR_PreFlightChecks",
+                                "",
+                                [
+                                    (
+                                        "seq",
+                                        "SEQ_PreFlight1",
+                                        "",
+                                        [
+                                            _leaf("PreFlightCheck()", "Drone1"),
+                                            _leaf("Calibrate()", "Drone1"),
+                                        ],
+                                    ),
+                                    (
+                                        "seq",
+                                        "SEQ_PreFlight2",
+                                        "",
+                                        [
+                                            _leaf("PreFlightCheck()", "Drone2"),
+                                            _leaf("Calibrate()", "Drone2"),
+                                        ],
+                                    ),
+                                ],
+                            ),
+                            (
+                                "seq",
+                                "SEQ_ActivateCamera",
+                                "",
+                                [
+                                    _leaf("TurnOnCamera()", "Drone2"),
+                                    _leaf("AdjustCamera()", "Drone2"),
+                                ],
+                            ),
+                        ],
+                    ),
+                ],
+            ),
         ],
     )
     assert _shape(amt, 0) == expected
@@ -162,9 +204,15 @@ def test_figure8a_meg(figure8: Figure8) -> None:
     c, k = figure8
     meg_edges = {(f"n{a}", f"n{b}") for a, b in c.meg.edges}
     assert meg_edges == {
-        (k["n0"], k["n1"]), (k["n1"], k["fork2"]), (k["fork2"], k["fork3"]),
-        (k["fork2"], k["fork4"]), (k["fork3"], k["n5"]), (k["fork3"], k["n6"]),
-        (k["fork3"], k["n7"]), (k["fork4"], k["n8"]), (k["fork4"], k["n9"]),
+        (k["n0"], k["n1"]),
+        (k["n1"], k["fork2"]),
+        (k["fork2"], k["fork3"]),
+        (k["fork2"], k["fork4"]),
+        (k["fork3"], k["n5"]),
+        (k["fork3"], k["n6"]),
+        (k["fork3"], k["n7"]),
+        (k["fork4"], k["n8"]),
+        (k["fork4"], k["n9"]),
         (k["fork4"], k["n10"]),
     }
     assert list(c.mdgs) == ["GCS", "Drone1", "Drone2", "Drone3"]
@@ -182,13 +230,13 @@ def test_figure8c_mdg_of_drone2_and_listing4(figure8: Figure8) -> None:
     nodes, arcs = _mdg(c, "Drone2")
     f2, f3, f4 = k["fork2"], k["fork3"], k["fork4"]
     assert nodes == {
-        k["n0"]: ("GCS", False),                 # INITNODE_GCS, a proxy
-        k["n1"]: ("Drone2", True),               # n1_Calibrate
-        f"{f2}@Drone1": ("Drone1", False),       # n2_FORK_Drone1, a proxy
-        f"{f2}@Drone3": ("Drone3", False),       # n2_FORK_Drone3, a proxy
-        f"{f2}@Drone2": ("Drone2", True),        # n2_FORK
-        f"{f3}@Drone2": ("Drone2", True),        # n3_FORK
-        f"{f4}@Drone2": ("Drone2", True),        # n4_FORK
+        k["n0"]: ("GCS", False),  # INITNODE_GCS, a proxy
+        k["n1"]: ("Drone2", True),  # n1_Calibrate
+        f"{f2}@Drone1": ("Drone1", False),  # n2_FORK_Drone1, a proxy
+        f"{f2}@Drone3": ("Drone3", False),  # n2_FORK_Drone3, a proxy
+        f"{f2}@Drone2": ("Drone2", True),  # n2_FORK
+        f"{f3}@Drone2": ("Drone2", True),  # n3_FORK
+        f"{f4}@Drone2": ("Drone2", True),  # n4_FORK
         k["n7"]: ("Drone2", True),
         k["n8"]: ("Drone2", True),
         k["n9"]: ("Drone2", True),

@@ -29,49 +29,97 @@ SCALE = float(os.environ.get("EAMOS_HYPOTHESIS_EXAMPLES", "1"))
 
 
 def _settings(n: int) -> settings:
-    return settings(max_examples=max(1, int(n * SCALE)), deadline=None, derandomize=True,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    return settings(
+        max_examples=max(1, int(n * SCALE)),
+        deadline=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+    )
 
 
 # -- a random mission, as a tree that renders to mission text ---------------------------
 
 ACTIONS: list[tuple[str, int]] = [
-    ("Arm", 0), ("Takeoff", 1), ("Land", 0), ("FlyByX", 1), ("FlyByY", 1), ("FlyByZ", 1),
-    ("FlyToXYZ", 3), ("PauseFor", 1), ("TurnOn", 0), ("Calibrate", 0), ("TurnOnCamera", 0),
+    ("Arm", 0),
+    ("Takeoff", 1),
+    ("Land", 0),
+    ("FlyByX", 1),
+    ("FlyByY", 1),
+    ("FlyByZ", 1),
+    ("FlyToXYZ", 3),
+    ("PauseFor", 1),
+    ("TurnOn", 0),
+    ("Calibrate", 0),
+    ("TurnOnCamera", 0),
 ]
 PROPS = ["X", "Y", "Z", "Battery"]
-CONTROLS = ["If", "WaitWhile", "WaitUntil", "RepeatWhile", "RepeatUntil", "RepeatFor",
-            "DoWhile", "DoUntil"]
+CONTROLS = [
+    "If",
+    "WaitWhile",
+    "WaitUntil",
+    "RepeatWhile",
+    "RepeatUntil",
+    "RepeatFor",
+    "DoWhile",
+    "DoUntil",
+]
 
 drone_index = st.integers(min_value=1, max_value=4)
-comparison = st.tuples(drone_index, st.sampled_from(PROPS), st.sampled_from(["<", ">", ">="]),
-                       st.integers(min_value=-5, max_value=90))
+comparison = st.tuples(
+    drone_index,
+    st.sampled_from(PROPS),
+    st.sampled_from(["<", ">", ">="]),
+    st.integers(min_value=-5, max_value=90),
+)
 condition = st.lists(comparison, min_size=1, max_size=3)
 
 action = st.tuples(st.just("act"), drone_index, st.sampled_from(ACTIONS))
 pause = st.one_of(
     st.tuples(st.just("pause_for"), st.integers(min_value=1, max_value=5)),
-    st.tuples(st.just("pause"), st.sampled_from(["PauseWhile", "PauseUntil"]),
-              st.one_of(st.none(), drone_index), condition),
+    st.tuples(
+        st.just("pause"),
+        st.sampled_from(["PauseWhile", "PauseUntil"]),
+        st.one_of(st.none(), drone_index),
+        condition,
+    ),
 )
 leaf = st.one_of(action, action, action, pause)
 
 
 def _block(children: Any) -> Any:
-    return st.tuples(st.just("block"), st.sampled_from(["SEQ", "PAR"]),
-                     st.lists(children, min_size=1, max_size=4), st.booleans())
+    return st.tuples(
+        st.just("block"),
+        st.sampled_from(["SEQ", "PAR"]),
+        st.lists(children, min_size=1, max_size=4),
+        st.booleans(),
+    )
 
 
 def _extend(children: Any) -> Any:
     block = _block(children)
-    control = st.tuples(st.just("ctl"), st.sampled_from(CONTROLS), condition,
-                        st.integers(min_value=0, max_value=3), block, st.one_of(st.none(), block))
+    control = st.tuples(
+        st.just("ctl"),
+        st.sampled_from(CONTROLS),
+        condition,
+        st.integers(min_value=0, max_value=3),
+        block,
+        st.one_of(st.none(), block),
+    )
     # A PAR block of loops/Dos naming one Exit block (experiment D's shape).
-    with_exit = st.tuples(st.just("ctl"), st.sampled_from(CONTROLS[3:]), condition,
-                          st.integers(min_value=0, max_value=3), block, block)
-    shared = st.tuples(st.just("block"), st.just("PAR"),
-                       st.lists(st.one_of(with_exit, children), min_size=2, max_size=4),
-                       st.just(True))
+    with_exit = st.tuples(
+        st.just("ctl"),
+        st.sampled_from(CONTROLS[3:]),
+        condition,
+        st.integers(min_value=0, max_value=3),
+        block,
+        block,
+    )
+    shared = st.tuples(
+        st.just("block"),
+        st.just("PAR"),
+        st.lists(st.one_of(with_exit, children), min_size=2, max_size=4),
+        st.just(True),
+    )
     return st.one_of(block, control, shared)
 
 
@@ -98,8 +146,13 @@ class _Renderer:
         shared_exit: str | None = None
         for stmt in stmts:
             exit_name = None
-            if (share and mode == "PAR" and stmt[0] == "ctl" and stmt[5] is not None
-                    and stmt[1].startswith(("Repeat", "Do"))):
+            if (
+                share
+                and mode == "PAR"
+                and stmt[0] == "ctl"
+                and stmt[5] is not None
+                and stmt[1].startswith(("Repeat", "Do"))
+            ):
                 # Sibling structures naming the same Exit block share one instance of it.
                 if shared_exit is None:
                     shared_exit = self.block(stmt[5])
@@ -267,8 +320,11 @@ def _features(stmt: Any) -> set[str]:
     elif kind == "block":
         _, mode, stmts, share = stmt
         out.add(mode)
-        exits = [s for s in stmts if s[0] == "ctl" and s[5] is not None
-                 and s[1].startswith(("Repeat", "Do"))]
+        exits = [
+            s
+            for s in stmts
+            if s[0] == "ctl" and s[5] is not None and s[1].startswith(("Repeat", "Do"))
+        ]
         if share and mode == "PAR" and len(exits) >= 2:
             out.add("shared exit")
         for sub in stmts:
@@ -293,8 +349,16 @@ def test_the_generator_reaches_every_structure() -> None:
         sizes.append(render(tree).count("\n"))
 
     collect()
-    wanted = {*CONTROLS, "PauseWhile", "PauseUntil", "PauseWhile@drone", "PAR", "SEQ",
-              "PauseFor", "shared exit"}
+    wanted = {
+        *CONTROLS,
+        "PauseWhile",
+        "PauseUntil",
+        "PauseWhile@drone",
+        "PAR",
+        "SEQ",
+        "PauseFor",
+        "shared exit",
+    }
     assert wanted <= seen, wanted - seen
     assert max(sizes) >= 40  # some missions are big enough to be interesting
 
@@ -326,15 +390,22 @@ def test_random_text_never_crashes(text: str) -> None:
 
 
 @_settings(300)
-@given(st.text(alphabet=st.sampled_from(list("func SEQ_PAR_(){}\n\t.,;:=<>&|!-+*/\"0123456789"
-                                              "DroneXYZ Takeoff RepeatWhile If")), max_size=200))
+@given(
+    st.text(
+        alphabet=st.sampled_from(
+            list('func SEQ_PAR_(){}\n\t.,;:=<>&|!-+*/"0123456789DroneXYZ Takeoff RepeatWhile If')
+        ),
+        max_size=200,
+    )
+)
 def test_go_like_junk_never_crashes(text: str) -> None:
     _compile_or_mission_error(text)
 
 
 mutation = st.tuples(
     st.sampled_from(["delete", "insert", "replace", "swap_lines", "duplicate"]),
-    st.floats(min_value=0, max_value=1), st.integers(min_value=1, max_value=12),
+    st.floats(min_value=0, max_value=1),
+    st.integers(min_value=1, max_value=12),
     st.text(alphabet=st.sampled_from(list("(){},.;\n\t\"'0123456789-_xXyY&|!=<>")), max_size=6),
 )
 
@@ -346,13 +417,13 @@ def test_mutated_listings_never_crash(index: int, mutations: list[tuple[Any, ...
     for op, where, size, junk in mutations:
         pos = int(where * len(text))
         if op == "delete":
-            text = text[:pos] + text[pos + size:]
+            text = text[:pos] + text[pos + size :]
         elif op == "insert":
             text = text[:pos] + junk + text[pos:]
         elif op == "replace":
-            text = text[:pos] + junk + text[pos + size:]
+            text = text[:pos] + junk + text[pos + size :]
         elif op == "duplicate":
-            text = text[:pos] + text[pos:pos + size * 4] + text[pos:]
+            text = text[:pos] + text[pos : pos + size * 4] + text[pos:]
         else:
             lines = text.split("\n")
             i = int(where * (len(lines) - 1))

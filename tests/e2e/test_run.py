@@ -252,15 +252,20 @@ def test_node_waiting_for_missing_peers_stops_at_once_on_sigterm(tmp_path):
     cfg = tmp_path / "d1.toml"
     cfg.write_text(
         'drone = "Drone1"\nprogram = "Drone1.program.json"\nlog_dir = "logs"\n'
-        "ready_timeout_s = 300\n[net]\nbind = \"tcp://127.0.0.1:0\"\nplain = true\n"
+        'ready_timeout_s = 300\n[net]\nbind = "tcp://127.0.0.1:0"\nplain = true\n'
         '[net.peers]\nGCS = "tcp://127.0.0.1:9"\n[hal]\nadapter = "fake"\n'
     )
-    proc = subprocess.Popen([sys.executable, "-m", "eamos.node", "--config", str(cfg)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "eamos.node", "--config", str(cfg)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     log = tmp_path / "logs" / "mission.log"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and "mission.runtime.started" not in (
-            log.read_text() if log.exists() else ""):
+        log.read_text() if log.exists() else ""
+    ):
         time.sleep(0.05)  # test side only: wait until the node is up and waiting for its peers
     proc.send_signal(signal.SIGTERM)
     started = time.monotonic()

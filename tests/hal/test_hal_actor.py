@@ -87,7 +87,10 @@ def test_run_action_replies_action_finished(rig: Callable[..., Rig]) -> None:
     fake.finish(handle, ActionResult("ok"))
     reply = r.finished()
     assert (reply.token, reply.action, reply.args, reply.result) == (
-        "t1", "Takeoff", (5,), ActionResult("ok"),
+        "t1",
+        "Takeoff",
+        (5,),
+        ActionResult("ok"),
     )
     assert 0 < reply.start_s <= reply.end_s
 
@@ -167,7 +170,8 @@ def test_abort_cancels_running_actions(rig: Callable[..., Rig]) -> None:
     r.ref.tell(Abort())
     replies = {reply.token: reply.result for reply in (r.finished(), r.finished())}
     assert replies == {
-        "a": ActionResult("cancelled", "aborted"), "b": ActionResult("cancelled", "aborted"),
+        "a": ActionResult("cancelled", "aborted"),
+        "b": ActionResult("cancelled", "aborted"),
     }
     assert len(fake.calls_of("abort")) == 1
 
@@ -221,7 +225,8 @@ def test_uniform_log_is_json_lines(rig: Callable[..., Rig]) -> None:
     calls = [e for e in log if e["event"] == "uniform.call"]
     results = [e for e in log if e["event"] == "uniform.result"]
     assert [(e["token"], e["action"], e["args"]) for e in calls] == [
-        (7, "TakeOff", [1]), (8, "Takeoff", [3]),
+        (7, "TakeOff", [1]),
+        (8, "Takeoff", [3]),
     ]
     assert [(e["token"], e["status"]) for e in results] == [(7, "failed"), (8, "ok")]
     assert all(e["drone"] == "D1" and "ts" in e for e in log)

@@ -187,8 +187,11 @@ def test_limits_are_validated() -> None:
 
 @settings(max_examples=40, deadline=None)
 @given(
-    x=st.floats(-40, 40), y=st.floats(-40, 40), z=st.floats(0.5, 30),
-    speed=st.floats(0.5, 8), accel=st.floats(0.5, 6),
+    x=st.floats(-40, 40),
+    y=st.floats(-40, 40),
+    z=st.floats(0.5, 30),
+    speed=st.floats(0.5, 8),
+    accel=st.floats(0.5, 6),
 )
 def test_any_target_is_reached_within_limits(
     x: float, y: float, z: float, speed: float, accel: float
@@ -220,8 +223,11 @@ def test_geo_frame_scale_near_klagenfurt() -> None:
 
 
 @given(
-    x=st.floats(-2000, 2000), y=st.floats(-2000, 2000), z=st.floats(0, 500),
-    lat=st.floats(-80, 80), lon=st.floats(-179, 179),
+    x=st.floats(-2000, 2000),
+    y=st.floats(-2000, 2000),
+    z=st.floats(0, 500),
+    lat=st.floats(-80, 80),
+    lon=st.floats(-179, 179),
 )
 def test_lla_round_trip(x: float, y: float, z: float, lat: float, lon: float) -> None:
     frame = GeoFrame(lat, lon, 100.0)

@@ -423,7 +423,10 @@ def test_defaults() -> None:
     s = SimSettings.from_mapping({"adapter": "sim"})
     assert s == SimSettings()
     assert (s.speedup, s.horizontal_speed_mps, s.climb_speed_mps, s.descent_speed_mps) == (
-        1.0, 2.0, 1.0, 0.7,
+        1.0,
+        2.0,
+        1.0,
+        0.7,
     )
     assert (s.accel_mps2, s.tolerance_m, s.settle_speed_mps, s.arm_delay_s) == (2.0, 0.1, 0.2, 2.0)
     assert (s.telemetry_hz, s.battery_pct, s.action_timeout_s) == (10.0, 100.0, 120.0)
@@ -458,8 +461,11 @@ def test_settings_are_parsed() -> None:
         ({"pilot": {"x_m": 1}}, "hal.pilot", "list"),
         ({"pilot": [{"x_m": 1, "y_m": 2}]}, "hal.pilot[0].z_m", "missing"),
         ({"pilot": [{"x_m": 1, "y_m": 2, "z_m": 0}]}, "hal.pilot[0].z_m", "> 0"),
-        ({"pilot": [{"x_m": 1, "y_m": 1, "z_m": 1, "hold": 1}]}, "hal.pilot[0].hold",
-         "did you mean 'hold_s'"),
+        (
+            {"pilot": [{"x_m": 1, "y_m": 1, "z_m": 1, "hold": 1}]},
+            "hal.pilot[0].hold",
+            "did you mean 'hold_s'",
+        ),
         ({"pilot": [{"x_m": 1, "y_m": 1, "z_m": 1}, 5]}, "hal.pilot[1]", "mapping"),
     ],
 )

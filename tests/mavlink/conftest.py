@@ -49,8 +49,9 @@ def make_adapter(tmp_path: Path) -> Iterator[Callable[..., MavlinkAdapter]]:
         settings.setdefault("armable_timeout_s", 20.0)
         settings.setdefault("action_timeout_s", 30.0)
         log = make_logger(tmp_path / f"{drone}-adapter.log", drone=drone)
-        adapter = MavlinkAdapter(drone, MavlinkSettings.from_mapping(
-            {"connection": connection, **settings}), log)
+        adapter = MavlinkAdapter(
+            drone, MavlinkSettings.from_mapping({"connection": connection, **settings}), log
+        )
         made.append((adapter, log))
         return adapter
 

@@ -72,9 +72,9 @@ class Sink:
         self, predicate: Callable[[Telemetry], bool], timeout: float = WAIT_S
     ) -> Telemetry:
         with self._cond:
-            assert self._cond.wait_for(
-                lambda: any(predicate(s) for s in self.samples), timeout
-            ), f"no matching sample in {len(self.samples)}"
+            assert self._cond.wait_for(lambda: any(predicate(s) for s in self.samples), timeout), (
+                f"no matching sample in {len(self.samples)}"
+            )
             return next(s for s in self.samples if predicate(s))
 
     def last(self) -> Telemetry:
@@ -112,8 +112,9 @@ class Flight:
         self.ok("Arm")
         self.ok("Takeoff", height)
 
-    def wait_vehicle(self, predicate: Callable[[SimVehicle], bool],
-                     timeout: float = WAIT_S) -> None:
+    def wait_vehicle(
+        self, predicate: Callable[[SimVehicle], bool], timeout: float = WAIT_S
+    ) -> None:
         assert self.vehicle.wait_until(predicate, timeout), "vehicle condition not reached"
 
 
@@ -173,12 +174,19 @@ class RawClient:
     def heartbeat(self) -> None:
         self.mav.heartbeat_send(6, 8, 0, 0, 4)
 
-    def wait(self, kind: str, predicate: Callable[[Any], bool] = lambda m: True,
-             timeout: float = WAIT_S, after: int = 0) -> Any:
+    def wait(
+        self,
+        kind: str,
+        predicate: Callable[[Any], bool] = lambda m: True,
+        timeout: float = WAIT_S,
+        after: int = 0,
+    ) -> Any:
         """The first ``kind`` message (index >= ``after``) matching ``predicate``."""
         with self._cond:
+
             def found() -> Any:
                 return next((m for m in self.messages[kind][after:] if predicate(m)), None)
+
             assert self._cond.wait_for(lambda: found() is not None, timeout), f"no {kind}"
             return found()
 
@@ -186,8 +194,7 @@ class RawClient:
         with self._cond:
             return len(self.messages[kind])
 
-    def command(self, command: int, *params: float, target: int = 1,
-                timeout: float = 10.0) -> int:
+    def command(self, command: int, *params: float, target: int = 1, timeout: float = 10.0) -> int:
         """COMMAND_LONG and the result of its COMMAND_ACK."""
         seen = self.count("COMMAND_ACK")
         full = list(params) + [0.0] * (7 - len(params))

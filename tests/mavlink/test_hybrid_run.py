@@ -15,22 +15,46 @@ RUN_TIMEOUT_S = 300
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(RUN_TIMEOUT_S + 60)]
 
 
-def eamos_run(tmp_path: Path, mission: Path, fleet: Path, *extra: str
-              ) -> tuple[subprocess.CompletedProcess[str], dict]:
+def eamos_run(
+    tmp_path: Path, mission: Path, fleet: Path, *extra: str
+) -> tuple[subprocess.CompletedProcess[str], dict]:
     summary = tmp_path / "summary.json"
     proc = subprocess.run(
-        [sys.executable, "-m", "eamos.cli", "run", str(mission), "--fleet", str(fleet),
-         "--speedup", "5", "--plain", "--no-svg", "--timeout", "200",
-         "--run-dir", str(tmp_path / "run"), "--summary", str(summary), *extra],
-        capture_output=True, text=True, timeout=RUN_TIMEOUT_S, cwd=REPO,
+        [
+            sys.executable,
+            "-m",
+            "eamos.cli",
+            "run",
+            str(mission),
+            "--fleet",
+            str(fleet),
+            "--speedup",
+            "5",
+            "--plain",
+            "--no-svg",
+            "--timeout",
+            "200",
+            "--run-dir",
+            str(tmp_path / "run"),
+            "--summary",
+            str(summary),
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=RUN_TIMEOUT_S,
+        cwd=REPO,
     )
     data = json.loads(summary.read_text()) if summary.exists() else {}
     return proc, data
 
 
 def test_experiment_c_hybrid(tmp_path):
-    proc, summary = eamos_run(tmp_path, REPO / "missions" / "experiment_c.go",
-                              REPO / "configs" / "experiment_c_hybrid.toml")
+    proc, summary = eamos_run(
+        tmp_path,
+        REPO / "missions" / "experiment_c.go",
+        REPO / "configs" / "experiment_c_hybrid.toml",
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert summary["ok"] and set(summary["drones"]) == {"Drone1", "Drone2", "Drone3"}
     for name, report in summary["drones"].items():
@@ -46,8 +70,9 @@ def test_experiment_c_hybrid(tmp_path):
     for name, autopilot in (("Drone1", "px4"), ("Drone2", "ardupilot")):
         hal = tomllib.loads((run / "configs" / f"{name}.toml").read_text())["hal"]
         assert hal["adapter"] == "mavlink" and "sim_vehicle" not in hal
-        assert hal["connection"].startswith("udpin:127.0.0.1:" if autopilot == "px4"
-                                            else "tcp:127.0.0.1:")
+        assert hal["connection"].startswith(
+            "udpin:127.0.0.1:" if autopilot == "px4" else "tcp:127.0.0.1:"
+        )
         adapter_log = (run / "logs" / name / "adapter.log").read_text()
         assert f'"autopilot": "{autopilot}"' in adapter_log
         vehicle_log = (run / "logs" / name / "sim-vehicle.log").read_text()
@@ -99,8 +124,10 @@ def test_vehicle_refusing_to_arm_does_not_stop_an_independent_drone(tmp_path):
     assert proc.returncode == 1, proc.stdout + proc.stderr
     d1 = summary["drones"]["Drone1"]
     assert [(a["action"], a["result"]) for a in d1["actions"]] == [("Arm", "failed")]
-    assert d1["actions"][0]["reason"] == \
-        "vehicle never became armable within 3 s: Preflight Fail: ekf2 missing data"
+    assert (
+        d1["actions"][0]["reason"]
+        == "vehicle never became armable within 3 s: Preflight Fail: ekf2 missing data"
+    )
     assert not d1["ok"] and d1["blocked_nodes"]
     d2 = summary["drones"]["Drone2"]
     assert d2["ok"] and [a["result"] for a in d2["actions"]] == ["ok"] * 5
@@ -111,14 +138,19 @@ def test_bad_sim_vehicle_table_is_a_config_error(tmp_path):
     mission = tmp_path / "independent.go"
     mission.write_text(INDEPENDENT)
     fleet = tmp_path / "fleet.toml"
-    fleet.write_text('[drones.Drone1.hal]\nadapter = "mavlink"\n'
-                     'sim_vehicle = { autopilot = "inav" }\n')
+    fleet.write_text(
+        '[drones.Drone1.hal]\nadapter = "mavlink"\nsim_vehicle = { autopilot = "inav" }\n'
+    )
     proc, _ = eamos_run(tmp_path, mission, fleet)
     assert proc.returncode == 2
     assert 'drones.Drone1.hal.sim_vehicle.autopilot: must be "px4" or "ardupilot"' in proc.stderr
-    fleet.write_text('[drones.Drone1.hal]\nadapter = "mavlink"\nheartbeat_timeout = 2\n'
-                     'sim_vehicle = { autopilot = "px4" }\n')
+    fleet.write_text(
+        '[drones.Drone1.hal]\nadapter = "mavlink"\nheartbeat_timeout = 2\n'
+        'sim_vehicle = { autopilot = "px4" }\n'
+    )
     proc, _ = eamos_run(tmp_path, mission, fleet)
     assert proc.returncode == 2
-    assert "hal.heartbeat_timeout: unknown setting (did you mean 'heartbeat_timeout_s'?)" \
+    assert (
+        "hal.heartbeat_timeout: unknown setting (did you mean 'heartbeat_timeout_s'?)"
         in proc.stderr
+    )

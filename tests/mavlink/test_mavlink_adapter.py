@@ -149,8 +149,11 @@ def test_pause_for_is_a_timer(flight):
 def test_autopilot_setting_must_match_the_heartbeat(make_vehicle, make_adapter):
     _, conn = make_vehicle("ardupilot")
     adapter = make_adapter(conn, autopilot="px4")
-    with pytest.raises(AdapterError, match=r"hal\.autopilot: is 'px4' but the vehicle's "
-                                           r"HEARTBEAT announces ardupilot \(3\)"):
+    with pytest.raises(
+        AdapterError,
+        match=r"hal\.autopilot: is 'px4' but the vehicle's "
+        r"HEARTBEAT announces ardupilot \(3\)",
+    ):
         adapter.start(lambda s: None)
 
 

@@ -32,8 +32,11 @@ def test_unreachable_udp_vehicle(make_adapter):
     port = free_port(socket.SOCK_DGRAM)
     adapter = make_adapter(f"udpin:127.0.0.1:{port}", connect_timeout_s=1.0)
     t0 = time.monotonic()
-    with pytest.raises(AdapterError, match=rf"D1: no heartbeat from udpin:127\.0\.0\.1:{port} "
-                                           r"within 1 s$"):
+    with pytest.raises(
+        AdapterError,
+        match=rf"D1: no heartbeat from udpin:127\.0\.0\.1:{port} "
+        r"within 1 s$",
+    ):
         adapter.start(lambda s: None)
     assert 0.9 < time.monotonic() - t0 < 3.0
 
@@ -42,8 +45,11 @@ def test_unreachable_tcp_vehicle(make_adapter):
     port = free_port(socket.SOCK_STREAM)  # nobody listens: every dial is refused
     adapter = make_adapter(f"tcp:127.0.0.1:{port}", connect_timeout_s=1.5)
     t0 = time.monotonic()
-    with pytest.raises(AdapterError, match=rf"no heartbeat from tcp:127\.0\.0\.1:{port} within "
-                                           r"1\.5 s \(TCP: .*refused"):
+    with pytest.raises(
+        AdapterError,
+        match=rf"no heartbeat from tcp:127\.0\.0\.1:{port} within "
+        r"1\.5 s \(TCP: .*refused",
+    ):
         adapter.start(lambda s: None)
     assert 1.4 < time.monotonic() - t0 < 4.0
 
@@ -92,10 +98,13 @@ def test_land_rejected_px4(flight):
     assert f.vehicle.armed and f.vehicle.position[2] > 1.0  # still up there, holding
 
 
-@pytest.mark.parametrize(("autopilot", "text"), [
-    ("px4", "Preflight Fail: ekf2 missing data"),
-    ("ardupilot", "PreArm: EKF3 still initialising"),
-])
+@pytest.mark.parametrize(
+    ("autopilot", "text"),
+    [
+        ("px4", "Preflight Fail: ekf2 missing data"),
+        ("ardupilot", "PreArm: EKF3 still initialising"),
+    ],
+)
 def test_vehicle_that_never_becomes_armable(flight, autopilot, text, tmp_path):
     f = flight(autopilot, vehicle={"prearm_delay_s": float("inf")}, armable_timeout_s=2.0)
     t0 = time.monotonic()
@@ -129,8 +138,10 @@ def test_arming_temporarily_rejected_is_retried_until_armable(flight):
 def test_arming_temporarily_rejected_until_the_armable_timeout(flight):
     f = flight("px4", vehicle={"reject": {400: TEMPORARILY_REJECTED}}, armable_timeout_s=3.0)
     result = f.do("Arm")
-    assert result.reason.startswith("arming refused (MAV_RESULT_TEMPORARILY_REJECTED until the "
-                                    "3 s armable timeout): Command 400 rejected (test fault)")
+    assert result.reason.startswith(
+        "arming refused (MAV_RESULT_TEMPORARILY_REJECTED until the "
+        "3 s armable timeout): Command 400 rejected (test fault)"
+    )
     assert f.vehicle.commands.count((400, TEMPORARILY_REJECTED)) >= 2  # it did try again
 
 
@@ -192,8 +203,9 @@ def test_long_link_drop_fails_the_action_and_later_actions_work(flight, autopilo
     f.vehicle.drop_link(4.0)
     result = done.wait()
     assert result.status == "failed"
-    assert result.reason.startswith("heartbeat lost: no HEARTBEAT from the vehicle for more "
-                                    "than 1.5 s")
+    assert result.reason.startswith(
+        "heartbeat lost: no HEARTBEAT from the vehicle for more than 1.5 s"
+    )
     assert 0.9 < time.monotonic() - t0 < 3.5  # last HEARTBEAT + 1.5 s
     # While the link is down, new actions fail at once rather than hang.
     assert f.do("FlyByY", 1.0, timeout=5).reason.startswith("heartbeat lost")

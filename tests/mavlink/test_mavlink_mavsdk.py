@@ -19,8 +19,9 @@ from typing import Any
 import pytest
 
 pytest.importorskip(
-    "mavsdk.asyncio", reason="mavsdk (MAVSDK-Python 4.x, native) is not installed: "
-                             "pip install 'eamos[test]' or pip install mavsdk",
+    "mavsdk.asyncio",
+    reason="mavsdk (MAVSDK-Python 4.x, native) is not installed: "
+    "pip install 'eamos[test]' or pip install mavsdk",
 )
 
 from mavlink_helpers import connections
@@ -77,15 +78,23 @@ def fly(vehicle: SimVehicle, url: str, body: Callable[[Any], Awaitable[None]]) -
 def test_mavsdk_flies_the_px4_personality(tmp_path: Path):
     vehicle_conn, client_conn = connections("px4")
     port = client_conn.rsplit(":", 1)[1]
-    vehicle = SimVehicle(VehicleOptions("px4", vehicle_conn, speedup=5.0, prearm_delay_s=2.0,
-                                        log=tmp_path / "vehicle.log"))
+    vehicle = SimVehicle(
+        VehicleOptions(
+            "px4", vehicle_conn, speedup=5.0, prearm_delay_s=2.0, log=tmp_path / "vehicle.log"
+        )
+    )
     seen: dict[str, Any] = {}
 
     async def body(system: Any) -> None:
-        telemetry, action, offboard = TelemetryAsync(system), ActionAsync(system), \
-            OffboardAsync(system)
-        health = await first(telemetry.subscribe_health(), lambda h: h.is_armable
-                             and h.is_global_position_ok and h.is_home_position_ok)
+        telemetry, action, offboard = (
+            TelemetryAsync(system),
+            ActionAsync(system),
+            OffboardAsync(system),
+        )
+        health = await first(
+            telemetry.subscribe_health(),
+            lambda h: h.is_armable and h.is_global_position_ok and h.is_home_position_ok,
+        )
         seen["health"] = health
         await action.set_takeoff_altitude(3.0)  # PARAM_SET MIS_TAKEOFF_ALT
         assert await action.get_takeoff_altitude() == pytest.approx(3.0)
@@ -97,19 +106,25 @@ def test_mavsdk_flies_the_px4_personality(tmp_path: Path):
         home = await telemetry.home()
         target_lat = home.latitude_deg + 5.0 / M_PER_DEG_LAT
         # DO_REPOSITION (after MAVSDK puts the vehicle in HOLD).
-        await action.goto_location(target_lat, home.longitude_deg,
-                                   home.absolute_altitude_m + 3.0, 0.0)
-        await first(telemetry.subscribe_position(),
-                    lambda p: abs(p.latitude_deg - target_lat) * M_PER_DEG_LAT < 0.3)
+        await action.goto_location(
+            target_lat, home.longitude_deg, home.absolute_altitude_m + 3.0, 0.0
+        )
+        await first(
+            telemetry.subscribe_position(),
+            lambda p: abs(p.latitude_deg - target_lat) * M_PER_DEG_LAT < 0.3,
+        )
         here = await first(telemetry.subscribe_position_velocity_ned(), settled)
         # OFFBOARD: MAVSDK streams the setpoint itself once one is set.
         north, east, down = here.position.north_m, here.position.east_m, here.position.down_m
         await offboard.set_position_ned(PositionNedYaw(north, east + 2.0, down, 0.0))
         await offboard.start()
-        seen["mode"] = await first(telemetry.subscribe_flight_mode(),
-                                   lambda m: m.name == "OFFBOARD")
-        await first(telemetry.subscribe_position_velocity_ned(),
-                    lambda pv: abs(pv.position.east_m - (east + 2.0)) < 0.3 and settled(pv))
+        seen["mode"] = await first(
+            telemetry.subscribe_flight_mode(), lambda m: m.name == "OFFBOARD"
+        )
+        await first(
+            telemetry.subscribe_position_velocity_ned(),
+            lambda pv: abs(pv.position.east_m - (east + 2.0)) < 0.3 and settled(pv),
+        )
         await offboard.stop()
         await action.land()
         await first(telemetry.subscribe_landed_state(), lambda s: s.name == "ON_GROUND")
@@ -129,8 +144,11 @@ def test_mavsdk_flies_the_px4_personality(tmp_path: Path):
 def test_mavsdk_flies_the_ardupilot_personality(tmp_path: Path):
     vehicle_conn, client_conn = connections("ardupilot")
     port = client_conn.rsplit(":", 1)[1]
-    vehicle = SimVehicle(VehicleOptions("ardupilot", vehicle_conn, speedup=5.0,
-                                        prearm_delay_s=2.0, log=tmp_path / "vehicle.log"))
+    vehicle = SimVehicle(
+        VehicleOptions(
+            "ardupilot", vehicle_conn, speedup=5.0, prearm_delay_s=2.0, log=tmp_path / "vehicle.log"
+        )
+    )
 
     async def body(system: Any) -> None:
         telemetry, action = TelemetryAsync(system), ActionAsync(system)

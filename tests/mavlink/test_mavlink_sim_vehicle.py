@@ -75,10 +75,13 @@ def test_ardupilot_mode_set_during_boot_is_overwritten(make_vehicle, raw_client)
     assert client.wait("HEARTBEAT", lambda m: m.custom_mode == 4)
 
 
-@pytest.mark.parametrize(("autopilot", "result", "text"), [
-    ("px4", TEMPORARILY_REJECTED, "Arming denied: Resolve system health failures first"),
-    ("ardupilot", FAILED, "Arm: EKF3 still initialising"),
-])
+@pytest.mark.parametrize(
+    ("autopilot", "result", "text"),
+    [
+        ("px4", TEMPORARILY_REJECTED, "Arming denied: Resolve system health failures first"),
+        ("ardupilot", FAILED, "Arm: EKF3 still initialising"),
+    ],
+)
 def test_arming_before_pre_arm_checks_pass(make_vehicle, raw_client, autopilot, result, text):
     vehicle, client = start(make_vehicle, raw_client, autopilot, prearm_delay_s=float("inf"))
     client.wait("HEARTBEAT")
@@ -112,10 +115,11 @@ def test_commands_and_intervals(make_vehicle, raw_client):
     seen = client.count("LOCAL_POSITION_NED")
     client.wait("LOCAL_POSITION_NED", after=seen + 30)
     with client._cond:
-        stamps = [m.time_boot_ms for m in client.messages["LOCAL_POSITION_NED"][seen + 5:]]
+        stamps = [m.time_boot_ms for m in client.messages["LOCAL_POSITION_NED"][seen + 5 :]]
     # Rates are in simulated time (time_boot_ms): 50 ms apart.
-    assert statistics.median(b - a for a, b in itertools.pairwise(stamps)) == \
-        pytest.approx(50, abs=12)
+    assert statistics.median(b - a for a, b in itertools.pairwise(stamps)) == pytest.approx(
+        50, abs=12
+    )
     assert client.command(SET_INTERVAL, 32, -1) == ACCEPTED  # off
     assert client.command(REQUEST_MESSAGE, 148) == ACCEPTED
     version = client.wait("AUTOPILOT_VERSION")
@@ -159,14 +163,17 @@ def test_px4_offboard_rules_and_failsafe(make_vehicle, raw_client):
         while not halt.wait(0.05):
             if not paused.is_set():
                 client.mav.set_position_target_local_ned_send(
-                    0, 1, 1, LOCAL_NED, POSITION_MASK, 0.0, 0.0, stream["z"],
-                    0, 0, 0, 0, 0, 0, 0, 0)
+                    0, 1, 1, LOCAL_NED, POSITION_MASK, 0.0, 0.0, stream["z"], 0, 0, 0, 0, 0, 0, 0, 0
+                )
 
     thread = threading.Thread(target=streamer, daemon=True)
     thread.start()
     try:
-        client.wait("SYS_STATUS", lambda m: m.onboard_control_sensors_health & PREARM,
-                    after=client.count("SYS_STATUS"))
+        client.wait(
+            "SYS_STATUS",
+            lambda m: m.onboard_control_sensors_health & PREARM,
+            after=client.count("SYS_STATUS"),
+        )
         assert client.command(ARM, 1) == ACCEPTED
         stream["z"] = ground.z - 3.0  # 3 m up (NED)
         assert vehicle.wait_until(lambda v: v.position[2] > 2.8, WAIT_S)
@@ -179,8 +186,9 @@ def test_px4_offboard_rules_and_failsafe(make_vehicle, raw_client):
         client.wait("TEXT", lambda t: "Offboard is currently not available" in t)
         # ...and the vehicle returns to OFFBOARD by itself once setpoints resume.
         paused.clear()
-        client.wait("HEARTBEAT", lambda m: m.custom_mode == OFFBOARD,
-                    after=client.count("HEARTBEAT"))
+        client.wait(
+            "HEARTBEAT", lambda m: m.custom_mode == OFFBOARD, after=client.count("HEARTBEAT")
+        )
         # Disarming in the air is denied; landing is not.
         assert client.command(ARM, 0) == DENIED
         client.wait("TEXT", lambda t: t == "Disarming denied: not landed")
@@ -233,8 +241,12 @@ def test_tcp_vehicle_accepts_a_new_client(make_vehicle, raw_client):
 
 
 def vehicle_cli(*args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, "-m", "eamos.hal.sim_vehicle", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "eamos.hal.sim_vehicle", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
@@ -242,9 +254,20 @@ def test_cli_runs_and_stops_cleanly(tmp_path, sig):
     vehicle_conn, client_conn = connections("px4")
     client = RawClient(client_conn)
     log = tmp_path / "v.log"
-    proc = vehicle_cli("--autopilot", "px4", "--connection", vehicle_conn, "--sysid", "7",
-                       "--speedup", "4", "--reject", "MAV_CMD_NAV_TAKEOFF=FAILED",
-                       "--log", str(log))
+    proc = vehicle_cli(
+        "--autopilot",
+        "px4",
+        "--connection",
+        vehicle_conn,
+        "--sysid",
+        "7",
+        "--speedup",
+        "4",
+        "--reject",
+        "MAV_CMD_NAV_TAKEOFF=FAILED",
+        "--log",
+        str(log),
+    )
     try:
         hb = client.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 7, timeout=30)
         assert hb.autopilot == 12
@@ -262,8 +285,9 @@ def test_cli_runs_and_stops_cleanly(tmp_path, sig):
 
 
 def test_cli_rejects_bad_arguments():
-    proc = vehicle_cli("--autopilot", "px4", "--connection", "udpout:127.0.0.1:9",
-                       "--reject", "MAV_CMD_WARP_DRIVE")
+    proc = vehicle_cli(
+        "--autopilot", "px4", "--connection", "udpout:127.0.0.1:9", "--reject", "MAV_CMD_WARP_DRIVE"
+    )
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 2 and "unknown MAVLink command 'MAV_CMD_WARP_DRIVE'" in err
     proc = vehicle_cli("--autopilot", "inav", "--connection", "udpout:127.0.0.1:9")

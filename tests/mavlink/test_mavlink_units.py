@@ -75,8 +75,13 @@ def test_frames_round_trip(x, y, z, n0, e0, d0):
 
 @pytest.mark.parametrize(
     ("name", "custom"),
-    [("OFFBOARD", 0x00060000), ("AUTO.TAKEOFF", 0x02040000), ("HOLD", 0x03040000),
-     ("AUTO.LAND", 0x06040000), ("POSCTL", 0x00030000)],
+    [
+        ("OFFBOARD", 0x00060000),
+        ("AUTO.TAKEOFF", 0x02040000),
+        ("HOLD", 0x03040000),
+        ("AUTO.LAND", 0x06040000),
+        ("POSCTL", 0x00030000),
+    ],
 )
 def test_px4_custom_modes_match_the_notes(name, custom):
     px4 = Px4()
@@ -105,8 +110,9 @@ def test_autopilot_detected_from_heartbeat():
 
 def test_mavlink_is_a_registered_adapter():
     assert "mavlink" in ADAPTERS
-    adapter = make_adapter("D1", {"adapter": "mavlink", "connection": "udpin:0.0.0.0:14540"},
-                           make_logger(None))
+    adapter = make_adapter(
+        "D1", {"adapter": "mavlink", "connection": "udpin:0.0.0.0:14540"}, make_logger(None)
+    )
     try:
         assert isinstance(adapter, MavlinkAdapter)
     finally:
@@ -136,8 +142,11 @@ def test_settings_defaults():
         ({"connection": "tcp:h:1", "heartbeat_timeout_s": -1}, r"hal\.heartbeat_timeout_s: must"),
         ({"connection": "tcp:h:1", "setpoint_hz": 1}, r"hal\.setpoint_hz: must be > 2"),
         ({"connection": "tcp:h:1", "takeoff_mode": "x"}, r"hal\.takeoff_mode: expected one of"),
-        ({"connection": "tcp:h:1", "tolerance": 1}, r"hal\.tolerance: unknown setting \(did you "
-                                                    r"mean 'tolerance_m'\?\)"),
+        (
+            {"connection": "tcp:h:1", "tolerance": 1},
+            r"hal\.tolerance: unknown setting \(did you "
+            r"mean 'tolerance_m'\?\)",
+        ),
     ],
 )
 def test_settings_errors_name_the_field(settings, message):
@@ -147,8 +156,15 @@ def test_settings_errors_name_the_field(settings, message):
 
 @pytest.mark.parametrize(
     "text",
-    ["udpin:0.0.0.0:14540", "udpout:127.0.0.1:14580", "tcp:127.0.0.1:5760", "tcpin:0.0.0.0:5760",
-     "/dev/ttyACM0", "/dev/ttyAMA0,921600", "COM3,57600"],
+    [
+        "udpin:0.0.0.0:14540",
+        "udpout:127.0.0.1:14580",
+        "tcp:127.0.0.1:5760",
+        "tcpin:0.0.0.0:5760",
+        "/dev/ttyACM0",
+        "/dev/ttyAMA0,921600",
+        "COM3,57600",
+    ],
 )
 def test_connection_strings_accepted(text):
     assert check_connection(text) == ""
@@ -162,7 +178,10 @@ def test_result_names():
 
 def test_parse_reject():
     assert parse_reject(["MAV_CMD_NAV_TAKEOFF", "NAV_LAND=failed", "400=DENIED"]) == {
-        22: DENIED, 21: FAILED, 400: DENIED}
+        22: DENIED,
+        21: FAILED,
+        400: DENIED,
+    }
     with pytest.raises(ValueError, match="unknown MAVLink command"):
         parse_reject(["MAV_CMD_FLY_TO_THE_MOON"])
     with pytest.raises(ValueError, match="result must be one of"):
