@@ -36,11 +36,11 @@ from .actors.ground import DroneView, GroundStation
 from .actors.runtime import DroneRuntime, DroneRuntimeError, NetSettings
 from .config import ConfigError, NodeConfig
 from .hal import AdapterError, make_adapter
-from .hal.uniform import GROUND_STATION
 from .logs import close_logger, make_logger
 from .net import wire
 from .net.link import PeerStatus
 from .program.format import DroneProgram, ProgramError, load_program
+from .program.uniform import GROUND_STATION
 
 REPORT_ACK_TIMEOUT_S = 10.0
 """How long a drone waits for the ground station to acknowledge its final report."""

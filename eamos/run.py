@@ -27,13 +27,13 @@ from .actors.ground import DroneView, GroundStation
 from .actors.runtime import DroneRuntime, NetSettings
 from .compiler import CompiledMission, compile_file
 from .config import ConfigError, FleetConfig, toml_value
+from .ground.vehicles import start_sim_vehicles
 from .hal import AdapterError, make_adapter
-from .hal.uniform import GROUND_STATION
-from .hal.vehicles import start_sim_vehicles
 from .logs import make_logger
 from .net import wire
 from .net.keys import FleetKeys, create_fleet_keys
 from .program.format import DroneProgram
+from .program.uniform import GROUND_STATION
 
 
 @dataclass

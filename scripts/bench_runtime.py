@@ -15,7 +15,7 @@ Measures, each in fresh processes:
   actions take no time: start trigger to the last drone resolved, plus the whole
   wall time of ``eamos run`` (compile, spawn 20 processes, run, reports).
 * ``net_latency``: the cross-drone trigger latency again, p50/p99, between
-  ``eamos-node`` processes started from configs (:mod:`eamos.net.lab`), with
+  ``eamos-node`` processes started from configs (:mod:`tests.support.netlab`), with
   CURVE on and off (plain, loopback), and with CURVE under 10 % random packet
   loss (iptables in a network namespace; needs root, else reported skipped).
 * ``net_bytes``: what one trigger costs on the network: its message (topic +
@@ -38,6 +38,8 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+# The network lab (namespaces, node processes) is test infrastructure in tests/support.
+sys.path.insert(0, str(REPO))
 ACTIONS = ("TurnOn", "PreFlightCheck", "Calibrate")
 
 
@@ -213,7 +215,7 @@ def _fleet_run(
     loopback drops incoming packets at random (iptables), which needs root.
     """
     from eamos.compiler import compile_mission
-    from eamos.net.lab import Netns, node_argv, write_fleet
+    from tests.support.netlab import Netns, node_argv, write_fleet
 
     compiled = compile_mission(source, f"{name}.go")
     names = list(compiled.programs)
@@ -302,7 +304,7 @@ def _latencies(summary: dict) -> dict:
 
 
 def bench_net_latency(tmp: Path, hops: int, loss_hops: int) -> dict:
-    from eamos.net.lab import lab_unavailable
+    from tests.support.netlab import lab_unavailable
 
     out = {
         "curve": _latencies(_fleet_run(tmp, "curve", ping_pong_mission(hops), True)),
@@ -364,8 +366,8 @@ for link in links.values():
 
 def bench_net_bytes(tmp: Path, n: int) -> dict:
     """Bytes per trigger, one trigger in flight at a time (as in a mission's chains)."""
-    from eamos.net.lab import Netns, lab_unavailable
     from eamos.net.wire import Ack, Heartbeat, Trigger, encode
+    from tests.support.netlab import Netns, lab_unavailable
 
     mission = "0123456789abcdef"  # ids are 16 hex digits
     sample = Trigger(mission, "Drone1", "Drone2", "n12", "n34", (0,), "done", seq=12)

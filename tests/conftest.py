@@ -25,3 +25,8 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
             )
             print(f"\nEAMOS_NO_SKIP=1 but skipped: {report.nodeid}: {reason}")
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+# Fixtures shared across test packages live in tests/support and load as a plugin, so no
+# test ever imports a conftest.
+pytest_plugins = ["tests.support.sim_fixtures"]

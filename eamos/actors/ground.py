@@ -24,9 +24,9 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..hal.uniform import GROUND_STATION
 from ..net import wire
 from ..net.link import PeerStatus
+from ..program.uniform import GROUND_STATION
 from .runtime import DroneRuntime
 
 

@@ -14,7 +14,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..hal.actor import ActionFinished, CancelAction, RunAction
 from ..program.conditions import Unknown, evaluate, properties, to_text
 from ..program.format import ProgramNode
 from .dispatch import Dispatcher, PooledActor
@@ -33,6 +32,7 @@ from .messages import (
     Watch,
 )
 from .state import Fired, Iteration, Preconditions, Status, holds, within
+from .uniform_api import ActionFinished, CancelAction, RunAction
 
 LOOP_KINDS = frozenset({"repeat_while", "repeat_until", "repeat_for"})
 DO_KINDS = frozenset({"do_while", "do_until"})

@@ -21,16 +21,14 @@ from typing import Any
 import pykka
 import zmq
 
-from ..hal.actor import Abort as HalAbort
-from ..hal.actor import UniformAPI
 from ..hal.api import Adapter, AdapterError, Telemetry
-from ..hal.uniform import GROUND_STATION, PROPERTY_FIELDS
 from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import Link, LinkSettings, PeerStatus, TelemetryStale
 from ..program.format import DroneProgram
+from ..program.uniform import GROUND_STATION, PROPERTY_FIELDS
 from .dispatch import Dispatcher
 from .messages import (
     AbortMission,
@@ -49,6 +47,8 @@ from .messages import (
     Watch,
 )
 from .node import BroadcastInterrupt, Links, MissionNode, Route, Wire
+from .uniform_api import Abort as HalAbort
+from .uniform_api import UniformAPI
 
 
 class DroneRuntimeError(Exception):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from ..hal.uniform import (
+from ..program.uniform import (
     ACTIONS,
     DEFAULT_DRONE_TYPE,
     DRONE_TYPES,

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import networkx as nx
 
-from ..hal.uniform import GROUND_STATION
+from ..program.uniform import GROUND_STATION
 from .errors import CompilerBug
 
 

@@ -47,7 +47,7 @@ from xml.sax.saxutils import escape as _xml_escape
 
 import networkx as nx
 
-from ..hal.uniform import GROUND_STATION
+from ..program.uniform import GROUND_STATION
 
 log = logging.getLogger(__name__)
 

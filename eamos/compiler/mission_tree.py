@@ -42,8 +42,8 @@ from dataclasses import dataclass, field
 
 import networkx as nx
 
-from ..hal.uniform import GROUND_STATION
 from ..program.conditions import Condition, to_text
+from ..program.uniform import GROUND_STATION
 from .check import props_read
 from .errors import CompilerBug
 from .syntax import (

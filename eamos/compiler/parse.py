@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from ..hal.uniform import ACTIONS, PROPERTIES
+from ..program.uniform import ACTIONS, PROPERTIES
 from .errors import Diagnostic, MissionError, SourceLocation
 from .syntax import (
     CONTROL_KINDS,

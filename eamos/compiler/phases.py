@@ -18,8 +18,8 @@ from pathlib import Path
 import networkx as nx
 
 from .. import __version__
-from ..hal.uniform import GROUND_STATION
 from ..program.format import DroneProgram
+from ..program.uniform import GROUND_STATION
 from .check import collect_diagnostics, drone_types
 from .dependency_graph import fleet, mdg_stats, slice_dependency_graphs
 from .errors import Diagnostic, MissionError, SourceLocation

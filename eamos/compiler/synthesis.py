@@ -12,9 +12,9 @@ from typing import Any
 import networkx as nx
 
 from .. import __version__
-from ..hal.uniform import GROUND_STATION, GROUND_TYPE
 from ..program.conditions import properties
 from ..program.format import DroneProgram, ProgramArc, ProgramNode
+from ..program.uniform import GROUND_STATION, GROUND_TYPE
 
 
 def _node(key: str, attrs: dict[str, Any]) -> ProgramNode:

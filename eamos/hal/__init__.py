@@ -1,4 +1,4 @@
-"""The hardware-abstraction layer: uniform API, adapters and the uniform-API actor.
+"""The hardware-abstraction layer: the adapters behind the uniform API.
 
 ``make_adapter(drone, settings, adapter_log)`` builds the adapter a drone's
 ``hal`` settings ask for (``settings["adapter"]``).  Adapter modules are
@@ -13,7 +13,6 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any
 
-from eamos.hal.actor import Abort, ActionFinished, CancelAction, RunAction, UniformAPI
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
 from eamos.hal.settings import did_you_mean, field_error
 
@@ -65,15 +64,10 @@ def make_adapter(drone: str, settings: Mapping[str, Any], adapter_log: Any) -> A
 
 __all__ = [
     "ADAPTERS",
-    "Abort",
-    "ActionFinished",
     "ActionHandle",
     "ActionResult",
     "Adapter",
     "AdapterError",
-    "CancelAction",
-    "RunAction",
     "Telemetry",
-    "UniformAPI",
     "make_adapter",
 ]

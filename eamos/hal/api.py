@@ -1,7 +1,7 @@
 """The seam between the uniform API and the adapters (paper Figures 4 and 5).
 
 An *adapter* drives one vehicle (a simulated quadcopter, a MAVLink autopilot,
-a fake for unit tests).  The uniform-API actor (:mod:`eamos.hal.actor`) owns
+a fake for unit tests).  The uniform-API actor (:mod:`eamos.actors.uniform_api`) owns
 exactly one adapter and is the only caller of these methods, always from its
 own thread; adapters call back from any thread they like.
 

@@ -23,8 +23,8 @@ from eamos.hal.api import (
 )
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.settings import COMMON_KEYS, check_keys, number, require_mapping
-from eamos.hal.uniform import ACTIONS
 from eamos.logs import make_logger
+from eamos.program.uniform import ACTIONS
 
 
 @dataclass(frozen=True)

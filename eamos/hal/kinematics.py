@@ -300,19 +300,3 @@ class GeoFrame:
     def amsl_m(self, z_m: float) -> float:
         """Altitude above mean sea level of a point ``z_m`` above home."""
         return self.home_alt_m + z_m
-
-
-def relative_target(
-    action: str, args: tuple[float, ...], base: tuple[float, float, float]
-) -> tuple[float, float, float] | None:
-    """Where FlyByX/Y/Z or FlyToXYZ goes, starting from ``base`` (None for other actions)."""
-    x, y, z = base
-    if action == "FlyByX":
-        return (x + args[0], y, z)
-    if action == "FlyByY":
-        return (x, y + args[0], z)
-    if action == "FlyByZ":
-        return (x, y, z + args[0])
-    if action == "FlyToXYZ":
-        return (args[0], args[1], args[2])
-    return None

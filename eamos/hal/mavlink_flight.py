@@ -23,7 +23,6 @@ from typing import Literal
 
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
 from eamos.hal.autopilots import CommandRejected
-from eamos.hal.kinematics import relative_target
 from eamos.hal.mavlink_frames import Vector, mission_to_ned
 from eamos.hal.mavlink_link import (
     MAV_RESULT_ACCEPTED,
@@ -32,6 +31,7 @@ from eamos.hal.mavlink_link import (
     result_name,
 )
 from eamos.hal.mavlink_vehicle import MavlinkVehicle
+from eamos.program.uniform import decode_command, target_xyz
 
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_DO_SET_MODE = 176
@@ -360,7 +360,7 @@ class Flight:
             if v.on_ground(v.state) or v.origin is None:
                 raise Failed("not flying")
             lla: tuple[float, float, float] | None = None
-            relative = relative_target(name, args, v.base_point())
+            relative = target_xyz(decode_command(name, args), v.base_point())
             if relative is not None:
                 target = relative
             else:  # FlyToLLA

@@ -35,7 +35,7 @@ from eamos.hal.mavlink_link import (
 from eamos.hal.settings import field_error
 
 if TYPE_CHECKING:
-    from eamos.hal.mavlink import MavlinkSettings
+    from eamos.hal.mavlink_settings import MavlinkSettings
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_FRAME_LOCAL_NED = 1

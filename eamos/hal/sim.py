@@ -65,7 +65,7 @@ from eamos.hal.api import (
     Telemetry,
     TelemetryCallback,
 )
-from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter, VehicleState, relative_target
+from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter, VehicleState
 from eamos.hal.settings import (
     COMMON_KEYS,
     as_number,
@@ -76,8 +76,8 @@ from eamos.hal.settings import (
     require_mapping,
     string_list,
 )
-from eamos.hal.uniform import ACTIONS, MOTION_ACTIONS
 from eamos.logs import make_logger
+from eamos.program.uniform import ACTIONS, MOTION_ACTIONS, decode_command, target_xyz
 
 #: Simulated seconds per model step.
 SIM_DT_S = 0.02
@@ -595,12 +595,9 @@ class SimAdapter:
             model.land()
             return None
         base = self._base_point()
-        target = relative_target(name, args, base)
-        if target is None:
-            if name == "Takeoff":
-                target = (base[0], base[1], args[0])
-            else:  # FlyToLLA
-                target = self._frame.from_lla(args[0], args[1], args[2])
+        target = target_xyz(decode_command(name, args), base)
+        if target is None:  # FlyToLLA
+            target = self._frame.from_lla(args[0], args[1], args[2])
         if target[2] <= 0:
             return self._finish(
                 act,

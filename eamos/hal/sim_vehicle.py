@@ -54,18 +54,14 @@ everything both ways for ``s`` wall seconds.
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
-import signal
 import struct
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType, ModuleType
+from types import ModuleType
 from typing import Any, Literal
 
 from eamos.hal.autopilots import (
@@ -1212,165 +1208,3 @@ def _int(value: float, default: int = 0) -> int:
 def _num(value: float) -> float | None:
     """A JSON-friendly number (NaN becomes null)."""
     return None if not math.isfinite(value) else round(value, 7)
-
-
-# -- command line ----------------------------------------------------------------------
-
-
-def _home(text: str) -> tuple[float, float, float]:
-    try:
-        lat, lon, alt = (float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected LAT,LON,ALT, got {text!r}") from None
-    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-        raise argparse.ArgumentTypeError(f"latitude/longitude out of range: {text!r}")
-    return lat, lon, alt
-
-
-def _delay(text: str) -> float:
-    if text.lower() in ("never", "inf"):
-        return math.inf
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError("must be >= 0")
-    return value
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError("must be > 0")
-    return value
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The ``eamos-sim-vehicle`` argument parser."""
-    parser = argparse.ArgumentParser(
-        prog="eamos-sim-vehicle",
-        description="A simulated quadcopter speaking MAVLink 2 like PX4 SITL (udpout to the "
-        "client, as PX4 does on 14540+N) or ArduCopter SITL (TCP server, as on "
-        "5760+10N).",
-        epilog="examples:\n"
-        "  eamos-sim-vehicle --autopilot px4 --connection udpout:127.0.0.1:14540\n"
-        "  eamos-sim-vehicle --autopilot ardupilot --connection tcpin:127.0.0.1:5760 "
-        "--speedup 5\n"
-        "  eamos-sim-vehicle --autopilot px4 --connection udpout:127.0.0.1:14541 "
-        "--sysid 2 --reject MAV_CMD_NAV_LAND=FAILED",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--autopilot", required=True, choices=("px4", "ardupilot"))
-    parser.add_argument(
-        "--connection",
-        required=True,
-        help="udpout:HOST:PORT (PX4 style), tcpin:HOST:PORT (ArduPilot style) or udpin:HOST:PORT",
-    )
-    parser.add_argument("--sysid", type=int, default=1, help="MAVLink system id (1)")
-    parser.add_argument(
-        "--speedup",
-        type=_positive,
-        default=1.0,
-        help="simulated time runs K times faster than real time (1)",
-    )
-    parser.add_argument(
-        "--prearm-delay",
-        type=_delay,
-        default=3.0,
-        metavar="S",
-        help="simulated seconds until pre-arm checks pass (3; 'never' for a "
-        "vehicle that never becomes armable; real SITLs take ~40)",
-    )
-    parser.add_argument(
-        "--home",
-        type=_home,
-        default=(46.6103, 14.2640, 450.0),
-        metavar="LAT,LON,ALT",
-        help="home position (alt AMSL, metres)",
-    )
-    parser.add_argument(
-        "--reject",
-        nargs="+",
-        action="extend",
-        default=[],
-        metavar="CMD",
-        help="answer these commands with a failure: MAV_CMD name or number, "
-        "optionally =RESULT (DENIED default, FAILED, TEMPORARILY_REJECTED, "
-        "UNSUPPORTED)",
-    )
-    parser.add_argument(
-        "--disarm-after",
-        type=_positive,
-        default=10.0,
-        metavar="S",
-        help="armed on the ground without taking off, disarm after S simulated "
-        "seconds (10, like COM_DISARM_PRFLT / DISARM_DELAY)",
-    )
-    parser.add_argument("--log", type=Path, metavar="FILE", help="JSON-lines log of the vehicle")
-    parser.add_argument(
-        "--watch-stdin",
-        action="store_true",
-        help="exit when standard input closes (the parent process died)",
-    )
-    return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Console entry point of ``eamos-sim-vehicle``; SIGTERM/SIGINT stop it cleanly."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        options = VehicleOptions(
-            autopilot=args.autopilot,
-            connection=args.connection,
-            sysid=args.sysid,
-            speedup=args.speedup,
-            prearm_delay_s=args.prearm_delay,
-            home=args.home,
-            reject=parse_reject(args.reject),
-            disarm_after_s=args.disarm_after,
-            log=args.log,
-        )
-    except ValueError as exc:
-        parser.error(str(exc))
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
-    if args.watch_stdin:
-
-        def watch() -> None:
-            # Raw reads (no buffered-reader lock to trip over at interpreter exit);
-            # b"" is EOF: whoever started us is gone.
-            while os.read(sys.stdin.fileno(), 4096):
-                pass
-            stop.set()
-
-        threading.Thread(target=watch, name="watch-stdin", daemon=True).start()
-    vehicle = SimVehicle(options)
-    try:
-        vehicle.start()
-    except OSError as exc:
-        print(f"eamos-sim-vehicle: cannot open {options.connection}: {exc}", file=sys.stderr)
-        return 3
-    print(
-        f"eamos-sim-vehicle: {options.autopilot} sysid {options.sysid} on "
-        f"{options.connection}, speedup {options.speedup:g}",
-        flush=True,
-    )
-    try:
-        stop.wait()
-    finally:
-        vehicle.stop()
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

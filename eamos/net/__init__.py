@@ -7,8 +7,6 @@
   heartbeats, peer liveness, latest-value telemetry.
 * :mod:`eamos.net.keys` -- fleet key pairs (``eamos keys``), the ZAP
   authenticator, the plain-on-loopback rule.
-* :mod:`eamos.net.lab` -- network namespaces and node processes for fault tests
-  and benchmarks (root only).
 
 See ``docs/wire-format.md`` for the message table and ``docs/network.md`` for
 delivery, security and the fault tests.

@@ -350,7 +350,7 @@ def cmd_keys(args: Any) -> int:
     """``eamos keys``."""
     import sys
 
-    from eamos.hal.uniform import GROUND_STATION
+    from eamos.program.uniform import GROUND_STATION
 
     try:
         if args.fleet:

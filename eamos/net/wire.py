@@ -129,7 +129,7 @@ from typing import Any, ClassVar, Final
 
 import msgpack
 
-from eamos.hal.uniform import GROUND_STATION as _GCS
+from eamos.program.uniform import GROUND_STATION as _GCS
 
 __all__ = [
     "GROUND_STATION",

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import ConfigError, FleetConfig
-from ..hal.uniform import GROUND_STATION
+from ..program.uniform import GROUND_STATION
 from .rollout import read_rollout, targets_of
 from .ssh import DroneError, FleetError, for_each, run_remote
 from .targets import SshTarget, ground_settings, ssh_target

@@ -37,9 +37,9 @@ from typing import Any
 
 from ..actors.ground import DroneView, GroundStation
 from ..actors.runtime import DroneRuntimeError
-from ..hal.uniform import GROUND_STATION
 from ..net import wire
 from ..program.format import DroneProgram, load_program
+from ..program.uniform import GROUND_STATION
 from ..run import GroundPhases, ProgressDisplay, build_summary, ground_runtime
 from .deployment import Deployment, from_run_dir, resolve
 from .rollout import ROLLOUT_FILE, RUNNING_SH, paper_table, read_rollout

@@ -57,8 +57,8 @@ from typing import Any
 from .. import __version__
 from ..compiler import CompiledMission, compile_file, write_artifacts
 from ..config import ConfigError, FleetConfig
-from ..hal.uniform import GROUND_STATION
 from ..program.format import DroneProgram
+from ..program.uniform import GROUND_STATION
 from ..run import check_hal_settings, node_config_text
 from .ssh import DroneError, FleetError, copy_to, for_each, remote_error, run_remote
 from .targets import FleetTargets, SshTarget, load_targets

@@ -19,9 +19,9 @@ from eamos.actors.runtime import DroneRuntime, NetSettings
 from eamos.compiler import compile_mission
 from eamos.hal import make_adapter
 from eamos.hal.fake import FakeAdapter
-from eamos.hal.uniform import GROUND_STATION
 from eamos.logs import make_logger
 from eamos.net import wire
+from eamos.program.uniform import GROUND_STATION
 
 WAIT_S = 60.0
 _fleet_ids = itertools.count()

@@ -9,10 +9,7 @@ import networkx as nx
 
 REPO = Path(__file__).resolve().parents[2]
 MISSIONS = REPO / "missions"
-#: The paper's listings as cleaned by the project (outside the repository; may be absent).
-SHARED_LISTINGS = REPO.parent / "shared" / "paper-listings"
-
-#: Our copy in missions/ -> the file it copies in shared/paper-listings/.
+#: Our verbatim copy in missions/ -> the paper listing it reproduces (Listings 1, 10 to 13).
 PAPER_COPIES: dict[str, str] = {
     "listing01_demo.go": "listing01_demo_mission.go",
     "experiment_a.go": "listing10_experiment_a.go",

@@ -6,9 +6,9 @@ import importlib.util
 import sys
 from types import ModuleType
 
-from compiler_helpers import REPO
-
 from eamos.compiler import compile_mission
+
+from .compiler_helpers import REPO
 
 
 def _bench() -> ModuleType:

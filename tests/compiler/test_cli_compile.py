@@ -11,11 +11,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from compiler_helpers import MISSIONS, REPO
 
 from eamos.compiler import CompilerBug, cli_compile
 from eamos.compiler.cli_compile import build_parser, run_compile, run_graph
 from eamos.program.format import load_program
+
+from .compiler_helpers import MISSIONS, REPO
 
 BAD = "func SEQ_A() {\n\tDrone1.Takof(1)\n\tSEQ_Nope()\n}\n"
 

@@ -5,10 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from compiler_helpers import MISSIONS, PAPER_COPIES, SHARED_LISTINGS, mission_files
 
-from eamos.compiler import compile_file, compile_mission
+from eamos.compiler import compile_file
 from eamos.compiler.dependency_graph import mdg_stats
+
+from .compiler_helpers import MISSIONS, PAPER_COPIES, mission_files
 
 OWN_MISSIONS = ["inspection_if.go", "survey_repeat.go", "patrol_do.go", "relay_wait.go"]
 
@@ -33,27 +34,6 @@ def test_mission_compiles_without_warnings(path: Path) -> None:
 @pytest.mark.parametrize("copy", sorted(PAPER_COPIES))
 def test_paper_listing_copies_compile(copy: str) -> None:
     compile_file(MISSIONS / copy)
-
-
-@pytest.mark.skipif(
-    not SHARED_LISTINGS.is_dir(), reason=f"paper listings folder {SHARED_LISTINGS} is absent"
-)
-@pytest.mark.parametrize("copy,original", sorted(PAPER_COPIES.items()))
-def test_shared_paper_listings_compile_and_match_our_copies(copy: str, original: str) -> None:
-    source = (SHARED_LISTINGS / original).read_text(encoding="utf-8")
-    assert (MISSIONS / copy).read_text(encoding="utf-8") == source, "copy differs from the listing"
-    compiled = compile_mission(source, original)
-    assert compiled.stats() == compile_file(MISSIONS / copy).stats()
-
-
-@pytest.mark.skipif(
-    not SHARED_LISTINGS.is_dir(), reason=f"paper listings folder {SHARED_LISTINGS} is absent"
-)
-def test_every_shared_listing_compiles() -> None:
-    listings = sorted(SHARED_LISTINGS.glob("*.go"))
-    assert listings
-    for path in listings:
-        compile_file(path)
 
 
 def test_own_missions_use_every_control_structure() -> None:

@@ -5,9 +5,10 @@ from __future__ import annotations
 import re
 
 import pytest
-from compiler_helpers import MISSIONS, REPO
 
 from eamos.compiler import MissionError, compile_file, compile_mission
+
+from .compiler_helpers import MISSIONS, REPO
 
 DOCS = REPO / "docs"
 
@@ -60,7 +61,7 @@ def test_error_example_in_the_language_reference_is_real_output() -> None:
 
 
 def test_reference_lists_every_action_property_and_drone_type() -> None:
-    from eamos.hal.uniform import ACTIONS, DRONE_TYPES, PROPERTIES
+    from eamos.program.uniform import ACTIONS, DRONE_TYPES, PROPERTIES
 
     text = (DOCS / "mission-language.md").read_text(encoding="utf-8")
     for name in ACTIONS:

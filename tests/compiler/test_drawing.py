@@ -12,7 +12,6 @@ from pathlib import Path
 
 import networkx as nx
 import pytest
-from compiler_helpers import MISSIONS, mission_files
 
 from eamos.compiler import (
     CompiledMission,
@@ -24,6 +23,8 @@ from eamos.compiler import (
 )
 from eamos.compiler.drawing import builtin_svg, drone_colours, parse_dot
 from eamos.program.format import load_program
+
+from .compiler_helpers import MISSIONS, mission_files
 
 
 @pytest.fixture(scope="module")
@@ -201,7 +202,8 @@ def test_builtin_renderer_styles_and_shapes(exp_d: CompiledMission) -> None:
     ys = {
         m.group(2): float(m.group(1))
         for m in re.finditer(
-            r'<text x="[\d.]+" y="([\d.]+)" text-anchor="middle" font-size="10">(n\d+ [^<]*)</text>',
+            r'<text x="[\d.]+" y="([\d.]+)" text-anchor="middle" font-size="10">'
+            r"(n\d+ [^<]*)</text>",
             svg,
         )
     }

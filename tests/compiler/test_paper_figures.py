@@ -6,9 +6,10 @@ from typing import Any
 
 import networkx as nx
 import pytest
-from compiler_helpers import MISSIONS, named_edges, node_by_label
 
 from eamos.compiler import CompiledMission, compile_file, compile_mission
+
+from .compiler_helpers import MISSIONS, named_edges, node_by_label
 
 # -- Figure 6: the Abstract Mission Tree of Listing 1 ----------------------------------
 

@@ -18,12 +18,13 @@ from pathlib import Path
 from typing import Any
 
 import networkx as nx
-from compiler_helpers import mission_files
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from eamos.compiler import CompiledMission, MissionError, compile_mission
 from eamos.program.format import load_program
+
+from .compiler_helpers import mission_files
 
 SCALE = float(os.environ.get("EAMOS_HYPOTHESIS_EXAMPLES", "1"))
 

@@ -14,7 +14,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from fleet_lab import REPO, Lab, missing_tools
+
+from .fleet_lab import REPO, Lab, missing_tools
 
 # Host numbers in the lab (198.18.0.<n+1>).
 D1, D2, NOSSH, OLDVER, TINY, TINY16, SPARE = 1, 2, 3, 4, 5, 6, 7

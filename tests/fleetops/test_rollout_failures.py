@@ -12,9 +12,10 @@ import re
 from pathlib import Path
 
 import pytest
-from fleet_lab import REPO, Lab
 
 from eamos import __version__
+
+from .fleet_lab import REPO, Lab
 
 pytestmark = pytest.mark.e2e
 MISSION = REPO / "missions" / "experiment_b.go"

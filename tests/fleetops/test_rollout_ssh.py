@@ -18,7 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from fleet_lab import REPO, Lab
+
+from .fleet_lab import REPO, Lab
 
 pytestmark = pytest.mark.e2e
 MISSION = REPO / "missions" / "experiment_b.go"

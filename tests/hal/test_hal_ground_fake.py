@@ -8,12 +8,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from hal_helpers import WAIT_S, Done, TelemetrySink, do
 
 from eamos.hal.api import ActionHandle, ActionResult, AdapterError
 from eamos.hal.fake import Call, FakeAdapter, fake_adapter_from_settings
 from eamos.hal.ground import GroundAdapter, GroundSettings
 from eamos.logs import close_logger, make_logger, read_log
+
+from .hal_helpers import WAIT_S, Done, TelemetrySink, do
 
 # Generous for a loaded 2-core machine; a healthy run takes seconds.
 pytestmark = pytest.mark.timeout(180)

@@ -12,8 +12,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import SimFactory
-from hal_helpers import WAIT_S, Done, TelemetrySink, do
 
 from eamos.hal import ADAPTERS, AdapterError, make_adapter
 from eamos.hal.fake import FakeAdapter
@@ -21,6 +19,9 @@ from eamos.hal.ground import GroundAdapter
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.sim import SimAdapter, SimSettings, Waypoint
 from eamos.logs import make_logger, read_log
+from tests.support.sim_fixtures import SimFactory
+
+from .hal_helpers import WAIT_S, Done, TelemetrySink, do
 
 # Generous for a loaded 2-core machine; a healthy run takes seconds.
 pytestmark = pytest.mark.timeout(180)

@@ -7,11 +7,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from mavlink_helpers import Flight, RawClient, connections
 
 from eamos.hal.mavlink import MavlinkAdapter, MavlinkSettings
 from eamos.hal.sim_vehicle import SimVehicle, VehicleOptions
 from eamos.logs import close_logger, make_logger
+
+from .mavlink_helpers import Flight, RawClient, connections
 
 
 @pytest.fixture

@@ -14,11 +14,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from eamos.ground.vehicles import free_port
 from eamos.hal.api import ActionHandle, ActionResult, Telemetry
 from eamos.hal.mavlink import MavlinkAdapter
 from eamos.hal.mavlink_link import load_mavutil, open_transport
 from eamos.hal.sim_vehicle import SimVehicle
-from eamos.hal.vehicles import free_port
 
 #: Generous bound for one wait on a shared, small machine.
 WAIT_S = 60.0

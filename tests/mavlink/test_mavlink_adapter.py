@@ -6,10 +6,11 @@ import math
 import time
 
 import pytest
-from mavlink_helpers import WAIT_S
 
 from eamos.hal.api import AdapterError
 from eamos.hal.kinematics import GeoFrame
+
+from .mavlink_helpers import WAIT_S
 
 pytestmark = pytest.mark.timeout(180)
 

@@ -8,8 +8,8 @@ import threading
 import time
 
 import pytest
-from mavlink_helpers import WAIT_S
 
+from eamos.ground.vehicles import free_port
 from eamos.hal.api import AdapterError
 from eamos.hal.sim_vehicle import (
     DENIED,
@@ -18,7 +18,8 @@ from eamos.hal.sim_vehicle import (
     SimVehicle,
     VehicleOptions,
 )
-from eamos.hal.vehicles import free_port
+
+from .mavlink_helpers import WAIT_S
 
 pytestmark = pytest.mark.timeout(180)
 

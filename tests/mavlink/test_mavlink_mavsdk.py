@@ -24,13 +24,14 @@ pytest.importorskip(
     "pip install 'eamos[test]' or pip install mavsdk",
 )
 
-from mavlink_helpers import connections
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, PositionNedYaw
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
 from eamos.hal.sim_vehicle import SimVehicle, VehicleOptions
+
+from .mavlink_helpers import connections
 
 pytestmark = pytest.mark.timeout(180)
 #: Bound of one whole MAVSDK flight (wall seconds).

@@ -13,8 +13,8 @@ import threading
 import time
 
 import pytest
-from mavlink_helpers import WAIT_S, RawClient, connections
 
+from eamos.ground.vehicles import free_port
 from eamos.hal.sim_vehicle import (
     ACCEPTED,
     DENIED,
@@ -24,7 +24,8 @@ from eamos.hal.sim_vehicle import (
     SimVehicle,
     VehicleOptions,
 )
-from eamos.hal.vehicles import free_port
+
+from .mavlink_helpers import WAIT_S, RawClient, connections
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -242,7 +243,7 @@ def test_tcp_vehicle_accepts_a_new_client(make_vehicle, raw_client):
 
 def vehicle_cli(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "eamos.hal.sim_vehicle", *args],
+        [sys.executable, "-m", "eamos.cli.sim_vehicle", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -12,7 +12,8 @@ from typing import Any
 
 import pytest
 import zmq
-from net_helpers import Bridges
+
+from .net_helpers import Bridges
 
 
 @pytest.fixture

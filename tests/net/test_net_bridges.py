@@ -10,7 +10,6 @@ from typing import Any
 import msgpack
 import pytest
 import zmq
-from net_helpers import MISSION, WAIT_S, Bridges, Collector
 
 from eamos.logs import close_logger, make_logger, read_log
 from eamos.net import (
@@ -31,6 +30,8 @@ from eamos.net import (
     topic_telemetry,
     topic_to,
 )
+
+from .net_helpers import MISSION, WAIT_S, Bridges, Collector
 
 pytestmark = pytest.mark.timeout(120)
 

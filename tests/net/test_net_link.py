@@ -12,7 +12,12 @@ import threading
 from pathlib import Path
 
 import pytest
-from link_helpers import (
+
+from eamos.logs import close_logger, make_logger, read_log
+from eamos.net import wire
+from eamos.net.link import LinkSettings, PeerStatus, TelemetryStale
+
+from .link_helpers import (
     FAST,
     MISSION,
     WAIT_S,
@@ -24,10 +29,6 @@ from link_helpers import (
     sample,
     trig,
 )
-
-from eamos.logs import close_logger, make_logger, read_log
-from eamos.net import wire
-from eamos.net.link import LinkSettings, PeerStatus, TelemetryStale
 
 pytestmark = pytest.mark.timeout(180)
 

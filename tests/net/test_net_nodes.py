@@ -13,12 +13,13 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from link_helpers import free_port
 
 from eamos.compiler import compile_file
-from eamos.hal.uniform import GROUND_STATION
 from eamos.net.keys import create_fleet_keys
-from eamos.net.lab import node_argv, write_fleet
+from eamos.program.uniform import GROUND_STATION
+from tests.support.netlab import node_argv, write_fleet
+
+from .link_helpers import free_port
 
 pytestmark = [pytest.mark.timeout(300), pytest.mark.e2e]
 REPO = Path(__file__).resolve().parents[2]

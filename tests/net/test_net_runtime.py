@@ -16,18 +16,19 @@ from typing import Any
 
 import pytest
 import zmq
-from link_helpers import FAST, WAIT_S, Lossy, eventually, free_port
 
 from eamos.actors.ground import GroundStation
 from eamos.actors.runtime import DroneRuntime, NetSettings
 from eamos.compiler import compile_mission
 from eamos.hal import make_adapter
 from eamos.hal.fake import FakeAdapter
-from eamos.hal.uniform import GROUND_STATION
 from eamos.logs import make_logger, read_log
 from eamos.net import wire
 from eamos.net.keys import FleetKeys, create_fleet_keys
 from eamos.net.link import LinkSettings, PeerStatus
+from eamos.program.uniform import GROUND_STATION
+
+from .link_helpers import FAST, WAIT_S, Lossy, eventually, free_port
 
 pytestmark = pytest.mark.timeout(180)
 

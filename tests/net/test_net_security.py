@@ -16,7 +16,6 @@ from typing import Any
 
 import pytest
 import zmq
-from link_helpers import MISSION, WAIT_S, Inbox, eventually, free_port, network, trig
 
 from eamos.actors.runtime import DroneRuntime, DroneRuntimeError, NetSettings
 from eamos.compiler import compile_mission
@@ -32,6 +31,8 @@ from eamos.net.keys import (
     is_local_endpoint,
     plain_refusal,
 )
+
+from .link_helpers import MISSION, WAIT_S, Inbox, eventually, free_port, network, trig
 
 pytestmark = pytest.mark.timeout(120)
 REPO = Path(__file__).resolve().parents[2]

@@ -14,9 +14,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from netfault_helpers import LabFleet
 
-from eamos.net.lab import cleanup_stale, lab_unavailable
+from tests.support.netlab import cleanup_stale, lab_unavailable
+
+from .netfault_helpers import LabFleet
 
 REASON = lab_unavailable()
 _fleet_ids = itertools.count()  # unique namespace names within this test session

@@ -1,6 +1,6 @@
 """A fleet of ``eamos-node`` processes, each in its own network namespace (its own host).
 
-Built on :mod:`eamos.net.lab`: one namespace per participant on a private
+Built on :mod:`tests.support.netlab`: one namespace per participant on a private
 bridge (addresses in 198.18.0.0/24, nothing on the host's network), fresh
 fleet keys, one config per participant (the ground station is an
 ``eamos-node`` too), optionally a delaying TCP proxy in the hub namespace that
@@ -21,9 +21,9 @@ from pathlib import Path
 from typing import Any
 
 from eamos.compiler import compile_file, compile_mission
-from eamos.hal.uniform import GROUND_STATION
 from eamos.logs import read_log
-from eamos.net.lab import FleetFiles, Netns, node_argv, write_fleet
+from eamos.program.uniform import GROUND_STATION
+from tests.support.netlab import FleetFiles, Netns, node_argv, write_fleet
 
 REPO = Path(__file__).resolve().parents[2]
 PORT = 6000
@@ -93,7 +93,7 @@ class LabFleet:
             [
                 sys.executable,
                 "-m",
-                "eamos.net.lab",
+                "tests.support.netlab",
                 "proxy",
                 *forwards,
                 "--delay-ms",

@@ -18,10 +18,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from netfault_helpers import REPO, check_table7
 
-from eamos.hal.uniform import GROUND_STATION
 from eamos.net.keys import create_fleet_keys
+from eamos.program.uniform import GROUND_STATION
+
+from .netfault_helpers import REPO, check_table7
 
 pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
 

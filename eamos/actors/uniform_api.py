@@ -21,7 +21,7 @@ from typing import Any
 import pykka
 
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
-from eamos.hal.uniform import ACTIONS
+from eamos.program.uniform import ACTIONS
 
 
 @dataclass(frozen=True)

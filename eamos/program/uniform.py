@@ -159,3 +159,187 @@ DRONE_TYPES: dict[str, DroneType] = {
         ),
     )
 }
+
+
+# --- Commands: an action decoded once -------------------------------------------------------
+#
+# The mission and the wire carry actions as a name and a tuple of numbers.  The uniform API
+# decodes them once, here, into a typed command; adapters dispatch on the command's class and
+# never compare action names again.
+
+
+class CommandError(ValueError):
+    """An action name or argument list that no adapter can run."""
+
+
+@dataclass(frozen=True)
+class Command:
+    """One uniform action with its arguments, checked against :data:`ACTIONS`."""
+
+    @property
+    def action(self) -> str:
+        """The uniform action's name (``"FlyByX"``, ``"Arm"``, ...)."""
+        return type(self).__name__
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        """The arguments in the order of the action's parameters."""
+        return ()
+
+    @property
+    def moves(self) -> bool:
+        """True for the actions that move the vehicle (one at a time per drone)."""
+        return self.action in MOTION_ACTIONS
+
+
+@dataclass(frozen=True)
+class Arm(Command):
+    """Arm the motors."""
+
+
+@dataclass(frozen=True)
+class Disarm(Command):
+    """Disarm the motors (on the ground only)."""
+
+
+@dataclass(frozen=True)
+class Takeoff(Command):
+    """Climb vertically to ``height_m`` above home."""
+
+    height_m: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.height_m,)
+
+
+@dataclass(frozen=True)
+class Land(Command):
+    """Descend at the current X/Y until landed."""
+
+
+@dataclass(frozen=True)
+class FlyBy(Command):
+    """A relative move: ``FlyByX``/``FlyByY``/``FlyByZ`` (one axis non-zero)."""
+
+    axis: str  # "X", "Y" or "Z"
+    distance_m: float
+
+    @property
+    def action(self) -> str:
+        return f"FlyBy{self.axis}"
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.distance_m,)
+
+    def offset_m(self) -> tuple[float, float, float]:
+        """The move as a (dx, dy, dz) vector in the mission frame."""
+        return (
+            self.distance_m if self.axis == "X" else 0.0,
+            self.distance_m if self.axis == "Y" else 0.0,
+            self.distance_m if self.axis == "Z" else 0.0,
+        )
+
+
+@dataclass(frozen=True)
+class FlyToXYZ(Command):
+    """Fly to a local point from home."""
+
+    x_m: float
+    y_m: float
+    z_m: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.x_m, self.y_m, self.z_m)
+
+
+@dataclass(frozen=True)
+class FlyToLLA(Command):
+    """Fly to a WGS84 point at ``alt_m`` above home."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.lat_deg, self.lon_deg, self.alt_m)
+
+
+@dataclass(frozen=True)
+class PauseFor(Command):
+    """Hold position (or stay on the ground) for ``duration_s``."""
+
+    duration_s: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.duration_s,)
+
+
+@dataclass(frozen=True)
+class Payload(Command):
+    """A payload action (no motion): ``TurnOn``, ``Calibrate``, ``TurnOnCamera``, ..."""
+
+    name: str
+
+    @property
+    def action(self) -> str:
+        return self.name
+
+
+def decode_command(action: str, args: tuple[float, ...] | list[float]) -> Command:
+    """Decode an action name and its arguments into a :class:`Command`.
+
+    Raises :class:`CommandError` for an unknown action, a wrong number of
+    arguments, or an argument that is not a finite number.
+    """
+    spec = ACTIONS.get(action)
+    if spec is None:
+        raise CommandError(f"unknown action {action!r}")
+    if len(args) != len(spec.params):
+        raise CommandError(
+            f"{action} takes {len(spec.params)} argument(s) ({', '.join(spec.params) or 'none'}),"
+            f" got {len(args)}"
+        )
+    values: list[float] = []
+    for name, value in zip(spec.params, args, strict=True):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise CommandError(f"{action}: {name} must be a number, got {value!r}")
+        number = float(value)
+        if number != number or number in (float("inf"), float("-inf")):
+            raise CommandError(f"{action}: {name} must be finite, got {value!r}")
+        values.append(number)
+    if spec.payload:
+        return Payload(action)
+    if action.startswith("FlyBy"):
+        return FlyBy(action[-1], values[0])
+    command: type[Command] = _COMMAND_CLASSES[action]
+    return command(*values)
+
+
+_COMMAND_CLASSES: dict[str, type[Command]] = {
+    c.__name__: c for c in (Arm, Disarm, Takeoff, Land, FlyToXYZ, FlyToLLA, PauseFor)
+}
+
+
+def target_xyz(
+    command: Command, base: tuple[float, float, float]
+) -> tuple[float, float, float] | None:
+    """Where a move goes in the mission frame, starting from ``base`` (x, y, z metres).
+
+    ``Takeoff`` climbs straight up from ``base``; ``FlyBy*`` adds its offset;
+    ``FlyToXYZ`` is absolute.  ``None`` for commands without a local target
+    (``FlyToLLA`` needs the adapter's geodetic frame; the others do not move).
+    """
+    x, y, z = base
+    if isinstance(command, Takeoff):
+        return (x, y, command.height_m)
+    if isinstance(command, FlyBy):
+        dx, dy, dz = command.offset_m()
+        return (x + dx, y + dy, z + dz)
+    if isinstance(command, FlyToXYZ):
+        return (command.x_m, command.y_m, command.z_m)
+    return None

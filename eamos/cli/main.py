@@ -18,11 +18,11 @@ import threading
 import traceback
 from pathlib import Path
 
-from . import __version__
-from .compiler import MissionError
-from .compiler.cli_compile import add_compile_parser, add_graph_parser
-from .config import ConfigError, FleetConfig
-from .config import positive_number as _positive
+from eamos import __version__
+from eamos.compiler import MissionError
+from eamos.compiler.cli_compile import add_compile_parser, add_graph_parser
+from eamos.config import ConfigError, FleetConfig
+from eamos.config import positive_number as _positive
 
 _RUN_HELP = """\
 Fly a mission on this machine: compile it, start one eamos-node process per drone
@@ -103,12 +103,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("-v", "--verbose", action="store_true", help="tracebacks of internal errors")
     run.set_defaults(func=cmd_run)
     # --- fleet operations (eamos/ops/cli.py): rollout, start, status, abort, logs, report ---
-    from .ops.cli import add_fleet_commands
+    from eamos.ops.cli import add_fleet_commands
 
     add_fleet_commands(sub)
     # --- end of fleet operations ---
     # --- network keys (eamos/net/keys.py): eamos keys ---
-    from .net.keys import add_keys_parser
+    from eamos.net.keys import add_keys_parser
 
     add_keys_parser(sub)
     # --- end of network keys ---
@@ -117,7 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``eamos run``."""
-    from .run import RunOptions, install_stop_handler, run_mission
+    from eamos.run import RunOptions, install_stop_handler, run_mission
 
     try:
         fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()

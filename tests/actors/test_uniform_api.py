@@ -10,22 +10,20 @@ from typing import Any
 
 import pykka
 import pytest
-from conftest import SimFactory
-from hal_helpers import WAIT_S, Collector, TelemetrySink, next_message
 
-from eamos.hal import (
+from eamos.actors.uniform_api import (
     Abort,
     ActionFinished,
-    ActionResult,
-    AdapterError,
     CancelAction,
     RunAction,
-    Telemetry,
     UniformAPI,
 )
+from eamos.hal import ActionResult, AdapterError, Telemetry
 from eamos.hal.api import Adapter
 from eamos.hal.fake import FakeAdapter
 from eamos.logs import DroneLogs, read_log
+from tests.hal.hal_helpers import WAIT_S, Collector, TelemetrySink, next_message
+from tests.support.sim_fixtures import SimFactory
 
 # Generous for a loaded 2-core machine; a healthy run takes seconds.
 pytestmark = pytest.mark.timeout(180)

@@ -30,7 +30,7 @@ from typing import Any
 
 from eamos.config import ConfigError
 from eamos.hal.api import AdapterError
-from eamos.hal.mavlink import MavlinkSettings
+from eamos.hal.mavlink_settings import MavlinkSettings
 
 SIM_VEHICLE_KEYS = frozenset(
     {"autopilot", "speedup", "prearm_delay_s", "disarm_after_s", "sysid", "home", "reject"}
@@ -182,7 +182,7 @@ def start_sim_vehicles(
                 [
                     sys.executable,
                     "-m",
-                    "eamos.hal.sim_vehicle",
+                    "eamos.cli.sim_vehicle",
                     *args,
                     "--log",
                     str(folder / "sim-vehicle.log"),

@@ -1,4 +1,4 @@
-"""Fixtures for hardware-layer tests: simulated adapters that are always closed."""
+"""Fixtures for tests of simulated drones: adapters that are always closed (a pytest plugin)."""
 
 from __future__ import annotations
 

@@ -16,7 +16,7 @@ For the fault tests (``tests/netfaults``) and the network benchmark
 * :func:`write_fleet` writes what a fleet of ``eamos-node`` processes needs: the
   programs, fresh keys (or plain sockets on loopback), one config per
   participant (the ground station's too: ``eamos-node`` runs it).
-* :func:`serve_delay_proxy` (``python -m eamos.net.lab proxy ...``) forwards TCP
+* :func:`serve_delay_proxy` (``python -m tests.support.netlab proxy ...``) forwards TCP
   connections with a delay and jitter per chunk, keeping each stream in order.
 
 Every wait here is bounded.
@@ -40,8 +40,8 @@ from pathlib import Path
 from typing import Any
 
 from eamos.config import toml_value
-from eamos.hal.uniform import GROUND_STATION
 from eamos.net.keys import create_fleet_keys
+from eamos.program.uniform import GROUND_STATION
 
 __all__ = [
     "FleetFiles",
@@ -437,8 +437,8 @@ def wait_file_lines(path: Path, needle: str, count: int, timeout_s: float) -> bo
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m eamos.net.lab proxy --forward HOST:PORT=HOST:PORT ... --delay-ms D``."""
-    parser = argparse.ArgumentParser(prog="python -m eamos.net.lab")
+    """``python -m tests.support.netlab proxy --forward HOST:PORT=HOST:PORT ... --delay-ms D``."""
+    parser = argparse.ArgumentParser(prog="python -m tests.support.netlab")
     sub = parser.add_subparsers(dest="command", required=True)
     proxy = sub.add_parser("proxy", help="TCP forwarder with delay and jitter")
     proxy.add_argument(

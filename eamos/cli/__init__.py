@@ -1,0 +1,1 @@
+"""Command-line code: every console entry point, one exit-code table, shared option builders."""
