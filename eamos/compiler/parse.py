@@ -659,4 +659,5 @@ def parse_partial(source: str) -> tuple[Mission, list[Diagnostic], bool]:
     except MissionError as exc:
         if exc.partial is None:
             raise
+        assert isinstance(exc.partial, Mission)
         return exc.partial, exc.diagnostics, exc.fatal

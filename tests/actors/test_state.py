@@ -35,11 +35,13 @@ def test_loop_iterations_never_mix():
 
 def test_loop_begin_has_entry_and_back_arc_groups():
     pre = Preconditions(entry=frozenset({"before"}), loop=frozenset({"last"}), depth=0)
-    assert pre.receive("before", (), "done").group == "entry"
+    entry = pre.receive("before", (), "done")
+    assert entry is not None and entry.group == "entry"
     first = pre.receive("last", (0,), "done")
-    assert first.group == "loop" and first.activation == (0,)
+    assert first is not None and first.group == "loop" and first.activation == (0,)
     assert pre.receive("last", (0,), "done") is None  # a duplicate of iteration 0
-    assert pre.receive("last", (1,), "done").activation == (1,)
+    second = pre.receive("last", (1,), "done")
+    assert second is not None and second.activation == (1,)
 
 
 def test_unknown_sources_are_not_counted():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import pytest
 
@@ -25,7 +25,7 @@ def make_vehicle(tmp_path: Path) -> Iterator[Callable[..., tuple[SimVehicle, str
     """
     made: list[SimVehicle] = []
 
-    def factory(autopilot: str, **options: Any) -> tuple[SimVehicle, str]:
+    def factory(autopilot: Literal["px4", "ardupilot"], **options: Any) -> tuple[SimVehicle, str]:
         vehicle_conn, client_conn = connections(autopilot)
         options.setdefault("speedup", 10.0)
         options.setdefault("prearm_delay_s", 1.0)

@@ -119,21 +119,21 @@ def test_construction_normalises() -> None:
         lambda: Trigger(M, "D1", "D2", "a", "b", (True,), "done"),
         lambda: Trigger(M, "D1", "", "a", "b", (), "done"),
         lambda: Trigger(M, "D1", "D/2", "a", "b", (), "done"),
-        lambda: Trigger(1, "D1", "D2", "a", "b", (), "done"),
+        lambda: Trigger(1, "D1", "D2", "a", "b", (), "done"),  # type: ignore[arg-type]  # deliberately invalid
         lambda: Interrupt(M, "D1", "D2", "s", (), "some"),
-        lambda: TelemetrySample(M, "D1", 0, 0, 0, 0, 0, 0, 0, 0, 1, False),
+        lambda: TelemetrySample(M, "D1", 0, 0, 0, 0, 0, 0, 0, 0, 1, False),  # type: ignore[arg-type]  # deliberately invalid
         lambda: TelemetrySample(M, "D1", True, 0, 0, 0, 0, 0, 0, 0, True, False),
-        lambda: Progress(M, "D1", "s", "n", "a", {1: "x"}),
+        lambda: Progress(M, "D1", "s", "n", "a", {1: "x"}),  # type: ignore[dict-item]  # deliberately invalid
         lambda: Progress(M, "D1", "s", "n", "a", {"x": object()}),
-        lambda: Report(M, "D1", ["not", "a", "map"]),
+        lambda: Report(M, "D1", ["not", "a", "map"]),  # type: ignore[arg-type]  # deliberately invalid
         lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=-1),
         lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=True),
-        lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=1.0),
+        lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=1.0),  # type: ignore[arg-type]  # deliberately invalid
         lambda: Trigger(M, "D1", "D2", "a", "b", (), "done", seq=2**63),
-        lambda: Ack(M, "D1", "D2", 1, 0, nack=1),
+        lambda: Ack(M, "D1", "D2", 1, 0, nack=1),  # type: ignore[arg-type]  # deliberately invalid
         lambda: Heartbeat(M, "D1", {"D2": -1}),
         lambda: Heartbeat(M, "D1", {"D/2": 1}),
-        lambda: Heartbeat(M, "D1", {1: 1}),
+        lambda: Heartbeat(M, "D1", {1: 1}),  # type: ignore[dict-item]  # deliberately invalid
     ],
 )
 def test_construction_rejects(make: Any) -> None:
