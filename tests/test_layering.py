@@ -30,6 +30,7 @@ ALLOWED: dict[str, set[str]] = {
     "config": {"program", "hints", "hal", "net"},
     "actors": {"program", "hints", "logs", "hal", "net", "config"},
     "ground": {"program", "hints", "logs", "hal", "net", "config", "actors"},
+    "virtual": {"program", "hints", "logs", "hal", "actors"},
     "report": {"program", "logs", "ground"},
     "ops": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
 }

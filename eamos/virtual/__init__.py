@@ -1,0 +1,27 @@
+"""A whole mission in one thread, in virtual time: no sockets, no actors, no clock reads.
+
+Public names: :func:`run_virtual` (and :class:`VirtualMission` for finer
+control), its result :class:`VirtualRun` / :class:`DroneOutcome` /
+:class:`Waiting`, and for vehicles :class:`Vehicle`, :data:`VehicleFactory`,
+:func:`sim_vehicles`.  Tests of control structures and the pre-flight checker
+build on it.
+"""
+
+from .driver import TIME_LIMIT_S, VirtualMission, run_virtual, telemetry_values
+from .result import DroneOutcome, VirtualRun, Waiting
+from .vehicles import STEP_S, QuietLog, Vehicle, VehicleFactory, sim_vehicles
+
+__all__ = [
+    "STEP_S",
+    "TIME_LIMIT_S",
+    "DroneOutcome",
+    "QuietLog",
+    "Vehicle",
+    "VehicleFactory",
+    "VirtualMission",
+    "VirtualRun",
+    "Waiting",
+    "run_virtual",
+    "sim_vehicles",
+    "telemetry_values",
+]

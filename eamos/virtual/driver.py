@@ -1,0 +1,380 @@
+"""The synchronous driver: a whole mission in one thread, in virtual time.
+
+Every native node of every participant's program gets its pure logic
+(:mod:`eamos.actors.logic`); their effects are applied here instead of by
+actors: triggers (local and external arcs alike) and interrupts go through one
+in-memory queue, telemetry goes through a board like the runtime's (latest
+values per drone, pushed to the condition nodes watching them when they
+change), actions run on one vehicle per drone stepped in virtual time (the
+simulator's pure core by default), and the ground station's pauses run on a
+virtual timer.  The queue is drained completely between two vehicle steps,
+so messages take no virtual time; the run ends when every participant has
+resolved, or at the virtual-time limit (then :attr:`VirtualRun.waiting` says
+what was still waiting).  No sockets, threads, actors or clock reads: a
+paper experiment takes milliseconds to a few hundred of CPU.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..actors.logic import (
+    ActionLogic,
+    Broadcast,
+    CancelAction,
+    ConditionLogic,
+    Effect,
+    Emit,
+    NodeLogic,
+    Note,
+    Progress,
+    Record,
+    ReleaseBegin,
+    Resolve,
+    StartAction,
+    UnwatchTelemetry,
+    WatchTelemetry,
+    program_wiring,
+)
+from ..actors.messages import ActionRecord
+from ..actors.state import Iteration
+from ..hal.api import ActionHandle, ActionResult, Telemetry
+from ..program.format import DroneProgram
+from ..program.uniform import GROUND_STATION, PROPERTY_FIELDS, CommandError, decode_command
+from .result import DroneOutcome, VirtualRun, Waiting
+from .vehicles import STEP_S, GroundPauses, Vehicle, VehicleFactory, sim_vehicles
+
+#: Default bound on virtual time (seconds): longer than any mission of the paper.
+TIME_LIMIT_S = 1800.0
+
+NodeId = tuple[str, str]  # (drone, node key)
+
+
+def telemetry_values(sample: Telemetry) -> dict[str, Any]:
+    """Uniform property values of a sample, as the runtime's telemetry board keeps them."""
+    values: dict[str, Any] = {prop: getattr(sample, fld) for prop, fld in PROPERTY_FIELDS.items()}
+    values["_time_s"] = sample.time_s
+    values["_landed"] = sample.landed
+    return values
+
+
+@dataclass
+class _Participant:
+    """One drone (or the ground station) of the run."""
+
+    program: DroneProgram
+    logic: dict[str, NodeLogic]
+    vehicle: Vehicle | None
+    top_level: frozenset[str]
+    scope_index: dict[int, list[str]]
+    resolved: dict[str, str] = field(default_factory=dict)
+    records: list[ActionRecord] = field(default_factory=list)
+    running: dict[tuple[str, Iteration], ActionHandle] = field(default_factory=dict)
+    triggers_sent: int = 0
+    triggers_received: int = 0
+
+    @property
+    def all_resolved(self) -> bool:
+        return self.top_level <= self.resolved.keys()
+
+
+class _Board:
+    """Latest property values per drone; pushes changes to the nodes watching them."""
+
+    def __init__(self) -> None:
+        self.latest: dict[str, dict[str, Any]] = {}
+        self.watchers: dict[NodeId, tuple[str, ...]] = {}
+
+    def publish(self, drone: str, values: dict[str, Any]) -> list[NodeId]:
+        """Record ``values``; the watchers to tell (none if nothing a condition reads changed)."""
+        old = self.latest.get(drone)
+        self.latest[drone] = values
+        if old is not None and all(
+            old.get(k) == v for k, v in values.items() if not k.startswith("_")
+        ):
+            return []
+        return [node for node, drones in self.watchers.items() if drone in drones]
+
+
+class VirtualMission:
+    """One virtual-time run of a compiled mission (build, then :meth:`run` once)."""
+
+    def __init__(
+        self,
+        programs: Mapping[str, DroneProgram] | Iterable[DroneProgram],
+        vehicles: VehicleFactory | None = None,
+        time_limit_s: float = TIME_LIMIT_S,
+        log: Any = None,
+    ) -> None:
+        """``programs``: every participant's program (the ground station's included).
+
+        ``vehicles(drone, clock)`` builds each drone's vehicle (default: the
+        simulator core with default settings); ``log``, if given, receives the
+        nodes' mission-log lines (bound with ``drone`` and ``node``).
+        """
+        progs = list(programs.values()) if isinstance(programs, Mapping) else list(programs)
+        if not progs:
+            raise ValueError("no programs to run")
+        self.mission = progs[0].mission
+        self.time_limit_s = time_limit_s
+        self.log = log
+        self.t = 0.0
+        self.steps = 0
+        self._queue: deque[tuple[NodeId, Callable[..., list[Effect]], tuple[Any, ...]]] = deque()
+        self._board = _Board()
+        self._ground = GroundPauses()
+        factory = vehicles or sim_vehicles()
+        self.participants: dict[str, _Participant] = {}
+        for program in progs:
+            wiring = program_wiring(program)
+            scope_index: dict[int, list[str]] = {}
+            for key, wired in wiring.items():
+                for scope in wired.spec.scopes:
+                    scope_index.setdefault(scope, []).append(key)
+            self.participants[program.drone] = _Participant(
+                program=program,
+                logic={key: wired.logic() for key, wired in wiring.items()},
+                vehicle=None
+                if program.drone == GROUND_STATION
+                else factory(program.drone, self.clock),
+                top_level=frozenset(k for k, w in wiring.items() if not w.spec.loops),
+                scope_index=scope_index,
+            )
+        self._vehicles = [(d, p.vehicle) for d, p in sorted(self.participants.items()) if p.vehicle]
+        self._apply_one: dict[type, Callable[[NodeId, Any], None]] = {
+            Emit: self._emit,
+            StartAction: self._start_action,
+            CancelAction: self._cancel_action,
+            WatchTelemetry: self._watch,
+            UnwatchTelemetry: self._unwatch,
+            Resolve: self._resolve,
+            Broadcast: self._broadcast,
+            Progress: self._ignore,
+            Record: self._record,
+            ReleaseBegin: self._release,
+            Note: self._note,
+        }
+        self._ran = False
+
+    def clock(self) -> float:
+        """Virtual seconds since the start (stamped on telemetry samples)."""
+        return self.t
+
+    # -- the loop -------------------------------------------------------------------
+
+    def run(self) -> VirtualRun:
+        """Run the mission until every participant resolved or the time limit."""
+        if self._ran:
+            raise RuntimeError("a VirtualMission runs once; build another")
+        self._ran = True
+        for drone, vehicle in self._vehicles:
+            self._publish(drone, vehicle.start())
+        for drone, part in sorted(self.participants.items()):
+            for key, logic in part.logic.items():
+                if logic.spec.kind == "init":
+                    self._post((drone, key), logic.fire)
+        self._drain()
+        timed_out = False
+        while not all(p.all_resolved for p in self.participants.values()):
+            if self.t >= self.time_limit_s - 1e-9:
+                timed_out = True
+                break
+            self._advance()
+            self._drain()
+        return self._result(timed_out)
+
+    def _advance(self) -> None:
+        """One vehicle step (or, with no vehicle, a jump to the next pause's end)."""
+        self.steps += 1
+        if self._vehicles:
+            self.t = self.steps * STEP_S
+        else:
+            due = self._ground.next_due()
+            self.t = min(self.time_limit_s, due if due is not None else self.time_limit_s)
+        for drone, vehicle in self._vehicles:
+            finished, samples = vehicle.step()
+            for done, result in finished:
+                done(result)
+            for sample in samples:
+                self._publish(drone, sample)
+        for done, result in self._ground.expire(self.t):
+            done(result)
+
+    def _post(self, node: NodeId, method: Callable[..., list[Effect]], *args: Any) -> None:
+        self._queue.append((node, method, args))
+
+    def _drain(self) -> None:
+        queue = self._queue
+        apply_one = self._apply_one
+        while queue:
+            node, method, args = queue.popleft()
+            for effect in method(*args):
+                apply_one[type(effect)](node, effect)
+
+    def _publish(self, drone: str, sample: Telemetry) -> None:
+        values = telemetry_values(sample)
+        for node in self._board.publish(drone, values):
+            self._post(node, self._logic(node).telemetry, drone, values)
+
+    def _logic(self, node: NodeId) -> NodeLogic:
+        return self.participants[node[0]].logic[node[1]]
+
+    # -- effects ----------------------------------------------------------------------
+
+    def _emit(self, node: NodeId, fx: Emit) -> None:
+        route = fx.route
+        target = self.participants[route.drone]
+        if route.external:
+            self.participants[node[0]].triggers_sent += 1
+            target.triggers_received += 1
+        self._post(
+            (route.drone, route.dst),
+            target.logic[route.dst].trigger,
+            node[1],
+            fx.iteration,
+            fx.status,
+        )
+
+    def _start_action(self, node: NodeId, fx: StartAction) -> None:
+        drone, key = node
+        part = self.participants[drone]
+        start_s = self.t
+        logic = part.logic[key]
+        running = part.running
+
+        def done(result: ActionResult) -> None:
+            running.pop((key, fx.iteration), None)
+            self._post(
+                node,
+                logic.action_finished,
+                fx.iteration,
+                result.status,
+                result.reason,
+                start_s,
+                self.t,
+            )
+
+        try:
+            command = decode_command(fx.action, fx.args)
+        except CommandError as exc:
+            done(ActionResult("failed", str(exc)))
+            return
+        if part.vehicle is None:
+            handle = self._ground.run(self.t, command, done)
+        else:
+            handle = part.vehicle.run(command, done)
+        if handle is not None:
+            running[(key, fx.iteration)] = handle
+
+    def _cancel_action(self, node: NodeId, fx: CancelAction) -> None:
+        part = self.participants[node[0]]
+        handle = part.running.get((node[1], fx.iteration))
+        if handle is None:
+            return
+        if part.vehicle is None:
+            self._ground.cancel(handle)
+        else:
+            part.vehicle.cancel(handle)
+
+    def _watch(self, node: NodeId, fx: WatchTelemetry) -> None:
+        self._board.watchers[node] = fx.drones
+        logic = self._logic(node)
+        for drone in fx.drones:
+            values = self._board.latest.get(drone)
+            if values is not None:
+                self._post(node, logic.telemetry, drone, values)
+
+    def _unwatch(self, node: NodeId, fx: UnwatchTelemetry) -> None:
+        self._board.watchers.pop(node, None)
+
+    def _resolve(self, node: NodeId, fx: Resolve) -> None:
+        if fx.top_level:
+            self.participants[node[0]].resolved[node[1]] = fx.status
+
+    def _broadcast(self, node: NodeId, fx: Broadcast) -> None:
+        for drone in fx.drones:
+            part = self.participants.get(drone)
+            if part is None:
+                continue
+            for key in part.scope_index.get(fx.interrupt.scope, ()):
+                self._post((drone, key), part.logic[key].interrupt, fx.interrupt)
+
+    def _record(self, node: NodeId, fx: Record) -> None:
+        self.participants[node[0]].records.append(fx.record)
+
+    def _release(self, node: NodeId, fx: ReleaseBegin) -> None:
+        logic = self.participants[node[0]].logic.get(fx.begin)
+        if logic is not None:  # as on a drone: only a begin node on the same drone hears it
+            self._post((node[0], fx.begin), logic.release, fx.iteration)
+
+    def _note(self, node: NodeId, fx: Note) -> None:
+        if self.log is not None:
+            getattr(self.log, fx.level)(fx.event, drone=node[0], node=node[1], **fx.fields)
+
+    def _ignore(self, node: NodeId, fx: Effect) -> None:
+        pass
+
+    # -- the result -------------------------------------------------------------------
+
+    def _result(self, timed_out: bool) -> VirtualRun:
+        drones = {
+            drone: DroneOutcome(
+                drone=drone,
+                actions=tuple(sorted(part.records, key=lambda r: (r.start, r.node))),
+                resolved=dict(part.resolved),
+                all_resolved=part.all_resolved,
+                triggers_sent=part.triggers_sent,
+                triggers_received=part.triggers_received,
+                final=part.vehicle.state() if part.vehicle is not None else None,
+            )
+            for drone, part in self.participants.items()
+        }
+        return VirtualRun(
+            mission=self.mission,
+            drones=drones,
+            duration_s=self.t,
+            timed_out=timed_out,
+            waiting=self._waiting() if timed_out else (),
+            steps=self.steps,
+        )
+
+    def _waiting(self) -> tuple[Waiting, ...]:
+        out: list[Waiting] = []
+        for drone, part in sorted(self.participants.items()):
+            for key, logic in part.logic.items():
+                why = _why_waiting(logic)
+                if why is None and key in part.top_level and key not in part.resolved:
+                    why = "never triggered"
+                if why is not None:
+                    out.append(Waiting(drone, key, logic.spec.label, why))
+        return tuple(out)
+
+
+def _why_waiting(logic: NodeLogic) -> str | None:
+    reasons: list[str] = []
+    if isinstance(logic, ActionLogic) and logic.running:
+        reasons.append(f"running {logic.action} for {sorted(logic.running)}")
+    if isinstance(logic, ConditionLogic) and logic.pending:
+        purposes = ", ".join(f"{p} {list(a)}" for a, p in logic.pending.items())
+        reasons.append(f"condition {logic.cond_text} undecided ({purposes})")
+    for (group, act), missing in sorted(logic.pre.waiting().items()):
+        reasons.append(f"{group} {list(act)} waits for {', '.join(sorted(missing))}")
+    return "; ".join(reasons) or None
+
+
+def run_virtual(
+    programs: Mapping[str, DroneProgram] | Iterable[DroneProgram],
+    vehicles: VehicleFactory | None = None,
+    time_limit_s: float = TIME_LIMIT_S,
+    log: Any = None,
+) -> VirtualRun:
+    """Run a compiled mission (every participant's program) in virtual time, in this thread.
+
+    ``vehicles(drone, clock)`` builds each drone's vehicle (default: the
+    simulator core, :func:`~eamos.virtual.vehicles.sim_vehicles`); the run
+    stops at ``time_limit_s`` virtual seconds if not every participant resolved.
+    """
+    return VirtualMission(programs, vehicles, time_limit_s, log).run()

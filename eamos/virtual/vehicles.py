@@ -1,0 +1,123 @@
+"""The vehicles of a virtual run: simulated quadcopters stepped by the driver, ground pauses.
+
+The driver only needs what :class:`Vehicle` lists; :func:`sim_vehicles` makes
+the simulator's pure core (:class:`eamos.hal.sim_core.SimCore`) for every
+drone, and tests or the pre-flight checker may pass their own factory.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
+
+from ..hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
+from ..hal.sim_core import SIM_DT_S, SimCore
+from ..hal.sim_settings import SimSettings
+from ..program.uniform import Command
+
+#: A finished action: its done callback and its result.
+Finished = tuple[DoneCallback, ActionResult]
+Clock = Callable[[], float]
+
+
+class Vehicle(Protocol):
+    """A vehicle advanced step by step in virtual time (the shape of ``SimCore``)."""
+
+    def start(self) -> Telemetry: ...
+
+    def run(self, command: Command, done: DoneCallback) -> ActionHandle: ...
+
+    def cancel(self, handle: ActionHandle) -> None: ...
+
+    def abort(self) -> None: ...
+
+    def step(self) -> tuple[list[Finished], list[Telemetry]]: ...
+
+    def state(self) -> Any: ...
+
+
+#: ``factory(drone, clock)`` builds the vehicle of one drone; ``clock`` reads virtual seconds.
+VehicleFactory = Callable[[str, Clock], Vehicle]
+
+#: Virtual seconds per vehicle step.
+STEP_S = SIM_DT_S
+
+
+class QuietLog:
+    """A logger that drops everything (a virtual run needs speed, not adapter logs)."""
+
+    def bind(self, **_: Any) -> QuietLog:
+        return self
+
+    def _drop(self, *_: Any, **__: Any) -> None:
+        return None
+
+    debug = info = warning = error = exception = critical = _drop
+
+
+def sim_vehicles(
+    settings: SimSettings | Mapping[str, SimSettings] | None = None, log: Any = None
+) -> VehicleFactory:
+    """A factory of simulator cores: one ``settings`` for all, or one per drone.
+
+    Drones without settings get ``SimSettings()``.
+    """
+
+    def make(drone: str, clock: Clock) -> Vehicle:
+        if isinstance(settings, Mapping):
+            chosen = settings.get(drone, SimSettings())
+        else:
+            chosen = settings or SimSettings()
+        return SimCore(drone, chosen, log if log is not None else QuietLog(), clock)
+
+    return make
+
+
+class GroundPauses:
+    """The ground station's ``PauseFor`` in virtual time (it never flies)."""
+
+    def __init__(self) -> None:
+        self._due: list[tuple[float, int, ActionHandle]] = []
+        self._done: dict[int, DoneCallback] = {}
+        self._order = itertools.count()
+
+    def run(self, now_s: float, command: Command, done: DoneCallback) -> ActionHandle | None:
+        """Start a pause; any other action fails at once (then None is returned)."""
+        handle = ActionHandle(command.action, command.args)
+        if command.action != "PauseFor":
+            done(ActionResult("failed", f"the ground station cannot {command.action}"))
+            return None
+        if command.args[0] < 0:
+            done(ActionResult("failed", f"duration_s must be >= 0, got {command.args[0]!r}"))
+            return None
+        self._done[handle.id] = done
+        heapq.heappush(self._due, (now_s + command.args[0], next(self._order), handle))
+        return handle
+
+    def cancel(self, handle: ActionHandle) -> None:
+        """End a running pause ``cancelled`` (a finished one is left alone)."""
+        done = self._done.pop(handle.id, None)
+        if done is not None:
+            done(ActionResult("cancelled", "cancelled"))
+
+    def next_due(self) -> float | None:
+        """When the earliest running pause ends."""
+        while self._due and self._due[0][2].id not in self._done:
+            heapq.heappop(self._due)
+        return self._due[0][0] if self._due else None
+
+    def expire(self, now_s: float) -> list[Finished]:
+        """The pauses due by ``now_s``, finished ``ok``."""
+        out: list[Finished] = []
+        while self._due and self._due[0][0] <= now_s + 1e-9:
+            _, _, handle = heapq.heappop(self._due)
+            done = self._done.pop(handle.id, None)
+            if done is not None:
+                out.append((done, ActionResult("ok")))
+        return out
+
+    def busy(self) -> bool:
+        """True while a pause runs."""
+        return bool(self._done)

@@ -1,0 +1,75 @@
+"""The virtual-time driver and real processes agree: same per-drone action order.
+
+Each mission runs twice: through ``eamos run`` (one process per drone, real
+sockets, simulated drones at a speed-up) and through :func:`eamos.virtual.run_virtual`.
+The missions' conditions have thresholds between the points where drones
+stop, so the order of actions does not depend on timing.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from eamos.compiler import compile_file
+from eamos.virtual import run_virtual
+
+REPO = Path(__file__).resolve().parents[2]
+RUN_TIMEOUT_S = 240
+pytestmark = pytest.mark.e2e
+
+MISSIONS = {
+    "every_structure": Path(__file__).with_name("every_structure.go"),
+    "experiment_b": REPO / "missions" / "experiment_b.go",
+    "inspection_if": REPO / "missions" / "inspection_if.go",
+    "survey_repeat": REPO / "missions" / "survey_repeat.go",
+}
+
+
+def run_processes(tmp_path: Path, mission: Path) -> dict:
+    summary = tmp_path / "summary.json"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "eamos.cli",
+            "run",
+            str(mission),
+            "--speedup",
+            "20",
+            "--plain",
+            "--no-svg",
+            "--timeout",
+            "150",
+            "--run-dir",
+            str(tmp_path / "run"),
+            "--summary",
+            str(summary),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=RUN_TIMEOUT_S,
+        cwd=REPO,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return json.loads(summary.read_text())
+
+
+@pytest.mark.parametrize("name", sorted(MISSIONS))
+def test_virtual_driver_and_processes_give_the_same_action_order(tmp_path, name):
+    mission = MISSIONS[name]
+    virtual = run_virtual(compile_file(mission).programs)
+    assert virtual.ok
+    summary = run_processes(tmp_path, mission)
+    assert summary["ok"]
+    assert set(summary["drones"]) <= set(virtual.drones)
+    for drone, report in summary["drones"].items():
+        real = [
+            (a["action"], tuple(a["args"]), a["result"])
+            for a in sorted(report["actions"], key=lambda a: a["start"])
+        ]
+        assert real == virtual.actions(drone), drone
