@@ -44,7 +44,8 @@ Every error names the file and the field.
 
 from __future__ import annotations
 
-import json
+import os
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -173,6 +174,55 @@ class NodeConfig:
             **timeouts,
         )
 
+    def to_toml(self) -> str:
+        """This config as the TOML text :meth:`load` reads back: ``load(to_toml()) == self``.
+
+        Paths (program, log folder, keys) are written relative to the folder of
+        :attr:`path`, so a config and the files it names can move together (the
+        roll-out writes a drone's config on the operator's machine for a folder on
+        the drone).  The loaded :attr:`keys` are not written: they are read again
+        from :attr:`keys_dir`; no ``keys_dir`` means ``plain = true``.  Raises
+        ``ValueError`` for what a config file cannot say (link settings beyond
+        the ``[net]`` fields, values TOML cannot hold).
+        """
+        link = {key: getattr(self.link, key) for key in _LINK_FIELDS}
+        if LinkSettings(**link) != self.link:
+            raise ValueError(
+                f"{self.drone}: link settings beyond {', '.join(_LINK_FIELDS)} "
+                "cannot be written to a config file"
+            )
+        base = Path(self.path).parent
+        lines = [
+            f"drone = {_toml_value(self.drone)}",
+            f"program = {_toml_value(_relative(self.program, base))}",
+            f"log_dir = {_toml_value(_relative(self.log_dir, base))}",
+            f"ready_timeout_s = {_toml_value(self.ready_timeout_s)}",
+            f"land_timeout_s = {_toml_value(self.land_timeout_s)}",
+            f"mission_timeout_s = {_toml_value(self.mission_timeout_s)}",
+            "",
+            "[net]",
+            f"bind = {_toml_value(self.bind)}",
+        ]
+        if self.keys_dir is not None:
+            lines.append(f"keys = {_toml_value(_relative(self.keys_dir, base))}")
+        else:
+            lines.append("plain = true")
+        lines += [f"{key} = {_toml_value(value)}" for key, value in link.items()]
+        if self.peer_give_up_s is not None:
+            lines.append(f"peer_give_up_s = {_toml_value(self.peer_give_up_s)}")
+        lines += ["", "[net.peers]"]
+        lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in self.peers.items()]
+        lines += ["", "[hal]"]
+        lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in self.hal.items()]
+        return "\n".join(lines) + "\n"
+
+    def write(self) -> Path:
+        """Write :meth:`to_toml` to :attr:`path` (its folder is made); return the path."""
+        path = Path(self.path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(self.to_toml(), encoding="utf-8")
+        return path
+
 
 NET_FIELDS = {
     "bind",
@@ -188,6 +238,58 @@ NET_FIELDS = {
 """Fields of a drone config's ``[net]`` table."""
 
 _LINK_FIELDS = ("heartbeat_s", "peer_timeout_s", "telemetry_stale_s", "telemetry_max_hz")
+
+
+def _relative(target: Path, base: Path) -> str:
+    """``target`` relative to ``base`` (both resolved first, as ``load`` resolves), POSIX form."""
+    return Path(os.path.relpath(Path(target).resolve(), Path(base).resolve())).as_posix()
+
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def _toml_key(key: str) -> str:
+    return key if _BARE_KEY.fullmatch(key) else _toml_string(key)
+
+
+def _toml_string(text: str) -> str:
+    """A TOML basic string: quote, backslash and control characters escaped."""
+    out = []
+    for ch in text:
+        if ch in ('"', "\\"):
+            out.append("\\" + ch)
+        elif ch == "\n":
+            out.append("\\n")
+        elif ch == "\t":
+            out.append("\\t")
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        elif 0xD800 <= ord(ch) <= 0xDFFF:
+            raise ValueError(f"{text!r}: a lone surrogate cannot be written to TOML")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _toml_value(value: Any) -> str:
+    """A TOML literal for the plain values of our config files (see :meth:`NodeConfig.to_toml`)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)  # inf, nan, 1e+20 and 0.1 are all TOML floats as Python writes them
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, Mapping):
+        return (
+            "{"
+            + ", ".join(f"{_toml_key(str(k))} = {_toml_value(v)}" for k, v in value.items())
+            + "}"
+        )
+    raise ValueError(f"cannot write {value!r} to TOML")
 
 
 def _seconds(where: str, value: Any) -> float:
@@ -300,25 +402,6 @@ class FleetConfig:
             if not isinstance(value, dict):
                 raise ConfigError(f"{w}{key}: must be a table")
         return cls(path, dict(default_hal), drones, dict(ssh_defaults), ssh, binds, dict(ground))
-
-
-def toml_value(value: Any) -> str:
-    """A TOML literal for the plain values our config files hold (for writing configs)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return (
-            "{"
-            + ", ".join(f"{json.dumps(str(k))} = {toml_value(v)}" for k, v in value.items())
-            + "}"
-        )
-    raise TypeError(f"cannot write {value!r} to TOML")
 
 
 def positive_number(text: str) -> float:

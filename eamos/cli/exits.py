@@ -18,6 +18,10 @@ EXIT_CONNECT = 3
 #: An internal error (a bug in EAMOS); the traceback is printed with ``-v``.
 EXIT_INTERNAL = 4
 
+#: Ctrl-C before a command had anything to clean up (the shell's 128 + SIGINT); not
+#: an outcome of the table: a running mission turns Ctrl-C into an abort (1).
+EXIT_INTERRUPTED = 130
+
 EXIT_CODES: dict[int, str] = {
     EXIT_OK: "ok",
     EXIT_MISSION_FAILED: "mission failed",

@@ -8,16 +8,29 @@ computers on a network rather than processes on this machine:
 * :mod:`.ssh`      -- ``ssh``/``scp`` with timeouts and errors people can act on
   ("unreachable", "wrong key", "disk full", ...);
 * :mod:`.rollout`  -- ``eamos rollout``: compile, probe, deploy only what changed,
-  launch ``eamos-node`` detached on every drone; writes ``rollout.json``;
+  launch ``eamos-node`` detached on every drone; writes ``rollout.json``; its
+  parts are :mod:`.identity` (fleet mission id, execution digests),
+  :mod:`.probe`, :mod:`.plan` (what to copy, staging, launch) and :mod:`.record`
+  (``rollout.json``, step timings);
 * :mod:`.ground`   -- ``eamos start`` (the ground station for a rolled-out fleet)
   and ``eamos abort``;
 * :mod:`.status`   -- ``eamos status`` and ``eamos logs fetch``;
-* :mod:`.cli`      -- the argument parsers and handlers of those commands.
+* :mod:`.deployment` -- what is deployed where (a run folder or the drones' stamps).
+
+The commands themselves (argument parsers, exit codes) are in :mod:`eamos.cli.fleet`.
 
 ``docs/operations.md`` is the operator's guide.
 """
 
-from .ssh import DroneError, FleetError
+from .ssh import DroneError, FleetConnectError, FleetError, RunFolderError
 from .targets import FleetTargets, SshTarget, load_targets
 
-__all__ = ["DroneError", "FleetError", "FleetTargets", "SshTarget", "load_targets"]
+__all__ = [
+    "DroneError",
+    "FleetConnectError",
+    "FleetError",
+    "FleetTargets",
+    "RunFolderError",
+    "SshTarget",
+    "load_targets",
+]

@@ -16,8 +16,8 @@ from typing import Any
 
 from ..config import ConfigError, FleetConfig
 from ..program.uniform import GROUND_STATION
-from .rollout import read_rollout, targets_of
-from .ssh import DroneError, FleetError, for_each, run_remote
+from .record import read_rollout, targets_of
+from .ssh import DroneError, FleetError, RunFolderError, for_each, run_remote
 from .targets import SshTarget, ground_settings, ssh_target
 
 STAMP_TIMEOUT_S = 30.0
@@ -161,7 +161,7 @@ def resolve(source: Path, mission: str | None = None) -> Deployment:
     if Path(source).is_dir():
         deployment = from_run_dir(source)
         if mission and mission != deployment.mission:
-            raise FleetError(f"{source}: holds mission {deployment.mission}, not {mission}")
+            raise RunFolderError(f"{source}: holds mission {deployment.mission}, not {mission}")
         return deployment
     return from_fleet(Path(source), mission)
 

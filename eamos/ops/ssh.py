@@ -74,6 +74,19 @@ class FleetError(Exception):
         return "\n".join([self.message, *(f"  {e}" for e in self.errors)])
 
 
+class RunFolderError(FleetError):
+    """A run folder is not a roll-out's (no or a damaged ``rollout.json``): bad input.
+
+    A :class:`FleetError` so that code catching fleet failures still catches it;
+    the command line tells it apart (it is the operator's input, not the fleet).
+    """
+
+
+class FleetConnectError(FleetError):
+    """This machine could not connect to the fleet (the ground station's port taken or
+    unreachable): "could not connect" on the command line."""
+
+
 def classify(text: str) -> tuple[str, str] | None:
     """``(kind, line)`` for the first recognised failure in ssh/scp/remote output."""
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
@@ -209,8 +222,10 @@ def for_each(
 
 __all__ = [
     "DroneError",
+    "FleetConnectError",
     "FleetError",
     "Remote",
+    "RunFolderError",
     "classify",
     "copy_from",
     "copy_to",

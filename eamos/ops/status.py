@@ -28,7 +28,7 @@ from typing import Any
 from ..net import wire
 from .deployment import Deployment
 from .ground import short
-from .rollout import RUNNING_SH
+from .probe import RUNNING_SH
 from .ssh import DroneError, copy_from, for_each, run_remote
 from .targets import SshTarget
 

@@ -8,12 +8,16 @@ import json
 import os
 import subprocess
 import sys
+from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import pytest
 
-from eamos.compiler import CompilerBug, cli_compile
-from eamos.compiler.cli_compile import build_parser, run_compile, run_graph
+from eamos.cli import compile as cli_compile
+from eamos.cli.compile import run_compile, run_graph
+from eamos.cli.errors import dispatch
+from eamos.cli.main import build_parser
+from eamos.compiler import CompilerBug
 from eamos.program.format import load_program
 
 from .compiler_helpers import MISSIONS, REPO
@@ -22,17 +26,18 @@ BAD = "func SEQ_A() {\n\tDrone1.Takof(1)\n\tSEQ_Nope()\n}\n"
 
 
 def _run(argv: list[str]) -> tuple[int, str, str]:
-    """Parse ``argv`` like ``eamos`` would and run the handler, capturing its output."""
+    """Parse ``argv`` like ``eamos`` does and run the command, capturing its output."""
     args = build_parser().parse_args(argv)
     out, err = io.StringIO(), io.StringIO()
-    code = args.func(args, out=out, err=err)
+    with redirect_stdout(out), redirect_stderr(err):
+        code = dispatch(args)
     return code, out.getvalue(), err.getvalue()
 
 
 def _subprocess(argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     return subprocess.run(
-        [sys.executable, "-m", "eamos.compiler.cli_compile", *argv],
+        [sys.executable, "-m", "eamos.cli", *argv],
         cwd=cwd,
         env=env,
         capture_output=True,
@@ -127,11 +132,12 @@ def test_compile_prints_warnings(tmp_path: Path) -> None:
     assert "compiled" in out
 
 
-def test_compile_bad_mission_exits_1_with_locations(tmp_path: Path) -> None:
+def test_compile_bad_mission_exits_2_with_locations(tmp_path: Path) -> None:
+    # A mission with errors is bad input (2) in the one exit-code table (it was 1).
     mission = tmp_path / "bad.go"
     mission.write_text(BAD)
     code, out, err = _run(["compile", str(mission), "-o", str(tmp_path / "o")])
-    assert code == 1 and out == ""
+    assert code == 2 and out == ""
     assert f"{mission}:2:9: error: unknown action 'Takof'" in err
     assert f"{mission}:3:2: error: undefined block 'SEQ_Nope'" in err
     assert "2 errors in" in err and "Traceback" not in err
@@ -140,22 +146,22 @@ def test_compile_bad_mission_exits_1_with_locations(tmp_path: Path) -> None:
 
 def test_compile_missing_and_binary_files(tmp_path: Path) -> None:
     code, _, err = _run(["compile", str(tmp_path / "nope.go")])
-    assert code == 1 and "no such mission file" in err
+    assert code == 2 and "no such mission file" in err
     binary = tmp_path / "bin.go"
     binary.write_bytes(b"func\x00\x01\x02")
     code, _, err = _run(["compile", str(binary)])
-    assert code == 1 and "NUL bytes" in err and "\x00" not in err
+    assert code == 2 and "NUL bytes" in err and "\x00" not in err
 
 
 def test_compile_unwritable_output_is_a_clean_error(tmp_path: Path) -> None:
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     code, _, err = _run(["compile", str(MISSIONS / "experiment_a.go"), "-o", str(blocker / "x")])
-    assert code == 1 and "cannot write the output" in err and "Traceback" not in err
+    assert code == 2 and "cannot write the output" in err and "Traceback" not in err
 
 
 @pytest.mark.parametrize("exc", [CompilerBug("broken invariant"), RuntimeError("boom")])
-def test_internal_errors_exit_2_in_one_line(
+def test_internal_errors_exit_4_in_one_line(
     exc: Exception,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -163,13 +169,14 @@ def test_internal_errors_exit_2_in_one_line(
         raise exc
 
     monkeypatch.setattr(cli_compile, "compile_file", explode)
+    # Internal errors exit 4 like every other command's (compile's was 2).
     code, out, err = _run(["compile", str(MISSIONS / "experiment_a.go")])
-    assert code == 2 and out == ""
+    assert code == 4 and out == ""
     assert err.count("\n") == 1
-    assert err.startswith("internal error: ") and str(exc) in err
+    assert err.startswith("eamos compile: internal error: ") and str(exc) in err
     assert "(run with -v for details), please report it" in err
     code, _, err = _run(["compile", str(MISSIONS / "experiment_a.go"), "-v"])
-    assert code == 2 and "Traceback" in err and "please report it" in err
+    assert code == 4 and "Traceback" in err and "please report it" in err
 
 
 def test_graph_prints_dot_and_writes_files(tmp_path: Path) -> None:
@@ -212,11 +219,11 @@ def test_graph_open_without_a_display_prints_the_path(
     assert path.exists() and "no viewer found" in out
 
 
-def test_graph_bad_mission_exits_1(tmp_path: Path) -> None:
+def test_graph_bad_mission_exits_2(tmp_path: Path) -> None:
     mission = tmp_path / "bad.go"
     mission.write_text(BAD)
     code, out, err = _run(["graph", str(mission)])
-    assert code == 1 and out == "" and f"{mission}:2:9:" in err
+    assert code == 2 and out == "" and f"{mission}:2:9:" in err
 
 
 def test_cli_in_a_subprocess(tmp_path: Path) -> None:
@@ -229,7 +236,7 @@ def test_cli_in_a_subprocess(tmp_path: Path) -> None:
     mission = tmp_path / "bad.go"
     mission.write_text(BAD)
     done = _subprocess(["compile", str(mission)], cwd=tmp_path)
-    assert done.returncode == 1
+    assert done.returncode == 2
     assert f"{mission}:2:9: error:" in done.stderr and "Traceback" not in done.stderr
     done = _subprocess(["compile", "--help"], cwd=tmp_path)
     assert done.returncode == 0 and "--no-svg" in done.stdout

@@ -10,19 +10,12 @@ import pytest
 
 from eamos import __version__
 from eamos.compiler import compile_file
-from eamos.config import ConfigError, FleetConfig
-from eamos.ops.rollout import (
-    DronePlan,
-    Probe,
-    check_version,
-    config_text_for,
-    decide,
-    execution_digest,
-    fleet_mission_id,
-    paper_table,
-    parse_probe,
-    restamp,
-)
+from eamos.config import ConfigError, FleetConfig, NodeConfig
+from eamos.net.keys import create_fleet_keys
+from eamos.ops.identity import execution_digest, fleet_mission_id, restamp
+from eamos.ops.plan import DronePlan, decide, drone_config
+from eamos.ops.probe import Probe, check_version, parse_probe
+from eamos.ops.record import paper_table
 from eamos.ops.ssh import DroneError, classify
 from eamos.ops.status import current_action
 from eamos.ops.targets import SshTarget, load_targets
@@ -282,7 +275,7 @@ def test_bad_fleet_settings_name_the_field(tmp_path, text, message):
 
 
 def test_a_network_fleet_without_keys_is_refused_before_any_drone_is_touched(tmp_path):
-    from eamos.ops.rollout import check_security
+    from eamos.ops.plan import check_security
 
     targets = load_targets(fleet(tmp_path, GOOD), ["Drone1", "Drone2"])
     with pytest.raises(ConfigError) as err:
@@ -294,12 +287,12 @@ def test_a_network_fleet_without_keys_is_refused_before_any_drone_is_touched(tmp
 
 def test_drone_config_has_peers_and_security(tmp_path):
     endpoints = {"Drone1": "tcp://198.18.0.2:6001", "Drone2": "tcp://198.18.0.3:6002"}
-    text = config_text_for(
-        "Drone1", endpoints, "tcp://198.18.0.1:6000", {"adapter": "sim"}, 30, True
+    config = drone_config(
+        "Drone1", tmp_path, endpoints, "tcp://198.18.0.1:6000", {"adapter": "sim"}, 30, True
     )
-    path = tmp_path / "configs" / "Drone1.toml"
-    path.parent.mkdir()
-    path.write_text(text)
+    assert config.path == tmp_path / "configs" / "Drone1.toml"
+    text = config.to_toml()
+    path = config.write()
     import tomllib
 
     doc = tomllib.loads(text)
@@ -312,8 +305,11 @@ def test_drone_config_has_peers_and_security(tmp_path):
         doc["net"]["keys"] == "../keys/Drone1"
         and doc["program"] == "../programs/Drone1.program.json"
     )
-    plain = tomllib.loads(config_text_for("Drone1", endpoints, "x", {}, 30, False))
+    plain = tomllib.loads(drone_config("Drone1", tmp_path, endpoints, "x", {}, 30, False).to_toml())
     assert plain["net"]["plain"] is True and "keys" not in plain["net"]
+    # The text is one eamos-node reads back (keys from the fleet's folder, as on a drone).
+    keys = create_fleet_keys(tmp_path / "keys", ["GCS", "Drone1", "Drone2"], force=True)
+    assert NodeConfig.load(path).keys_dir == keys / "Drone1"
 
 
 def test_paper_table_rows():
@@ -353,9 +349,9 @@ def test_stamp_round_trip_through_json():
     program = compile_file(EXPERIMENT_B).programs["Drone2"]
     plan = plan_for(dataclasses.replace(program, mission_id="m"))
     plan.copy_program = True
-    from eamos.ops.rollout import _stamp
+    from eamos.ops.plan import stamp_text
 
-    doc = json.loads(_stamp(plan, None))
+    doc = json.loads(stamp_text(plan, None))
     assert doc["digest"] == plan.digest and doc["checksum"] == plan.program.checksum
     assert doc["mission_id"] == "m" and doc["eamos"] == __version__
 

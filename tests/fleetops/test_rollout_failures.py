@@ -45,7 +45,8 @@ def test_unreachable_host_stops_before_anything_is_copied(lab, fleet_keys, tmp_p
         tmp_path / "fleet.toml", {"Drone1": "spare", "Drone2": "nossh"}, keys=fleet_keys
     )
     proc = rollout(lab, fleet, tmp_path / "run")
-    assert proc.returncode == 1, proc.stdout + proc.stderr
+    # "Could not connect" in the one exit-code table (it was 1 before the table).
+    assert proc.returncode == 3, proc.stdout + proc.stderr
     addr = lab.hosts["nossh"].addr
     assert (
         f"Drone2 (root@{addr}:22): unreachable: ssh: connect to host {addr} port 22" in proc.stderr
@@ -63,7 +64,7 @@ def test_wrong_key(lab, fleet_keys, tmp_path):
         key=lab.other_key,
     )
     proc = rollout(lab, fleet, tmp_path / "run")
-    assert proc.returncode == 1
+    assert proc.returncode == 3  # the drones refuse the key: could not connect (was 1)
     for drone, host in (("Drone1", "spare"), ("Drone2", "d2")):
         addr = lab.hosts[host].addr
         assert re.search(

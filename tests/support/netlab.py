@@ -39,8 +39,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from eamos.config import toml_value
+from eamos.config import NodeConfig
 from eamos.net.keys import create_fleet_keys
+from eamos.net.link import LinkSettings
 from eamos.program.uniform import GROUND_STATION
 
 __all__ = [
@@ -293,29 +294,22 @@ def write_fleet(
         if name == GROUND_STATION:
             extra.update(ground_net or {})
         default_hal = {"adapter": "ground"} if name == GROUND_STATION else {"adapter": "sim"}
-        lines = [
-            f"drone = {toml_value(name)}",
-            f'program = "../programs/{name}.program.json"',
-            f'log_dir = "../logs/{name}"',
-            f"ready_timeout_s = {ready_timeout_s!r}",
-            f"mission_timeout_s = {mission_timeout_s!r}",
-            "",
-            "[net]",
-            f"bind = {toml_value(bind[name])}",
-            f'keys = "../keys/{name}"' if secure else "plain = true",
-            *(f"{k} = {toml_value(v)}" for k, v in extra.items()),
-            "",
-            "[net.peers]",
-            *(f"{json.dumps(p)} = {toml_value(connect[p])}" for p in names if p != name),
-            "",
-            "[hal]",
-            *(
-                f"{json.dumps(k)} = {toml_value(v)}"
-                for k, v in (hal.get(name) or default_hal).items()
-            ),
-        ]
-        configs[name] = run_dir / "configs" / f"{name}.toml"
-        configs[name].write_text("\n".join(lines) + "\n")
+        give_up = extra.pop("peer_give_up_s", None)
+        config = NodeConfig(
+            path=run_dir / "configs" / f"{name}.toml",
+            drone=name,
+            program=run_dir / "programs" / f"{name}.program.json",
+            log_dir=log_dirs[name],
+            bind=bind[name],
+            peers={p: connect[p] for p in names if p != name},
+            hal=dict(hal.get(name) or default_hal),
+            ready_timeout_s=ready_timeout_s,
+            mission_timeout_s=mission_timeout_s,
+            keys_dir=run_dir / "keys" / name if secure else None,
+            link=LinkSettings(**extra),  # the [net] settings: heartbeat_s, peer_timeout_s, ...
+            peer_give_up_s=give_up,
+        )
+        configs[name] = config.write()
     return FleetFiles(run_dir, configs, log_dirs, keys_dir)
 
 

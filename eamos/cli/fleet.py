@@ -1,8 +1,9 @@
-"""The fleet commands of ``eamos``: rollout, start, status, abort, logs fetch, report.
+"""The fleet commands of ``eamos``: rollout, start, status, abort, logs fetch.
 
-``eamos/cli.py`` adds them with :func:`add_fleet_commands`.  Exit codes: 0
-done, 1 the operation failed on the fleet (a drone unreachable, a mission not
-ok, ...), 2 bad input (mission, fleet file, run folder).
+They drive :mod:`eamos.ops` (real drones over SSH).  Exit codes are the table of
+:mod:`eamos.cli.exits`: 0 done, 1 the operation failed on the fleet (a mission
+not ok, a drone that cannot be used), 2 bad input (mission, fleet file, run
+folder), 3 the drones (or the ground station's port) could not be reached.
 """
 
 from __future__ import annotations
@@ -13,7 +14,20 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from eamos.config import positive_number as _positive
+from eamos.ops.deployment import Deployment, resolve
+
+from .errors import BadInput, command
+from .exits import EXIT_MISSION_FAILED, EXIT_OK
+from .options import (
+    add_fleet_file,
+    add_mission,
+    add_plain,
+    add_run_dir,
+    add_seconds,
+    add_speedup,
+    add_svg,
+    add_verbose,
+)
 
 _ROLLOUT_HELP = """\
 Roll a mission out to real drones over SSH (paper V-E, VI-E/F): compile it here
@@ -53,11 +67,6 @@ _LOGS_HELP = """\
 Collect every drone's logs (mission.log, uniform.log, adapter.log, node.out,
 report.json) over SSH into RUN_DIR/logs/<Drone>/."""
 
-_REPORT_HELP = """\
-Write a self-contained HTML page about a run folder (of `eamos run` or a
-roll-out): each drone's mission timeline (Gantt chart of its actions),
-trajectories, triggers against MDG arcs (paper Table 7), durations."""
-
 
 def _source_arg(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -69,13 +78,11 @@ def _source_arg(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mission", metavar="NAME", help="with a fleet file: which rolled-out mission"
     )
-    parser.add_argument(
-        "-v", "--verbose", action="store_true", help="tracebacks of internal errors"
-    )
+    add_verbose(parser)
 
 
 def add_fleet_commands(sub: Any) -> None:
-    """Add ``rollout``, ``start``, ``status``, ``abort``, ``logs`` and ``report``."""
+    """Add ``rollout``, ``start``, ``status``, ``abort`` and ``logs``."""
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "rollout",
@@ -84,22 +91,13 @@ def add_fleet_commands(sub: Any) -> None:
         epilog=_ROLLOUT_EPILOG,
         formatter_class=fmt,
     )
-    p.add_argument("mission", metavar="MISSION.go", type=Path, help="the mission file")
-    p.add_argument(
-        "fleet", metavar="FLEET.toml", type=Path, help="the drones: SSH hosts, folders, hardware"
-    )
-    p.add_argument(
-        "--run-dir", type=Path, metavar="DIR", help="run folder (default runs/<mission>-<time>/)"
-    )
-    p.add_argument(
-        "--speedup",
-        type=_positive,
-        metavar="K",
-        help="simulated drones run K times faster than real time",
-    )
-    p.add_argument("--svg", action="store_true", help="also draw the graphs as SVG (slower)")
-    p.add_argument("-v", "--verbose", action="store_true", help="tracebacks of internal errors")
-    p.set_defaults(func=cmd_rollout)
+    add_mission(p)
+    add_fleet_file(p, required=True)
+    add_run_dir(p)
+    add_speedup(p)
+    add_svg(p, default=False)
+    add_verbose(p)
+    command(p, cmd_rollout)
 
     p = sub.add_parser(
         "start",
@@ -108,22 +106,21 @@ def add_fleet_commands(sub: Any) -> None:
         formatter_class=fmt,
     )
     p.add_argument("run_dir", metavar="RUN_DIR", type=Path, help="the roll-out's run folder")
-    p.add_argument(
+    add_seconds(
+        p,
         "--timeout",
-        type=_positive,
+        "abort (everyone lands) if the mission is not over after this long",
         default=600.0,
-        metavar="SECONDS",
-        help="abort (everyone lands) if the mission is not over after this long (600)",
     )
-    p.add_argument(
+    add_seconds(
+        p,
         "--ready-timeout",
-        type=_positive,
-        metavar="SECONDS",
-        help="how long the drones may take to be ready (default: [ground] ready_timeout_s)",
+        "how long the drones may take to be ready",
+        default_text="[ground] ready_timeout_s of the fleet file",
     )
-    p.add_argument("--plain", action="store_true", help="plain progress lines, no live table")
-    p.add_argument("-v", "--verbose", action="store_true", help="tracebacks of internal errors")
-    p.set_defaults(func=cmd_start)
+    add_plain(p)
+    add_verbose(p)
+    command(p, cmd_start)
 
     p = sub.add_parser(
         "status",
@@ -132,14 +129,8 @@ def add_fleet_commands(sub: Any) -> None:
         formatter_class=fmt,
     )
     _source_arg(p)
-    p.add_argument(
-        "--listen",
-        type=_positive,
-        default=2.0,
-        metavar="SECONDS",
-        help="how long to listen for live telemetry (2)",
-    )
-    p.set_defaults(func=cmd_status)
+    add_seconds(p, "--listen", "how long to listen for live telemetry", default=2.0)
+    command(p, cmd_status)
 
     p = sub.add_parser(
         "abort",
@@ -149,14 +140,8 @@ def add_fleet_commands(sub: Any) -> None:
     )
     _source_arg(p)
     p.add_argument("--reason", default="aborted by the operator", help="logged by every drone")
-    p.add_argument(
-        "--timeout",
-        type=_positive,
-        default=180.0,
-        metavar="SECONDS",
-        help="how long to wait for the drones to land (180)",
-    )
-    p.set_defaults(func=cmd_abort)
+    add_seconds(p, "--timeout", "how long to wait for the drones to land", default=180.0)
+    command(p, cmd_abort)
 
     logs = sub.add_parser("logs", help="drone logs of a rolled-out mission", description=_LOGS_HELP)
     logs_sub = logs.add_subparsers(dest="logs_command", required=True, metavar="ACTION")
@@ -174,18 +159,7 @@ def add_fleet_commands(sub: Any) -> None:
         metavar="RUN_DIR",
         help="run folder to fill (default: the RUN_DIR given; required with a fleet file)",
     )
-    p.set_defaults(func=cmd_logs_fetch)
-
-    p = sub.add_parser(
-        "report",
-        help="write an HTML report of a run folder",
-        description=_REPORT_HELP,
-        formatter_class=fmt,
-    )
-    p.add_argument("run_dir", metavar="RUN_DIR", type=Path, help="a run folder with summary.json")
-    p.add_argument("-o", "--output", type=Path, metavar="HTML", help="default: RUN_DIR/report.html")
-    p.add_argument("-v", "--verbose", action="store_true", help="tracebacks of internal errors")
-    p.set_defaults(func=cmd_report)
+    command(p, cmd_logs_fetch)
 
 
 def _say(text: str) -> None:
@@ -195,32 +169,12 @@ def _say(text: str) -> None:
     sys.stdout.flush()
 
 
-def _fail(command: str, exc: Exception, code: int) -> int:
-    print(f"eamos {command}: {exc}", file=sys.stderr, flush=True)
-    return code
-
-
 def cmd_rollout(args: argparse.Namespace) -> int:
     """``eamos rollout``."""
-    from ..compiler import MissionError
-    from ..config import ConfigError
-    from .rollout import RolloutOptions, paper_table, rollout
-    from .ssh import FleetError
+    from eamos.ops.rollout import RolloutOptions, paper_table, rollout
 
     opts = RolloutOptions(args.mission, args.fleet, args.run_dir, args.speedup, args.svg)
-    try:
-        result = rollout(opts, _say)
-    except MissionError as exc:
-        try:
-            source = Path(args.mission).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError):
-            source = None
-        print(exc.render(str(args.mission), source), file=sys.stderr)
-        return 2
-    except ConfigError as exc:
-        return _fail("rollout", exc, 2)
-    except FleetError as exc:
-        return _fail("rollout", exc, 1)
+    result = rollout(opts, _say)
     rows = paper_table(result.durations)
     print(
         f"roll-out done in {result.durations.get('rollout', 0):.2f} s "
@@ -228,12 +182,12 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         f"every drone's eamos-node is waiting for the ground station"
     )
     print(f"next: eamos start {result.run_dir}")
-    return 0
+    return EXIT_OK
 
 
 def print_table7(durations: dict[str, float]) -> None:
     """The paper's Table 7 roll-out rows."""
-    from .rollout import paper_table
+    from eamos.ops.record import paper_table
 
     print("roll-out (paper Table 7):")
     for row, value in paper_table(durations):
@@ -242,23 +196,15 @@ def print_table7(durations: dict[str, float]) -> None:
 
 def cmd_start(args: argparse.Namespace) -> int:
     """``eamos start``."""
-    from ..config import ConfigError
-    from ..program.format import ProgramError
-    from ..run import install_stop_handler
-    from .ground import StartOptions, start
-    from .ssh import FleetError
+    from eamos.ground import install_stop_handler
+    from eamos.ops.ground import StartOptions, start
 
     stop = threading.Event()
     install_stop_handler(stop)
     opts = StartOptions(
         args.run_dir, args.timeout, args.ready_timeout, live=False if args.plain else None
     )
-    try:
-        summary = start(opts, stop)
-    except (ConfigError, ProgramError) as exc:
-        return _fail("start", exc, 2)
-    except FleetError as exc:
-        return _fail("start", exc, 1 if (Path(args.run_dir) / "rollout.json").exists() else 2)
+    summary = start(opts, stop)
     status = "finished" if summary["ok"] else f"FAILED ({summary['outcome']})"
     print(f"mission {summary['mission']} {status} in {summary['duration_s']:.1f} s")
     for name, report in summary["drones"].items():
@@ -273,84 +219,48 @@ def cmd_start(args: argparse.Namespace) -> int:
         )
     print_table7(summary["rollout"]["durations"])
     print(f"summary: {summary['run_dir']}/summary.json; logs: eamos logs fetch {args.run_dir}")
-    return 0 if summary["ok"] else 1
+    return EXIT_OK if summary["ok"] else EXIT_MISSION_FAILED
 
 
-def _deployment(args: argparse.Namespace) -> Any:
-    from .deployment import resolve
-
+def _deployment(args: argparse.Namespace) -> Deployment:
     return resolve(args.source, args.mission)
 
 
 def cmd_status(args: argparse.Namespace) -> int:
-    """``eamos status``."""
-    from ..config import ConfigError
-    from .ssh import FleetError
-    from .status import fleet_status, format_status
+    """``eamos status``: 1 when a drone could not be asked."""
+    from eamos.ops.status import fleet_status, format_status
 
-    try:
-        dep = _deployment(args)
-        rows = fleet_status(dep, args.listen)
-    except ConfigError as exc:
-        return _fail("status", exc, 2)
-    except FleetError as exc:
-        return _fail("status", exc, 1)
+    dep = _deployment(args)
+    rows = fleet_status(dep, args.listen)
     print(format_status(dep, rows))
-    return 1 if any(r.error for r in rows) else 0
+    return EXIT_MISSION_FAILED if any(r.error for r in rows) else EXIT_OK
 
 
 def cmd_abort(args: argparse.Namespace) -> int:
-    """``eamos abort``."""
-    from ..config import ConfigError
-    from .ground import abort
-    from .ssh import FleetError
+    """``eamos abort``: 1 when a drone did not confirm it landed."""
+    from eamos.ops.ground import abort
 
-    try:
-        result = abort(args.source, args.mission, args.reason, args.timeout, _say)
-    except ConfigError as exc:
-        return _fail("abort", exc, 2)
-    except FleetError as exc:
-        return _fail("abort", exc, 1)
+    result = abort(args.source, args.mission, args.reason, args.timeout, _say)
     for name, landed in result.landed.items():
         print(f"  {name}: {'landed' if landed else 'NOT confirmed landed'}")
     for note in result.notes:
         print(f"  {note}")
-    return 0 if result.ok else 1
+    return EXIT_OK if result.ok else EXIT_MISSION_FAILED
 
 
 def cmd_logs_fetch(args: argparse.Namespace) -> int:
-    """``eamos logs fetch``."""
-    from ..config import ConfigError
-    from .ssh import FleetError
-    from .status import fetch_logs
+    """``eamos logs fetch``: 1 when some logs could not be copied."""
+    from eamos.ops.status import fetch_logs
 
-    try:
-        dep = _deployment(args)
-    except ConfigError as exc:
-        return _fail("logs fetch", exc, 2)
-    except FleetError as exc:
-        return _fail("logs fetch", exc, 1)
+    dep = _deployment(args)
     out = args.output or dep.run_dir
     if out is None:
-        print("eamos logs fetch: -o RUN_DIR is required with a fleet file", file=sys.stderr)
-        return 2
+        raise BadInput("-o RUN_DIR is required with a fleet file")
     print(f"fetching the logs of {', '.join(dep.drones)} into {Path(out) / 'logs'}")
     result = fetch_logs(dep, Path(out), _say)
     for err in result.errors:
         print(f"  {err}", file=sys.stderr)
-    return 1 if result.errors else 0
-
-
-def cmd_report(args: argparse.Namespace) -> int:
-    """``eamos report``."""
-    from ..report import ReportError, write_html
-
-    try:
-        path = write_html(args.run_dir, args.output)
-    except ReportError as exc:
-        return _fail("report", exc, 2)
-    print(f"report: {path}")
-    return 0
+    return EXIT_MISSION_FAILED if result.errors else EXIT_OK
 
 
 __all__ = ["add_fleet_commands"]

@@ -1,11 +1,7 @@
-"""The ``eamos compile`` and ``eamos graph`` commands.
+"""``eamos compile`` and ``eamos graph``: compile a mission, draw one of its graphs.
 
-``eamos/cli.py`` registers them with :func:`add_compile_parser` and
-:func:`add_graph_parser`; each sets ``func`` (the handler, returning the exit
-code) in the parsed arguments.  Exit codes: 0 success, 1 the mission has
-errors (or a file cannot be written), 2 an internal error or bad usage.
-Mission errors are printed as ``file:line:col: error: ...`` with the line,
-a caret and a hint; never as a traceback.
+Mission errors are printed as ``file:line:col: error: ...`` with the line, a
+caret and a hint (by :mod:`eamos.cli.errors`), never as a traceback.
 """
 
 from __future__ import annotations
@@ -17,21 +13,18 @@ import os
 import shutil
 import subprocess
 import sys
-import traceback
 import webbrowser
 from pathlib import Path
 from typing import Any, TextIO
 
 import networkx as nx
 
-from .artifacts import write_artifacts
-from .drawing import GraphKind, graphml_ready, render_svg, to_dot, to_graphml
-from .errors import Diagnostic, MissionError
-from .phases import CompiledMission, compile_file
+from eamos.compiler import CompiledMission, Diagnostic, compile_file, write_artifacts
+from eamos.compiler.drawing import GraphKind, graphml_ready, render_svg, to_dot, to_graphml
 
-EXIT_OK = 0
-EXIT_MISSION = 1
-EXIT_INTERNAL = 2
+from .errors import BadInput, command, source_text
+from .exits import EXIT_OK
+from .options import add_mission, add_svg, add_verbose
 
 _COMPILE_HELP = """\
 Compile a mission file into one drone program per participant.
@@ -42,7 +35,8 @@ Writes, under OUT (default: out/<mission name>/):
   stats.json, manifest.json       graph sizes (paper Table 7) and checksums of every file
 
 Errors are reported as FILE:LINE:COL with a hint; all errors of the file at once.
-Exit code: 0 compiled, 1 the mission has errors, 2 internal error."""
+Exit code: 0 compiled, 2 the mission has errors (or the output cannot be written),
+4 internal error."""
 
 _COMPILE_EPILOG = """\
 examples:
@@ -74,7 +68,7 @@ def add_compile_parser(subparsers: Any) -> argparse.ArgumentParser:
         epilog=_COMPILE_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("mission", metavar="MISSION.go", help="the mission file")
+    add_mission(p, path=False)
     p.add_argument(
         "-o",
         "--out",
@@ -87,19 +81,9 @@ def add_compile_parser(subparsers: Any) -> argparse.ArgumentParser:
         action="store_true",
         help="print only the graph sizes as JSON on stdout (files are still written)",
     )
-    p.add_argument(
-        "--no-svg",
-        dest="svg",
-        action="store_false",
-        help="skip drawing the SVG pictures (faster for big missions)",
-    )
-    p.add_argument(
-        "-v",
-        "--verbose",
-        action="store_true",
-        help="more detail, and the traceback of internal errors",
-    )
-    p.set_defaults(func=run_compile)
+    add_svg(p, default=True)
+    add_verbose(p, "more detail, and the traceback of internal errors")
+    command(p, run_compile)
     return p
 
 
@@ -112,7 +96,7 @@ def add_graph_parser(subparsers: Any) -> argparse.ArgumentParser:
         epilog=_GRAPH_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("mission", metavar="MISSION.go", help="the mission file")
+    add_mission(p, path=False)
     p.add_argument(
         "--which",
         choices=("amt", "meg", "mdg"),
@@ -145,22 +129,12 @@ def add_graph_parser(subparsers: Any) -> argparse.ArgumentParser:
         action="store_true",
         help="open the written file in a browser (or print its path if none)",
     )
-    p.add_argument("-v", "--verbose", action="store_true", help="the traceback of internal errors")
-    p.set_defaults(func=run_graph)
+    add_verbose(p, "the traceback of internal errors")
+    command(p, run_graph)
     return p
 
 
 # -- shared helpers -----------------------------------------------------------------
-
-
-def _source_text(path: str) -> str | None:
-    """The mission text for error rendering (None if it cannot be read)."""
-    try:
-        text = Path(path).read_bytes().decode("utf-8", errors="replace")
-    except OSError:
-        return None
-    # Never echo a binary file's bytes to the terminal.
-    return None if "\x00" in text else text
 
 
 def _print_warnings(
@@ -168,26 +142,6 @@ def _print_warnings(
 ) -> None:
     for w in warnings:
         print(w.render(path, source), file=err)
-
-
-def _compile(path: str, verbose: bool, err: TextIO) -> tuple[CompiledMission | None, int]:
-    """Compile ``path``; on failure print the diagnosis and return the exit code."""
-    try:
-        return compile_file(Path(path)), EXIT_OK
-    except MissionError as exc:
-        print(exc.render(path, _source_text(path)), file=err)
-        return None, EXIT_MISSION
-    except Exception as exc:  # any other failure is our bug, reported as such
-        return None, _internal_error(exc, verbose, err)
-
-
-def _internal_error(exc: BaseException, verbose: bool, err: TextIO) -> int:
-    if verbose:
-        traceback.print_exception(exc, file=err)
-    detail = str(exc) or type(exc).__name__
-    advice = "please report it" if verbose else "(run with -v for details), please report it"
-    print(f"internal error: {type(exc).__name__}: {detail} {advice}", file=err)
-    return EXIT_INTERNAL
 
 
 def default_out_dir(mission: str) -> Path:
@@ -206,10 +160,8 @@ def run_compile(
     err = err or sys.stderr
     path = str(args.mission)
     verbose = bool(getattr(args, "verbose", False))
-    compiled, code = _compile(path, verbose, err)
-    if compiled is None:
-        return code
-    source = _source_text(path)
+    compiled: CompiledMission = compile_file(Path(path))
+    source = source_text(path)
     _print_warnings(compiled.warnings, path, source, err)
     out_dir = Path(args.out) if getattr(args, "out", None) else default_out_dir(path)
     notes: list[str] = []
@@ -218,10 +170,7 @@ def run_compile(
             compiled, out_dir, svg=getattr(args, "svg", True), warnings=notes
         )
     except OSError as exc:
-        print(f"error: cannot write the output to {out_dir}: {exc.strerror or exc}", file=err)
-        return EXIT_MISSION
-    except Exception as exc:  # our bug: reported as an internal error
-        return _internal_error(exc, verbose, err)
+        raise BadInput(f"cannot write the output to {out_dir}: {exc.strerror or exc}") from exc
     for note in notes:
         print(f"warning: {note}", file=err)
     stats: dict[str, Any] = compiled.stats()
@@ -292,21 +241,16 @@ def run_graph(
     out = out or sys.stdout
     err = err or sys.stderr
     path = str(args.mission)
-    verbose = bool(getattr(args, "verbose", False))
     which: GraphKind = args.which
     fmt: str = args.format
-    compiled, code = _compile(path, verbose, err)
-    if compiled is None:
-        return code
-    _print_warnings(compiled.warnings, path, _source_text(path), err)
+    compiled = compile_file(Path(path))
+    _print_warnings(compiled.warnings, path, source_text(path), err)
     if which == "mdg":
         names = ", ".join(compiled.mdgs)
         if not args.drone:
-            print(f"error: --which mdg needs --drone NAME (one of {names})", file=err)
-            return EXIT_INTERNAL
+            raise BadInput(f"--which mdg needs --drone NAME (one of {names})")
         if args.drone not in compiled.mdgs:
-            print(f"error: no drone '{args.drone}' in this mission (one of {names})", file=err)
-            return EXIT_INTERNAL
+            raise BadInput(f"no drone '{args.drone}' in this mission (one of {names})")
         graph = compiled.mdgs[args.drone]
         stem = f"mdg_{args.drone}"
     else:
@@ -339,10 +283,7 @@ def run_graph(
             target.parent.mkdir(parents=True, exist_ok=True)
             target.write_text(text, encoding="utf-8")
     except OSError as exc:
-        print(f"error: cannot write {target}: {exc.strerror or exc}", file=err)
-        return EXIT_MISSION
-    except Exception as exc:  # our bug: reported as an internal error
-        return _internal_error(exc, verbose, err)
+        raise BadInput(f"cannot write {target}: {exc.strerror or exc}") from exc
     if args.open and open_file(target):
         print(f"opened {target}", file=out)
     else:
@@ -351,23 +292,4 @@ def run_graph(
     return EXIT_OK
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """A stand-alone parser with just ``compile`` and ``graph`` (for ``python -m``)."""
-    parser = argparse.ArgumentParser(prog="eamos", description="EAMOS mission compiler")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_compile_parser(sub)
-    add_graph_parser(sub)
-    return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m eamos.compiler.cli_compile compile|graph ...``."""
-    args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args))
-    except KeyboardInterrupt:
-        return 130
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+__all__ = ["add_compile_parser", "add_graph_parser", "open_file", "run_compile", "run_graph"]

@@ -1,0 +1,65 @@
+"""``eamos keys``: make the fleet's network keys (one CURVE key pair per participant)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from eamos.net.keys import create_fleet_keys, participants_of_compiled
+from eamos.program.uniform import GROUND_STATION
+
+from .errors import command
+from .exits import EXIT_OK
+from .options import add_verbose
+
+_KEYS_HELP = """\
+Make one CURVE key pair per participant of a mission (each drone and the ground
+station), in ZeroMQ's certificate format.  Either name the participants with
+--fleet (keys go to OUT), or give a compiled mission folder (`eamos compile -o
+OUT`): the participants are read from OUT/programs/*.program.json and the keys go
+to OUT/keys.
+
+Layout: public/<name>.key (every public key), <name>/<name>.key_secret (the key
+pair, mode 0600) and <name>/public/ (a copy of the public keys).  Ship <name>/
+with participant <name>'s program and point its config at it: [net] keys = "...".
+Only the fleet's keys can connect; traffic is encrypted.  Exit code 2 on bad input."""
+
+
+def add_keys_parser(sub: Any) -> None:
+    """Add ``eamos keys`` to the ``eamos`` command's subparsers."""
+    parser = sub.add_parser(
+        "keys",
+        help="make the fleet's network keys (CURVE key pairs)",
+        description=_KEYS_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  eamos keys out/experiment_c\n"
+        "  eamos keys fleet-keys --fleet GCS Drone1 Drone2",
+    )
+    parser.add_argument("out", metavar="OUT", type=Path, help="output (or compiled mission) folder")
+    parser.add_argument(
+        "--fleet", nargs="+", metavar="NAME", help="participant names (the ground station is GCS)"
+    )
+    parser.add_argument("--force", action="store_true", help="replace existing keys")
+    add_verbose(parser)
+    command(parser, cmd_keys)
+
+
+def cmd_keys(args: argparse.Namespace) -> int:
+    """``eamos keys``; a :class:`~eamos.net.keys.KeysError` is bad input (exit 2)."""
+    if args.fleet:
+        names = list(dict.fromkeys(args.fleet))
+        if GROUND_STATION not in names:
+            names.insert(0, GROUND_STATION)  # the ground station is always a participant
+        out = Path(args.out)
+    else:
+        names = participants_of_compiled(args.out)
+        out = Path(args.out) / "keys"
+    create_fleet_keys(out, names, force=args.force)
+    print(f"keys for {', '.join(names)} in {out}/")
+    for name in names:
+        print(f'  {name}: ship {out / name}/  ([net] keys = "<where it lands>")')
+    return EXIT_OK
+
+
+__all__ = ["add_keys_parser", "cmd_keys"]

@@ -1,0 +1,126 @@
+"""Option builders shared by every ``eamos`` command: one spelling, one meaning, one unit.
+
+Each builder adds one option to an :mod:`argparse` parser, so ``--run-dir``,
+``--speedup``, ``--svg/--no-svg``, ``-v/--verbose`` and the timeouts read and
+behave the same in ``compile``, ``run``, ``rollout``, ``start``, ... .  Durations
+are in seconds, always said by the metavar ``SECONDS``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def positive_number(text: str) -> float:
+    """argparse type for a number greater than zero (seconds, speed-ups)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0:  # also refuses nan
+        raise argparse.ArgumentTypeError("must be greater than 0")
+    return value
+
+
+def add_mission(parser: argparse.ArgumentParser, *, path: bool = True) -> None:
+    """The positional ``MISSION.go``."""
+    parser.add_argument(
+        "mission", metavar="MISSION.go", type=Path if path else str, help="the mission file"
+    )
+
+
+def add_verbose(
+    parser: argparse.ArgumentParser, what: str = "tracebacks of internal errors"
+) -> None:
+    """``-v/--verbose``: an internal error's traceback is printed only with it."""
+    parser.add_argument("-v", "--verbose", action="store_true", help=what)
+
+
+def add_svg(parser: argparse.ArgumentParser, *, default: bool) -> None:
+    """``--svg/--no-svg``: draw the graphs as SVG pictures (slow for big missions).
+
+    Both spellings work on every command (``run --no-svg`` and ``rollout --svg``
+    were the only ones before); only the default differs.
+    """
+    parser.add_argument(
+        "--svg",
+        action=argparse.BooleanOptionalAction,
+        default=default,
+        help=f"draw the graphs as SVG pictures (default: {'yes' if default else 'no'})",
+    )
+
+
+def add_run_dir(parser: argparse.ArgumentParser) -> None:
+    """``--run-dir DIR``: where a run (or roll-out) writes its folder."""
+    parser.add_argument(
+        "--run-dir",
+        type=Path,
+        metavar="DIR",
+        help="the run folder (default: runs/<mission>-<date-time>/)",
+    )
+
+
+def add_speedup(parser: argparse.ArgumentParser, *, default: float | None = None) -> None:
+    """``--speedup K``: simulated time runs K times faster than real time."""
+    shown = f"{default:g}" if default is not None else "1"
+    parser.add_argument(
+        "--speedup",
+        type=positive_number,
+        default=default,
+        metavar="K",
+        help=f"simulated drones run K times faster than real time (default {shown})",
+    )
+
+
+def add_seconds(
+    parser: argparse.ArgumentParser,
+    flag: str,
+    help_text: str,
+    *,
+    default: float | None = None,
+    default_text: str | None = None,
+) -> None:
+    """A duration option (``--timeout``, ``--ready-timeout``, ``--listen``) in seconds."""
+    shown = default_text if default_text is not None else f"{default:g}" if default else None
+    parser.add_argument(
+        flag,
+        type=positive_number,
+        default=default,
+        metavar="SECONDS",
+        help=f"{help_text} (seconds{f', default {shown}' if shown else ''})",
+    )
+
+
+def add_plain(parser: argparse.ArgumentParser) -> None:
+    """``--plain``: plain progress lines instead of a live table."""
+    parser.add_argument(
+        "--plain", action="store_true", help="plain progress lines instead of a live table"
+    )
+
+
+def add_fleet_file(parser: argparse.ArgumentParser, *, required: bool) -> None:
+    """The fleet file: positional ``FLEET.toml`` (rollout) or ``--fleet FLEET.toml`` (run)."""
+    help_text = "the drones: hardware settings, and for a roll-out SSH hosts and folders"
+    if required:
+        parser.add_argument("fleet", metavar="FLEET.toml", type=Path, help=help_text)
+    else:
+        parser.add_argument(
+            "--fleet",
+            type=Path,
+            metavar="FLEET.toml",
+            help=f"{help_text} (default: every drone simulated)",
+        )
+
+
+__all__ = [
+    "add_fleet_file",
+    "add_mission",
+    "add_plain",
+    "add_run_dir",
+    "add_seconds",
+    "add_speedup",
+    "add_svg",
+    "add_verbose",
+    "positive_number",
+]
