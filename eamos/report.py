@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .ground.summary import ActionEntry, DroneReport, RunSummary
 from .logs import LOG_NAMES, read_log
 
 RESULT_COLOURS = {"ok": "#4c9f70", "failed": "#d1495b", "cancelled": "#edae49"}
@@ -87,34 +88,38 @@ class RunData:
     """One run folder, read once."""
 
     run_dir: Path
-    summary: dict[str, Any]
+    summary: RunSummary
     logs: dict[str, dict[str, list[dict[str, Any]]]] = field(default_factory=dict)
     rollout: dict[str, Any] | None = None
 
     @property
     def drones(self) -> list[str]:
         """The drones, in the summary's order (the ground station is not one)."""
-        return list(self.summary.get("drones", {}))
+        return list(self.summary.drones)
 
     @property
     def t0(self) -> float:
         """The start trigger's wall-clock time: time zero of every plot."""
-        return float(self.summary.get("started", 0.0))
+        return self.summary.started
+
+    def report(self, drone: str) -> DroneReport | None:
+        """``drone``'s own report (None when the ground station never received it)."""
+        return self.summary.drones[drone].report
 
 
 def load_run(run_dir: Path | str) -> RunData:
     """Read ``summary.json``, every participant's logs and ``rollout.json`` (if any)."""
     folder = Path(run_dir)
     try:
-        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+        summary = RunSummary.read(folder / "summary.json")
     except FileNotFoundError as exc:
         raise ReportError(
             f"{folder}: no summary.json (not a run folder of `eamos run` or `eamos start`)"
         ) from exc
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError, TypeError, AttributeError) as exc:
         raise ReportError(f"{folder / 'summary.json'}: cannot read it: {exc}") from exc
     logs: dict[str, dict[str, list[dict[str, Any]]]] = {}
-    for name in [*summary.get("drones", {}), "GCS"]:
+    for name in [*summary.drones, "GCS"]:
         logs[name] = {kind: read_log(folder / "logs" / name / f"{kind}.log") for kind in LOG_NAMES}
     rollout = None
     if (folder / "rollout.json").exists():
@@ -125,27 +130,27 @@ def load_run(run_dir: Path | str) -> RunData:
     return RunData(folder, summary, logs, rollout)
 
 
-def _label(action: dict[str, Any]) -> str:
-    args = ", ".join(f"{a:g}" if isinstance(a, float) else str(a) for a in action.get("args", []))
-    return f"{action.get('action', '?')}({args})"
+def _label(action: ActionEntry) -> str:
+    args = ", ".join(f"{a:g}" for a in action.args)
+    return f"{action.action}({args})"
 
 
 def action_bars(run: RunData) -> list[dict[str, Any]]:
     """Every action of every drone: ``drone, label, start_s, end_s, duration_s, result``."""
     bars = []
     for drone in run.drones:
-        for action in run.summary["drones"][drone].get("actions", []):
-            start, end = float(action["start"]), float(action["end"])
+        report = run.report(drone)
+        for action in report.actions if report is not None else ():
             bars.append(
                 {
                     "drone": drone,
-                    "node": action.get("node", ""),
+                    "node": action.node,
                     "label": _label(action),
-                    "action": action.get("action", ""),
-                    "start_s": start - run.t0,
-                    "end_s": end - run.t0,
-                    "duration_s": end - start,
-                    "result": action.get("result", ""),
+                    "action": action.action,
+                    "start_s": action.start - run.t0,
+                    "end_s": action.end - run.t0,
+                    "duration_s": action.end - action.start,
+                    "result": action.result,
                 }
             )
     return sorted(bars, key=lambda b: (b["start_s"], b["drone"]))
@@ -184,10 +189,12 @@ def table7(run: RunData) -> Table:
     """
     rows = []
     for drone in run.drones:
-        report = run.summary["drones"][drone]
-        mdg = report.get("mdg", {})
+        report = run.report(drone)
+        mdg = report.mdg if report is not None else {}
         ext_in, ext_out = mdg.get("external_in"), mdg.get("external_out")
-        rcv, snd = report.get("triggers_received"), report.get("triggers_sent")
+        rcv, snd = (
+            (report.triggers_received, report.triggers_sent) if report is not None else (None, None)
+        )
         log_rcv = _counted(run, drone, "mission.inbridge.received")
         log_snd = _counted(run, drone, "mission.outbridge.sent")
         program = run.run_dir / "programs" / f"{drone}.program.json"
@@ -223,7 +230,7 @@ def table7(run: RunData) -> Table:
 def durations(run: RunData) -> Table:
     """Roll-out steps (when rolled out), the mission, and each drone's actions."""
     rows: list[list[Any]] = []
-    roll = run.summary.get("rollout") or {}
+    roll = run.summary.rollout or {}
     table = roll.get("table") or {}
     for name in ("mission compilation", "mission deployment", "total roll-out"):
         if name in table:
@@ -232,7 +239,7 @@ def durations(run: RunData) -> Table:
     for step in ("compile", "probe", "deploy", "launch", "ready"):
         if step in steps:
             rows.append([f"  step: {step}", "", float(steps[step]), ""])
-    rows.append(["mission execution", "", float(run.summary.get("duration_s", 0.0)), ""])
+    rows.append(["mission execution", "", run.summary.duration_s, ""])
     bars = action_bars(run)
     for drone in run.drones:
         mine = [b for b in bars if b["drone"] == drone]
@@ -269,19 +276,19 @@ def overview(run: RunData) -> Table:
     """The run in a few lines: mission, outcome, where each drone ran."""
     s = run.summary
     rows: list[list[Any]] = [
-        ["mission", s.get("mission")],
-        ["mission id", s.get("mission_id")],
-        ["outcome", s.get("outcome")],
-        ["ok", bool(s.get("ok"))],
+        ["mission", s.mission],
+        ["mission id", s.mission_id],
+        ["outcome", s.outcome],
+        ["ok", s.ok],
         ["run folder", str(run.run_dir)],
     ]
     for drone in run.drones:
-        report = s["drones"][drone]
-        where = report.get("host", "this machine")
+        result = s.drones[drone]
+        where = result.host or "this machine"
         logs = (
             "logs here" if any(run.logs.get(drone, {}).values()) else "no logs (eamos logs fetch)"
         )
-        rows.append([drone, f"{'ok' if report.get('ok') else 'not ok'}; {where}; {logs}"])
+        rows.append([drone, f"{'ok' if result.ok else 'not ok'}; {where}; {logs}"])
     return Table(["", ""], rows, "Run")
 
 
@@ -328,7 +335,7 @@ def plot_gantt(run: RunData, ax: Any = None) -> Any:
     ax.set_yticks(range(len(run.drones)), run.drones)
     ax.invert_yaxis()
     ax.set_xlabel("seconds since the start trigger")
-    ax.set_title(f"{run.summary.get('mission', '')}: actions per drone")
+    ax.set_title(f"{run.summary.mission}: actions per drone")
     from matplotlib.patches import Patch
 
     ax.legend(
@@ -440,17 +447,13 @@ def html_page(run: RunData) -> str:
             f'<img alt="{html.escape(title)}" src="data:image/png;base64,{data}">'
         )
     s = run.summary
-    status = (
-        "finished"
-        if s.get("ok")
-        else f'<span class="bad">FAILED: {html.escape(str(s.get("outcome")))}</span>'
-    )
+    status = "finished" if s.ok else f'<span class="bad">FAILED: {html.escape(s.outcome)}</span>'
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>EAMOS run {html.escape(str(s.get('mission', '')))}</title>",
+        f"<title>EAMOS run {html.escape(s.mission)}</title>",
         f"<style>{_CSS}</style></head><body>",
-        f"<h1>EAMOS run: {html.escape(str(s.get('mission', '')))} ({status})</h1>",
+        f"<h1>EAMOS run: {html.escape(s.mission)} ({status})</h1>",
         overview(run)._repr_html_(),
         table7(run)._repr_html_(),
         durations(run)._repr_html_(),

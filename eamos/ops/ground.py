@@ -27,20 +27,29 @@ import select
 import shlex
 import signal
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..actors.ground import DroneView, GroundStation
-from ..actors.runtime import DroneRuntimeError
+from ..actors.runtime import DroneRuntimeError, NetSettings
+from ..ground import (
+    Display,
+    DroneReport,
+    DroneView,
+    GroundStation,
+    Limits,
+    RunSummary,
+    fly,
+    ground_runtime,
+    make_display,
+    summarize,
+)
 from ..net import wire
 from ..program.format import DroneProgram, load_program
 from ..program.uniform import GROUND_STATION
-from ..run import GroundPhases, ProgressDisplay, build_summary, ground_runtime
 from .deployment import Deployment, from_run_dir, resolve
 from .rollout import ROLLOUT_FILE, RUNNING_SH, paper_table, read_rollout
 from .ssh import FleetError, classify
@@ -166,6 +175,19 @@ class StartOptions:
 
 
 def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> dict[str, Any]:
+    """Be the ground station of a rolled-out mission; return the summary's JSON (also written).
+
+    The typed summary is :func:`fly_rollout`'s.
+    """
+    return fly_rollout(opts, stop, say).to_json()
+
+
+def fly_rollout(
+    opts: StartOptions,
+    stop: threading.Event,
+    say: Say | None = None,
+    display: Display | None = None,
+) -> RunSummary:
     """Be the ground station of a rolled-out mission; return the summary (also written)."""
     run_dir = Path(opts.run_dir).resolve()
     doc = read_rollout(run_dir)
@@ -178,9 +200,8 @@ def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> 
             f"({gcs_program.mission_id} != {dep.mission_id}); run `eamos rollout` again"
         )
     ready_timeout = opts.ready_timeout_s or float(doc["ground"]["ready_timeout_s"])
-    live = sys.stdout.isatty() if opts.live is None else opts.live
-    display = ProgressDisplay(live, drones)
-    speak = say or display.say
+    shown = display or make_display(opts.live, drones)
+    speak = say or shown.say
     station: GroundStation
 
     def on_change(name: str, view: DroneView, msg: Any) -> None:
@@ -190,18 +211,17 @@ def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> 
                 f"runs program {short(msg.program_checksum)}, the roll-out deployed "
                 f"{short(dep.checksums.get(name, ''))}: roll out again",
             )
-        display.event(name, view, msg)
+        shown.event(name, view, msg)
 
     station = GroundStation(drones, dep.mission_id, on_change=on_change)
-    display.station = station
+    shown.watch(station)
+    speedup = doc.get("speedup")
     runtime = ground_runtime(
         gcs_program,
         station,
-        dep.ground_bind,
-        dict(dep.endpoints),
+        NetSettings(dep.ground_bind, dict(dep.endpoints), keys=dep.ground_keys()),
         run_dir / "logs" / GROUND_STATION,
-        doc.get("speedup"),
-        dep.ground_keys(),
+        {"adapter": "ground", "speedup": speedup} if speedup else None,
     )
     exited: dict[str, str] = {}
 
@@ -224,9 +244,7 @@ def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> 
     pid_file = run_dir / GROUND_PID_FILE
     started = time.time()
     outcome = "not started"
-    phases = GroundPhases(
-        ready_timeout, opts.timeout_s, live, stop, on_ready=lambda s: speak(f"ready {s:.2f} s")
-    )
+    ready_s = None
     try:
         try:
             runtime.start()
@@ -239,22 +257,28 @@ def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> 
         pid_file.write_text(f"{os.getpid()}\n")  # for `eamos abort RUN_DIR`
         station.attach(runtime)
         watcher.start()
-        with display:
+        with shown:
             speak(
                 f"mission {dep.mission}: waiting for {len(drones)} drone(s) "
                 f"(up to {ready_timeout:g} s): {', '.join(drones)}"
             )
-            outcome, started = phases.fly(
-                station, display, speak, alive=lambda: [n for n in drones if n not in exited]
+            flight = fly(
+                station,
+                shown,
+                stop,
+                Limits(ready_timeout, opts.timeout_s),
+                alive=lambda: [n for n in drones if n not in exited],
+                on_ready=lambda s: speak(f"ready {s:.2f} s"),
             )
+        outcome, started, ready_s = flight.outcome, flight.started, flight.ready_s
     finally:
         watcher.close()
-        gcs_report = runtime.report() if runtime.executive is not None else {}
+        gcs_report = runtime.drone_report() if runtime.executive is not None else None
         runtime.stop()
         pid_file.unlink(missing_ok=True)
     durations = dict(doc.get("durations", {}))
-    if phases.ready_s is not None:
-        durations["ready"] = round(phases.ready_s, 3)
+    if ready_s is not None:
+        durations["ready"] = round(ready_s, 3)
     views = station.snapshot()
     if outcome.startswith("not ready"):
         for name in drones:
@@ -263,21 +287,31 @@ def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> 
                     f"{name}: never became ready; its eamos-node gives up by itself after "
                     f"ready_timeout_s ({ready_timeout:g} s)"
                 )
-    summary = build_summary(
-        dep.mission, dep.mission_id, outcome, started, run_dir, views, drones, {}, gcs_report
+    summary = summarize(
+        dep.mission,
+        dep.mission_id,
+        outcome,
+        started,
+        time.time(),
+        run_dir,
+        views,
+        drones,
+        list(station.failures),
+        gcs_report,
+        hosts={name: dep.targets[name].label for name in drones},
     )
-    for name in drones:
-        summary["drones"][name]["host"] = dep.targets[name].label
-        summary["drones"][name].pop("exit_code", None)  # unknown over SSH; report says ok
-    summary["rollout"] = {
-        "durations": durations,
-        "table": {row: value for row, value in paper_table(durations)},
-        "drones": {
-            n: {"state": e.get("state"), "durations": e.get("durations", {})}
-            for n, e in doc["drones"].items()
+    summary = replace(
+        summary,
+        rollout={
+            "durations": durations,
+            "table": {row: value for row, value in paper_table(durations)},
+            "drones": {
+                n: {"state": e.get("state"), "durations": e.get("durations", {})}
+                for n, e in doc["drones"].items()
+            },
         },
-    }
-    (run_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    )
+    summary.write(run_dir / "summary.json")
     doc["durations"] = durations
     (run_dir / ROLLOUT_FILE).write_text(json.dumps(doc, indent=1) + "\n")
     return summary
@@ -355,14 +389,17 @@ def abort(
 
 def _landed_from_summary(run_dir: Path) -> dict[str, bool]:
     try:
-        summary = json.loads((run_dir / "summary.json").read_text())
-    except (OSError, json.JSONDecodeError):
+        summary = RunSummary.read(run_dir / "summary.json")
+    except (OSError, ValueError):
         return {}
-    out = {}
-    for name, report in summary.get("drones", {}).items():
-        final = report.get("final") or {}
-        out[name] = bool(final) and abs(float(final.get("z", 1.0))) < LANDED_Z_M
-    return out
+    return {name: _reported_landed(d.report) is True for name, d in summary.drones.items()}
+
+
+def _reported_landed(report: DroneReport | None) -> bool | None:
+    """Whether a drone's report says it is down; None when it has no final state."""
+    if report is None or report.final is None:
+        return None
+    return abs(report.final.z) < LANDED_Z_M
 
 
 def abort_program(dep: Deployment) -> DroneProgram:
@@ -383,9 +420,9 @@ def abort_program(dep: Deployment) -> DroneProgram:
 
 
 def _landed(view: DroneView) -> bool:
-    final = (view.report or {}).get("final") or {}
-    if final:
-        return abs(float(final.get("z", 1.0))) < LANDED_Z_M
+    reported = _reported_landed(view.report)
+    if reported is not None:
+        return reported
     return view.position is not None and abs(view.position[2]) < LANDED_Z_M and not view.armed
 
 
@@ -407,7 +444,10 @@ def broadcast_abort(
     station = GroundStation(dep.drones, dep.mission_id, on_change=on_change)
     log_dir = (dep.run_dir / "logs" / f"{GROUND_STATION}.abort") if dep.run_dir else None
     runtime = ground_runtime(
-        abort_program(dep), station, dep.ground_bind, dict(dep.endpoints), log_dir, None, keys
+        abort_program(dep),
+        station,
+        NetSettings(dep.ground_bind, dict(dep.endpoints), keys=keys),
+        log_dir,
     )
     notes: list[str] = []
     try:
@@ -454,6 +494,7 @@ __all__ = [
     "StartOptions",
     "abort",
     "broadcast_abort",
+    "fly_rollout",
     "start",
     "wait_pid_exit",
 ]

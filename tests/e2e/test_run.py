@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -188,7 +190,7 @@ def test_node_with_bad_config_names_the_field(tmp_path):
     cfg = tmp_path / "d1.toml"
     cfg.write_text('drone = "Drone1"\nprogram = "p.json"\n[net]\nbind = "nonsense"\n')
     proc = subprocess.run(
-        [sys.executable, "-m", "eamos.node", "--config", str(cfg)],
+        [sys.executable, "-m", "eamos.cli.node", "--config", str(cfg)],
         capture_output=True,
         text=True,
         timeout=60,
@@ -256,7 +258,7 @@ def test_node_waiting_for_missing_peers_stops_at_once_on_sigterm(tmp_path):
         '[net.peers]\nGCS = "tcp://127.0.0.1:9"\n[hal]\nadapter = "fake"\n'
     )
     proc = subprocess.Popen(
-        [sys.executable, "-m", "eamos.node", "--config", str(cfg)],
+        [sys.executable, "-m", "eamos.cli.node", "--config", str(cfg)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -272,3 +274,60 @@ def test_node_waiting_for_missing_peers_stops_at_once_on_sigterm(tmp_path):
     _out, err = proc.communicate(timeout=60)
     assert proc.returncode == 1, err
     assert time.monotonic() - started < 10  # not the 300 s ready timeout
+
+
+def test_a_drone_that_goes_silent_shows_as_link_lines_and_the_mission_finishes(tmp_path):
+    # The same peer-status lines as eamos-node's (eamos.ground.format_event): a drone
+    # frozen for longer than peer_timeout_s (3 s) is "lost", then "back" when it resumes.
+    run_dir = tmp_path / "run"
+    summary = tmp_path / "summary.json"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "eamos.cli",
+            "run",
+            str(MISSIONS / "experiment_b.go"),
+            "--speedup",
+            "2",
+            "--plain",
+            "--no-svg",
+            "--run-dir",
+            str(run_dir),
+            "--summary",
+            str(summary),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=REPO,
+    )
+    lines: list[str] = []
+    frozen: int | None = None
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line.rstrip("\n"))
+            if frozen is None and "running   FlyByY" in line:
+                found = subprocess.run(
+                    ["pgrep", "-f", str(run_dir / "configs" / "Drone2.toml")],
+                    capture_output=True,
+                    text=True,
+                )
+                frozen = int(found.stdout.split()[0])
+                os.kill(frozen, signal.SIGSTOP)
+            elif frozen is not None and "Drone2 link lost" in line:
+                os.kill(frozen, signal.SIGCONT)
+        proc.wait(timeout=RUN_TIMEOUT_S)
+    finally:
+        if frozen is not None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(frozen, signal.SIGCONT)  # never leave a stopped process behind
+        if proc.poll() is None:
+            proc.kill()
+    out = "\n".join(lines)
+    assert proc.returncode == 0, out
+    stamp = r"\[\d\d:\d\d:\d\d\]"
+    assert re.search(rf"^{stamp}   Drone2 link lost \(silent \d+\.\d s\)$", out, re.M), out
+    assert re.search(rf"^{stamp}   Drone2 link back \(silent \d+\.\d s\)$", out, re.M), out
+    assert json.loads(summary.read_text())["ok"]

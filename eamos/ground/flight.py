@@ -1,0 +1,178 @@
+"""The ground station's run loop (paper VI-G), wherever the drones are.
+
+:func:`fly` is the one loop of ``eamos run`` (drones as local processes),
+``eamos start`` (drones over SSH) and ``eamos-node`` in the ground role:
+wait until every drone is ready (else abort: no start trigger is sent), send
+the start trigger, wait until every participant resolved (or the operator
+stops, or the timeout), then complete or abort, and wait for the reports of
+the drones still there.  What differs between them (how drones are started
+and watched, where the summary goes) stays with the caller.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from eamos.actors.runtime import DroneRuntime, NetSettings
+from eamos.hal import make_adapter
+from eamos.logs import make_logger
+from eamos.net import wire
+from eamos.program.format import DroneProgram
+from eamos.program.uniform import GROUND_STATION
+
+from .display import Display
+from .station import GroundStation
+
+#: How long the drones have to send their final report after the mission ends.
+REPORT_WAIT_OK_S = 60.0
+#: ... after an abort (they land first).
+REPORT_WAIT_ABORTED_S = 180.0
+
+
+@dataclass(frozen=True)
+class Limits:
+    """How long the ground station waits for each phase (seconds)."""
+
+    ready_timeout_s: float = 60.0
+    timeout_s: float = 600.0  # the mission, from the start trigger
+    report_ok_s: float = REPORT_WAIT_OK_S
+    report_aborted_s: float = REPORT_WAIT_ABORTED_S
+
+
+@dataclass(frozen=True)
+class Flight:
+    """How the run loop ended."""
+
+    outcome: str  # "ok", "not ready: ...", "aborted by the operator", "timed out after ..."
+    started: float  # wall-clock time of the start trigger (of the attempt when never started)
+    ready_s: float | None  # how long the drones took to become ready (None: they did not)
+    missing_reports: tuple[str, ...] = ()  # drones expected to report that did not (not lost)
+
+    @property
+    def ok(self) -> bool:
+        """The mission ran to completion (the drones' own results aside)."""
+        return self.outcome == "ok"
+
+
+def fly(
+    station: GroundStation,
+    display: Display,
+    stop: threading.Event,
+    limits: Limits,
+    *,
+    alive: Callable[[], list[str]] | None = None,
+    on_ready: Callable[[float], None] | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    wall: Callable[[], float] = time.time,
+) -> Flight:
+    """Run the ground station's phases on ``station`` (already attached to its runtime).
+
+    ``alive()`` names the drones whose process is known to run (default: all);
+    the others are not waited for.  ``on_ready`` is told how long the drones
+    took to become ready, before the start trigger.  Lost drones (dead, or
+    given up after a long silence) are waited for neither to resolve nor to
+    report.
+    """
+    outcome = "ok"
+    started = wall()
+    t0 = clock()
+    ready_s = None
+    if not station.wait_ready(limits.ready_timeout_s, stop):
+        outcome = "not ready: " + (
+            ", ".join(station.failures) or "waiting for " + ", ".join(station.not_ready())
+        )
+        station.abort(outcome)
+    else:
+        ready_s = clock() - t0
+        if on_ready is not None:
+            on_ready(ready_s)
+        display.say("all drones ready: start")
+        started = wall()
+        station.start()
+        outcome = _watch(station, display, stop, limits.timeout_s, clock)
+        if outcome == "ok":
+            station.complete()
+        else:
+            display.say(f"aborting: {outcome}: every drone lands")
+            station.abort(outcome)
+    # A drone that never became ready sends no report (eamos-node gives up first).
+    views = station.snapshot()
+    running = station.drones() if alive is None else alive()
+    waiting = [n for n in running if views[n].ready]
+    patience = limits.report_ok_s if outcome == "ok" else limits.report_aborted_s
+    missing: list[str] = []
+    if not station.wait_reports(waiting, patience):
+        missing = station.missing_reports(waiting)
+        display.say("some drones sent no report: " + ", ".join(missing))
+    display.refresh()
+    return Flight(outcome, started, ready_s, tuple(missing))
+
+
+def _watch(
+    station: GroundStation,
+    display: Display,
+    stop: threading.Event,
+    timeout_s: float,
+    clock: Callable[[], float],
+) -> str:
+    """Wait until every participant resolved; the outcome ("ok" or why not)."""
+    deadline = clock() + timeout_s
+    while not station.wait_resolved(display.refresh_s, stop):
+        display.refresh()
+        if stop.is_set():
+            return "aborted by the operator"
+        if clock() > deadline:
+            return (
+                f"timed out after {timeout_s:g} s (unresolved: {', '.join(station.unresolved())})"
+            )
+    return "ok"
+
+
+def ground_runtime(
+    program: DroneProgram,
+    station: GroundStation,
+    net: NetSettings,
+    log_dir: Path | None,
+    hal: Mapping[str, Any] | None = None,
+) -> DroneRuntime:
+    """The ground station's own runtime: its program on the ground adapter, feeding ``station``.
+
+    Not started yet; it receives every drone's telemetry too (for the live
+    table).  ``hal`` is the ground adapter's settings (default: plain
+    ``{"adapter": "ground"}``).
+    """
+    settings = dict(hal) if hal and hal.get("adapter") == "ground" else {"adapter": "ground"}
+    adapter_log = make_logger(
+        None if log_dir is None else log_dir / "adapter.log", drone=GROUND_STATION
+    )
+    drones = [n for n in station.drones()]
+    return DroneRuntime(
+        program,
+        make_adapter(GROUND_STATION, settings, adapter_log),
+        net,
+        log_dir,
+        ground_handler=station.handle,
+        extra_topics=tuple(wire.topic_telemetry(d) for d in drones),
+    )
+
+
+def install_stop_handler(stop: threading.Event) -> None:
+    """Ctrl-C / SIGTERM set ``stop``: the run aborts, every drone lands, then it exits.
+
+    A second Ctrl-C while landing raises ``KeyboardInterrupt``.
+    """
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        if stop.is_set():
+            raise KeyboardInterrupt
+        stop.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)

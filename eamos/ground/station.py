@@ -1,0 +1,289 @@
+"""The ground station's role (paper VI-G): start trigger, progress, completion, abort.
+
+The ground station is a participant like any drone: it runs its own program
+(the initial node, and any pause or condition hosted there) in a
+:class:`~.runtime.DroneRuntime`.  On top, :class:`GroundStation` collects the
+drones' Ready, Progress, Resolved and Report messages, sends the start
+trigger only once every drone is ready (so no trigger is lost at start), and
+declares the mission complete once every participant resolved its top-level
+nodes.  There is no central master during the mission: drones trigger each
+other directly; the ground station only starts, watches and ends.
+
+Links: the network layer reports a drone that went silent (``lost``), came
+``back`` or ``left`` (:class:`~eamos.net.link.PeerStatus`).  A silent drone is
+still waited for -- it may be flying on behind a broken link and come back --
+unless it stays silent longer than ``give_up_s``: then it counts as failed
+(like a drone whose process died) and the others may complete without it.
+
+A lost drone (its process died, or it was given up) is not waited for, neither
+for resolution nor for its final report: it is already counted as failed, and
+waiting for it would only delay the summary by the report timeout.  If its
+report arrives anyway, it is kept.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from eamos.actors.report import DroneReport, ReportError
+from eamos.actors.runtime import DroneRuntime
+from eamos.net import wire
+from eamos.net.link import PeerStatus
+from eamos.program.uniform import GROUND_STATION
+
+Clock = Callable[[], float]
+
+
+@dataclass
+class DroneView:
+    """What the ground station knows of one drone, for display and the summary."""
+
+    name: str
+    ready: bool = False
+    resolved: bool = False
+    state: str = "starting"
+    action: str = ""
+    node: str = ""
+    position: tuple[float, float, float] | None = None
+    armed: bool | None = None
+    done_actions: int = 0
+    failed_actions: int = 0
+    report: DroneReport | None = None  # its final report, once received
+    events: list[dict[str, Any]] = field(default_factory=list)
+    link: str = "up"  # "up", "lost" (silent), "back" or "left" (said goodbye)
+    link_serial: int = 0
+    silent_since: float | None = None  # monotonic time the link was reported lost
+    given_up: bool = False  # silent for longer than give_up_s: not waited for
+
+
+class GroundStation:
+    """Coordinates one mission run from the ground; thread-safe, waits on a Condition."""
+
+    def __init__(
+        self,
+        drones: Iterable[str],
+        mission_id: str,
+        on_change: Callable[[str, DroneView, Any], None] | None = None,
+        give_up_s: float | None = None,
+        clock: Clock = time.monotonic,
+    ) -> None:
+        self.mission_id = mission_id
+        self.give_up_s = give_up_s
+        self.clock = clock  # monotonic seconds: when a silent drone is given up
+        self.views = {name: DroneView(name) for name in drones}
+        self.views.setdefault(GROUND_STATION, DroneView(GROUND_STATION))
+        self.runtime: DroneRuntime | None = None
+        self.on_change = on_change
+        self._cond = threading.Condition()
+        self.failures: list[str] = []  # participants that died or never became ready
+
+    # -- wiring -------------------------------------------------------------------------
+
+    def attach(self, runtime: DroneRuntime) -> None:
+        """Use ``runtime`` (running the ground station's program) to talk to the fleet."""
+        self.runtime = runtime
+
+    def handle(self, msg: Any) -> None:
+        """Everything addressed to the ground station arrives here (any thread)."""
+        with self._cond:
+            view = self.views.get(getattr(msg, "sender", ""))
+            if view is None:
+                return
+            if isinstance(msg, wire.Ready):
+                view.ready = True
+                view.state = "ready"
+            elif isinstance(msg, wire.Resolved):
+                view.resolved = True
+                view.state = "resolved"
+            elif isinstance(msg, wire.Report):
+                try:
+                    view.report = DroneReport.from_json(msg.report)
+                except ReportError as exc:
+                    # Not waited for any longer: what it would send again is the same.
+                    view.state = "lost"
+                    self.failures.append(f"{view.name}: unreadable report ({exc})")
+            elif isinstance(msg, wire.Progress):
+                view.node = msg.node
+                view.action, view.state = msg.action, msg.state
+                finished = msg.detail.get("finished")
+                if isinstance(finished, int):
+                    view.done_actions = finished
+                if msg.state == "failed":
+                    view.failed_actions += 1
+                view.events.append(
+                    {
+                        "t": time.time(),
+                        "state": msg.state,
+                        "node": msg.node,
+                        "action": msg.action,
+                        **msg.detail,
+                    }
+                )
+            elif isinstance(msg, wire.TelemetrySample):
+                view.position = (msg.x_m, msg.y_m, msg.z_m)
+                view.armed = msg.armed
+            elif isinstance(msg, PeerStatus):
+                if msg.serial <= view.link_serial:
+                    return  # an older event overtaken by a newer one (two threads report)
+                view.link_serial = msg.serial
+                view.link = msg.state
+                view.events.append({"t": time.time(), "link": msg.state, "silent_s": msg.silent_s})
+                if msg.state == "lost":
+                    view.silent_since = self.clock() - msg.silent_s
+                else:
+                    view.silent_since = None
+                    if view.given_up and msg.state == "back":
+                        # It came back before the end: wait for it again.
+                        view.given_up = False
+                        view.state = "back"
+                        gone = f"{view.name}: silent"
+                        self.failures = [f for f in self.failures if not f.startswith(gone)]
+            self._cond.notify_all()
+        if self.on_change is not None:
+            self.on_change(view.name, view, msg)
+
+    def fail(self, name: str, reason: str) -> None:
+        """A participant is gone (its process died, or it could not start)."""
+        with self._cond:
+            self.failures.append(f"{name}: {reason}")
+            if name in self.views:
+                self.views[name].state = "lost"
+            self._cond.notify_all()
+
+    # -- phases ---------------------------------------------------------------------------
+
+    def _wait(
+        self,
+        predicate: Callable[[], bool],
+        timeout_s: float | None,
+        stop: threading.Event | None = None,
+        fail_fast: bool = False,
+    ) -> bool:
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with self._cond:
+            while not predicate():
+                if stop is not None and stop.is_set():
+                    return False
+                if fail_fast and self.failures:
+                    return False
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    return False
+                # A bounded wait only so that `stop` (set by a signal handler, which
+                # cannot notify a Condition safely) is noticed.
+                self._cond.wait(0.5 if remaining is None else min(remaining, 0.5))
+            return True
+
+    def drones(self) -> list[str]:
+        """The drones of the mission (not the ground station)."""
+        return [n for n in self.views if n != GROUND_STATION]
+
+    def wait_ready(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
+        """Every drone reported ready, and every drone listens to the ground station."""
+        ok = self._wait(
+            lambda: all(self.views[d].ready for d in self.drones()), timeout_s, stop, fail_fast=True
+        )
+        if not ok or self.runtime is None or self.runtime.out is None:
+            return ok
+        topics = [wire.topic_to(d) for d in self.drones()]
+        return self.runtime.out.wait_subscribed(topics, timeout_s)
+
+    def not_ready(self) -> list[str]:
+        """The drones that have not reported ready."""
+        with self._cond:
+            return [d for d in self.drones() if not self.views[d].ready]
+
+    def start(self) -> None:
+        """Send the start trigger: the ground station's initial node fires."""
+        assert self.runtime is not None
+        self.runtime.send(wire.Start(mission=self.mission_id, sender=GROUND_STATION))
+        self.runtime.fire()
+
+    def wait_resolved(self, timeout_s: float | None, stop: threading.Event | None = None) -> bool:
+        """Every participant still alive (ground station included) resolved its top-level nodes.
+
+        A lost drone (its process died, or it was silent for longer than
+        ``give_up_s``) does not stop the others: drones that do not depend on it
+        finish, and those that do stay unresolved until the timeout.
+        """
+
+        def done() -> bool:
+            self._give_up_silent()
+            return all(v.resolved or v.state == "lost" for v in self.views.values())
+
+        return self._wait(done, timeout_s, stop)
+
+    def _give_up_silent(self) -> None:
+        """Count drones silent for longer than ``give_up_s`` as failed (lock held)."""
+        if self.give_up_s is None:
+            return
+        now = self.clock()
+        for view in self.views.values():
+            if (
+                view.link == "lost"
+                and not view.resolved
+                and not view.given_up
+                and view.silent_since is not None
+                and now - view.silent_since > self.give_up_s
+            ):
+                view.given_up = True
+                view.state = "lost"
+                reason = f"silent for more than {self.give_up_s:g} s"
+                self.failures.append(f"{view.name}: {reason}")
+
+    def lost_links(self) -> list[str]:
+        """Participants whose link is currently reported lost."""
+        with self._cond:
+            return [n for n, v in self.views.items() if v.link == "lost"]
+
+    def unresolved(self) -> list[str]:
+        """The participants that have not resolved their top-level nodes."""
+        with self._cond:
+            return [n for n, v in self.views.items() if not v.resolved]
+
+    def complete(self) -> None:
+        """Tell every drone the mission is over (they report and exit)."""
+        assert self.runtime is not None
+        self.runtime.send(wire.Complete(mission=self.mission_id, sender=GROUND_STATION))
+
+    def abort(self, reason: str) -> None:
+        """Every drone stops its mission and lands now."""
+        if self.runtime is not None:
+            self.runtime.send(
+                wire.Abort(mission=self.mission_id, sender=GROUND_STATION, reason=reason)
+            )
+            self.runtime.abort(reason)
+
+    def wait_reports(
+        self, names: Iterable[str], timeout_s: float, stop: threading.Event | None = None
+    ) -> bool:
+        """Wait for the final report of each of ``names`` that is not lost.
+
+        A drone that is lost (its process died, or it was silent for longer
+        than ``give_up_s``, even while this waits) is not waited for.  True when
+        nothing is missing any more; False on timeout (or when ``stop`` is set).
+        """
+        wanted = list(names)
+        return self._wait(lambda: not self._missing_reports(wanted), timeout_s, stop)
+
+    def _missing_reports(self, names: list[str]) -> list[str]:
+        """Of ``names``, those still expected to report (lock held)."""
+        self._give_up_silent()
+        return [n for n in names if self.views[n].report is None and self.views[n].state != "lost"]
+
+    def missing_reports(self, names: Iterable[str]) -> list[str]:
+        """Of ``names``, the drones still expected to report that have not (lost ones aside)."""
+        with self._cond:
+            return self._missing_reports(list(names))
+
+    def snapshot(self) -> dict[str, DroneView]:
+        """A copy of every participant's view (safe to read while messages arrive)."""
+        with self._cond:
+            return {
+                n: DroneView(**{**v.__dict__, "events": list(v.events)})
+                for n, v in self.views.items()
+            }

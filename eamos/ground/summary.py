@@ -1,0 +1,178 @@
+"""The run summary (``summary.json``): how the mission ended, and every drone's report.
+
+One typed :class:`RunSummary` for every ground station (``eamos run``,
+``eamos start``, ``eamos-node`` in the ground role) and for the reader
+(:mod:`eamos.report`).  Its JSON keys (documented in ``docs/logs.md``)::
+
+    ok, mission, mission_id, outcome, duration_s, started, run_dir,
+    failures, links, drones, ground_station[, rollout]
+
+``drones.<name>`` is the drone's own report (:class:`DroneReport`, as in its
+``report.json``) plus what the ground station knows besides: ``exit_code``
+(a local process), ``host`` (over SSH); a drone that sent no report has
+``{"ok": false, "error": "no report", "link": ...}`` instead.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from eamos.actors.report import ActionEntry, DroneReport, FinalState
+
+__all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
+
+if TYPE_CHECKING:
+    from .station import DroneView
+
+NO_REPORT = "no report"
+
+
+@dataclass(frozen=True)
+class DroneResult:
+    """One drone's entry in the summary: its report, or why there is none."""
+
+    report: DroneReport | None  # None: the ground station never received it
+    exit_code: int | None = None  # the node's exit code when it ran here (eamos run)
+    host: str | None = None  # where it ran, when over SSH (eamos start)
+
+    @property
+    def ok(self) -> bool:
+        """The drone finished its part (a report that says so)."""
+        return self.report is not None and self.report.ok
+
+    def to_json(self, link: str | None = None) -> dict[str, Any]:
+        """The ``drones.<name>`` object; ``link`` is written where no report explains the end."""
+        if self.report is not None:
+            out: dict[str, Any] = self.report.to_json()
+        else:
+            out = {"ok": False, "error": NO_REPORT}
+            if link is not None:
+                out["link"] = link
+        if self.exit_code is not None:
+            out["exit_code"] = self.exit_code
+        if self.host is not None:
+            out["host"] = self.host
+        return out
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> DroneResult:
+        """Read a ``drones.<name>`` object (the inverse of :meth:`to_json`).
+
+        Raises :class:`~eamos.actors.report.ReportError` (a ``ValueError``) for a
+        report with missing or mistyped keys.
+        """
+        exit_code = data.get("exit_code")
+        host = data.get("host")
+        if data.get("error") == NO_REPORT and "actions" not in data:
+            return cls(None, exit_code, host)
+        return cls(DroneReport.from_json(data), exit_code, host)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """A whole run, as ``summary.json`` holds it."""
+
+    mission: str
+    mission_id: str
+    outcome: str  # "ok", "not ready: ...", "aborted by the operator", "timed out ..."
+    started: float  # wall-clock time of the start trigger (time zero of the logs' plots)
+    duration_s: float
+    run_dir: str  # the folder holding summary.json and (when local) logs/
+    drones: Mapping[str, DroneResult]
+    ground_station: DroneReport | None  # the ground station's own report
+    failures: tuple[str, ...] = ()  # participants that died, never became ready, went silent
+    links: Mapping[str, str] = field(default_factory=dict)  # each drone's last link state
+    rollout: Mapping[str, Any] | None = None  # roll-out durations (eamos start)
+
+    @property
+    def ok(self) -> bool:
+        """The mission ended normally and every participant finished its part."""
+        return (
+            self.outcome == "ok"
+            and all(d.ok for d in self.drones.values())
+            and self.ground_station is not None
+            and self.ground_station.ok
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``summary.json`` object."""
+        out: dict[str, Any] = {
+            "ok": self.ok,
+            "mission": self.mission,
+            "mission_id": self.mission_id,
+            "outcome": self.outcome,
+            "duration_s": self.duration_s,
+            "started": self.started,
+            "run_dir": self.run_dir,
+            "failures": list(self.failures),
+            "links": dict(self.links),
+            "drones": {n: d.to_json(self.links.get(n)) for n, d in self.drones.items()},
+            "ground_station": {} if self.ground_station is None else self.ground_station.to_json(),
+        }
+        if self.rollout is not None:
+            out["rollout"] = dict(self.rollout)
+        return out
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> RunSummary:
+        """Read a ``summary.json`` object (files from before ``failures``/``links`` too)."""
+        return cls(
+            mission=str(data.get("mission", "")),
+            mission_id=str(data.get("mission_id", "")),
+            outcome=str(data.get("outcome", "")),
+            started=float(data.get("started", 0.0)),
+            duration_s=float(data.get("duration_s", 0.0)),
+            run_dir=str(data.get("run_dir", "")),
+            drones={n: DroneResult.from_json(d) for n, d in data.get("drones", {}).items()},
+            ground_station=DroneReport.from_json(data["ground_station"])
+            if data.get("ground_station")
+            else None,
+            failures=tuple(data.get("failures", ())),
+            links=dict(data.get("links", {})),
+            rollout=data.get("rollout"),
+        )
+
+    def write(self, path: Path) -> None:
+        """Write the summary as JSON to ``path`` (its folder is created)."""
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.to_json(), indent=1) + "\n")
+
+    @classmethod
+    def read(cls, path: Path) -> RunSummary:
+        """Read a ``summary.json`` (OSError, ValueError when it is not one)."""
+        return cls.from_json(json.loads(path.read_text(encoding="utf-8")))
+
+
+def summarize(
+    mission: str,
+    mission_id: str,
+    outcome: str,
+    started: float,
+    ended: float,
+    run_dir: Path,
+    views: Mapping[str, DroneView],
+    drones: list[str],
+    failures: list[str],
+    ground_report: DroneReport | None,
+    exits: Mapping[str, int] | None = None,
+    hosts: Mapping[str, str] | None = None,
+) -> RunSummary:
+    """The summary of a run from the ground station's views at its end."""
+    exits = exits or {}
+    hosts = hosts or {}
+    return RunSummary(
+        mission=mission,
+        mission_id=mission_id,
+        outcome=outcome,
+        started=started,
+        duration_s=round(ended - started, 3),
+        run_dir=str(run_dir),
+        drones={n: DroneResult(views[n].report, exits.get(n), hosts.get(n)) for n in drones},
+        ground_station=ground_report,
+        failures=tuple(failures),
+        links={n: views[n].link for n in drones},
+    )
