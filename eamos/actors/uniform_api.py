@@ -4,15 +4,23 @@ Other actors talk to it only with the typed messages below.  It starts uniform
 actions on the adapter, relays cancellations and aborts, and answers every
 :class:`RunAction` with exactly one :class:`ActionFinished` sent to its
 ``reply_to``, whatever happens: unknown action, adapter exception, vehicle
-failure or the actor stopping.  The adapter's completion callback runs on an
-adapter thread (or even inside ``adapter.run``), so it only posts a private
-message back to this actor; all bookkeeping happens on the actor's thread.
+failure or the actor stopping.
+
+Each action is decoded once, here, into a typed
+:class:`~eamos.program.uniform.Command` (:func:`~eamos.program.uniform.decode_command`);
+a call that does not decode fails without reaching the adapter.  Failure
+policy: an exception raised by the adapter's ``run`` or ``cancel`` ends that
+action ``failed`` ("internal error in the adapter: ..."), logged once with its
+traceback in the uniform log, and the actor keeps serving.
+
+The adapter's completion callback runs on an adapter thread (or even inside
+``adapter.run``), so it only posts a private message back to this actor; all
+bookkeeping happens on the actor's thread.
 """
 
 from __future__ import annotations
 
 import itertools
-import math
 import time
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
@@ -21,7 +29,7 @@ from typing import Any
 import pykka
 
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
-from eamos.program.uniform import ACTIONS
+from eamos.program.uniform import CommandError, decode_command
 
 
 @dataclass(frozen=True)
@@ -164,20 +172,18 @@ class UniformAPI(pykka.ThreadingActor):
             # Never displace the running entry: its reply would be lost.
             self._reply_now(req, start_s, ActionResult("failed", "duplicate token"))
             return
-        reason = _check_call(req.action, req.args)
-        if reason is not None:
-            self._reply_now(req, start_s, ActionResult("failed", reason))
+        try:
+            # Decoded once, here: adapters dispatch on the command's class.
+            command = decode_command(req.action, req.args)
+        except CommandError as exc:
+            self._reply_now(req, start_s, ActionResult("failed", str(exc)))
             return
         running = self._running[req.token] = _Running(req, start_s, next(self._serials))
-        args = tuple(float(a) for a in req.args)
         try:
-            handle = self.adapter.run(
-                req.action, args, self._done_callback(req.token, running.serial)
-            )
+            handle = self.adapter.run(command, self._done_callback(req.token, running.serial))
         except Exception as exc:  # an adapter bug must not kill the drone's actor
-            self._log.exception("uniform.adapter_error", action=req.action, error=repr(exc))
             self._running.pop(req.token, None)
-            self._reply_now(req, start_s, ActionResult("failed", f"adapter error: {exc}"))
+            self._reply_now(req, start_s, self._internal_error(req.action, exc))
             return
         running.handle = handle
 
@@ -209,8 +215,8 @@ class UniformAPI(pykka.ThreadingActor):
             return  # unknown or finished: nothing to cancel
         try:
             self.adapter.cancel(running.handle)
-        except Exception as exc:
-            self._log.exception("uniform.adapter_error", action="cancel", error=repr(exc))
+        except Exception as exc:  # the action's state is unknown: it ends failed, once
+            self._reply(token, running, self._internal_error("cancel", exc))
 
     def _abort(self) -> None:
         self._log.info("uniform.abort", running=len(self._running))
@@ -220,6 +226,11 @@ class UniformAPI(pykka.ThreadingActor):
             self._log.exception("uniform.adapter_error", action="abort", error=repr(exc))
 
     # -- helpers -------------------------------------------------------------
+
+    def _internal_error(self, call: str, exc: Exception) -> ActionResult:
+        """Log an adapter's exception once, with its traceback; the action's failure."""
+        self._log.exception("uniform.adapter_error", call=call, error=repr(exc))
+        return ActionResult("failed", f"internal error in the adapter: {exc!r}")
 
     def _reply(self, token: Hashable, running: _Running, result: ActionResult) -> None:
         self._running.pop(token, None)
@@ -250,23 +261,6 @@ class UniformAPI(pykka.ThreadingActor):
             self.adapter.close()
         except Exception as exc:
             self._log.exception("uniform.adapter_error", action="close", error=repr(exc))
-
-
-def _check_call(action: str, args: tuple[Any, ...]) -> str | None:
-    """Why ``action(*args)`` is not a valid uniform call, or None when it is."""
-    spec = ACTIONS.get(action)
-    if spec is None:
-        return f"unknown action {action!r}"
-    if len(args) != len(spec.params):
-        return f"{action} takes {len(spec.params)} argument(s) {spec.params}, got {len(args)}"
-    for name, value in zip(spec.params, args, strict=True):
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or not math.isfinite(value)
-        ):
-            return f"{action}: {name} must be a finite number, got {value!r}"
-    return None
 
 
 def _jsonable(token: Hashable) -> Any:

@@ -4,6 +4,19 @@
 ``hal`` settings ask for (``settings["adapter"]``).  Adapter modules are
 imported only when chosen, so importing :mod:`eamos.hal` stays cheap (a
 MAVLink adapter, for instance, must not pull in pymavlink for simulated runs).
+
+What other packages may use, by module:
+
+* :mod:`eamos.hal.api` (re-exported here): the :class:`Adapter` protocol
+  (``run(command, done)`` takes a typed :class:`eamos.program.uniform.Command`),
+  :class:`Telemetry`, :class:`ActionResult`, :class:`ActionHandle`, :class:`AdapterError`;
+* :mod:`eamos.hal.sim_core`: :class:`~eamos.hal.sim_core.SimCore`, the simulated
+  quadcopter as pure logic stepped by its owner (virtual-time drivers), with
+  :class:`~eamos.hal.sim_settings.SimSettings`;
+* :mod:`eamos.hal.sim`, :mod:`eamos.hal.ground`, :mod:`eamos.hal.fake`,
+  :mod:`eamos.hal.mavlink`: the adapters (``make_adapter`` builds them);
+* :mod:`eamos.hal.mavlink_settings`: :class:`MavlinkSettings`;
+* :mod:`eamos.hal.sim_vehicle`: :class:`SimVehicle`, the MAVLink simulated vehicle.
 """
 
 from __future__ import annotations

@@ -11,11 +11,14 @@ Contract every adapter keeps:
   fresh :class:`Telemetry` whenever the vehicle state changes (and at most at
   the adapter's telemetry rate).  It raises :class:`AdapterError` if the
   vehicle cannot be reached.
-* ``run(action, args, done)`` starts one uniform action and returns at once
-  with an :class:`ActionHandle`.  ``done`` is called exactly once with an
-  :class:`ActionResult`, from any thread.  An action completes on real
-  criteria (position within tolerance, landed, armed flag seen), never on a
-  timer alone, and fails with a reason after its own timeout.
+* ``run(command, done)`` starts one uniform action, already decoded into a
+  typed :class:`~eamos.program.uniform.Command` (the uniform-API actor decodes
+  every action once), and returns at once with an :class:`ActionHandle`.
+  Adapters dispatch on the command's class, never on action names.
+  ``done`` is called exactly once with an :class:`ActionResult`, from any
+  thread.  An action completes on real criteria (position within tolerance,
+  landed, armed flag seen), never on a timer alone, and fails with a reason
+  after its own timeout.
 * ``cancel(handle)`` interrupts a running action: the vehicle holds its
   position and ``done`` is called with status ``"cancelled"``.  Cancelling a
   finished action does nothing.
@@ -29,6 +32,8 @@ import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal, Protocol
+
+from eamos.program.uniform import Command
 
 ActionStatus = Literal["ok", "failed", "cancelled"]
 
@@ -95,6 +100,11 @@ class ActionHandle:
     args: tuple[float, ...]
     id: int = field(default_factory=lambda: next(_handle_ids))
 
+    @classmethod
+    def of(cls, command: Command) -> ActionHandle:
+        """A fresh handle for one run of ``command``."""
+        return cls(command.action, command.args)
+
 
 TelemetryCallback = Callable[[Telemetry], None]
 DoneCallback = Callable[[ActionResult], None]
@@ -107,7 +117,7 @@ class Adapter(Protocol):
 
     def start(self, on_telemetry: TelemetryCallback) -> None: ...
 
-    def run(self, action: str, args: tuple[float, ...], done: DoneCallback) -> ActionHandle: ...
+    def run(self, command: Command, done: DoneCallback) -> ActionHandle: ...
 
     def cancel(self, handle: ActionHandle) -> None: ...
 

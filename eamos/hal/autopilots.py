@@ -1,7 +1,7 @@
 """What differs between PX4 and ArduPilot for the MAVLink adapter (and the simulated vehicle).
 
 Both autopilots speak MAVLink, but they fly a companion computer's commands
-in different ways (see ``/work/shared/notes/*-sitl-behaviour.md``):
+in different ways (docs/flying-real-drones.md, "PX4 SITL" and "ArduPilot SITL"):
 
 * PX4 follows position setpoints only in OFFBOARD mode, and only while they
   keep streaming (a second without one is a failsafe).  Taking off is just a

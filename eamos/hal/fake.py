@@ -5,7 +5,7 @@ finishes ``ok`` at once (or with the result configured for it in
 ``results``); otherwise the test decides when and how each action ends::
 
     fake = FakeAdapter("D1")
-    ...                                    # code under test calls fake.run("Arm", ...)
+    ...                                    # code under test calls fake.run(Arm(), done)
     handle = fake.wait_started("Arm", timeout=10)
     fake.finish(handle, ActionResult("ok"))
     fake.push_telemetry(z_m=5.0, armed=True)
@@ -31,6 +31,7 @@ from eamos.hal.api import (
     TelemetryCallback,
 )
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, require_mapping
+from eamos.program.uniform import Command
 
 
 @dataclass(frozen=True)
@@ -100,11 +101,12 @@ class FakeAdapter:
             sample = self._last = dataclasses.replace(self._last, time_s=time.time())
         on_telemetry(sample)
 
-    def run(self, action: str, args: tuple[float, ...], done: DoneCallback) -> ActionHandle:
-        """Record and start ``action``; with ``auto`` it finishes before returning."""
-        handle = ActionHandle(action, tuple(args))
+    def run(self, command: Command, done: DoneCallback) -> ActionHandle:
+        """Record and start ``command``; with ``auto`` it finishes before returning."""
+        handle = ActionHandle.of(command)
+        action = command.action
         with self._cond:
-            self._record(Call("run", action, tuple(args), handle))
+            self._record(Call("run", action, command.args, handle))
             error = self._run_errors.get(action)
             if error is not None:
                 raise error

@@ -24,7 +24,7 @@ from eamos.hal.api import (
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.settings import COMMON_KEYS, check_keys, number, require_mapping
 from eamos.logs import make_logger
-from eamos.program.uniform import ACTIONS
+from eamos.program.uniform import Command, PauseFor
 
 
 @dataclass(frozen=True)
@@ -102,25 +102,21 @@ class GroundAdapter:
             )
         )
 
-    def run(self, action: str, args: tuple[float, ...], done: DoneCallback) -> ActionHandle:
+    def run(self, command: Command, done: DoneCallback) -> ActionHandle:
         """Start a ``PauseFor``; any other action fails at once (the station cannot fly)."""
-        handle = ActionHandle(action, tuple(args))
-        self._log.info("adapter.action.start", action=action, args=list(args), handle=handle.id)
-        failure: str | None = None
-        if action != "PauseFor":
-            failure = (
-                f"the ground station cannot {action}"
-                if action in ACTIONS
-                else f"unknown action {action!r}"
-            )
-        elif len(args) != 1:
-            failure = f"PauseFor takes 1 argument(s), got {len(args)}"
-        elif not isinstance(args[0], int | float) or not args[0] >= 0:
-            failure = f"duration_s must be >= 0, got {args[0]!r}"
-        if failure is not None:
+        handle = ActionHandle.of(command)
+        self._log.info(
+            "adapter.action.start", action=handle.action, args=list(handle.args), handle=handle.id
+        )
+        if not isinstance(command, PauseFor):
+            failure = f"the ground station cannot {command.action}"
             self._end(handle, done, ActionResult("failed", failure))
             return handle
-        deadline = time.monotonic() + float(args[0]) / self.settings.speedup
+        if not command.duration_s >= 0:
+            failure = f"duration_s must be >= 0, got {command.duration_s!r}"
+            self._end(handle, done, ActionResult("failed", failure))
+            return handle
+        deadline = time.monotonic() + command.duration_s / self.settings.speedup
         with self._cond:
             if self._closed:
                 raise AdapterError(f"{self.drone}: ground adapter closed")

@@ -238,6 +238,7 @@ class Quadcopter:
             target = self.position
             self._target = target
 
+        vx0, vy0 = self._vx, self._vy
         (self._x, self._y), (self._vx, self._vy) = _channel(
             (self._x, self._y),
             (self._vx, self._vy),
@@ -259,7 +260,13 @@ class Quadcopter:
             self._target = None
         elif self._z < 0.0:
             self._z, self._vz = 0.0, 0.0
-        if abs(self._vx) < _REST_SPEED_MPS and abs(self._vy) < _REST_SPEED_MPS:
+        if (
+            abs(self._vx) < _REST_SPEED_MPS
+            and abs(self._vy) < _REST_SPEED_MPS
+            and math.hypot(vx0, vy0) <= lim.accel_mps2 * dt_s
+        ):
+            # Snap a crawl to rest, unless that change of speed would itself
+            # exceed the acceleration limit (it then rests one step later).
             self._vx = self._vy = 0.0
 
 

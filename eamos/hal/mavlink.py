@@ -79,7 +79,7 @@ from eamos.hal.mavlink_frames import Vector
 from eamos.hal.mavlink_settings import MavlinkSettings
 from eamos.hal.mavlink_vehicle import MavlinkVehicle
 from eamos.logs import make_logger
-from eamos.program.uniform import ACTIONS, MOTION_ACTIONS
+from eamos.program.uniform import Arm, Command, Disarm, PauseFor, Payload
 
 
 class MavlinkAdapter:
@@ -131,41 +131,38 @@ class MavlinkAdapter:
         )
         self.vehicle.connect(extra_jobs=((1.0 / s.telemetry_hz, self._publish, "telemetry"),))
 
-    def run(self, action: str, args: tuple[float, ...], done: DoneCallback) -> ActionHandle:
-        """Start ``action`` on its own thread; ``done`` is called exactly once."""
-        handle = ActionHandle(action, tuple(args))
-        spec = ACTIONS.get(action)
+    def run(self, command: Command, done: DoneCallback) -> ActionHandle:
+        """Start ``command`` on its own thread; ``done`` is called exactly once."""
+        handle = ActionHandle.of(command)
         kind: RunKind = "timer"
-        if action in MOTION_ACTIONS:
+        if command.moves:
             kind = "motion"
-        elif action in ("Arm", "Disarm"):
-            kind = "arm" if action == "Arm" else "disarm"
-        run = Run(handle, done, kind, time.monotonic())
+        elif isinstance(command, Arm):
+            kind = "arm"
+        elif isinstance(command, Disarm):
+            kind = "disarm"
+        run = Run(handle, done, kind, time.monotonic(), command)
         immediate: ActionResult | None = None
         with self._cond:
             if self._closed:
                 raise AdapterError(f"{self.drone}: adapter closed")
             self._runs[handle.id] = run
-            self._log.info("adapter.action.start", action=action, args=list(args), handle=handle.id)
-            if spec is None:
-                immediate = ActionResult("failed", f"unknown action {action!r}")
-            elif len(args) != len(spec.params) or not all(
-                isinstance(v, int | float) and math.isfinite(v) for v in args
-            ):
-                immediate = ActionResult(
-                    "failed",
-                    f"{action} takes {len(spec.params)} finite number(s), got {list(args)}",
-                )
-            elif spec.payload:
+            self._log.info(
+                "adapter.action.start",
+                action=handle.action,
+                args=list(handle.args),
+                handle=handle.id,
+            )
+            if isinstance(command, Payload):
                 self._log.info(
                     "adapter.payload",
-                    action=action,
+                    action=handle.action,
                     note="no payload on this vehicle: acknowledged",
                 )
                 immediate = ActionResult("ok")
             elif not self._started:
                 immediate = ActionResult("failed", "adapter not started")
-            elif self._aborting and action != "PauseFor":
+            elif self._aborting and not isinstance(command, PauseFor):
                 immediate = ActionResult("failed", "aborting")
             elif kind == "motion":
                 if self._motion is not None:
@@ -179,7 +176,7 @@ class MavlinkAdapter:
             target=self._execute,
             args=(run,),
             daemon=True,
-            name=f"mavlink-{self.drone}-{action}-{handle.id}",
+            name=f"mavlink-{self.drone}-{handle.action}-{handle.id}",
         ).start()
         return handle
 
@@ -340,7 +337,6 @@ def mavlink_adapter_from_settings(
 
 
 __all__ = [
-    "MOTION_ACTIONS",
     "MavlinkAdapter",
     "MavlinkSettings",
     "mavlink_adapter_from_settings",

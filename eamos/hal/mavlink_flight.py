@@ -2,10 +2,10 @@
 
 :class:`Flight` runs each action on the caller's thread (the adapter gives
 every action a thread of its own) and returns its :class:`ActionResult` or
-raises why it failed.  Every wait is ``Condition.wait_for`` on the vehicle's
-condition against a ``time.monotonic()`` deadline, and ends early when the
-action is finished by someone else (cancel, abort, close), when HEARTBEATs
-stop, or when a guard sees that someone else took the vehicle over.
+raises why it failed.  Every wait (:class:`Waiter`) is ``Condition.wait_for``
+on the vehicle's condition against a ``time.monotonic()`` deadline, and ends
+early when the action is finished by someone else (cancel, abort, close), when
+HEARTBEATs stop, or when a guard sees that someone else took the vehicle over.
 
 What differs between PX4 and ArduPilot is asked of the vehicle's
 :class:`~eamos.hal.autopilots.Autopilot`, through a :class:`RunControl`: the
@@ -31,7 +31,18 @@ from eamos.hal.mavlink_link import (
     result_name,
 )
 from eamos.hal.mavlink_vehicle import MavlinkVehicle
-from eamos.program.uniform import decode_command, target_xyz
+from eamos.program.uniform import (
+    Arm,
+    Command,
+    Disarm,
+    FlyBy,
+    FlyToLLA,
+    FlyToXYZ,
+    Land,
+    PauseFor,
+    Takeoff,
+    target_xyz,
+)
 
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_DO_SET_MODE = 176
@@ -73,6 +84,7 @@ class Run:
     done: DoneCallback | None
     kind: RunKind
     started: float  # time.monotonic()
+    command: Command | None = None  # None for internal jobs
     finished: bool = False  # set (condition held) by whoever finishes it
 
 
@@ -90,6 +102,7 @@ class RunControl:
 
     def __init__(self, flight: Flight, run: Run) -> None:
         self.flight = flight
+        self.waiter = flight.waiter
         self.v = flight.v
         self.run = run
 
@@ -101,7 +114,7 @@ class RunControl:
         v, run, s = self.v, self.run, self.v.settings
         with v.cmd_lock:
             with v.cond:
-                self.flight.raise_if_over(run)
+                self.waiter.raise_if_over(run)
                 text_seen = v.state.statustext_serial
             result = v.link.command_long(
                 command,
@@ -112,7 +125,7 @@ class RunControl:
             )
         name = COMMAND_NAMES.get(command, f"MAV_CMD({command})")
         with v.cond:
-            self.flight.raise_if_over(run)
+            self.waiter.raise_if_over(run)
             if result is None:
                 raise Failed(f"no COMMAND_ACK for {name} after {s.command_retries} tries")
             if result != MAV_RESULT_ACCEPTED:
@@ -129,10 +142,10 @@ class RunControl:
             return  # "already in that mode" is success
         self.command(MAV_CMD_DO_SET_MODE, (*self.v.autopilot.mode_params(mode), 0.0, 0.0, 0.0, 0.0))
         # An accepted mode change shows in the next HEARTBEAT; confirm it there.
-        self.flight.wait(
+        self.waiter.wait(
             self.run,
             lambda st: self.v.mode_name(st) == mode,
-            time.monotonic() + self.flight.confirm_s(),
+            time.monotonic() + self.waiter.confirm_s(),
             lambda st: (
                 f"vehicle accepted mode {mode} but its HEARTBEAT still shows {self.v.mode_name(st)}"
             ),
@@ -141,7 +154,7 @@ class RunControl:
     def stream(self, target_ned: Vector | None) -> None:
         v = self.v
         with v.cmd_lock, v.cond:
-            self.flight.raise_if_over(self.run)
+            self.waiter.raise_if_over(self.run)
             if target_ned is not None and v.stream_target is None:
                 v.stream_since = time.monotonic()
             v.stream_target = target_ned
@@ -151,7 +164,7 @@ class RunControl:
     def wait_stream_warm(self, seconds: float) -> None:
         with self.v.cond:
             since = self.v.stream_since
-        self.flight.wait(
+        self.waiter.wait(
             self.run, lambda st: False, since + seconds, lambda st: "", quiet_timeout=True
         )
 
@@ -164,7 +177,7 @@ class RunControl:
     def _guided(self, target: tuple[str, Vector]) -> None:
         v = self.v
         with v.cmd_lock, v.cond:
-            self.flight.raise_if_over(self.run)
+            self.waiter.raise_if_over(self.run)
             v.guided_target = target
         v.send_guided_target(target)
 
@@ -178,7 +191,7 @@ class RunControl:
 
     def pause(self, seconds: float) -> None:
         """Wait ``seconds`` (on the condition; a cancel or link loss ends it early)."""
-        self.flight.wait(
+        self.waiter.wait(
             self.run,
             lambda st: False,
             time.monotonic() + seconds,
@@ -187,284 +200,16 @@ class RunControl:
         )
 
 
-class Flight:
-    """The flight procedures of one vehicle (see module docstring)."""
+class Waiter:
+    """How every flight step waits for the vehicle: on its condition, against a deadline.
+
+    A wait ends early when the run is finished by someone else, the link
+    closes, HEARTBEATs stop, or a guard sees that someone else took over.
+    """
 
     def __init__(self, vehicle: MavlinkVehicle) -> None:
         self.v = vehicle
         self.s = vehicle.settings
-        self._pending_hold: threading.Thread | None = None
-
-    def perform(self, run: Run) -> ActionResult:
-        """Run one action to its end: its result, or Failed/TimedOut/Ended/CommandRejected."""
-        assert run.handle is not None
-        name, args = run.handle.action, run.handle.args
-        ctl = RunControl(self, run)
-        if name == "PauseFor":
-            if args[0] < 0:
-                raise Failed("duration_s must be >= 0")
-            # A timer of our own: it does not need the vehicle, nor its link.
-            self.wait(
-                run,
-                lambda st: False,
-                run.started + args[0],
-                lambda st: "",
-                quiet_timeout=True,
-                watch_link=False,
-            )
-            return ActionResult("ok")
-        with self.v.cond:
-            self.raise_if_over(run)
-        if name == "Arm":
-            return self.arm(run, ctl)
-        if name == "Disarm":
-            return self.disarm(run, ctl)
-        self._await_hold()
-        if name == "Takeoff":
-            return self.takeoff(run, ctl, args[0])
-        if name == "Land":
-            return self.land(run, ctl)
-        return self.move(run, ctl, name, args)
-
-    # -- the actions -------------------------------------------------------------------
-
-    def arm(self, run: Run, ctl: RunControl) -> ActionResult:
-        """Wait until armable, prepare (mode, stream), arm, see the armed flag."""
-        v, s = self.v, self.s
-        with v.cond:
-            if v.state.armed:
-                return ActionResult("ok")  # already armed is success
-        deadline = run.started + s.armable_timeout_s
-        self.wait(
-            run,
-            v.armable,
-            deadline,
-            lambda st: (
-                f"vehicle never became armable within {s.armable_timeout_s:g} s: "
-                f"{st.last_statustext or 'no STATUSTEXT from the vehicle'}"
-            ),
-        )
-        with v.cond:
-            v.capture_origin(ground=True)
-            here = v.here_ned()
-        v.autopilot.prepare_arm(ctl, here)
-        while True:
-            try:
-                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, ARM)
-                break
-            except CommandRejected as exc:
-                with v.cond:
-                    if v.state.armed:
-                        break
-                temporary = exc.result == result_name(MAV_RESULT_TEMPORARILY_REJECTED)
-                if temporary and time.monotonic() + ARM_RETRY_S < deadline:
-                    ctl.pause(ARM_RETRY_S)  # not ready yet: PX4 says so, try again
-                    continue
-                why = f": {exc.statustext}" if exc.statustext else ""
-                until = f" until the {s.armable_timeout_s:g} s armable timeout" if temporary else ""
-                raise Failed(f"arming refused ({exc.result}{until}){why}") from exc
-        # PX4's HEARTBEAT may show the armed flag up to a second after the ack.
-        self.wait(
-            run,
-            lambda st: st.armed,
-            time.monotonic() + self.confirm_s(),
-            lambda st: "vehicle acknowledged arming but its HEARTBEAT never showed it armed",
-        )
-        return ActionResult("ok")
-
-    def disarm(self, run: Run, ctl: RunControl) -> ActionResult:
-        """Disarm on the ground ("in the air" otherwise); see the flag drop."""
-        v = self.v
-        with v.cond:
-            if not v.state.armed:
-                return ActionResult("ok")
-            if not v.on_ground(v.state):
-                raise Failed("in the air")
-        try:
-            ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
-        except CommandRejected:
-            with v.cond:
-                if not v.state.armed:  # it disarmed by itself meanwhile
-                    return ActionResult("ok")
-            raise
-        self.wait(
-            run,
-            lambda st: not st.armed,
-            time.monotonic() + self.confirm_s(),
-            lambda st: "vehicle acknowledged disarming but its HEARTBEAT still shows armed",
-        )
-        with v.cond:
-            v.stop_steering()
-        return ActionResult("ok")
-
-    def takeoff(self, run: Run, ctl: RunControl, height: float) -> ActionResult:
-        """Climb to ``height`` above the take-off ground at the current X/Y."""
-        v, s = self.v, self.s
-        if height <= 0:
-            raise Failed("height_m must be > 0")
-        with v.cond:
-            if not v.state.armed:
-                raise Failed("not armed")
-            if v.origin is None:
-                raise Failed("no LOCAL_POSITION_NED from the vehicle yet")
-            x, y, _ = v.mission_position()
-            v.commanded = (x, y, height)
-            target_ned = mission_to_ned(v.commanded, v.origin)
-        v.autopilot.takeoff(ctl, target_ned, height)
-        modes = v.autopilot.takeoff_modes()
-        self.confirm_modes(run, modes, done=lambda st: False)
-
-        def arrived(st: LinkState) -> bool:
-            # Vertical only: a real take-off may drift a little sideways.
-            return (
-                abs(v.mission_position(st)[2] - height) <= s.tolerance_m
-                and v.speed(st) <= s.settle_speed_mps
-            )
-
-        self.wait(
-            run,
-            arrived,
-            run.started + s.action_timeout_s,
-            self.timeout_reason("take-off height not reached"),
-            guard=self.guard(modes),
-        )
-        return ActionResult("ok")
-
-    def land(self, run: Run, ctl: RunControl) -> ActionResult:
-        """MAV_CMD_NAV_LAND; done on the ground (or disarmed)."""
-        v = self.v
-        with v.cond:
-            if v.on_ground(v.state):
-                return ActionResult("ok")
-            here = v.here_ned()
-        v.autopilot.land(ctl, here)
-        with v.cond:
-            v.guided_target = None
-        modes = frozenset({v.autopilot.land_mode})
-        self.confirm_modes(run, modes, done=v.landed)
-        self.wait(
-            run,
-            v.landed,
-            run.started + self.s.action_timeout_s,
-            self.timeout_reason("not landed"),
-            guard=self.guard(modes, need_armed=False, unless=v.landed),
-        )
-        return ActionResult("ok")
-
-    def move(self, run: Run, ctl: RunControl, name: str, args: tuple[float, ...]) -> ActionResult:
-        """FlyByX/Y/Z, FlyToXYZ, FlyToLLA: go there, done within tolerance and slow."""
-        v, s = self.v, self.s
-        with v.cond:
-            if not v.state.armed:
-                raise Failed("not armed")
-            if v.on_ground(v.state) or v.origin is None:
-                raise Failed("not flying")
-            lla: tuple[float, float, float] | None = None
-            relative = target_xyz(decode_command(name, args), v.base_point())
-            if relative is not None:
-                target = relative
-            else:  # FlyToLLA
-                if v.geo is None:
-                    raise Failed(
-                        "no GLOBAL_POSITION_INT from the vehicle: cannot fly to a "
-                        "latitude/longitude"
-                    )
-                lla = (args[0], args[1], args[2])
-                target = v.geo.from_lla(*lla)
-            if target[2] <= 0:
-                raise Failed(f"target z {target[2]:.2f} m is not above ground (use Land)")
-            v.commanded = target
-            target_ned = mission_to_ned(target, v.origin)
-        if lla is not None:
-            v.autopilot.goto_global(ctl, lla[0], lla[1], lla[2], target_ned)
-        else:
-            v.autopilot.goto(ctl, target_ned)
-        modes = frozenset({v.autopilot.motion_mode})
-        self.confirm_modes(run, modes, done=lambda st: False)
-
-        def arrived(st: LinkState) -> bool:
-            return (
-                math.dist(v.mission_position(st), target) <= s.tolerance_m
-                and v.speed(st) <= s.settle_speed_mps
-            )
-
-        self.wait(
-            run,
-            arrived,
-            run.started + s.action_timeout_s,
-            self.timeout_reason("target not reached"),
-            guard=self.guard(modes),
-        )
-        return ActionResult("ok")
-
-    # -- holding and aborting (their own threads) -----------------------------------------
-
-    def start_hold(self, name: str) -> None:
-        """Hold where the vehicle is, on a thread (a mode change may take a second).
-
-        Motion actions started later wait for it, so the hold never overrides them.
-        """
-        thread = threading.Thread(target=self._hold, name=name, daemon=True)
-        with self.v.cond:
-            self._pending_hold = thread
-        thread.start()
-
-    def _await_hold(self) -> None:
-        with self.v.cond:
-            hold = self._pending_hold
-        if hold is not None:
-            hold.join(self.confirm_s() * 3)
-
-    def _hold(self) -> None:
-        v = self.v
-        run = Run(None, None, "internal", time.monotonic())
-        try:
-            with v.cond:
-                if v.state.local is None:
-                    return
-                here = v.here_ned()
-                airborne = not v.on_ground(v.state)
-                v.commanded = v.mission_position() if v.origin else None
-            v.autopilot.hold(RunControl(self, run), here, airborne)
-            v.log.info(
-                "adapter.hold",
-                north_m=round(here[0], 2),
-                east_m=round(here[1], 2),
-                down_m=round(here[2], 2),
-            )
-        except (Failed, Ended, CommandRejected) as exc:
-            v.log.warning("adapter.hold_failed", error=str(exc))
-
-    def abort(self) -> None:
-        """Land (if flying), then disarm; logs how it went (runs on the abort thread)."""
-        v = self.v
-        run = Run(None, None, "internal", time.monotonic())
-        ctl = RunControl(self, run)
-        self._await_hold()
-        try:
-            with v.cond:
-                known = v.state.local is not None
-                airborne = known and not v.on_ground(v.state)
-                here = v.here_ned() if known else (0.0, 0.0, 0.0)
-            if airborne:
-                v.autopilot.land(ctl, here)
-                with v.cond:
-                    v.guided_target = None
-                self.wait(
-                    run,
-                    v.landed,
-                    time.monotonic() + self.s.action_timeout_s,
-                    self.timeout_reason("not landed"),
-                )
-            with v.cond:
-                armed = v.state.armed
-            if armed:
-                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
-            v.log.info("adapter.abort.done")
-        except (Failed, Ended, CommandRejected) as exc:
-            v.log.error("adapter.abort.failed", error=str(exc))
-
-    # -- waiting --------------------------------------------------------------------------
 
     def wait(
         self,
@@ -561,4 +306,290 @@ class Flight:
         return max(2.5, self.s.command_timeout_s * self.s.command_retries)
 
 
-__all__ = ["Ended", "Failed", "Flight", "Run", "RunControl", "TimedOut"]
+class Flight:
+    """The flight procedures of one vehicle (see module docstring)."""
+
+    def __init__(self, vehicle: MavlinkVehicle) -> None:
+        self.v = vehicle
+        self.s = vehicle.settings
+        self.waiter = Waiter(vehicle)
+        self._pending_hold: threading.Thread | None = None
+
+    def perform(self, run: Run) -> ActionResult:
+        """Run one action to its end: its result, or Failed/TimedOut/Ended/CommandRejected."""
+        command = run.command
+        assert command is not None
+        ctl = RunControl(self, run)
+        if isinstance(command, PauseFor):
+            if command.duration_s < 0:
+                raise Failed("duration_s must be >= 0")
+            # A timer of our own: it does not need the vehicle, nor its link.
+            self.waiter.wait(
+                run,
+                lambda st: False,
+                run.started + command.duration_s,
+                lambda st: "",
+                quiet_timeout=True,
+                watch_link=False,
+            )
+            return ActionResult("ok")
+        with self.v.cond:
+            self.waiter.raise_if_over(run)
+        match command:
+            case Arm():
+                return self.arm(run, ctl)
+            case Disarm():
+                return self.disarm(run, ctl)
+            case Takeoff(height_m=height):
+                self._await_hold()
+                return self.takeoff(run, ctl, height)
+            case Land():
+                self._await_hold()
+                return self.land(run, ctl)
+            case FlyBy() | FlyToXYZ() | FlyToLLA():
+                self._await_hold()
+                return self.move(run, ctl, command)
+        raise Failed(f"{command.action} is not an action this vehicle flies")
+
+    # -- the actions -------------------------------------------------------------------
+
+    def arm(self, run: Run, ctl: RunControl) -> ActionResult:
+        """Wait until armable, prepare (mode, stream), arm, see the armed flag."""
+        v, s = self.v, self.s
+        with v.cond:
+            if v.state.armed:
+                return ActionResult("ok")  # already armed is success
+        deadline = run.started + s.armable_timeout_s
+        self.waiter.wait(
+            run,
+            v.armable,
+            deadline,
+            lambda st: (
+                f"vehicle never became armable within {s.armable_timeout_s:g} s: "
+                f"{st.last_statustext or 'no STATUSTEXT from the vehicle'}"
+            ),
+        )
+        with v.cond:
+            v.capture_origin(ground=True)
+            here = v.here_ned()
+        v.autopilot.prepare_arm(ctl, here)
+        while True:
+            try:
+                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, ARM)
+                break
+            except CommandRejected as exc:
+                with v.cond:
+                    if v.state.armed:
+                        break
+                temporary = exc.result == result_name(MAV_RESULT_TEMPORARILY_REJECTED)
+                if temporary and time.monotonic() + ARM_RETRY_S < deadline:
+                    ctl.pause(ARM_RETRY_S)  # not ready yet: PX4 says so, try again
+                    continue
+                why = f": {exc.statustext}" if exc.statustext else ""
+                until = f" until the {s.armable_timeout_s:g} s armable timeout" if temporary else ""
+                raise Failed(f"arming refused ({exc.result}{until}){why}") from exc
+        # PX4's HEARTBEAT may show the armed flag up to a second after the ack.
+        self.waiter.wait(
+            run,
+            lambda st: st.armed,
+            time.monotonic() + self.waiter.confirm_s(),
+            lambda st: "vehicle acknowledged arming but its HEARTBEAT never showed it armed",
+        )
+        return ActionResult("ok")
+
+    def disarm(self, run: Run, ctl: RunControl) -> ActionResult:
+        """Disarm on the ground ("in the air" otherwise); see the flag drop."""
+        v = self.v
+        with v.cond:
+            if not v.state.armed:
+                return ActionResult("ok")
+            if not v.on_ground(v.state):
+                raise Failed("in the air")
+        try:
+            ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
+        except CommandRejected:
+            with v.cond:
+                if not v.state.armed:  # it disarmed by itself meanwhile
+                    return ActionResult("ok")
+            raise
+        self.waiter.wait(
+            run,
+            lambda st: not st.armed,
+            time.monotonic() + self.waiter.confirm_s(),
+            lambda st: "vehicle acknowledged disarming but its HEARTBEAT still shows armed",
+        )
+        with v.cond:
+            v.stop_steering()
+        return ActionResult("ok")
+
+    def takeoff(self, run: Run, ctl: RunControl, height: float) -> ActionResult:
+        """Climb to ``height`` above the take-off ground at the current X/Y."""
+        v, s = self.v, self.s
+        if height <= 0:
+            raise Failed("height_m must be > 0")
+        with v.cond:
+            if not v.state.armed:
+                raise Failed("not armed")
+            if v.origin is None:
+                raise Failed("no LOCAL_POSITION_NED from the vehicle yet")
+            x, y, _ = v.mission_position()
+            v.commanded = (x, y, height)
+            target_ned = mission_to_ned(v.commanded, v.origin)
+        v.autopilot.takeoff(ctl, target_ned, height)
+        modes = v.autopilot.takeoff_modes()
+        self.waiter.confirm_modes(run, modes, done=lambda st: False)
+
+        def arrived(st: LinkState) -> bool:
+            # Vertical only: a real take-off may drift a little sideways.
+            return (
+                abs(v.mission_position(st)[2] - height) <= s.tolerance_m
+                and v.speed(st) <= s.settle_speed_mps
+            )
+
+        self.waiter.wait(
+            run,
+            arrived,
+            run.started + s.action_timeout_s,
+            self.waiter.timeout_reason("take-off height not reached"),
+            guard=self.waiter.guard(modes),
+        )
+        return ActionResult("ok")
+
+    def land(self, run: Run, ctl: RunControl) -> ActionResult:
+        """MAV_CMD_NAV_LAND; done on the ground (or disarmed)."""
+        v = self.v
+        with v.cond:
+            if v.on_ground(v.state):
+                return ActionResult("ok")
+            here = v.here_ned()
+        v.autopilot.land(ctl, here)
+        with v.cond:
+            v.guided_target = None
+        modes = frozenset({v.autopilot.land_mode})
+        self.waiter.confirm_modes(run, modes, done=v.landed)
+        self.waiter.wait(
+            run,
+            v.landed,
+            run.started + self.s.action_timeout_s,
+            self.waiter.timeout_reason("not landed"),
+            guard=self.waiter.guard(modes, need_armed=False, unless=v.landed),
+        )
+        return ActionResult("ok")
+
+    def move(self, run: Run, ctl: RunControl, command: FlyBy | FlyToXYZ | FlyToLLA) -> ActionResult:
+        """FlyByX/Y/Z, FlyToXYZ, FlyToLLA: go there, done within tolerance and slow."""
+        v, s = self.v, self.s
+        with v.cond:
+            if not v.state.armed:
+                raise Failed("not armed")
+            if v.on_ground(v.state) or v.origin is None:
+                raise Failed("not flying")
+            lla: tuple[float, float, float] | None = None
+            relative = target_xyz(command, v.base_point())
+            if relative is not None:
+                target = relative
+            elif isinstance(command, FlyToLLA):
+                if v.geo is None:
+                    raise Failed(
+                        "no GLOBAL_POSITION_INT from the vehicle: cannot fly to a "
+                        "latitude/longitude"
+                    )
+                lla = (command.lat_deg, command.lon_deg, command.alt_m)
+                target = v.geo.from_lla(*lla)
+            else:
+                raise Failed(f"{command.action} has no target")
+            if target[2] <= 0:
+                raise Failed(f"target z {target[2]:.2f} m is not above ground (use Land)")
+            v.commanded = target
+            target_ned = mission_to_ned(target, v.origin)
+        if lla is not None:
+            v.autopilot.goto_global(ctl, lla[0], lla[1], lla[2], target_ned)
+        else:
+            v.autopilot.goto(ctl, target_ned)
+        modes = frozenset({v.autopilot.motion_mode})
+        self.waiter.confirm_modes(run, modes, done=lambda st: False)
+
+        def arrived(st: LinkState) -> bool:
+            return (
+                math.dist(v.mission_position(st), target) <= s.tolerance_m
+                and v.speed(st) <= s.settle_speed_mps
+            )
+
+        self.waiter.wait(
+            run,
+            arrived,
+            run.started + s.action_timeout_s,
+            self.waiter.timeout_reason("target not reached"),
+            guard=self.waiter.guard(modes),
+        )
+        return ActionResult("ok")
+
+    # -- holding and aborting (their own threads) -----------------------------------------
+
+    def start_hold(self, name: str) -> None:
+        """Hold where the vehicle is, on a thread (a mode change may take a second).
+
+        Motion actions started later wait for it, so the hold never overrides them.
+        """
+        thread = threading.Thread(target=self._hold, name=name, daemon=True)
+        with self.v.cond:
+            self._pending_hold = thread
+        thread.start()
+
+    def _await_hold(self) -> None:
+        with self.v.cond:
+            hold = self._pending_hold
+        if hold is not None:
+            hold.join(self.waiter.confirm_s() * 3)
+
+    def _hold(self) -> None:
+        v = self.v
+        run = Run(None, None, "internal", time.monotonic())
+        try:
+            with v.cond:
+                if v.state.local is None:
+                    return
+                here = v.here_ned()
+                airborne = not v.on_ground(v.state)
+                v.commanded = v.mission_position() if v.origin else None
+            v.autopilot.hold(RunControl(self, run), here, airborne)
+            v.log.info(
+                "adapter.hold",
+                north_m=round(here[0], 2),
+                east_m=round(here[1], 2),
+                down_m=round(here[2], 2),
+            )
+        except (Failed, Ended, CommandRejected) as exc:
+            v.log.warning("adapter.hold_failed", error=str(exc))
+
+    def abort(self) -> None:
+        """Land (if flying), then disarm; logs how it went (runs on the abort thread)."""
+        v = self.v
+        run = Run(None, None, "internal", time.monotonic())
+        ctl = RunControl(self, run)
+        self._await_hold()
+        try:
+            with v.cond:
+                known = v.state.local is not None
+                airborne = known and not v.on_ground(v.state)
+                here = v.here_ned() if known else (0.0, 0.0, 0.0)
+            if airborne:
+                v.autopilot.land(ctl, here)
+                with v.cond:
+                    v.guided_target = None
+                self.waiter.wait(
+                    run,
+                    v.landed,
+                    time.monotonic() + self.s.action_timeout_s,
+                    self.waiter.timeout_reason("not landed"),
+                )
+            with v.cond:
+                armed = v.state.armed
+            if armed:
+                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
+            v.log.info("adapter.abort.done")
+        except (Failed, Ended, CommandRejected) as exc:
+            v.log.error("adapter.abort.failed", error=str(exc))
+
+
+__all__ = ["Ended", "Failed", "Flight", "Run", "RunControl", "TimedOut", "Waiter"]

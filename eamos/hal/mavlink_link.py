@@ -16,54 +16,45 @@ jobs (the 1 Hz GCS heartbeat, and whatever the adapter registers with
 Heartbeat loss is tracked here: when no HEARTBEAT came for more than
 ``heartbeat_timeout_s`` the state's ``link_ok`` turns False (and waiters
 wake); the next HEARTBEAT turns it True again.  A TCP connection the vehicle
-closes is re-dialled every half second.
+closes is re-dialled every half second.  How each message changes the state
+is :class:`~eamos.hal.mavlink_state.StateTracker`'s business.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import re
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
+from eamos.hal.mavlink_state import (
+    MAV_AUTOPILOT_INVALID,
+    MAV_RESULT_NAMES,
+    MAV_TYPE_GCS,
+    Events,
+    GlobalPosition,
+    LinkState,
+    StateTracker,
+    result_name,
+)
+
 #: MAVLink ids used by the link (numbers rather than pymavlink attributes keep
 #: this module importable without touching pymavlink's dialect machinery).
-MAV_TYPE_GCS = 6
-MAV_AUTOPILOT_INVALID = 8
 MAV_STATE_ACTIVE = 4
-MAV_MODE_FLAG_SAFETY_ARMED = 128
 MAV_RESULT_ACCEPTED = 0
 MAV_RESULT_TEMPORARILY_REJECTED = 1
 MAV_RESULT_IN_PROGRESS = 5
 MAV_SYS_STATUS_PREARM_CHECK = 0x10000000
 
-MAV_RESULT_NAMES = {
-    0: "MAV_RESULT_ACCEPTED",
-    1: "MAV_RESULT_TEMPORARILY_REJECTED",
-    2: "MAV_RESULT_DENIED",
-    3: "MAV_RESULT_UNSUPPORTED",
-    4: "MAV_RESULT_FAILED",
-    5: "MAV_RESULT_IN_PROGRESS",
-    6: "MAV_RESULT_CANCELLED",
-    7: "MAV_RESULT_COMMAND_LONG_ONLY",
-    8: "MAV_RESULT_COMMAND_INT_ONLY",
-    9: "MAV_RESULT_COMMAND_UNSUPPORTED_MAV_FRAME",
-}
 
-#: Silence on the link (any message) that counts as a gap when it ends.
-GAP_S = 1.0
 #: The reader's socket wait: bounds how late heartbeat loss is noticed.
 READ_WAIT_S = 0.1
 #: Pause between TCP re-dials / after a transport error.
 REDIAL_S = 0.5
-#: STATUSTEXT payload size: a chunk this long is continued by the next one.
-STATUSTEXT_CHUNK = 50
 
 
 class LinkError(Exception):
@@ -76,13 +67,6 @@ class LinkError(Exception):
     def __init__(self, message: str, unreachable: bool = False) -> None:
         super().__init__(message)
         self.unreachable = unreachable
-
-
-def result_name(result: int | None) -> str:
-    """``"MAV_RESULT_DENIED"`` for 2, etc.; ``"no COMMAND_ACK"`` for None."""
-    if result is None:
-        return "no COMMAND_ACK"
-    return MAV_RESULT_NAMES.get(result, f"MAV_RESULT({result})")
 
 
 def load_mavutil() -> ModuleType:
@@ -192,65 +176,7 @@ def _tcp_client(
     )
 
 
-@dataclass
-class GlobalPosition:
-    """GLOBAL_POSITION_INT in SI units."""
-
-    lat_deg: float
-    lon_deg: float
-    alt_amsl_m: float
-    rel_alt_m: float
-    vn_mps: float
-    ve_mps: float
-    vd_mps: float
-
-
-@dataclass
-class LinkState:
-    """What the reader knows about the vehicle; read and written under ``MavlinkLink.cond``."""
-
-    system_id: int | None = None
-    component_id: int = 1
-    autopilot: int | None = None
-    vehicle_type: int | None = None
-    base_mode: int = 0
-    custom_mode: int = 0
-    armed: bool = False
-    heartbeats: int = 0
-    last_heartbeat: float = -math.inf  # time.monotonic()
-    link_ok: bool = False  # heartbeats arrive (none missing for > heartbeat_timeout_s)
-    link_losses: int = 0
-    last_rx: float = -math.inf
-    gap_ended_at: float = -math.inf  # first message after a silence of GAP_S or more
-    failsafe_at: float = -math.inf  # last STATUSTEXT mentioning a failsafe
-    local: tuple[float, float, float, float, float, float] | None = None  # NED x y z vx vy vz
-    local_count: int = 0
-    global_pos: GlobalPosition | None = None
-    home: tuple[float, float, float] | None = None  # HOME_POSITION lat, lon, alt AMSL
-    sensors_present: int | None = None
-    sensors_health: int | None = None
-    battery_pct: float | None = None
-    landed_state: int | None = None  # EXTENDED_SYS_STATE (MAV_LANDED_STATE)
-    acks: dict[int, tuple[int, int]] = field(default_factory=dict)  # command -> (result, serial)
-    ack_serial: int = 0
-    statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
-    statustext_serial: int = 0
-    closed: bool = False
-
-    @property
-    def last_statustext(self) -> str:
-        """The latest STATUSTEXT (reassembled), or ``""``."""
-        return self.statustexts[-1] if self.statustexts else ""
-
-    def ack_since(self, command: int, serial: int) -> int | None:
-        """The result of the latest COMMAND_ACK for ``command`` newer than ``serial``."""
-        entry = self.acks.get(command)
-        return entry[0] if entry is not None and entry[1] > serial else None
-
-
 EventCallback = Callable[[str, dict[str, Any]], None]
-#: Events collected under the condition, reported after releasing it.
-Events = list[tuple[str, dict[str, Any]]]
 
 
 @dataclass
@@ -291,7 +217,13 @@ class MavlinkLink:
         self._mavutil: ModuleType | None = None
         self._threads: list[threading.Thread] = []
         self._jobs: list[_Periodic] = []
-        self._chunks: dict[int, list[str]] = {}  # reader thread only: STATUSTEXT parts by id
+        self._tracker = StateTracker(
+            self.state,
+            source_system=source_system,
+            component_id=component_id,
+            heartbeat_timeout_s=heartbeat_timeout_s,
+            notify=self.cond.notify_all,
+        )
         self._boot = time.monotonic()
         self._transport_down = False
 
@@ -469,8 +401,8 @@ class MavlinkLink:
             events: Events = []
             with self.cond:
                 if msg is not None and msg.get_type() != "BAD_DATA":
-                    self._handle(msg, now, events)
-                self._check_heartbeat(now, events)
+                    self._tracker.handle(msg, now, events)
+                self._tracker.check_heartbeat(now, events)
             for name, fields in events:
                 self._on_event(name, fields)
 
@@ -483,144 +415,10 @@ class MavlinkLink:
         now = time.monotonic()
         events: Events = []
         with self.cond:
-            self._check_heartbeat(now, events)
+            self._tracker.check_heartbeat(now, events)
         for name, fields in events:
             self._on_event(name, fields)
         self._stop.wait(REDIAL_S)
-
-    def _check_heartbeat(self, now: float, events: Events) -> None:
-        st = self.state
-        if st.link_ok and now - st.last_heartbeat > self.heartbeat_timeout_s:
-            st.link_ok = False
-            st.link_losses += 1
-            events.append(
-                (
-                    "link.lost",
-                    {
-                        "silent_s": round(now - st.last_heartbeat, 3),
-                        "heartbeat_timeout_s": self.heartbeat_timeout_s,
-                    },
-                )
-            )
-            self.cond.notify_all()
-
-    # -- message handling (reader thread, condition held) -----------------------
-
-    def _handle(self, msg: Any, now: float, events: Events) -> None:
-        st = self.state
-        kind = msg.get_type()
-        src, comp = msg.get_srcSystem(), msg.get_srcComponent()
-        if kind == "HEARTBEAT":
-            if not self._is_vehicle_heartbeat(msg, src, comp):
-                return
-        elif st.system_id is None or src != st.system_id:
-            return  # another system on a shared port, or before we know the vehicle
-        if now - st.last_rx >= GAP_S and st.last_rx > -math.inf:
-            st.gap_ended_at = now
-            events.append(("link.gap", {"silent_s": round(now - st.last_rx, 3)}))
-        st.last_rx = now
-        handler = getattr(self, f"_on_{kind.lower()}", None)
-        if handler is not None:
-            handler(msg, now, events)
-            self.cond.notify_all()
-
-    def _is_vehicle_heartbeat(self, msg: Any, src: int, comp: int) -> bool:
-        st = self.state
-        if comp != self.component_id and not (self.component_id == 0 and comp == 1):
-            return False
-        if st.system_id is None:
-            # Lock onto the first autopilot heard; ignore ground stations and
-            # other companions sharing the port.
-            if msg.autopilot == MAV_AUTOPILOT_INVALID or msg.type == MAV_TYPE_GCS:
-                return False
-            st.system_id = src
-            return True
-        return src == st.system_id
-
-    def _on_heartbeat(self, msg: Any, now: float, events: Events) -> None:
-        st = self.state
-        armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
-        if st.heartbeats == 0:
-            events.append(
-                (
-                    "link.vehicle",
-                    {"system_id": st.system_id, "autopilot": msg.autopilot, "type": msg.type},
-                )
-            )
-        else:
-            if msg.custom_mode != st.custom_mode:
-                events.append(
-                    ("vehicle.mode", {"custom_mode": msg.custom_mode, "previous": st.custom_mode})
-                )
-            if armed != st.armed:
-                events.append(("vehicle.armed", {"armed": armed}))
-        if not st.link_ok:
-            if st.heartbeats:
-                events.append(("link.restored", {"silent_s": round(now - st.last_heartbeat, 3)}))
-            st.link_ok = True
-        st.autopilot, st.vehicle_type = msg.autopilot, msg.type
-        st.base_mode, st.custom_mode, st.armed = msg.base_mode, msg.custom_mode, armed
-        st.heartbeats += 1
-        st.last_heartbeat = now
-
-    def _on_command_ack(self, msg: Any, now: float, events: Events) -> None:
-        target = getattr(msg, "target_system", 0)
-        if target not in (0, self.source_system):
-            return  # an ack meant for another ground station
-        st = self.state
-        st.ack_serial += 1
-        st.acks[msg.command] = (msg.result, st.ack_serial)
-        events.append(("vehicle.ack", {"command": msg.command, "result": result_name(msg.result)}))
-
-    def _on_local_position_ned(self, msg: Any, now: float, events: Events) -> None:
-        self.state.local = (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
-        self.state.local_count += 1
-
-    def _on_global_position_int(self, msg: Any, now: float, events: Events) -> None:
-        self.state.global_pos = GlobalPosition(
-            msg.lat / 1e7,
-            msg.lon / 1e7,
-            msg.alt / 1000.0,
-            msg.relative_alt / 1000.0,
-            msg.vx / 100.0,
-            msg.vy / 100.0,
-            msg.vz / 100.0,
-        )
-
-    def _on_home_position(self, msg: Any, now: float, events: Events) -> None:
-        self.state.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
-
-    def _on_sys_status(self, msg: Any, now: float, events: Events) -> None:
-        st = self.state
-        st.sensors_present = msg.onboard_control_sensors_present
-        st.sensors_health = msg.onboard_control_sensors_health
-        if msg.battery_remaining >= 0:
-            st.battery_pct = float(msg.battery_remaining)
-
-    def _on_battery_status(self, msg: Any, now: float, events: Events) -> None:
-        if msg.battery_remaining >= 0:
-            self.state.battery_pct = float(msg.battery_remaining)
-
-    def _on_extended_sys_state(self, msg: Any, now: float, events: Events) -> None:
-        self.state.landed_state = msg.landed_state
-
-    def _on_statustext(self, msg: Any, now: float, events: Events) -> None:
-        text = msg.text.decode("utf-8", "replace") if isinstance(msg.text, bytes) else msg.text
-        text = text.rstrip("\x00")
-        chunk_id = getattr(msg, "id", 0)
-        if chunk_id:
-            # MAVLink 2 splits long texts into chunks sharing an id (PX4 does).
-            parts = self._chunks.setdefault(chunk_id, [])
-            parts.append(text)
-            if len(text) >= STATUSTEXT_CHUNK and len(parts) < 8:
-                return
-            text = "".join(self._chunks.pop(chunk_id))
-        st = self.state
-        st.statustexts.append(text)
-        st.statustext_serial += 1
-        if "failsafe" in text.lower():
-            st.failsafe_at = now
-        events.append(("vehicle.statustext", {"severity": msg.severity, "text": text}))
 
 
 __all__ = [

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 from collections.abc import Callable, Iterator
@@ -19,9 +20,10 @@ from eamos.actors.uniform_api import (
     UniformAPI,
 )
 from eamos.hal import ActionResult, AdapterError, Telemetry
-from eamos.hal.api import Adapter
+from eamos.hal.api import ActionHandle, Adapter
 from eamos.hal.fake import FakeAdapter
-from eamos.logs import DroneLogs, read_log
+from eamos.hal.ground import GroundAdapter, GroundSettings
+from eamos.logs import DroneLogs, make_logger, read_log
 from tests.hal.hal_helpers import WAIT_S, Collector, TelemetrySink, next_message
 from tests.support.sim_fixtures import SimFactory
 
@@ -131,7 +133,10 @@ def test_unknown_action_and_bad_args_fail_without_calling_the_adapter(
     assert "takes 1 argument" in r.call(2, "Takeoff").result.reason
     assert "finite" in r.call(3, "Takeoff", float("nan")).result.reason
     r.ref.tell(RunAction(4, "Takeoff", ("high",), r.collector))  # type: ignore[arg-type]
-    assert "finite number" in r.finished().result.reason
+    # The vocabulary's decoder names the parameter (it used to say "finite number").
+    assert r.finished().result == ActionResult(
+        "failed", "Takeoff: height_m must be a number, got 'high'"
+    )
     assert fake.calls_of("run") == []
 
 
@@ -141,6 +146,53 @@ def test_adapter_exception_fails_the_action_not_the_actor(rig: Callable[..., Rig
     result = r.call(1, "Calibrate").result
     assert result.status == "failed" and "IMU on fire" in result.reason
     assert r.call(2, "Arm").result.ok
+
+
+def test_adapter_exception_is_logged_once_with_its_traceback(rig: Callable[..., Rig]) -> None:
+    fake = FakeAdapter("D1", auto=True, run_errors={"Calibrate": RuntimeError("IMU on fire")})
+    r = rig(fake)
+    result = r.call(1, "Calibrate").result
+    assert result == ActionResult(
+        "failed", "internal error in the adapter: RuntimeError('IMU on fire')"
+    )
+    r.stop()
+    errors = [
+        e for e in read_log(r.log_dir / "uniform.log") if e["event"] == "uniform.adapter_error"
+    ]
+    assert len(errors) == 1
+    assert errors[0]["call"] == "Calibrate" and "Traceback" in errors[0]["exception"]
+
+
+class _CancelFails(FakeAdapter):
+    """A fake whose cancel raises (an adapter bug)."""
+
+    def cancel(self, handle: ActionHandle) -> None:
+        raise RuntimeError("cancel exploded")
+
+
+def test_adapter_exception_in_cancel_fails_the_action_and_the_actor_serves_on(
+    rig: Callable[..., Rig],
+) -> None:
+    fake = _CancelFails("D1")
+    r = rig(fake)
+    r.run("fly", "FlyByX", 10)
+    handle = fake.wait_started("FlyByX", WAIT_S)
+    r.ref.tell(CancelAction("fly"))
+    reply = r.finished()
+    assert reply.token == "fly"
+    assert reply.result == ActionResult(
+        "failed", "internal error in the adapter: RuntimeError('cancel exploded')"
+    )
+    fake.finish(handle)  # a late done from the adapter is dropped, not answered twice
+    r.run("next", "Arm")
+    fake.finish(fake.wait_started("Arm", WAIT_S))
+    assert r.finished().token == "next"
+    assert r.inbox.empty()
+    r.stop()
+    log = read_log(r.log_dir / "uniform.log")
+    errors = [e for e in log if e["event"] == "uniform.adapter_error"]
+    assert len(errors) == 1 and errors[0]["call"] == "cancel"
+    assert "Traceback" in errors[0]["exception"]
 
 
 def test_duplicate_token_is_refused(rig: Callable[..., Rig]) -> None:
@@ -247,9 +299,27 @@ def test_actor_flies_the_simulator(rig: Callable[..., Rig], make_sim: SimFactory
     assert r.call(6, "Land").result.ok
     assert r.call(7, "Disarm").result.ok
     assert r.call(8, "Jump").result.reason == "unknown action 'Jump'"
+    # Bad calls are decoded away by the actor; the simulator never sees them.
+    assert r.call(9, "Fly", 1.0).result.reason == "unknown action 'Fly'"
+    assert "takes 1 argument" in r.call(10, "FlyByX").result.reason
+    assert "finite" in r.call(11, "FlyByX", math.nan).result.reason
     s = sim.state
     assert s.landed and not s.armed and s.y_m == pytest.approx(2.0, abs=0.1)
     assert r.telemetry.count() > 10
     r.stop()
     adapter_log = [e["event"] for e in read_log(r.log_dir.parent / "S1-adapter.log")]
     assert "adapter.close" in adapter_log  # on_stop closed the adapter
+    assert adapter_log.count("adapter.action.start") == 7  # the bad calls never reached it
+
+
+def test_ground_station_bad_calls_fail_at_the_actor(
+    rig: Callable[..., Rig], tmp_path: Path
+) -> None:
+    ground = GroundAdapter("GCS", GroundSettings(speedup=10.0), make_logger(None))
+    r = rig(ground)
+    assert r.call(1, "Jump").result.reason == "unknown action 'Jump'"
+    assert "argument" in r.call(2, "PauseFor").result.reason
+    assert r.call(3, "Takeoff", 5.0).result == ActionResult(
+        "failed", "the ground station cannot Takeoff"
+    )
+    assert r.call(4, "PauseFor", 0.5).result.ok

@@ -14,6 +14,7 @@ from typing import Any
 import pykka
 
 from eamos.hal.api import ActionResult, Adapter, Telemetry
+from eamos.program.uniform import Command, decode_command
 
 #: Generous upper bound for any single wait in these tests.
 WAIT_S = 60.0
@@ -45,10 +46,15 @@ class Done:
         return self._event.is_set()
 
 
+def cmd(action: str, *args: float) -> Command:
+    """The typed command for ``action(*args)``, decoded as the uniform-API actor does."""
+    return decode_command(action, args)
+
+
 def do(adapter: Adapter, action: str, *args: float, timeout: float = WAIT_S) -> ActionResult:
     """Run one action on ``adapter`` and wait for its result."""
     done = Done()
-    adapter.run(action, tuple(args), done)
+    adapter.run(cmd(action, *args), done)
     return done.wait(timeout)
 
 

@@ -14,7 +14,7 @@ from eamos.hal.fake import Call, FakeAdapter, fake_adapter_from_settings
 from eamos.hal.ground import GroundAdapter, GroundSettings
 from eamos.logs import close_logger, make_logger, read_log
 
-from .hal_helpers import WAIT_S, Done, TelemetrySink, do
+from .hal_helpers import WAIT_S, Done, TelemetrySink, cmd, do
 
 # Generous for a loaded 2-core machine; a healthy run takes seconds.
 pytestmark = pytest.mark.timeout(180)
@@ -63,7 +63,7 @@ def test_ground_pauses_finish_in_deadline_order(ground: GroundAdapter) -> None:
                 order.append(d)
             inner(result)
 
-        ground.run("PauseFor", (duration,), record)
+        ground.run(cmd("PauseFor", duration), record)
         dones.append(done)
     for done in dones:
         assert done.wait().ok
@@ -74,22 +74,20 @@ def test_ground_cannot_fly(ground: GroundAdapter) -> None:
     ground.start(TelemetrySink())
     assert do(ground, "Takeoff", 5.0) == ActionResult("failed", "the ground station cannot Takeoff")
     assert do(ground, "Arm").reason == "the ground station cannot Arm"
-    assert do(ground, "Jump").reason == "unknown action 'Jump'"
-    assert "argument" in do(ground, "PauseFor").reason
     assert "duration_s" in do(ground, "PauseFor", -1.0).reason
 
 
 def test_ground_cancel_abort_close(ground: GroundAdapter, tmp_path: Path) -> None:
     ground.start(TelemetrySink())
     a, b, c = Done(), Done(), Done()
-    handle = ground.run("PauseFor", (10_000.0,), a)
-    ground.run("PauseFor", (10_000.0,), b)
+    handle = ground.run(cmd("PauseFor", 10_000.0), a)
+    ground.run(cmd("PauseFor", 10_000.0), b)
     ground.cancel(handle)
     assert a.wait().status == "cancelled"
     ground.cancel(handle)  # finished: nothing happens
     ground.abort()
     assert b.wait() == ActionResult("cancelled", "aborted")
-    ground.run("PauseFor", (10_000.0,), c)
+    ground.run(cmd("PauseFor", 10_000.0), c)
     ground.close()
     assert c.wait() == ActionResult("cancelled", "adapter closed")
     ground.close()
@@ -116,7 +114,7 @@ def test_fake_records_calls_and_finishes_on_demand() -> None:
     fake.start(sink)
     assert sink.count() == 1
     done = Done()
-    handle = fake.run("Takeoff", (5.0,), done)
+    handle = fake.run(cmd("Takeoff", 5.0), done)
     assert fake.wait_started("Takeoff", WAIT_S) == handle
     assert fake.running == [handle] and not done.is_done
     fake.finish("Takeoff", ActionResult("failed", "wind"))
@@ -141,9 +139,9 @@ def test_fake_cancel_and_abort() -> None:
     fake = FakeAdapter("D1")
     fake.start(TelemetrySink())
     a, b, c = Done(), Done(), Done()
-    ha = fake.run("FlyByX", (1.0,), a)
-    fake.run("PauseFor", (9.0,), b)
-    fake.run("TurnOn", (), c)
+    ha = fake.run(cmd("FlyByX", 1.0), a)
+    fake.run(cmd("PauseFor", 9.0), b)
+    fake.run(cmd("TurnOn"), c)
     fake.cancel(ha)
     assert a.wait() == ActionResult("cancelled", "cancelled")
     fake.cancel(ha)  # finished: recorded, nothing else
@@ -170,7 +168,7 @@ def test_fake_push_telemetry_keeps_other_fields() -> None:
 def test_fake_wait_started_across_threads() -> None:
     fake = FakeAdapter("D1")
     fake.start(TelemetrySink())
-    worker = threading.Thread(target=lambda: [fake.run("Arm", (), Done()) for _ in range(2)])
+    worker = threading.Thread(target=lambda: [fake.run(cmd("Arm"), Done()) for _ in range(2)])
     worker.start()
     second = fake.wait_started("Arm", WAIT_S, count=2)
     worker.join(WAIT_S)
@@ -187,7 +185,7 @@ def test_fake_errors() -> None:
     fake = FakeAdapter("D1", run_errors={"Arm": RuntimeError("boom")})
     fake.start(TelemetrySink())
     with pytest.raises(RuntimeError, match="boom"):
-        fake.run("Arm", (), Done())
+        fake.run(cmd("Arm"), Done())
     assert isinstance(fake.calls_of("run")[0].handle, ActionHandle)
 
 

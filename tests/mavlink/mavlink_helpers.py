@@ -19,6 +19,7 @@ from eamos.hal.api import ActionHandle, ActionResult, Telemetry
 from eamos.hal.mavlink import MavlinkAdapter
 from eamos.hal.mavlink_link import load_mavutil, open_transport
 from eamos.hal.sim_vehicle import SimVehicle
+from eamos.program.uniform import decode_command
 
 #: Generous bound for one wait on a shared, small machine.
 WAIT_S = 60.0
@@ -98,7 +99,7 @@ class Flight:
 
     def run(self, action: str, *args: float) -> tuple[ActionHandle, Done]:
         done = Done()
-        handle = self.adapter.run(action, tuple(args), done)
+        handle = self.adapter.run(decode_command(action, args), done)
         return handle, done
 
     def do(self, action: str, *args: float, timeout: float = WAIT_S) -> ActionResult:

@@ -142,7 +142,7 @@ def test_parameters_px4_bytewise(make_vehicle, raw_client):
     seen = client.count("PARAM_VALUE")
     client.mav.param_request_list_send(1, 1)
     last = client.wait("PARAM_VALUE", lambda m: m.param_index == m.param_count - 1, after=seen)
-    assert last.param_count == len(vehicle._params)
+    assert last.param_count == len(vehicle.params)
 
 
 def test_px4_offboard_rules_and_failsafe(make_vehicle, raw_client):

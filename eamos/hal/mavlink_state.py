@@ -1,0 +1,270 @@
+"""What the MAVLink link knows about its vehicle, and how each received message updates it.
+
+:class:`LinkState` is the vehicle as last heard (HEARTBEAT, positions, battery,
+acks, STATUSTEXT...).  :class:`StateTracker` folds each received message into
+it: it locks onto the first autopilot heard, ignores other systems, notes
+gaps and heartbeat loss, reassembles chunked STATUSTEXTs, and reports what
+changed as events.  It holds no lock, thread or clock of its own: the link's
+reader thread calls it with the condition held and the receive time.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+#: MAVLink numbers the tracker reads (kept local: no pymavlink needed).
+MAV_TYPE_GCS = 6
+MAV_AUTOPILOT_INVALID = 8
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+MAV_RESULT_NAMES = {
+    0: "MAV_RESULT_ACCEPTED",
+    1: "MAV_RESULT_TEMPORARILY_REJECTED",
+    2: "MAV_RESULT_DENIED",
+    3: "MAV_RESULT_UNSUPPORTED",
+    4: "MAV_RESULT_FAILED",
+    5: "MAV_RESULT_IN_PROGRESS",
+    6: "MAV_RESULT_CANCELLED",
+    7: "MAV_RESULT_COMMAND_LONG_ONLY",
+    8: "MAV_RESULT_COMMAND_INT_ONLY",
+    9: "MAV_RESULT_COMMAND_UNSUPPORTED_MAV_FRAME",
+}
+
+#: Silence on the link (any message) that counts as a gap when it ends.
+GAP_S = 1.0
+#: STATUSTEXT payload size: a chunk this long is continued by the next one.
+STATUSTEXT_CHUNK = 50
+
+
+def result_name(result: int | None) -> str:
+    """``"MAV_RESULT_DENIED"`` for 2, etc.; ``"no COMMAND_ACK"`` for None."""
+    if result is None:
+        return "no COMMAND_ACK"
+    return MAV_RESULT_NAMES.get(result, f"MAV_RESULT({result})")
+
+
+@dataclass
+class GlobalPosition:
+    """GLOBAL_POSITION_INT in SI units."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    rel_alt_m: float
+    vn_mps: float
+    ve_mps: float
+    vd_mps: float
+
+
+@dataclass
+class LinkState:
+    """What the reader knows about the vehicle; read and written under ``MavlinkLink.cond``."""
+
+    system_id: int | None = None
+    component_id: int = 1
+    autopilot: int | None = None
+    vehicle_type: int | None = None
+    base_mode: int = 0
+    custom_mode: int = 0
+    armed: bool = False
+    heartbeats: int = 0
+    last_heartbeat: float = -math.inf  # time.monotonic()
+    link_ok: bool = False  # heartbeats arrive (none missing for > heartbeat_timeout_s)
+    link_losses: int = 0
+    last_rx: float = -math.inf
+    gap_ended_at: float = -math.inf  # first message after a silence of GAP_S or more
+    failsafe_at: float = -math.inf  # last STATUSTEXT mentioning a failsafe
+    local: tuple[float, float, float, float, float, float] | None = None  # NED x y z vx vy vz
+    local_count: int = 0
+    global_pos: GlobalPosition | None = None
+    home: tuple[float, float, float] | None = None  # HOME_POSITION lat, lon, alt AMSL
+    sensors_present: int | None = None
+    sensors_health: int | None = None
+    battery_pct: float | None = None
+    landed_state: int | None = None  # EXTENDED_SYS_STATE (MAV_LANDED_STATE)
+    acks: dict[int, tuple[int, int]] = field(default_factory=dict)  # command -> (result, serial)
+    ack_serial: int = 0
+    statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
+    statustext_serial: int = 0
+    closed: bool = False
+
+    @property
+    def last_statustext(self) -> str:
+        """The latest STATUSTEXT (reassembled), or ``""``."""
+        return self.statustexts[-1] if self.statustexts else ""
+
+    def ack_since(self, command: int, serial: int) -> int | None:
+        """The result of the latest COMMAND_ACK for ``command`` newer than ``serial``."""
+        entry = self.acks.get(command)
+        return entry[0] if entry is not None and entry[1] > serial else None
+
+
+#: Events collected under the condition, reported after releasing it.
+Events = list[tuple[str, dict[str, Any]]]
+
+
+class StateTracker:
+    """Folds received messages into a :class:`LinkState` (see module docstring)."""
+
+    def __init__(
+        self,
+        state: LinkState,
+        *,
+        source_system: int,
+        component_id: int,
+        heartbeat_timeout_s: float,
+        notify: Callable[[], None],
+    ) -> None:
+        self.state = state
+        self._source_system = source_system
+        self._component_id = component_id
+        self._heartbeat_timeout_s = heartbeat_timeout_s
+        self._notify = notify  # wakes every waiter on the link's condition
+        self._chunks: dict[int, list[str]] = {}  # STATUSTEXT parts by id
+
+    def check_heartbeat(self, now: float, events: Events) -> None:
+        """Heartbeats stopped for longer than the timeout: the link is lost (once)."""
+        st = self.state
+        if st.link_ok and now - st.last_heartbeat > self._heartbeat_timeout_s:
+            st.link_ok = False
+            st.link_losses += 1
+            events.append(
+                (
+                    "link.lost",
+                    {
+                        "silent_s": round(now - st.last_heartbeat, 3),
+                        "heartbeat_timeout_s": self._heartbeat_timeout_s,
+                    },
+                )
+            )
+            self._notify()
+
+    def handle(self, msg: Any, now: float, events: Events) -> None:
+        """Fold one message received at ``now`` into the state; append what changed."""
+        st = self.state
+        kind = msg.get_type()
+        src, comp = msg.get_srcSystem(), msg.get_srcComponent()
+        if kind == "HEARTBEAT":
+            if not self._is_vehicle_heartbeat(msg, src, comp):
+                return
+        elif st.system_id is None or src != st.system_id:
+            return  # another system on a shared port, or before we know the vehicle
+        if now - st.last_rx >= GAP_S and st.last_rx > -math.inf:
+            st.gap_ended_at = now
+            events.append(("link.gap", {"silent_s": round(now - st.last_rx, 3)}))
+        st.last_rx = now
+        handler = getattr(self, f"_on_{kind.lower()}", None)
+        if handler is not None:
+            handler(msg, now, events)
+            self._notify()
+
+    def _is_vehicle_heartbeat(self, msg: Any, src: int, comp: int) -> bool:
+        st = self.state
+        if comp != self._component_id and not (self._component_id == 0 and comp == 1):
+            return False
+        if st.system_id is None:
+            # Lock onto the first autopilot heard; ignore ground stations and
+            # other companions sharing the port.
+            if msg.autopilot == MAV_AUTOPILOT_INVALID or msg.type == MAV_TYPE_GCS:
+                return False
+            st.system_id = src
+            return True
+        return src == st.system_id
+
+    def _on_heartbeat(self, msg: Any, now: float, events: Events) -> None:
+        st = self.state
+        armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
+        if st.heartbeats == 0:
+            events.append(
+                (
+                    "link.vehicle",
+                    {"system_id": st.system_id, "autopilot": msg.autopilot, "type": msg.type},
+                )
+            )
+        else:
+            if msg.custom_mode != st.custom_mode:
+                events.append(
+                    ("vehicle.mode", {"custom_mode": msg.custom_mode, "previous": st.custom_mode})
+                )
+            if armed != st.armed:
+                events.append(("vehicle.armed", {"armed": armed}))
+        if not st.link_ok:
+            if st.heartbeats:
+                events.append(("link.restored", {"silent_s": round(now - st.last_heartbeat, 3)}))
+            st.link_ok = True
+        st.autopilot, st.vehicle_type = msg.autopilot, msg.type
+        st.base_mode, st.custom_mode, st.armed = msg.base_mode, msg.custom_mode, armed
+        st.heartbeats += 1
+        st.last_heartbeat = now
+
+    def _on_command_ack(self, msg: Any, now: float, events: Events) -> None:
+        target = getattr(msg, "target_system", 0)
+        if target not in (0, self._source_system):
+            return  # an ack meant for another ground station
+        st = self.state
+        st.ack_serial += 1
+        st.acks[msg.command] = (msg.result, st.ack_serial)
+        events.append(("vehicle.ack", {"command": msg.command, "result": result_name(msg.result)}))
+
+    def _on_local_position_ned(self, msg: Any, now: float, events: Events) -> None:
+        self.state.local = (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
+        self.state.local_count += 1
+
+    def _on_global_position_int(self, msg: Any, now: float, events: Events) -> None:
+        self.state.global_pos = GlobalPosition(
+            msg.lat / 1e7,
+            msg.lon / 1e7,
+            msg.alt / 1000.0,
+            msg.relative_alt / 1000.0,
+            msg.vx / 100.0,
+            msg.vy / 100.0,
+            msg.vz / 100.0,
+        )
+
+    def _on_home_position(self, msg: Any, now: float, events: Events) -> None:
+        self.state.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
+
+    def _on_sys_status(self, msg: Any, now: float, events: Events) -> None:
+        st = self.state
+        st.sensors_present = msg.onboard_control_sensors_present
+        st.sensors_health = msg.onboard_control_sensors_health
+        if msg.battery_remaining >= 0:
+            st.battery_pct = float(msg.battery_remaining)
+
+    def _on_battery_status(self, msg: Any, now: float, events: Events) -> None:
+        if msg.battery_remaining >= 0:
+            self.state.battery_pct = float(msg.battery_remaining)
+
+    def _on_extended_sys_state(self, msg: Any, now: float, events: Events) -> None:
+        self.state.landed_state = msg.landed_state
+
+    def _on_statustext(self, msg: Any, now: float, events: Events) -> None:
+        text = msg.text.decode("utf-8", "replace") if isinstance(msg.text, bytes) else msg.text
+        text = text.rstrip("\x00")
+        chunk_id = getattr(msg, "id", 0)
+        if chunk_id:
+            # MAVLink 2 splits long texts into chunks sharing an id (PX4 does).
+            parts = self._chunks.setdefault(chunk_id, [])
+            parts.append(text)
+            if len(text) >= STATUSTEXT_CHUNK and len(parts) < 8:
+                return
+            text = "".join(self._chunks.pop(chunk_id))
+        st = self.state
+        st.statustexts.append(text)
+        st.statustext_serial += 1
+        if "failsafe" in text.lower():
+            st.failsafe_at = now
+        events.append(("vehicle.statustext", {"severity": msg.severity, "text": text}))
+
+
+__all__ = [
+    "MAV_RESULT_NAMES",
+    "Events",
+    "GlobalPosition",
+    "LinkState",
+    "StateTracker",
+    "result_name",
+]

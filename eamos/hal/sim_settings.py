@@ -1,0 +1,146 @@
+"""Settings of one simulated quadcopter (:class:`SimSettings`) and its scripted pilot's path.
+
+Shared by the pure simulator core (:mod:`eamos.hal.sim_core`) and its threaded
+pacer (:mod:`eamos.hal.sim`); see :mod:`eamos.hal.sim` for what each setting does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+from eamos.hal.kinematics import GeoFrame, Limits
+from eamos.hal.settings import (
+    COMMON_KEYS,
+    as_number,
+    check_keys,
+    did_you_mean,
+    field_error,
+    number,
+    require_mapping,
+    string_list,
+)
+from eamos.program.uniform import ACTIONS
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    """One point of the scripted pilot's path (metres from home, hold in sim seconds)."""
+
+    x_m: float
+    y_m: float
+    z_m: float
+    hold_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Settings of one simulated vehicle; build with :meth:`from_mapping`."""
+
+    speedup: float = 1.0
+    horizontal_speed_mps: float = 2.0
+    climb_speed_mps: float = 1.0
+    descent_speed_mps: float = 0.7
+    accel_mps2: float = 2.0
+    tolerance_m: float = 0.1
+    settle_speed_mps: float = 0.2
+    arm_delay_s: float = 2.0
+    telemetry_hz: float = 10.0
+    home_lat_deg: float = 46.6103
+    home_lon_deg: float = 14.2640
+    home_alt_m: float = 0.0
+    battery_pct: float = 100.0
+    drain_airborne_pct_per_min: float = 1.5
+    drain_idle_pct_per_min: float = 0.1
+    action_timeout_s: float = 120.0
+    reject_actions: tuple[str, ...] = ()
+    pilot: tuple[Waypoint, ...] = ()
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "hal") -> SimSettings:
+        """Validate ``mapping`` (the drone's ``hal`` settings) into settings.
+
+        Raises :class:`AdapterError` ``"hal.<field>: <problem>"`` for a bad value
+        or an unknown key (with a "did you mean" suggestion).
+        """
+        mapping = require_mapping(mapping, prefix)
+        names = [f.name for f in fields(cls)]
+        check_keys(mapping, set(names) | COMMON_KEYS, prefix)
+
+        def num(key: str, **bounds: float) -> float:
+            return number(mapping, key, getattr(cls, key), prefix, **bounds)
+
+        reject: tuple[str, ...] = ()
+        if "reject_actions" in mapping:
+            path = f"{prefix}.reject_actions"
+            reject = tuple(string_list(mapping["reject_actions"], path))
+            for i, name in enumerate(reject):
+                if name not in ACTIONS:
+                    raise field_error(
+                        f"{path}[{i}]", f"unknown action {name!r}{did_you_mean(name, ACTIONS)}"
+                    )
+        pilot = _pilot_path(mapping["pilot"], f"{prefix}.pilot") if "pilot" in mapping else ()
+        return cls(
+            speedup=num("speedup", gt=0),
+            horizontal_speed_mps=num("horizontal_speed_mps", gt=0),
+            climb_speed_mps=num("climb_speed_mps", gt=0),
+            descent_speed_mps=num("descent_speed_mps", gt=0),
+            accel_mps2=num("accel_mps2", gt=0),
+            tolerance_m=num("tolerance_m", gt=0),
+            settle_speed_mps=num("settle_speed_mps", gt=0),
+            arm_delay_s=num("arm_delay_s", ge=0),
+            telemetry_hz=num("telemetry_hz", gt=0),
+            home_lat_deg=num("home_lat_deg", ge=-90, le=90),
+            home_lon_deg=num("home_lon_deg", ge=-180, le=180),
+            home_alt_m=num("home_alt_m"),
+            battery_pct=num("battery_pct", ge=0, le=100),
+            drain_airborne_pct_per_min=num("drain_airborne_pct_per_min", ge=0),
+            drain_idle_pct_per_min=num("drain_idle_pct_per_min", ge=0),
+            action_timeout_s=num("action_timeout_s", gt=0),
+            reject_actions=reject,
+            pilot=pilot,
+        )
+
+    @property
+    def limits(self) -> Limits:
+        """The kinematic limits these settings describe."""
+        return Limits(
+            horizontal_speed_mps=self.horizontal_speed_mps,
+            climb_speed_mps=self.climb_speed_mps,
+            descent_speed_mps=self.descent_speed_mps,
+            accel_mps2=self.accel_mps2,
+            drain_airborne_pct_per_min=self.drain_airborne_pct_per_min,
+            drain_idle_pct_per_min=self.drain_idle_pct_per_min,
+        )
+
+    @property
+    def frame(self) -> GeoFrame:
+        """The local/global frame around this vehicle's home."""
+        return GeoFrame(self.home_lat_deg, self.home_lon_deg, self.home_alt_m)
+
+
+def _pilot_path(value: Any, path: str) -> tuple[Waypoint, ...]:
+    if isinstance(value, str) or not isinstance(value, list | tuple):
+        raise field_error(path, f"expected a list of waypoints, got {value!r}")
+    points = []
+    for i, raw in enumerate(value):
+        where = f"{path}[{i}]"
+        item = require_mapping(raw, where)
+        check_keys(item, ("x_m", "y_m", "z_m", "hold_s"), where)
+        for key in ("x_m", "y_m", "z_m"):
+            if key not in item:
+                raise field_error(f"{where}.{key}", "missing")
+        points.append(
+            Waypoint(
+                x_m=as_number(item["x_m"], f"{where}.x_m"),
+                y_m=as_number(item["y_m"], f"{where}.y_m"),
+                # The pilot flies; landing is the mission's (or abort's) business.
+                z_m=as_number(item["z_m"], f"{where}.z_m", gt=0),
+                hold_s=as_number(item.get("hold_s", 0.0), f"{where}.hold_s", ge=0),
+            )
+        )
+    return tuple(points)
+
+
+__all__ = ["SimSettings", "Waypoint"]

@@ -1,0 +1,124 @@
+"""The simulated vehicle's ArduPilot personality: how ArduCopter SITL behaves where PX4 differs.
+
+* HEARTBEAT autopilot ArduPilotMega (3), ArduCopter mode numbers; it boots in
+  STABILIZE and says "ArduPilot Ready" after about 1.4 s, which puts it back
+  in STABILIZE (a mode set before that is overwritten).  It cannot arm before.
+* It streams little until asked: SYS_STATUS only; REQUEST_DATA_STREAM and
+  MAV_CMD_SET_MESSAGE_INTERVAL start the rest.
+* GUIDED follows position targets once airborne; MAV_CMD_NAV_TAKEOFF (param7
+  metres above home) works only in GUIDED, armed and on the ground, else FAILED.
+  MAV_CMD_DO_REPOSITION switches to GUIDED only when its flag asks for it.
+* Refused commands answer FAILED; LOCAL_POSITION_NED z is 0 on the ground.
+"""
+
+from __future__ import annotations
+
+import math
+
+from eamos.hal.autopilots import ARDUCOPTER_MODES, MAV_AUTOPILOT_ARDUPILOTMEGA
+from eamos.hal.sim_vehicle_core import Params, Personality, VehicleCore
+from eamos.hal.sim_vehicle_wire import (
+    ACCEPTED,
+    ARDUPILOT_READY_S,
+    FAILED,
+    MSG_SYS_STATUS,
+    PARAM_REAL32,
+    SEV_CRITICAL,
+    VehicleOptions,
+    param_int,
+)
+
+#: Modes a GCS may not switch to here.
+_REFUSED_MODES = frozenset({"AUTO", "ACRO", "THROW", "GUIDED_NOGPS"})
+_BY_NUMBER = {value: name for name, value in ARDUCOPTER_MODES.items()}
+
+
+class ArduPilotPersonality(Personality):
+    """ArduCopter SITL (see module docstring); keeps whether it announced "Ready"."""
+
+    name = "ardupilot"
+    mav_autopilot = MAV_AUTOPILOT_ARDUPILOTMEGA
+    # MAVLINK2, COMMAND_INT, PARAM_FLOAT..., and C-cast parameter encoding.
+    capabilities = 0x2000 | 0x8 | 0x2 | 0x4 | 0x80 | 0x100 | 0x20000
+    version = 4 << 24 | 7 << 16
+    initial_mode = "STABILIZE"
+    modes = ARDUCOPTER_MODES
+    default_ground_offset_m = 0.0
+    default_rates = {MSG_SYS_STATUS: 1.0}  # ArduPilot waits to be asked
+    refused = FAILED
+    data_streams = True
+    land_mode = "LAND"
+    text_armable = "EKF3 IMU0 is using GPS"
+    text_not_ready = "PreArm: EKF3 still initialising"
+    text_armed = "Arming motors"
+    text_disarmed = "Disarming motors"
+    text_preflight_disarm = "Disarming motors"
+    text_touchdown = "Land complete"
+    text_land_disarm = "Disarming motors"
+    text_disarm_in_air = "Disarm: vehicle in the air"
+    text_mode_not_armable = "Arm: Mode not armable"
+
+    def __init__(self) -> None:
+        self._ready_announced = False
+
+    def custom_mode(self, mode: str) -> int:
+        return ARDUCOPTER_MODES[mode]
+
+    def initial_params(self, options: VehicleOptions) -> Params:
+        limits = options.limits
+        return {
+            "SYSID_THISMAV": (float(options.sysid), PARAM_REAL32),
+            "DISARM_DELAY": (options.disarm_after_s, PARAM_REAL32),
+            "PILOT_TKOFF_ALT": (0.0, PARAM_REAL32),
+            "WPNAV_SPEED": (limits.horizontal_speed_mps * 100, PARAM_REAL32),
+            "WPNAV_SPEED_UP": (limits.climb_speed_mps * 100, PARAM_REAL32),
+            "WPNAV_SPEED_DN": (limits.descent_speed_mps * 100, PARAM_REAL32),
+            "FS_GCS_ENABLE": (0.0, PARAM_REAL32),
+        }
+
+    def boot(self, v: VehicleCore) -> None:
+        if not self._ready_announced and v.t >= ARDUPILOT_READY_S:
+            self._ready_announced = True
+            v.mode = "STABILIZE"  # the initial mode wins over anything set during boot
+            v.text("ArduPilot Ready")
+
+    def ready(self, v: VehicleCore) -> bool:
+        return self._ready_announced
+
+    def arming_refused(self, v: VehicleCore) -> int:
+        v.text(f"Arm: {v.prearm_reason().removeprefix('PreArm: ')}", SEV_CRITICAL)
+        return FAILED
+
+    def set_mode(self, v: VehicleCore, p: tuple[float, ...]) -> str | int:
+        mode = _BY_NUMBER.get(param_int(p[1]))
+        if mode is None or mode in _REFUSED_MODES:
+            return FAILED
+        return mode
+
+    def takeoff(self, v: VehicleCore, p: tuple[float, ...]) -> int:
+        # GUIDED and armed, on the ground, a positive height.
+        model = v.model
+        if v.mode != "GUIDED" or not v.armed or not model.landed:
+            return FAILED
+        height = p[6]
+        if not math.isfinite(height) or height <= 0:
+            return FAILED
+        x, y, _ = model.position
+        model.set_target(x, y, height)
+        v.flew = True  # taking off counts: no preflight auto-disarm
+        return ACCEPTED
+
+    def reposition_mode(self, v: VehicleCore, p: tuple[float, ...]) -> int | None:
+        if v.mode != "GUIDED":
+            if not param_int(p[1]) & 1:  # MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+                return FAILED
+            v.enter_mode("GUIDED", "reposition")
+        return None
+
+    def position_target(self, v: VehicleCore, target: tuple[float, float, float]) -> None:
+        if v.mode == "GUIDED" and v.armed and not v.model.landed:
+            # ArduCopter ignores position targets until it has taken off.
+            v.model.set_target(*target)
+
+
+__all__ = ["ArduPilotPersonality"]

@@ -1,0 +1,394 @@
+"""The simulated MAVLink vehicle's core: state, simulated time, modes and parameters.
+
+:class:`VehicleCore` is what PX4 SITL and ArduCopter SITL have in common: the
+kinematic model, arming and disarming (pre-arm delay, automatic disarm before
+take-off and after touchdown, forced disarm), modes, parameters
+(:class:`ParamTable`) and STATUSTEXT; the messages that act on it are decoded
+by :mod:`eamos.hal.sim_vehicle_inbox`.  Everything that differs between the
+two is asked of its :class:`Personality` (:mod:`eamos.hal.sim_vehicle_px4`,
+:mod:`eamos.hal.sim_vehicle_ardupilot`): mode names and numbers, arming rules
+and texts, take-off, landing and repositioning, setpoint streams, parameters
+and their wire encoding.
+
+The core owns no thread and no connection: its owner
+(:class:`eamos.hal.sim_vehicle.SimVehicle`) feeds it messages (through an
+:class:`~eamos.hal.sim_vehicle_inbox.Inbox`), steps it
+(:meth:`VehicleCore.step`) and gives it a ``send`` function.  The only clock
+it reads is the injected ``wall`` clock (PX4's setpoint-loss check also counts
+wall seconds).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from eamos.hal.kinematics import GeoFrame, Quadcopter
+from eamos.hal.sim_core import SIM_DT_S
+from eamos.hal.sim_vehicle_streams import Identity, Send, Status, Streams
+from eamos.hal.sim_vehicle_wire import (
+    BOOT_S,
+    LAND_DISARM_S,
+    PREARM_TEXT_PERIOD_S,
+    SEV_CRITICAL,
+    SEV_INFO,
+    STATUSTEXT_LEN,
+    AutopilotName,
+    VehicleOptions,
+)
+
+#: A parameter: its value and MAV_PARAM_TYPE.
+Param = tuple[float, int]
+Params = dict[str, Param]
+#: Modes in which the vehicle lands, and returns to launch (either autopilot's names).
+LAND_MODES = frozenset({"AUTO.LAND", "LAND"})
+RTL_MODES = frozenset({"AUTO.RTL", "RTL"})
+
+
+class Personality:
+    """What one autopilot does differently; subclasses answer for PX4 and ArduPilot.
+
+    One instance per vehicle: a personality may keep state of its own (PX4's
+    setpoint stream, ArduPilot's boot announcement).  Methods receive the
+    :class:`VehicleCore` they act on.
+    """
+
+    name: AutopilotName
+    #: HEARTBEAT.autopilot (MAV_AUTOPILOT).
+    mav_autopilot: int
+    #: AUTOPILOT_VERSION capabilities and flight software version.
+    capabilities: int
+    version: int
+    #: The mode it boots in, and the mode names it knows.
+    initial_mode: str
+    modes: Mapping[str, Any]
+    #: LOCAL_POSITION_NED z of the ground unless the options say otherwise.
+    default_ground_offset_m: float = 0.0
+    #: What it streams unasked (message id -> Hz, simulated time).
+    default_rates: Mapping[int, float]
+    #: The MAV_RESULT of a refused command (PX4 DENIED, ArduPilot FAILED).
+    refused: int
+    #: Whether REQUEST_DATA_STREAM is understood.
+    data_streams: bool = False
+    #: The mode MAV_CMD_NAV_LAND switches to.
+    land_mode: str
+    #: STATUSTEXT narration.
+    text_armable: str
+    text_not_ready: str
+    text_armed: str
+    text_disarmed: str
+    text_preflight_disarm: str
+    text_touchdown: str
+    text_land_disarm: str
+    text_disarm_in_air: str
+    text_mode_not_armable: str
+
+    def custom_mode(self, mode: str) -> int:
+        """HEARTBEAT.custom_mode of ``mode``."""
+        raise NotImplementedError
+
+    def initial_params(self, options: VehicleOptions) -> Params:
+        """The parameters it answers PARAM_REQUEST_LIST with."""
+        raise NotImplementedError
+
+    def param_to_wire(self, value: float, ptype: int) -> float:
+        """A parameter's value as PARAM_VALUE carries it."""
+        return float(value)
+
+    def param_from_wire(self, raw: float, ptype: int) -> float:
+        """A PARAM_SET value as the parameter's value."""
+        return float(raw)
+
+    def ready(self, v: VehicleCore) -> bool:
+        """Booted far enough to arm (besides the pre-arm delay)."""
+        return True
+
+    def armable(self, v: VehicleCore) -> bool:
+        """Mode-dependent arming condition (PX4: OFFBOARD needs a setpoint stream)."""
+        return True
+
+    def boot(self, v: VehicleCore) -> None:
+        """Its boot sequence, first thing each simulated step (ArduPilot: "Ready")."""
+
+    def on_step(self, v: VehicleCore) -> None:
+        """Its own behaviour each step, after the pre-arm narration, before the model moves."""
+
+    def arming_refused(self, v: VehicleCore) -> int:
+        """Narrate why an unready vehicle cannot arm; the MAV_RESULT."""
+        raise NotImplementedError
+
+    def set_mode(self, v: VehicleCore, p: tuple[float, ...]) -> str | int:
+        """MAV_CMD_DO_SET_MODE: the mode to enter, or the MAV_RESULT refusing it."""
+        raise NotImplementedError
+
+    def mode_entered(self, v: VehicleCore, mode: str) -> bool:
+        """A mode was entered; True if this personality set the vehicle's target for it."""
+        return False
+
+    def apply_mode_target(self, v: VehicleCore) -> None:
+        """Armed (or re-entering a mode): steer to the current mode's own target, if any."""
+
+    def after_disarm(self, v: VehicleCore) -> None:
+        """Bookkeeping after disarming."""
+
+    def takeoff(self, v: VehicleCore, p: tuple[float, ...]) -> int:
+        """MAV_CMD_NAV_TAKEOFF: the MAV_RESULT."""
+        raise NotImplementedError
+
+    def landing(self, v: VehicleCore) -> None:
+        """MAV_CMD_NAV_LAND accepted: narrate it."""
+
+    def reposition_mode(self, v: VehicleCore, p: tuple[float, ...]) -> int | None:
+        """Enter the mode a reposition flies in; a MAV_RESULT if it is refused."""
+        raise NotImplementedError
+
+    def setpoint(self, v: VehicleCore) -> None:
+        """A SET_POSITION_TARGET_* arrived (setpoint streams count them)."""
+
+    def position_target(self, v: VehicleCore, target: tuple[float, float, float]) -> None:
+        """A position target in the model frame: fly there if the mode follows targets."""
+        raise NotImplementedError
+
+
+class ParamTable:
+    """The vehicle's parameters: PARAM_REQUEST_LIST/READ and PARAM_SET, each answered with
+    PARAM_VALUE in the personality's wire encoding."""
+
+    def __init__(self, personality: Personality, initial: Params, log: Any, send: Send) -> None:
+        self._p = personality
+        self._params: Params = dict(initial)
+        self._log = log
+        self._send = send
+
+    def value(self, name: str) -> float:
+        """A parameter's current value."""
+        return self._params[name][0]
+
+    def snapshot(self) -> Params:
+        """A copy of every parameter."""
+        return dict(self._params)
+
+    def send_all(self) -> None:
+        """PARAM_REQUEST_LIST: every parameter, in order."""
+        for index, name in enumerate(self._params):
+            self._send_param(name, index)
+
+    def read(self, name: str, index: int) -> None:
+        """PARAM_REQUEST_READ by index (if valid) or name; unknown ones stay unanswered."""
+        names = list(self._params)
+        if 0 <= index < len(names):
+            name = names[index]
+        if name in self._params:
+            self._send_param(name, names.index(name))
+
+    def set(self, name: str, raw: float) -> None:
+        """PARAM_SET: store and echo; both SITLs stay silent about unknown parameters."""
+        if name not in self._params:
+            return
+        _, ptype = self._params[name]
+        value = self._p.param_from_wire(raw, ptype)
+        self._params[name] = (value, ptype)
+        self._log.info("vehicle.param", name=name, value=value)
+        self._send_param(name, list(self._params).index(name))
+
+    def _send_param(self, name: str, index: int) -> None:
+        value, ptype = self._params[name]
+        wire = self._p.param_to_wire(value, ptype)
+        self._send("param_value", name.encode(), wire, ptype, len(self._params), index)
+
+
+class VehicleCore:
+    """One simulated MAVLink vehicle without thread or connection (see module docstring)."""
+
+    def __init__(
+        self,
+        options: VehicleOptions,
+        personality: Personality,
+        log: Any,
+        send: Send,
+        wall: Callable[[], float] = time.monotonic,
+    ) -> None:
+        o = options
+        self.options = options
+        self.p = personality
+        self.log = log
+        self.wall = wall
+        self.frame = GeoFrame(*o.home)
+        self.model = Quadcopter(o.limits)
+        self.offset_m = (
+            o.ground_offset_m
+            if o.ground_offset_m is not None
+            else personality.default_ground_offset_m
+        )
+        self._send = send
+        self.t = 0.0  # simulated seconds since start
+        self.armed = False
+        self.armed_at = 0.0
+        self.flew = False  # left the ground (or was told to) since arming
+        self.touchdown_at: float | None = None
+        self._was_landed = True
+        self.mode = personality.initial_mode
+        self._armable_announced = False
+        self._next_prearm_text = BOOT_S
+        self._text_id = 0
+        self.params = ParamTable(personality, personality.initial_params(o), log, send)
+        self._next_position_log = 0.0
+        self._last_position_key: tuple[Any, ...] | None = None
+        identity = Identity(
+            personality.mav_autopilot, personality.capabilities, personality.version, o.sysid
+        )
+        self.streams = Streams(identity, personality.default_rates, o, self.offset_m, send)
+
+    # -- sending -------------------------------------------------------------------------
+
+    def send(self, message: str, *args: Any) -> None:
+        """Send one MAVLink message (by its pymavlink name)."""
+        self._send(message, *args)
+
+    def text(self, text: str, severity: int = SEV_INFO) -> None:
+        """STATUSTEXT (in chunks sharing an id when longer than one message)."""
+        self.log.info("vehicle.statustext", text=text, t_sim=round(self.t, 3))
+        if len(text) <= STATUSTEXT_LEN:
+            self.send("statustext", severity, text.encode(), 0, 0)
+            return
+        self._text_id = self._text_id % 65535 + 1
+        chunks = [text[i : i + STATUSTEXT_LEN] for i in range(0, len(text), STATUSTEXT_LEN)]
+        for seq, chunk in enumerate(chunks):
+            self.send("statustext", severity, chunk.encode(), self._text_id, seq)
+
+    def status(self) -> Status:
+        """The vehicle as its streams see it now."""
+        return Status(
+            self.t,
+            self.model.state,
+            self.mode,
+            self.p.custom_mode(self.mode),
+            self.armed,
+            self.armable(),
+        )
+
+    def send_due(self) -> None:
+        """Send the HEARTBEAT and the streams that are due."""
+        self.streams.send_due(self.status())
+
+    # -- simulated time ------------------------------------------------------------------
+
+    def step(self) -> None:
+        """Advance one SIM_DT_S step: boot, pre-arm narration, personality, auto-disarm, model."""
+        o, p, model = self.options, self.p, self.model
+        self.t += SIM_DT_S
+        t = self.t
+        p.boot(self)
+        if self.armable() and not self._armable_announced:
+            self._armable_announced = True
+            self.text(p.text_armable)
+        if not self.armable() and t >= self._next_prearm_text and t >= BOOT_S:
+            self._next_prearm_text = t + PREARM_TEXT_PERIOD_S
+            self.text(self.prearm_reason(), SEV_CRITICAL)
+        p.on_step(self)
+        if self.armed and model.landed and not self.flew and t - self.armed_at >= o.disarm_after_s:
+            self.disarm(p.text_preflight_disarm)
+        model.step(SIM_DT_S)
+        if not model.landed:
+            self.flew = True
+        if model.landed and not self._was_landed:
+            self.touchdown_at = t
+            self.text(p.text_touchdown, SEV_INFO)
+            if not self.armed and model.armed:
+                model.disarm()  # a force-disarmed vehicle has now hit the ground
+        self._was_landed = model.landed
+        if (
+            self.touchdown_at is not None
+            and self.armed
+            and model.landed
+            and t - self.touchdown_at >= LAND_DISARM_S
+        ):
+            self.disarm(p.text_land_disarm)
+        self._log_position()
+
+    def armable(self) -> bool:
+        """Pre-arm checks pass: booted, past the pre-arm delay, the personality agrees."""
+        if self.t < max(BOOT_S, self.options.prearm_delay_s) or not self.p.ready(self):
+            return False
+        return self.p.armable(self)
+
+    def prearm_reason(self) -> str:
+        """Why the vehicle cannot arm yet (its STATUSTEXT)."""
+        if self.t < self.options.prearm_delay_s:
+            return self.p.text_not_ready
+        return "Preflight Fail: no offboard setpoints"
+
+    # -- state changes ---------------------------------------------------------------------
+
+    def arm(self) -> None:
+        """Arm the motors."""
+        self.armed = True
+        self.armed_at = self.t
+        self.flew = False
+        self.touchdown_at = None
+        self.model.arm()
+        self.log.info("vehicle.armed", armed=True, t_sim=round(self.t, 3))
+        self.text(self.p.text_armed)
+        self.p.apply_mode_target(self)
+
+    def disarm(self, text: str, force: bool = False) -> None:
+        """Disarm; in the air the vehicle falls (the model descends) to the ground."""
+        self.armed = False
+        self.touchdown_at = None
+        if self.model.landed:
+            self.model.disarm()
+        else:
+            self.model.land()
+        self.log.info("vehicle.armed", armed=False, forced=force, t_sim=round(self.t, 3))
+        self.text(text)
+        self.p.after_disarm(self)
+
+    def enter_mode(self, mode: str, by: str) -> None:
+        """Switch to ``mode`` (by a command, the pilot, a failsafe) and steer accordingly."""
+        self.mode = mode
+        self.log.info("vehicle.mode", mode=mode, by=by, t_sim=round(self.t, 3))
+        model = self.model
+        if self.p.mode_entered(self, mode):
+            return
+        if mode in LAND_MODES:
+            model.land()
+            if model.landed and self.armed:
+                self.touchdown_at = self.t  # already down: disarm soon
+        elif mode in RTL_MODES:
+            # Back over the boot point at the current height (landing there is left out).
+            if not model.landed:
+                model.set_target(0.0, 0.0, max(model.position[2], 2.0))
+        else:
+            model.hold()  # HOLD, LOITER, BRAKE, GUIDED, POSCTL...: stop where it is
+
+    # -- log -----------------------------------------------------------------------------------
+
+    def _log_position(self) -> None:
+        if self.t < self._next_position_log:
+            return
+        self._next_position_log = self.t + 1.0
+        st = self.model.state
+        key = (round(st.x_m, 2), round(st.y_m, 2), round(st.z_m, 2), self.armed, self.mode)
+        if key != self._last_position_key:
+            self._last_position_key = key
+            self.log.info(
+                "vehicle.position",
+                x_m=key[0],
+                y_m=key[1],
+                z_m=key[2],
+                armed=self.armed,
+                mode=self.mode,
+                t_sim=round(self.t, 3),
+            )
+
+
+__all__ = [
+    "LAND_MODES",
+    "RTL_MODES",
+    "Param",
+    "ParamTable",
+    "Params",
+    "Personality",
+    "VehicleCore",
+]

@@ -1,0 +1,249 @@
+"""The simulated MAVLink vehicle's inbox: every message it understands, and its answers.
+
+:class:`Inbox` decodes what a GCS sends (HEARTBEAT, COMMAND_LONG/COMMAND_INT,
+SET_POSITION_TARGET_*, REQUEST_DATA_STREAM, PARAM_*) and acts on the
+:class:`~eamos.hal.sim_vehicle_core.VehicleCore`; every command gets exactly
+one COMMAND_ACK (ACCEPTED, a refusal, UNSUPPORTED, or a ``reject`` test fault).
+Where PX4 and ArduPilot differ it asks the vehicle's personality.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from eamos.hal.sim_vehicle_core import VehicleCore
+from eamos.hal.sim_vehicle_wire import (
+    ACCEPTED,
+    CMD_COMPONENT_ARM_DISARM,
+    CMD_DO_REPOSITION,
+    CMD_DO_SET_MODE,
+    CMD_GET_HOME_POSITION,
+    CMD_NAV_LAND,
+    CMD_NAV_TAKEOFF,
+    CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+    CMD_REQUEST_MESSAGE,
+    CMD_SET_MESSAGE_INTERVAL,
+    DENIED,
+    FORCE_MAGIC,
+    FRAME_GLOBAL,
+    FRAME_GLOBAL_INT,
+    FRAME_GLOBAL_RELATIVE_ALT,
+    FRAME_GLOBAL_RELATIVE_ALT_INT,
+    FRAME_LOCAL_NED,
+    IGNORE_POSITION,
+    MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+    MSG_AUTOPILOT_VERSION,
+    MSG_HOME_POSITION,
+    SEV_CRITICAL,
+    SEV_WARNING,
+    STREAMABLE,
+    UNSUPPORTED,
+    json_number,
+    param_int,
+)
+
+#: Modes from which a vehicle refuses to arm.
+_NOT_ARMABLE_MODES = frozenset({"AUTO.LAND", "AUTO.RTL", "LAND", "RTL", "AUTO"})
+
+
+class Inbox:
+    """Handles the messages one vehicle receives (see module docstring)."""
+
+    def __init__(self, vehicle: VehicleCore) -> None:
+        self.v = vehicle
+        self._gcs: tuple[int, int] | None = None  # last GCS heard (sysid, compid)
+        self.commands: list[tuple[int, int]] = []  # (MAV_CMD, MAV_RESULT) answered
+
+    def handle(self, msg: Any) -> None:
+        """Handle one received MAVLink message (unknown types are ignored)."""
+        handler = getattr(self, f"_on_{msg.get_type().lower()}", None)
+        if handler is not None:
+            handler(msg)
+
+    def _for_us(self, msg: Any) -> bool:
+        return msg.target_system in (0, self.v.options.sysid) and msg.target_component in (0, 1)
+
+    def _on_heartbeat(self, msg: Any) -> None:
+        if self._gcs is None:
+            self.v.log.info("vehicle.gcs", sysid=msg.get_srcSystem(), compid=msg.get_srcComponent())
+        self._gcs = (msg.get_srcSystem(), msg.get_srcComponent())
+
+    def _on_command_long(self, msg: Any) -> None:
+        if self._for_us(msg):
+            params = (
+                msg.param1,
+                msg.param2,
+                msg.param3,
+                msg.param4,
+                msg.param5,
+                msg.param6,
+                msg.param7,
+            )
+            self._command(msg, msg.command, params, None)
+
+    def _on_command_int(self, msg: Any) -> None:
+        if self._for_us(msg):
+            params = (
+                msg.param1,
+                msg.param2,
+                msg.param3,
+                msg.param4,
+                float(msg.x),
+                float(msg.y),
+                msg.z,
+            )
+            self._command(msg, msg.command, params, msg.frame)
+
+    def _command(self, msg: Any, command: int, p: tuple[float, ...], frame: int | None) -> None:
+        handlers: dict[int, Callable[[tuple[float, ...], int | None], int]] = {
+            CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
+            CMD_DO_SET_MODE: self._cmd_set_mode,
+            CMD_NAV_TAKEOFF: lambda p, f: self.v.p.takeoff(self.v, p),
+            CMD_NAV_LAND: self._cmd_land,
+            CMD_DO_REPOSITION: self._cmd_reposition,
+            CMD_SET_MESSAGE_INTERVAL: lambda p, f: self.v.streams.set_interval(
+                param_int(p[0], -1), p[1], self.v.t
+            ),
+            CMD_REQUEST_MESSAGE: self._cmd_request_message,
+            CMD_GET_HOME_POSITION: lambda p, f: self._send_now(MSG_HOME_POSITION),
+            CMD_REQUEST_AUTOPILOT_CAPABILITIES: lambda p, f: self._send_now(MSG_AUTOPILOT_VERSION),
+        }
+        if command in self.v.options.reject:
+            result = self.v.options.reject[command]
+            self.v.text(f"Command {command} rejected (test fault)", SEV_WARNING)
+        else:
+            handler = handlers.get(command)
+            result = UNSUPPORTED if handler is None else handler(p, frame)
+        self.commands.append((command, result))
+        self.v.log.info(
+            "vehicle.command",
+            command=command,
+            params=[json_number(v) for v in p],
+            result=result,
+            t_sim=round(self.v.t, 3),
+        )
+        self.v.send(
+            "command_ack", command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+        )
+
+    def _cmd_arm_disarm(self, p: tuple[float, ...], frame: int | None) -> int:
+        force = param_int(p[1]) == FORCE_MAGIC
+        if p[0] >= 0.5:
+            if self.v.armed:
+                return ACCEPTED
+            if not force and not self.v.armable():
+                return self.v.p.arming_refused(self.v)
+            if self.v.mode in _NOT_ARMABLE_MODES:
+                self.v.text(self.v.p.text_mode_not_armable, SEV_CRITICAL)
+                return self.v.p.refused
+            self.v.arm()
+            return ACCEPTED
+        if not self.v.armed:
+            return ACCEPTED
+        if not self.v.model.landed and not force:
+            self.v.text(self.v.p.text_disarm_in_air, SEV_CRITICAL)
+            return self.v.p.refused
+        self.v.disarm(self.v.p.text_disarmed, force=force)
+        return ACCEPTED
+
+    def _cmd_set_mode(self, p: tuple[float, ...], frame: int | None) -> int:
+        if not param_int(p[0]) & MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return DENIED
+        mode = self.v.p.set_mode(self.v, p)
+        if isinstance(mode, int):
+            return mode
+        if mode != self.v.mode:
+            self.v.enter_mode(mode, "command")
+        return ACCEPTED
+
+    def _cmd_land(self, p: tuple[float, ...], frame: int | None) -> int:
+        if not self.v.armed:
+            return self.v.p.refused
+        self.v.enter_mode(self.v.p.land_mode, "land command")
+        self.v.p.landing(self.v)
+        return ACCEPTED
+
+    def _cmd_reposition(self, p: tuple[float, ...], frame: int | None) -> int:
+        model = self.v.model
+        if not self.v.armed or model.landed:
+            return self.v.p.refused
+        x, y, z = model.position
+        lat, lon, alt = p[4], p[5], p[6]
+        if frame is not None:  # COMMAND_INT: degrees * 1e7
+            lat, lon = lat / 1e7, lon / 1e7
+        relative = frame in (FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_RELATIVE_ALT_INT)
+        tx, ty = (
+            (x, y)
+            if not (math.isfinite(lat) and math.isfinite(lon) and (lat or lon))
+            else self.v.frame.from_lla(lat, lon, 0.0)[:2]
+        )
+        tz = z if not math.isfinite(alt) else (alt if relative else alt - self.v.options.home[2])
+        refused = self.v.p.reposition_mode(self.v, p)
+        if refused is not None:
+            return refused
+        model.set_target(tx, ty, max(tz, 0.5))
+        return ACCEPTED
+
+    def _cmd_request_message(self, p: tuple[float, ...], frame: int | None) -> int:
+        msg_id = param_int(p[0], -1)
+        if msg_id not in STREAMABLE and msg_id != MSG_AUTOPILOT_VERSION:
+            return UNSUPPORTED
+        return self._send_now(msg_id)
+
+    def _send_now(self, msg_id: int) -> int:
+        self.v.streams.send_message(msg_id, self.v.status())
+        return ACCEPTED
+
+    def _on_set_position_target_local_ned(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        self.v.p.setpoint(self.v)
+        if msg.type_mask & IGNORE_POSITION or msg.coordinate_frame != FRAME_LOCAL_NED:
+            return  # velocity/acceleration setpoints only keep the stream alive here
+        self.v.p.position_target(self.v, (msg.x, msg.y, -(msg.z - self.v.offset_m)))
+
+    def _on_set_position_target_global_int(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        self.v.p.setpoint(self.v)
+        if msg.type_mask & IGNORE_POSITION:
+            return
+        x, y, _ = self.v.frame.from_lla(msg.lat_int / 1e7, msg.lon_int / 1e7, 0.0)
+        if msg.coordinate_frame in (FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_RELATIVE_ALT_INT):
+            z = msg.alt
+        elif msg.coordinate_frame in (FRAME_GLOBAL, FRAME_GLOBAL_INT):
+            z = msg.alt - self.v.options.home[2]
+        else:
+            return
+        self.v.p.position_target(self.v, (x, y, z))
+
+    def _on_request_data_stream(self, msg: Any) -> None:
+        """ArduPilot's older way to ask for telemetry (PX4 ignores it)."""
+        if self.v.p.data_streams and self._for_us(msg):
+            self.v.streams.data_stream(
+                msg.req_stream_id, bool(msg.start_stop), msg.req_message_rate, self.v.t
+            )
+
+    # -- parameters --------------------------------------------------------------------------
+
+    def _on_param_request_list(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.params.send_all()
+
+    def _on_param_request_read(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.params.read(_param_name(msg.param_id), msg.param_index)
+
+    def _on_param_set(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.params.set(_param_name(msg.param_id), msg.param_value)
+
+
+def _param_name(raw: str | bytes) -> str:
+    name = raw.decode() if isinstance(raw, bytes) else raw
+    return name.rstrip("\x00")
+
+
+__all__ = ["Inbox"]

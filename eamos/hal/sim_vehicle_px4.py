@@ -1,0 +1,222 @@
+"""The simulated vehicle's PX4 personality: how PX4 SITL behaves where ArduPilot differs.
+
+* HEARTBEAT autopilot PX4 (12), custom modes ``main << 16 | sub << 24``; it
+  boots in HOLD and is ready as soon as the pre-arm delay has passed.
+* Arming before that is TEMPORARILY_REJECTED with "Arming denied: Resolve
+  system health failures first" and the reason; other refusals are DENIED.
+* OFFBOARD follows SET_POSITION_TARGET_LOCAL_NED/GLOBAL_INT and is refused
+  in the air without a setpoint stream; a second without setpoints
+  (COM_OF_LOSS_T, also counted in wall seconds so a host hiccup at a high
+  speed-up is no failsafe) is a failsafe into HOLD, left by itself when
+  setpoints resume.  OFFBOARD without a stream is not armable.
+* AUTO.TAKEOFF (MAV_CMD_NAV_TAKEOFF, param7 AMSL or MIS_TAKEOFF_ALT) climbs,
+  then HOLD.  MAV_CMD_DO_REPOSITION flies to a WGS84 point in HOLD.  After a
+  landing (or any disarm in AUTO.LAND/AUTO.TAKEOFF) it returns to HOLD.
+* LOCAL_POSITION_NED z is offset on the ground (1.5 m), as PX4 SIH's is.
+* Integer parameters travel byte-wise inside PARAM_VALUE's float.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+from eamos.hal.autopilots import MAV_AUTOPILOT_PX4, PX4_MODES, px4_custom_mode
+from eamos.hal.sim_vehicle_core import Params, Personality, VehicleCore
+from eamos.hal.sim_vehicle_wire import (
+    ACCEPTED,
+    DEFAULT_STREAM_RATES,
+    DENIED,
+    LAND_DISARM_S,
+    OFFBOARD_LOSS_S,
+    OFFBOARD_LOSS_WALL_S,
+    PARAM_INT32,
+    PARAM_REAL32,
+    SEV_CRITICAL,
+    SEV_NOTICE,
+    TEMPORARILY_REJECTED,
+    VehicleOptions,
+    param_int,
+)
+
+#: Modes a GCS cannot switch to without an RC transmitter.
+_RC_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"})
+_BY_NUMBERS = {pair: name for name, pair in PX4_MODES.items()}
+
+
+class Px4Personality(Personality):
+    """PX4 SITL (see module docstring); keeps the setpoint stream and take-off height."""
+
+    name = "px4"
+    mav_autopilot = MAV_AUTOPILOT_PX4
+    # MAVLINK2, COMMAND_INT, PARAM_FLOAT..., and byte-wise parameter encoding.
+    capabilities = 0x2000 | 0x8 | 0x2 | 0x4 | 0x80 | 0x100 | 0x10
+    version = 1 << 24 | 15 << 16 | 0 << 8 | 255
+    initial_mode = "HOLD"
+    modes = PX4_MODES
+    default_ground_offset_m = 1.5
+    default_rates = DEFAULT_STREAM_RATES  # PX4's onboard link streams a lot by default
+    refused = DENIED
+    land_mode = "AUTO.LAND"
+    text_armable = "Ready for takeoff!"
+    text_not_ready = "Preflight Fail: ekf2 missing data"
+    text_armed = "Armed by external command"
+    text_disarmed = "Disarmed by external command"
+    text_preflight_disarm = "Disarmed by auto preflight disarming"
+    text_touchdown = "Landing detected"
+    text_land_disarm = "Disarmed by landing"
+    text_disarm_in_air = "Disarming denied: not landed"
+    text_mode_not_armable = "Arming denied: not in a mode that can arm"
+
+    def __init__(self) -> None:
+        self._last_sp_t = -math.inf  # last setpoint, simulated and wall seconds
+        self._last_sp_wall = -math.inf
+        self._offboard_target: tuple[float, float, float] | None = None  # model frame
+        self._failsafe = False
+        self._takeoff_z: float | None = None  # AUTO.TAKEOFF target height
+
+    # -- identity and parameters ------------------------------------------------------
+
+    def custom_mode(self, mode: str) -> int:
+        return px4_custom_mode(*PX4_MODES[mode])
+
+    def initial_params(self, options: VehicleOptions) -> Params:
+        limits = options.limits
+        return {
+            "MAV_SYS_ID": (float(options.sysid), PARAM_INT32),
+            "MIS_TAKEOFF_ALT": (2.5, PARAM_REAL32),
+            "COM_DISARM_PRFLT": (options.disarm_after_s, PARAM_REAL32),
+            "COM_DISARM_LAND": (LAND_DISARM_S, PARAM_REAL32),
+            "COM_OF_LOSS_T": (OFFBOARD_LOSS_S, PARAM_REAL32),
+            "COM_OBL_RC_ACT": (5.0, PARAM_INT32),
+            "MPC_XY_CRUISE": (limits.horizontal_speed_mps, PARAM_REAL32),
+            "MPC_Z_VEL_MAX_UP": (limits.climb_speed_mps, PARAM_REAL32),
+            "MPC_Z_VEL_MAX_DN": (limits.descent_speed_mps, PARAM_REAL32),
+        }
+
+    def param_to_wire(self, value: float, ptype: int) -> float:
+        if ptype == PARAM_INT32:
+            return float(struct.unpack("<f", struct.pack("<i", int(value)))[0])
+        return float(value)
+
+    def param_from_wire(self, raw: float, ptype: int) -> float:
+        if ptype == PARAM_INT32:
+            return float(struct.unpack("<i", struct.pack("<f", raw))[0])
+        return float(raw)
+
+    # -- arming and time --------------------------------------------------------------
+
+    def streaming(self, v: VehicleCore) -> bool:
+        """Setpoints keep coming (within COM_OF_LOSS_T, see OFFBOARD_LOSS_*)."""
+        return (
+            v.t - self._last_sp_t <= OFFBOARD_LOSS_S
+            or v.wall() - self._last_sp_wall <= OFFBOARD_LOSS_WALL_S
+        )
+
+    def armable(self, v: VehicleCore) -> bool:
+        # OFFBOARD without a stream is not "armable in the current mode".
+        return not (v.mode == "OFFBOARD" and not self.streaming(v))
+
+    def arming_refused(self, v: VehicleCore) -> int:
+        v.text("Arming denied: Resolve system health failures first", SEV_CRITICAL)
+        v.text(v.prearm_reason(), SEV_CRITICAL)
+        return TEMPORARILY_REJECTED
+
+    def on_step(self, v: VehicleCore) -> None:
+        model = v.model
+        if v.mode == "OFFBOARD" and v.armed and not self.streaming(v):
+            # COM_OF_LOSS_T passed: failsafe (COM_OBL_RC_ACT = 5: hold).
+            self._failsafe = True
+            v.mode = "HOLD"
+            model.hold()
+            v.log.info("vehicle.mode", mode="HOLD", by="failsafe", t_sim=round(v.t, 3))
+            v.text("Failsafe activated: no offboard signal, holding", SEV_CRITICAL)
+        if v.mode == "AUTO.TAKEOFF" and v.armed and self._takeoff_z is not None:
+            x, y, z = model.position
+            if model.target is None or model.landed:
+                model.set_target(x, y, self._takeoff_z)
+            if abs(z - self._takeoff_z) < 0.1 and model.state.speed_mps < 0.2:
+                self._takeoff_z = None
+                v.enter_mode("HOLD", "takeoff complete")
+
+    def after_disarm(self, v: VehicleCore) -> None:
+        if v.mode in ("AUTO.LAND", "AUTO.TAKEOFF"):
+            v.mode = "HOLD"  # PX4 returns to HOLD after a landing
+        self._takeoff_z = None
+
+    # -- modes ------------------------------------------------------------------------
+
+    def set_mode(self, v: VehicleCore, p: tuple[float, ...]) -> str | int:
+        main, sub = param_int(p[1]), param_int(p[2])
+        if main == 4 and sub == 0:
+            sub = 3  # AUTO without a sub mode: PX4 takes LOITER
+        mode = _BY_NUMBERS.get((main, sub))
+        if mode is None:
+            return DENIED
+        if mode == v.mode:
+            return mode
+        if mode == "OFFBOARD" and (v.armed or not v.model.landed) and not self.streaming(v):
+            v.text("Switching to Offboard is currently not available", SEV_CRITICAL)
+            return TEMPORARILY_REJECTED
+        if mode in _RC_MODES:
+            v.text("Switching to mode not possible: no RC", SEV_CRITICAL)
+            return TEMPORARILY_REJECTED
+        if mode == "AUTO.MISSION":
+            v.text("Mission rejected: no mission", SEV_CRITICAL)
+            return DENIED
+        if mode == "AUTO.TAKEOFF":
+            self._takeoff_z = v.params.value("MIS_TAKEOFF_ALT")
+        return mode
+
+    def mode_entered(self, v: VehicleCore, mode: str) -> bool:
+        self._failsafe = False
+        if mode in ("OFFBOARD", "AUTO.TAKEOFF"):
+            self.apply_mode_target(v)
+            return True
+        return False
+
+    def apply_mode_target(self, v: VehicleCore) -> None:
+        if not v.armed:
+            return
+        if v.mode == "OFFBOARD" and self._offboard_target is not None:
+            v.model.set_target(*self._offboard_target)
+        elif v.mode == "AUTO.TAKEOFF" and self._takeoff_z is not None:
+            x, y, _ = v.model.position
+            v.model.set_target(x, y, self._takeoff_z)
+
+    # -- commands and targets -----------------------------------------------------------
+
+    def takeoff(self, v: VehicleCore, p: tuple[float, ...]) -> int:
+        alt = p[6]
+        height = (
+            alt - v.options.home[2] if math.isfinite(alt) else v.params.value("MIS_TAKEOFF_ALT")
+        )
+        if height < 0.5:
+            return DENIED
+        self._takeoff_z = height
+        v.enter_mode("AUTO.TAKEOFF", "takeoff command")
+        v.text(f"Takeoff to {height:.1f} meters above home started")
+        return ACCEPTED
+
+    def landing(self, v: VehicleCore) -> None:
+        v.text("Landing at current position")
+
+    def reposition_mode(self, v: VehicleCore, p: tuple[float, ...]) -> int | None:
+        if v.mode != "HOLD":
+            v.enter_mode("HOLD", "reposition")
+        return None
+
+    def setpoint(self, v: VehicleCore) -> None:
+        self._last_sp_t, self._last_sp_wall = v.t, v.wall()
+
+    def position_target(self, v: VehicleCore, target: tuple[float, float, float]) -> None:
+        self._offboard_target = target
+        if self._failsafe and v.mode == "HOLD":
+            # PX4 returns to OFFBOARD by itself once setpoints resume.
+            v.enter_mode("OFFBOARD", "setpoints resumed")
+            v.text("Failsafe deactivated: offboard signal regained", SEV_NOTICE)
+        elif v.mode == "OFFBOARD" and v.armed:
+            v.model.set_target(*target)
+
+
+__all__ = ["Px4Personality"]

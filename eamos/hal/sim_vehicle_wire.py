@@ -1,0 +1,226 @@
+"""The simulated MAVLink vehicle's wire: MAVLink numbers, build options, ``--reject`` parsing.
+
+Shared by the vehicle core (:mod:`eamos.hal.sim_vehicle_core`), its PX4 and
+ArduPilot personalities and the threaded vehicle (:mod:`eamos.hal.sim_vehicle`).
+The numbers are kept here, not read from pymavlink, so the simulator reads
+(and imports) without pymavlink loaded.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import Any, Literal
+
+from eamos.hal.kinematics import Limits
+from eamos.hal.mavlink_link import load_mavutil
+
+AutopilotName = Literal["px4", "ardupilot"]
+
+# -- MAVLink numbers (kept local so the module reads without pymavlink open) --
+MAV_TYPE_QUADROTOR = 2
+MAV_STATE_STANDBY, MAV_STATE_ACTIVE = 3, 4
+MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
+MAV_MODE_FLAG_GUIDED_ENABLED = 8
+MAV_MODE_FLAG_STABILIZE_ENABLED = 16
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4
+RESULTS = {
+    "ACCEPTED": ACCEPTED,
+    "TEMPORARILY_REJECTED": TEMPORARILY_REJECTED,
+    "DENIED": DENIED,
+    "UNSUPPORTED": UNSUPPORTED,
+    "FAILED": FAILED,
+}
+SEV_CRITICAL, SEV_WARNING, SEV_NOTICE, SEV_INFO = 2, 4, 5, 6
+LANDED_ON_GROUND, LANDED_IN_AIR, LANDED_TAKEOFF, LANDED_LANDING = 1, 2, 3, 4
+FORCE_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (disarm in the air)
+
+CMD_NAV_LAND, CMD_NAV_TAKEOFF = 21, 22
+CMD_DO_SET_MODE, CMD_DO_REPOSITION = 176, 192
+CMD_COMPONENT_ARM_DISARM = 400
+CMD_GET_HOME_POSITION = 410
+CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 511, 512
+CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
+
+MSG_HEARTBEAT, MSG_SYS_STATUS, MSG_GPS_RAW_INT, MSG_ATTITUDE = 0, 1, 24, 30
+MSG_LOCAL_POSITION_NED, MSG_GLOBAL_POSITION_INT = 32, 33
+MSG_BATTERY_STATUS, MSG_AUTOPILOT_VERSION = 147, 148
+MSG_HOME_POSITION, MSG_EXTENDED_SYS_STATE = 242, 245
+STREAMABLE = frozenset(
+    {
+        MSG_SYS_STATUS,
+        MSG_GPS_RAW_INT,
+        MSG_ATTITUDE,
+        MSG_LOCAL_POSITION_NED,
+        MSG_GLOBAL_POSITION_INT,
+        MSG_BATTERY_STATUS,
+        MSG_HOME_POSITION,
+        MSG_EXTENDED_SYS_STATE,
+    }
+)
+#: The rate (Hz, simulated time) a stream returns to when MAV_CMD_SET_MESSAGE_INTERVAL
+#: asks for "the default" (interval 0): PX4's defaults, which both personalities use.
+DEFAULT_STREAM_RATES: Mapping[int, float] = {
+    MSG_SYS_STATUS: 1.0,
+    MSG_EXTENDED_SYS_STATE: 1.0,
+    MSG_LOCAL_POSITION_NED: 10.0,
+    MSG_GLOBAL_POSITION_INT: 10.0,
+    MSG_ATTITUDE: 10.0,
+    MSG_HOME_POSITION: 0.5,
+    MSG_GPS_RAW_INT: 1.0,
+    MSG_BATTERY_STATUS: 0.5,
+}
+#: ArduPilot's REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) of the messages simulated here.
+DATA_STREAMS: dict[int, tuple[int, ...]] = {
+    2: (MSG_SYS_STATUS, MSG_GPS_RAW_INT),  # EXTENDED_STATUS
+    6: (MSG_GLOBAL_POSITION_INT, MSG_LOCAL_POSITION_NED),  # POSITION
+    10: (MSG_ATTITUDE,),  # EXTRA1
+    12: (MSG_BATTERY_STATUS, MSG_EXTENDED_SYS_STATE, MSG_HOME_POSITION),  # EXTRA3
+}
+
+FRAME_GLOBAL, FRAME_LOCAL_NED, FRAME_GLOBAL_RELATIVE_ALT = 0, 1, 3
+FRAME_GLOBAL_INT, FRAME_GLOBAL_RELATIVE_ALT_INT = 5, 6
+#: SET_POSITION_TARGET type_mask bits meaning "ignore x, y, z".
+IGNORE_POSITION = 0x7
+
+PARAM_INT32, PARAM_REAL32 = 6, 9
+#: MAV_SYS_STATUS sensors every simulated vehicle has and reports healthy.
+SENSORS = (
+    0x1
+    | 0x2
+    | 0x4
+    | 0x8
+    | 0x20  # gyro, accel, mag, baro, GPS
+    | 0x400
+    | 0x800
+    | 0x1000
+    | 0x2000
+    | 0x4000
+    | 0x8000  # rate, attitude, yaw, z, xy, motors
+    | 0x200000
+    | 0x2000000  # AHRS, battery
+)
+PREARM_CHECK = 0x10000000
+
+#: Simulated seconds from start to the first HEARTBEAT (both SITLs take ~1 s).
+BOOT_S = 1.0
+#: ArduPilot: the initial mode replaces anything set before this (the notes: ~1.4 s).
+ARDUPILOT_READY_S = 1.4
+#: PX4 COM_OF_LOSS_T: simulated seconds without a setpoint before the failsafe...
+OFFBOARD_LOSS_S = 1.0
+#: ...and, so a host hiccup at a high speed-up is not a failsafe, wall seconds too.
+OFFBOARD_LOSS_WALL_S = 0.5
+#: Touchdown to automatic disarm (PX4 COM_DISARM_LAND; ArduPilot likewise ~2 s).
+LAND_DISARM_S = 2.0
+#: How often an unready vehicle repeats why it cannot arm (simulated seconds).
+PREARM_TEXT_PERIOD_S = 10.0
+#: Most messages handled per tick (a flood must not starve the simulation).
+MAX_MESSAGES_PER_TICK = 200
+#: STATUSTEXT payload length; longer texts go out in chunks sharing an id.
+STATUSTEXT_LEN = 50
+
+
+@dataclass(frozen=True)
+class VehicleOptions:
+    """How to build one :class:`SimVehicle` (the command line maps onto this)."""
+
+    autopilot: AutopilotName
+    connection: str
+    sysid: int = 1
+    speedup: float = 1.0
+    prearm_delay_s: float = 3.0
+    home: tuple[float, float, float] = (46.6103, 14.2640, 450.0)  # lat, lon, alt AMSL
+    reject: Mapping[int, int] = field(default_factory=dict)  # MAV_CMD -> MAV_RESULT
+    disarm_after_s: float = 10.0
+    ground_offset_m: float | None = None  # PX4 LOCAL z on the ground; None: 1.5 PX4, 0 ArduPilot
+    report_prearm: bool = True  # False: SYS_STATUS without the PREARM_CHECK bit (older firmware)
+    limits: Limits = field(default_factory=Limits)
+    log: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.autopilot not in ("px4", "ardupilot"):
+            raise ValueError(f"autopilot must be px4 or ardupilot, got {self.autopilot!r}")
+        if not self.connection.startswith(("udpout:", "udpin:", "tcpin:")):
+            raise ValueError(
+                f"connection must be udpout:, udpin: or tcpin:HOST:PORT, got {self.connection!r}"
+            )
+        if not 1 <= self.sysid <= 255:
+            raise ValueError(f"sysid must be 1..255, got {self.sysid}")
+        if not self.speedup > 0:
+            raise ValueError("speedup must be > 0")
+        if not self.prearm_delay_s >= 0 or not self.disarm_after_s > 0:
+            raise ValueError("prearm delay must be >= 0 and disarm-after > 0")
+
+
+def parse_reject(specs: Iterable[str]) -> dict[int, int]:
+    """``["MAV_CMD_NAV_TAKEOFF", "400=FAILED"]`` -> {22: DENIED, 400: FAILED}.
+
+    A command is a MAV_CMD name (with or without ``MAV_CMD_``) or number; the
+    result (default DENIED) a MAV_RESULT name (with or without ``MAV_RESULT_``).
+    """
+    mavutil = load_mavutil()
+    by_name = {entry.name: value for value, entry in mavutil.mavlink.enums["MAV_CMD"].items()}
+    out: dict[int, int] = {}
+    for spec in specs:
+        cmd_text, _, result_text = spec.partition("=")
+        cmd_text = cmd_text.strip().upper()
+        if cmd_text.isdigit():
+            command = int(cmd_text)
+        else:
+            name = cmd_text if cmd_text.startswith("MAV_CMD_") else f"MAV_CMD_{cmd_text}"
+            if name not in by_name:
+                raise ValueError(f"unknown MAVLink command {spec!r}")
+            command = by_name[name]
+        result_key = (result_text.strip().upper() or "DENIED").removeprefix("MAV_RESULT_")
+        if result_key not in RESULTS or result_key == "ACCEPTED":
+            raise ValueError(
+                f"--reject {spec!r}: result must be one of "
+                f"{', '.join(k for k in RESULTS if k != 'ACCEPTED')}"
+            )
+        out[command] = RESULTS[result_key]
+    return out
+
+
+def tcp_server(mavutil: ModuleType, address: str, source_system: int) -> Any:
+    """pymavlink's TCP listener, able to accept a new client after one leaves."""
+
+    class TcpServer(mavutil.mavtcpin):  # type: ignore[name-defined,misc]
+        port: Any  # the client's socket, None while nobody is connected
+        fd: int
+
+        def recv(self, n: int | None = None) -> bytes:
+            if self.port is None:
+                try:
+                    self.port, _ = self.listen.accept()
+                except OSError:
+                    return b""
+                self.port.setblocking(False)
+                self.fd = self.port.fileno()
+            try:
+                data: bytes = self.port.recv(n or self.mav.bytes_needed())
+            except BlockingIOError:
+                return b""
+            except OSError:
+                data = b""
+            if not data:
+                # The client went away: accept the next one.
+                self.port.close()
+                self.port = None
+                self.fd = self.listen.fileno()
+            return data
+
+    return TcpServer(address, source_system=source_system, source_component=1)
+
+
+def param_int(value: float, default: int = 0) -> int:
+    """A command parameter as an integer; NaN ("unused", as MAVSDK sends) gives ``default``."""
+    return round(value) if math.isfinite(value) else default
+
+
+def json_number(value: float) -> float | None:
+    """A JSON-friendly number (NaN becomes null)."""
+    return None if not math.isfinite(value) else round(value, 7)
