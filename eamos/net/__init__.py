@@ -1,10 +1,16 @@
-"""EAMOS network layer: the wire format and the Out-/In-Bridges between participants.
+"""EAMOS network layer: the wire format, the reliable link, the Out-/In-Bridges.
 
 * :mod:`eamos.net.wire` -- the one versioned wire format (``encode``/``decode``).
+* :mod:`eamos.net.session` -- :class:`ReliableSession`, the reliable-delivery
+  protocol, pure (sequence numbers, acks, retransmission, heartbeats, peer
+  liveness, latest-value telemetry): events in, actions out, time passed in.
+* :mod:`eamos.net.link` -- :class:`Link`, the driver that runs a session on
+  threads, the bridges and a clock (what a participant's runtime uses);
+  :class:`LinkSettings` (:mod:`eamos.net.settings`) its timing.
+* :mod:`eamos.net.transport` -- the seam between driver and sockets
+  (:class:`~eamos.net.transport.Transport`, the ZeroMQ one).
 * :mod:`eamos.net.bridges` -- :class:`OutBridge` (XPUB) and :class:`InBridge` (SUB),
-  plain or CURVE.
-* :mod:`eamos.net.link` -- :class:`Link`: sequence numbers, acks, retransmission,
-  heartbeats, peer liveness, latest-value telemetry.
+  plain or CURVE (code in ``out_bridge``, ``in_bridge``, ``sockets``).
 * :mod:`eamos.net.keys` -- fleet key pairs (``eamos keys``), the ZAP
   authenticator, the plain-on-loopback rule.
 
@@ -13,6 +19,9 @@ delivery, security and the fault tests.
 """
 
 from eamos.net.bridges import InBridge, OutBridge
+from eamos.net.link import Link
+from eamos.net.session import PeerStatus, ReliableSession, TelemetryStale
+from eamos.net.settings import LinkSettings
 from eamos.net.wire import (
     GROUND_STATION,
     TOPIC_ALL,
@@ -48,14 +57,19 @@ __all__ = [
     "Heartbeat",
     "InBridge",
     "Interrupt",
+    "Link",
+    "LinkSettings",
     "Message",
     "OutBridge",
+    "PeerStatus",
     "Progress",
     "Ready",
+    "ReliableSession",
     "Report",
     "Resolved",
     "Start",
     "TelemetrySample",
+    "TelemetryStale",
     "Trigger",
     "WireError",
     "decode",

@@ -96,7 +96,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   ``seq`` (key ``q``) numbers the reliable messages: Trigger, Interrupt, Ready,
   Resolved and Report per link (sender, dest), Start, Abort and Complete per
   sender (broadcast sequence); 1, 2, 3 ... as the reliability layer
-  (:mod:`eamos.net.link`) sends them, 0 for a message sent outside it (not
+  (:mod:`eamos.net.session`) sends them, 0 for a message sent outside it (not
   acknowledged, not deduplicated).  Progress, TelemetrySample, Ack and
   Heartbeat are never acknowledged: progress and telemetry are latest-value
   data, acks and heartbeats are repeated anyway.

@@ -1,4 +1,4 @@
-"""Helpers for reliability-layer tests: links on loopback, and loss injected at the sender.
+"""Helpers for link-driver tests: links on loopback, and loss injected at the sender.
 
 Each :class:`~eamos.net.link.Link` gets its own ZeroMQ context, as each
 participant has in its own process (and as CURVE needs: one ZAP handler per
@@ -24,18 +24,23 @@ from eamos.net import wire
 from eamos.net.keys import FleetKeys, create_fleet_keys
 from eamos.net.link import Link, LinkSettings
 
-MISSION = "mission-link"
-WAIT_S = 30.0
+from .session_helpers import FAST, MISSION, sample, trig
 
-FAST = LinkSettings(
-    heartbeat_s=0.1,
-    peer_timeout_s=0.6,
-    telemetry_stale_s=0.5,
-    telemetry_max_hz=20.0,
-    rto_min_s=0.25,
-    rto_max_s=1.0,
-    rto_initial_s=0.3,
-)
+__all__ = [
+    "FAST",
+    "MISSION",
+    "WAIT_S",
+    "Inbox",
+    "Lossy",
+    "Net",
+    "eventually",
+    "free_port",
+    "network",
+    "sample",
+    "trig",
+]
+
+WAIT_S = 30.0
 
 
 def free_port() -> int:
@@ -118,6 +123,7 @@ class Net:
         connect: bool = True,
         topics: tuple[bytes, ...] = (),
         log: Any = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> Link:
         for n in [name, *peers]:
             self.endpoints.setdefault(n, f"tcp://127.0.0.1:{free_port()}")
@@ -127,7 +133,9 @@ class Net:
         if secure:
             assert self.keys_dir is not None
             keys = FleetKeys.load(self.keys_dir / name, name)
-        link = Link(ctx, name, MISSION, self.endpoints[name], log, keys=keys, settings=settings)
+        link = Link(
+            ctx, name, MISSION, self.endpoints[name], log, keys=keys, settings=settings, clock=clock
+        )
         self.links.append(link)
         if connect:
             link.connect(
@@ -151,19 +159,6 @@ def network(tmp: Path) -> Iterator[Net]:
         net.close()
 
 
-def first_transmission_of(seqs: set[int]) -> Callable[[wire.Message], bool]:
-    """A drop rule: lose the first transmission of these trigger seqs (retries get through)."""
-    pending = set(seqs)
-
-    def drop(msg: wire.Message) -> bool:
-        if isinstance(msg, wire.Trigger) and msg.seq in pending:
-            pending.discard(msg.seq)
-            return True
-        return False
-
-    return drop
-
-
 def eventually(predicate: Callable[[], bool], timeout: float = WAIT_S) -> bool:
     """Poll ``predicate`` (every 20 ms, bounded) for state that nothing notifies about."""
     deadline = time.monotonic() + timeout
@@ -172,13 +167,3 @@ def eventually(predicate: Callable[[], bool], timeout: float = WAIT_S) -> bool:
             return True
         time.sleep(0.02)
     return predicate()
-
-
-def trig(sender: str, dest: str, n: int) -> wire.Trigger:
-    return wire.Trigger(MISSION, sender, dest, "a", "b", (n,), "done")
-
-
-def sample(sender: str, t: float, x: float = 0.0) -> wire.TelemetrySample:
-    return wire.TelemetrySample(
-        MISSION, sender, t, x, 0.0, 1.0, 47.0, 8.0, 500.0, 90.0, True, False
-    )

@@ -1,0 +1,75 @@
+"""What the reliable-delivery session tells its driver to do, and the local events it reports.
+
+Small frozen values: :class:`Send` a wire message, :class:`Deliver` an item to
+the application, report a :class:`PeerChanged`, :class:`Wake` the timer
+earlier.  :class:`PeerStatus` and :class:`TelemetryStale` are local events:
+handed to the application with the messages, never on the wire.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TypeAlias
+
+import eamos.net.wire as wire
+
+__all__ = ["Action", "Deliver", "PeerChanged", "PeerStatus", "Send", "TelemetryStale", "Wake"]
+
+
+# -- local events (handed to the application, never on the wire) ------------------
+
+
+@dataclass(frozen=True)
+class PeerStatus:
+    """Local event: peer ``sender`` went silent (``lost``), came ``back``, or ``left``.
+
+    ``serial`` increases per session: a handler that sees events of one peer
+    out of order (they come from two threads) keeps the highest.
+    """
+
+    sender: str
+    state: str
+    silent_s: float
+    serial: int
+
+
+@dataclass(frozen=True)
+class TelemetryStale:
+    """Local event: no telemetry from drone ``sender`` for ``age_s`` seconds."""
+
+    sender: str
+    age_s: float
+
+
+# -- actions (what the driver must do) -----------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Send:
+    """Put ``message`` on the network, in the order the actions are given."""
+
+    message: wire.Message
+
+
+@dataclass(frozen=True, slots=True)
+class Deliver:
+    """Hand ``item`` to the application (exactly once, in order per link)."""
+
+    item: wire.Message | TelemetryStale
+
+
+@dataclass(frozen=True, slots=True)
+class PeerChanged:
+    """A peer went lost, came back or left; the application gets ``status`` too."""
+
+    status: PeerStatus
+
+
+@dataclass(frozen=True, slots=True)
+class Wake:
+    """Call ``on_tick`` at ``at`` at the latest: a new deadline, maybe earlier than any known."""
+
+    at: float
+
+
+Action: TypeAlias = Send | Deliver | PeerChanged | Wake

@@ -1,0 +1,338 @@
+"""The In-Bridge: a participant's SUB sockets, one per peer, and their receive thread.
+
+See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING, Any
+
+import zmq
+
+from eamos.logs import make_logger
+from eamos.net.sockets import (
+    CMD_STOP,
+    CMD_SUB,
+    DEFAULT_HEARTBEAT_MS,
+    DEFAULT_HWM,
+    JOIN_TIMEOUT_S,
+    Monitor,
+    connection_options,
+    control_pair,
+    curve_client,
+    should_log,
+)
+from eamos.net.wire import MAX_PAYLOAD_BYTES, Message, WireError, decode
+
+if TYPE_CHECKING:
+    from eamos.net.keys import FleetKeys
+
+__all__ = ["InBridge"]
+
+
+class InBridge:
+    """The participant's incoming side: one SUB socket per peer it connects to.
+
+    ``connect`` maps peer names to their Out-Bridge endpoints; ``subscribe``
+    lists the topics to receive (see :func:`~eamos.net.wire.topic_to`,
+    :func:`~eamos.net.wire.topic_telemetry`, :data:`~eamos.net.wire.TOPIC_ALL`).
+    Topics are matched exactly, because ZeroMQ's prefix matching would deliver
+    ``to/D10`` to a subscriber of ``to/D1``; a topic ending in ``/`` (or empty)
+    is a deliberate prefix subscription.
+
+    Every message that decodes, whose topic was subscribed and whose mission is
+    ``mission`` is passed to ``on_message`` on the receive thread.  Malformed
+    messages, messages of another wire version or mission, and (with
+    ``check_sender``) messages whose sender is not the peer they came from are
+    dropped, logged (``net.in.drop`` with a ``reason``) and counted in
+    :attr:`dropped` and :attr:`dropped_by_reason`.  ``on_batch_end`` is called
+    on the receive thread after each batch of messages (the reliability layer
+    acknowledges there, once per batch instead of once per message).
+
+    One socket per peer (rather than one for all) is what lets a CURVE client
+    know each peer's public key, and lets the bridge know which peer a message
+    came from.
+    """
+
+    def __init__(
+        self,
+        context: zmq.Context[Any],
+        connect: Mapping[str, str],
+        subscribe: Iterable[bytes],
+        on_message: Callable[[Message], None],
+        mission: str,
+        log: Any = None,
+        *,
+        hwm: int = DEFAULT_HWM,
+        curve: FleetKeys | None = None,
+        check_sender: bool = False,
+        heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
+        on_batch_end: Callable[[], None] | None = None,
+    ) -> None:
+        self.mission = mission
+        self.peers: dict[str, str] = dict(connect)
+        self.secure = curve is not None
+        self._on_message = on_message
+        self._on_batch_end = on_batch_end
+        self._check_sender = check_sender
+        self._log = log if log is not None else make_logger(None)
+        if curve is not None:
+            missing = curve.missing(self.peers)
+            if missing:
+                raise ValueError(f"no public key for peer(s) {', '.join(missing)}")
+        self._subs: dict[zmq.Socket[Any], str] = {}
+        self._monitors: list[Monitor] = []
+        self._ctrl_rx, self._ctrl_tx = control_pair(context, "in")
+        # Owned by the receive thread once started; before that, by the caller
+        # under _lock (the thread start is the hand-over).
+        self._exact: set[bytes] = set()
+        self._prefixes: set[bytes] = set()
+        topics = list(subscribe)
+        try:
+            for peer, endpoint in self.peers.items():
+                sub = context.socket(zmq.SUB)
+                self._subs[sub] = peer
+                sub.setsockopt(zmq.LINGER, 0)
+                sub.setsockopt(zmq.RCVHWM, hwm)
+                # ZeroMQ refuses (and disconnects) peers sending frames larger than
+                # any valid message, before they are buffered in full.
+                sub.setsockopt(zmq.MAXMSGSIZE, MAX_PAYLOAD_BYTES)
+                connection_options(sub, heartbeat_ms)
+                if curve is not None:
+                    curve_client(sub, curve, curve.fleet[peer])
+                self._monitors.append(Monitor(sub, self._log, peer))
+                sub.connect(endpoint)
+            for topic in topics:
+                self._subscribe(topic)
+        except zmq.ZMQError:
+            # A bad endpoint must not leak sockets (and block Context.term).
+            self._close_sockets()
+            raise
+
+        self._lock = threading.Lock()  # guards _ctrl_tx and the lifecycle flags
+        self._started = False
+        self._closed = False
+        self._tx_open = True
+        # Written only by the receive thread; plain ints are safe to read elsewhere.
+        self._received = 0
+        self._dropped = 0
+        self._dropped_by_reason: dict[str, int] = {}
+        self._ignored = 0
+        self._callback_errors = 0
+        self._thread = threading.Thread(target=self._run, name="eamos-inbridge", daemon=True)
+
+    def _close_sockets(self) -> None:
+        for monitor in self._monitors:
+            monitor.close()
+        for sock in (*self._subs, self._ctrl_rx, self._ctrl_tx):
+            sock.close(linger=0)
+
+    # -- lifecycle ---------------------------------------------------------
+
+    def start(self) -> None:
+        """Start the receive thread."""
+        with self._lock:
+            if self._closed:
+                raise RuntimeError("InBridge is closed")
+            if self._started:
+                return
+            self._started = True
+            self._thread.start()
+
+    def close(self) -> None:
+        """Stop the receive thread and close the sockets; idempotent, any thread.
+
+        May be called from ``on_message`` itself: the thread then stops after
+        the callback returns (it is not joined, which would deadlock).
+        """
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            if not self._started:
+                self._tx_open = False
+                self._close_sockets()
+                return
+            if self._tx_open:
+                self._ctrl_tx.send(CMD_STOP)
+        if threading.current_thread() is not self._thread:
+            self._thread.join(JOIN_TIMEOUT_S)
+            if self._thread.is_alive():
+                self._log.warning("net.in.close_timeout")
+
+    def __enter__(self) -> InBridge:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close()`` was called."""
+        return self._closed
+
+    # -- subscriptions -----------------------------------------------------
+
+    def add_subscription(self, topic: bytes) -> bool:
+        """Also receive ``topic``; safe from any thread.  False if closed."""
+        with self._lock:
+            if self._closed or not self._tx_open:
+                return False
+            if not self._started:
+                self._subscribe(topic)
+            else:
+                self._ctrl_tx.send_multipart([CMD_SUB, topic])
+        return True
+
+    def _subscribe(self, topic: bytes) -> None:
+        for sub in self._subs:
+            sub.setsockopt(zmq.SUBSCRIBE, topic)
+        if topic == b"" or topic.endswith(b"/"):
+            self._prefixes.add(topic)
+        else:
+            self._exact.add(topic)
+
+    def _wanted(self, topic: bytes) -> bool:
+        return topic in self._exact or any(topic.startswith(p) for p in self._prefixes)
+
+    # -- counters ----------------------------------------------------------
+
+    @property
+    def received(self) -> int:
+        """Messages passed to ``on_message``."""
+        return self._received
+
+    @property
+    def dropped(self) -> int:
+        """Messages dropped (malformed, other version or mission, wrong sender)."""
+        return self._dropped
+
+    @property
+    def dropped_by_reason(self) -> dict[str, int]:
+        """:attr:`dropped` per reason (a copy)."""
+        return dict(self._dropped_by_reason)
+
+    @property
+    def ignored(self) -> int:
+        """Messages on topics that only share a prefix with a subscription."""
+        return self._ignored
+
+    @property
+    def callback_errors(self) -> int:
+        """Calls of ``on_message`` that raised."""
+        return self._callback_errors
+
+    @property
+    def auth_failures(self) -> int:
+        """Handshakes with peers that failed (e.g. an impostor at a peer's address)."""
+        return sum(m.failures for m in self._monitors)
+
+    # -- receive thread ----------------------------------------------------
+
+    def _run(self) -> None:
+        poller = zmq.Poller()
+        poller.register(self._ctrl_rx, zmq.POLLIN)
+        for sub in self._subs:
+            poller.register(sub, zmq.POLLIN)
+        monitors = {m.socket: m for m in self._monitors}
+        for mon in monitors:
+            poller.register(mon, zmq.POLLIN)
+        try:
+            while True:
+                events = dict(poller.poll())
+                if self._ctrl_rx in events and not self._drain_control():
+                    return
+                delivered = False
+                for sock in events:
+                    peer = self._subs.get(sock)
+                    if peer is not None:
+                        delivered = self._drain_sub(sock, peer) or delivered
+                    elif sock in monitors:
+                        monitors[sock].drain()
+                if self._closed:
+                    return  # close() was called from on_message
+                if delivered and self._on_batch_end is not None:
+                    try:
+                        self._on_batch_end()
+                    except Exception:
+                        self._log.exception("net.in.callback_error", type="batch_end")
+        except zmq.ContextTerminated:
+            self._log.warning("net.in.context_terminated")
+        except zmq.ZMQError:
+            self._log.exception("net.in.thread_error")
+        finally:
+            with self._lock:
+                self._ctrl_tx.close()
+                self._tx_open = False
+            self._ctrl_rx.close()
+            for monitor in self._monitors:
+                monitor.close()
+            for sub in self._subs:
+                sub.close()
+
+    def _drain_control(self) -> bool:
+        while True:
+            try:
+                frames = self._ctrl_rx.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return True
+            if frames[0] == CMD_STOP:
+                return False
+            if frames[0] == CMD_SUB:
+                self._subscribe(frames[1])
+
+    def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
+        # Bounded batch so a stop or subscribe command, or another peer, is not
+        # starved by a flood.
+        got = False
+        for _ in range(256):
+            if self._closed:
+                return got  # close() was called from on_message: deliver nothing more
+            try:
+                frames = sub.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return got
+            got = True
+            self._handle(frames, peer)
+        return got
+
+    def _handle(self, frames: list[bytes], peer: str = "") -> None:
+        """Filter, decode and deliver one received multipart message from ``peer``."""
+        if not self._wanted(frames[0]):
+            self._ignored += 1
+            return
+        try:
+            msg = decode(frames)
+        except WireError as exc:
+            self._drop(exc.reason, frames[0], str(exc), peer=peer)
+            return
+        if msg.mission != self.mission:
+            self._drop("other_mission", frames[0], msg.mission, sender=msg.sender, peer=peer)
+            return
+        if self._check_sender and msg.sender != peer:
+            self._drop("sender", frames[0], f"{msg.sender!r} on {peer!r}'s link", peer=peer)
+            return
+        self._received += 1
+        try:
+            self._on_message(msg)
+        # Any failure in the consumer must not kill the receive thread: that
+        # would silently cut this participant off from the mission.
+        except Exception:
+            self._callback_errors += 1
+            self._log.exception("net.in.callback_error", type=type(msg).__name__, sender=msg.sender)
+
+    def _drop(self, reason: str, topic: bytes, detail: str, **extra: Any) -> None:
+        self._dropped += 1
+        self._dropped_by_reason[reason] = self._dropped_by_reason.get(reason, 0) + 1
+        if should_log(self._dropped):
+            self._log.warning(
+                "net.in.drop",
+                reason=reason,
+                topic=topic.decode("utf-8", "replace"),
+                detail=detail,
+                dropped=self._dropped,
+                **extra,
+            )

@@ -1,0 +1,144 @@
+"""Peer liveness and telemetry freshness, the part of the session that watches the clock.
+
+:class:`Liveness` decides when a peer is up, lost, back or gone (from what is
+heard of it and its goodbye) and when a drone's telemetry is stale;
+:class:`TelemetryOut` paces this participant's own telemetry (latest-value:
+rate cap, coalescing, refresh).  Both are pure: time is passed in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import eamos.net.wire as wire
+from eamos.net.actions import Action, Deliver, PeerChanged, PeerStatus, Send, TelemetryStale, Wake
+from eamos.net.sequence import Peer
+from eamos.net.settings import LinkSettings
+
+__all__ = ["Liveness", "TelemetryOut"]
+
+
+class Liveness:
+    """Who is up, lost, back or gone, and whose telemetry is fresh (one per session).
+
+    ``serial`` numbers the peer events of one session, so a handler that sees
+    them out of order (they come from two threads) keeps the highest.
+    """
+
+    def __init__(self, settings: LinkSettings, log: Any) -> None:
+        self.settings = settings
+        self.log = log
+        self._serial = 0
+
+    def event(self, peer: Peer, state: str, silent_s: float) -> PeerChanged:
+        """Report ``peer`` ``state`` (lost, back, left), logged as ``mission.peer.<state>``."""
+        self._serial += 1
+        status = PeerStatus(peer.name, state, round(silent_s, 3), self._serial)
+        level = self.log.warning if state == "lost" else self.log.info
+        level(f"mission.peer.{state}", peer=peer.name, silent_s=status.silent_s)
+        return PeerChanged(status)
+
+    def heard(self, peer: Peer, now: float) -> PeerChanged | None:
+        """Something came from ``peer``: the ``back`` event if it had been lost."""
+        silent = 0.0 if peer.heard is None else now - peer.heard
+        peer.heard = now
+        if not peer.watched:
+            return None  # no heartbeats from it: its silence would mean nothing
+        if peer.state == "left":
+            return None  # stragglers after its goodbye (a heartbeat from a restart revives it)
+        if peer.state == "lost":
+            peer.state = "up"
+            return self.event(peer, "back", silent)
+        if peer.state != "up":
+            peer.state = "up"
+            self.log.debug("net.peer.up", peer=peer.name)
+        return None
+
+    def goodbye(self, peer: Peer) -> PeerChanged | None:
+        """``peer`` said it is leaving: the ``left`` event, once."""
+        if peer.state == "left":
+            return None
+        peer.state = "left"
+        return self.event(peer, "left", 0.0)
+
+    def alive(self, peer: Peer) -> None:
+        """A heartbeat (not a goodbye) from ``peer``: one that left has started again."""
+        if peer.state == "left":
+            peer.state = "up"
+            self.log.info("net.peer.up", peer=peer.name, rejoined=True)
+
+    def fresh(self, peer: Peer, msg: wire.TelemetrySample, now: float) -> bool:
+        """Whether ``msg`` is news (latest-value: a sample older than one seen is not)."""
+        if peer.tel_time is not None and msg.time_s < peer.tel_time:
+            return False
+        peer.tel_time = msg.time_s
+        peer.tel_heard = now
+        if peer.tel_stale:
+            peer.tel_stale = False
+            self.log.info("mission.telemetry.fresh", drone=peer.name)
+        return True
+
+    def check(self, peer: Peer, now: float, actions: list[Action]) -> float:
+        """Report ``peer`` lost or its telemetry stale if due; return the next deadline."""
+        s = self.settings
+        deadline = float("inf")
+        if peer.watched and peer.state == "up" and peer.heard is not None:
+            silent = now - peer.heard
+            if silent > s.peer_timeout_s:
+                peer.state = "lost"
+                actions.append(self.event(peer, "lost", silent))
+            else:
+                deadline = peer.heard + s.peer_timeout_s + 1e-3
+        if peer.tel_heard is not None and not peer.tel_stale:
+            age = now - peer.tel_heard
+            if age > s.telemetry_stale_s:
+                peer.tel_stale = True
+                self.log.warning("mission.telemetry.stale", drone=peer.name, age_s=round(age, 3))
+                actions.append(Deliver(TelemetryStale(peer.name, round(age, 3))))
+            else:
+                deadline = min(deadline, peer.tel_heard + s.telemetry_stale_s + 1e-3)
+        return deadline
+
+
+@dataclass
+class TelemetryOut:
+    """Latest-value telemetry going out: at most one sample per ``interval``, the
+    latest always (a burst is coalesced), repeated every ``refresh`` when idle."""
+
+    interval: float
+    refresh: float
+    latest: wire.TelemetrySample | None = None
+    sent_at: float = float("-inf")
+    pending: bool = False  # a newer sample waits for the end of the interval
+
+    def offer(self, msg: wire.TelemetrySample, now: float) -> list[Action]:
+        self.latest = msg
+        if now >= self.sent_at + self.interval:
+            self.sent_at = now
+            self.pending = False
+            return [Send(msg)]
+        if self.pending:
+            return []
+        self.pending = True  # the timer sends the latest at the end of the interval
+        return [Wake(self.sent_at + self.interval)]
+
+    def repeat(self, now: float) -> list[Action]:
+        if self.latest is None:
+            return []
+        self.sent_at = now
+        return [Send(self.latest)]
+
+    def tick(self, now: float) -> tuple[list[Action], float]:
+        # Compared as ``now >= sent_at + period``, the very sum returned as the
+        # deadline: ``now - sent_at`` may round below the period at that instant.
+        if self.latest is None:
+            return [], float("inf")
+        actions: list[Action] = []
+        if self.pending and now >= self.sent_at + self.interval:
+            self.pending = False
+            actions = self.repeat(now)
+        elif not self.pending and now >= self.sent_at + self.refresh:
+            # Nothing new: repeat the latest, so peers know it is still current.
+            actions = self.repeat(now)
+        return actions, self.sent_at + (self.interval if self.pending else self.refresh)

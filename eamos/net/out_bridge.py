@@ -1,0 +1,298 @@
+"""The Out-Bridge: a participant's one bound XPUB socket, fed by any thread.
+
+See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any
+
+import zmq
+
+from eamos.logs import make_logger
+from eamos.net.sockets import (
+    CMD_SEND,
+    CMD_STOP,
+    DEFAULT_HEARTBEAT_MS,
+    DEFAULT_HWM,
+    DEFAULT_LINGER_MS,
+    JOIN_TIMEOUT_S,
+    Monitor,
+    connection_options,
+    control_pair,
+    curve_server,
+)
+from eamos.net.wire import Message, encode
+
+if TYPE_CHECKING:
+    from eamos.net.keys import FleetKeys
+
+__all__ = ["OutBridge"]
+
+
+class OutBridge:
+    """The participant's outgoing side: one bound XPUB socket, fed by any thread.
+
+    ``bind`` is a ZeroMQ endpoint such as ``tcp://127.0.0.1:6001``; port 0
+    (``tcp://127.0.0.1:0``, ``tcp://*:0``) picks a free port, and the actual
+    endpoint is available as :attr:`endpoint`.
+    """
+
+    def __init__(
+        self,
+        context: zmq.Context[Any],
+        bind: str,
+        log: Any = None,
+        *,
+        hwm: int = DEFAULT_HWM,
+        linger_ms: int = DEFAULT_LINGER_MS,
+        curve: FleetKeys | None = None,
+        heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
+        on_subscription: Callable[[bytes, bool], None] | None = None,
+    ) -> None:
+        self._log = log if log is not None else make_logger(None)
+        self._on_subscription = on_subscription
+        self.secure = curve is not None
+        self._xpub = context.socket(zmq.XPUB)
+        self._xpub.setsockopt(zmq.LINGER, linger_ms)
+        self._xpub.setsockopt(zmq.SNDHWM, hwm)
+        # VERBOSE: pass every subscription up, not only the first per topic, so a
+        # peer that reconnects (or a second peer) is seen too.
+        self._xpub.setsockopt(zmq.XPUB_VERBOSE, 1)
+        connection_options(self._xpub, heartbeat_ms)
+        self._monitor: Monitor | None = None
+        try:
+            if curve is not None:
+                curve_server(self._xpub, curve)
+            self._monitor = Monitor(self._xpub, self._log, "*")
+            self._xpub.bind(bind)
+        except zmq.ZMQError:
+            if self._monitor is not None:
+                self._monitor.close()
+            self._xpub.close(linger=0)
+            raise
+        self.endpoint: str = self._xpub.getsockopt(zmq.LAST_ENDPOINT).decode()
+        self._ctrl_rx, self._ctrl_tx = control_pair(context, "out")
+
+        # _lock guards _ctrl_tx, the lifecycle flags and the send counters.
+        self._lock = threading.Lock()
+        self._started = False
+        self._closed = False
+        self._tx_open = True
+        self._sent_counts: dict[str, int] = {}
+        self._sent_bytes_by_type: dict[str, int] = {}
+        self._sent_bytes = 0
+        # _cond guards the subscription set and _running; wait_subscribed waits on it.
+        self._cond = threading.Condition()
+        self._subscriptions: set[bytes] = set()
+        self._running = False
+        self._thread = threading.Thread(
+            target=self._run, name=f"eamos-outbridge-{self.endpoint}", daemon=True
+        )
+
+    # -- lifecycle ---------------------------------------------------------
+
+    def start(self) -> None:
+        """Start the bridge thread (forwarding sends, tracking subscriptions)."""
+        with self._lock:
+            if self._closed:
+                raise RuntimeError("OutBridge is closed")
+            if self._started:
+                return
+            self._started = True
+            with self._cond:
+                self._running = True
+            self._thread.start()
+
+    def close(self) -> None:
+        """Stop the thread and close the sockets; idempotent and safe from any thread.
+
+        Messages sent before ``close()`` are handed to the XPUB socket first
+        (the stop command travels the same FIFO pipe behind them).
+        """
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            if not self._started:
+                # The thread never ran, so this thread may close its sockets.
+                self._ctrl_tx.close()
+                self._tx_open = False
+                self._ctrl_rx.close()
+                if self._monitor is not None:
+                    self._monitor.close()
+                self._xpub.close()
+                return
+            if self._tx_open:
+                self._ctrl_tx.send(CMD_STOP)
+        if threading.current_thread() is not self._thread:
+            self._thread.join(JOIN_TIMEOUT_S)
+            if self._thread.is_alive():
+                self._log.warning("net.out.close_timeout", endpoint=self.endpoint)
+
+    def __enter__(self) -> OutBridge:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close()`` was called."""
+        return self._closed
+
+    # -- sending -----------------------------------------------------------
+
+    def send(self, msg: Message) -> bool:
+        """Queue ``msg`` for publication; thread-safe and non-blocking.
+
+        Returns False (and logs) if the bridge is closed.  Raises
+        :class:`~eamos.net.wire.WireError` if ``msg`` cannot be encoded.
+        Messages sent before :meth:`start` are queued and go out once started.
+        """
+        frames = encode(msg)
+        with self._lock:
+            if self._closed or not self._tx_open:
+                self._log.info("net.out.send_after_close", type=type(msg).__name__)
+                return False
+            self._ctrl_tx.send_multipart([CMD_SEND, *frames])
+            name = type(msg).__name__
+            size = len(frames[0]) + len(frames[1])
+            self._sent_counts[name] = self._sent_counts.get(name, 0) + 1
+            self._sent_bytes_by_type[name] = self._sent_bytes_by_type.get(name, 0) + size
+            self._sent_bytes += size
+        return True
+
+    @property
+    def sent_counts(self) -> dict[str, int]:
+        """Messages accepted by :meth:`send`, per message class name (a copy)."""
+        with self._lock:
+            return dict(self._sent_counts)
+
+    @property
+    def sent_bytes(self) -> int:
+        """Bytes (topic + payload) accepted by :meth:`send`."""
+        with self._lock:
+            return self._sent_bytes
+
+    @property
+    def sent_bytes_by_type(self) -> dict[str, int]:
+        """Bytes (topic + payload) accepted by :meth:`send`, per message class name."""
+        with self._lock:
+            return dict(self._sent_bytes_by_type)
+
+    @property
+    def auth_failures(self) -> int:
+        """Handshakes with this bridge that failed (wrong keys, plain peer, ZAP denial)."""
+        return self._monitor.failures if self._monitor is not None else 0
+
+    # -- subscriptions -----------------------------------------------------
+
+    @property
+    def subscriptions(self) -> frozenset[bytes]:
+        """Topic prefixes that currently have at least one subscriber."""
+        with self._cond:
+            return frozenset(self._subscriptions)
+
+    def _covered(self, topic: bytes) -> bool:
+        # SUB filters are prefixes: a subscriber to b"" or b"to/" gets b"to/D2" too.
+        return any(topic.startswith(prefix) for prefix in self._subscriptions)
+
+    def wait_subscribed(self, topics: Iterable[bytes], timeout_s: float) -> bool:
+        """Block until every topic in ``topics`` has a subscriber, or ``timeout_s`` passes.
+
+        Returns True once all are covered; False on timeout or if the bridge is
+        not running.  A message published on a covered topic reaches at least
+        one subscriber (the XPUB socket has applied the subscription before it
+        reports it to us).
+        """
+        wanted = list(topics)
+        with self._cond:
+            self._cond.wait_for(
+                lambda: not self._running or all(self._covered(t) for t in wanted), timeout_s
+            )
+            return self._running and all(self._covered(t) for t in wanted)
+
+    # -- bridge thread -----------------------------------------------------
+
+    def _run(self) -> None:
+        poller = zmq.Poller()
+        poller.register(self._ctrl_rx, zmq.POLLIN)
+        poller.register(self._xpub, zmq.POLLIN)
+        monitor = self._monitor
+        if monitor is not None:
+            poller.register(monitor.socket, zmq.POLLIN)
+        try:
+            while True:
+                events = dict(poller.poll())
+                if self._xpub in events:
+                    self._read_subscriptions()
+                if monitor is not None and monitor.socket in events:
+                    monitor.drain()
+                if self._ctrl_rx in events and not self._drain_control():
+                    return
+        except zmq.ContextTerminated:
+            self._log.warning("net.out.context_terminated", endpoint=self.endpoint)
+        except zmq.ZMQError:
+            self._log.exception("net.out.thread_error", endpoint=self.endpoint)
+        finally:
+            with self._lock:
+                self._ctrl_tx.close()
+                self._tx_open = False
+            self._ctrl_rx.close()
+            if monitor is not None:
+                monitor.close()
+            self._xpub.close()
+            with self._cond:
+                self._running = False
+                self._cond.notify_all()
+
+    def _drain_control(self) -> bool:
+        """Forward every queued command; False once the stop command is seen."""
+        while True:
+            try:
+                frames = self._ctrl_rx.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return True
+            if frames[0] == CMD_STOP:
+                return False
+            self._forward(frames[1:])
+
+    def _forward(self, frames: list[bytes]) -> None:
+        # The one place outgoing frames hit the network.  XPUB never blocks: it
+        # drops for a peer whose queue is at the HWM (hence the large HWM).
+        self._xpub.send_multipart(frames)
+
+    def _read_subscriptions(self) -> None:
+        changed: list[tuple[bytes, bool]] = []
+        while True:
+            try:
+                frame = self._xpub.recv(zmq.NOBLOCK)
+            except zmq.Again:
+                break
+            if not frame or frame[0] not in (0, 1):
+                continue  # not a (un)subscription frame; SUB peers send nothing else
+            topic = frame[1:]
+            with self._cond:
+                if frame[0] == 1:
+                    self._subscriptions.add(topic)
+                else:
+                    # Without XPUB_VERBOSER, an unsubscribe only arrives once the
+                    # last subscriber of this topic is gone.
+                    self._subscriptions.discard(topic)
+            changed.append((topic, frame[0] == 1))
+            self._log.debug(
+                "net.out.subscription", topic=topic.decode("utf-8", "replace"), on=frame[0] == 1
+            )
+        if changed:
+            with self._cond:
+                self._cond.notify_all()
+            if self._on_subscription is not None:
+                for topic, on in changed:
+                    try:
+                        self._on_subscription(topic, on)
+                    except Exception:  # the bridge thread must survive its callback
+                        self._log.exception("net.out.callback_error")

@@ -1,0 +1,190 @@
+"""Per-peer bookkeeping of the reliable-delivery protocol: the sending and receiving halves.
+
+A link (sender, dest), or one participant's broadcasts, has a :class:`Sending`
+half at its sender (numbering, the messages waiting for their ack, the
+retransmission timer) and a :class:`Receiving` half at each receiver (the
+highest seq delivered in order, the reorder buffer).  :class:`Peer` holds
+both halves of the links with one peer, its round-trip time and liveness.
+Pure data with the arithmetic on it; :class:`~eamos.net.session.ReliableSession`
+decides when.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import random
+from dataclasses import dataclass, field
+from typing import Any
+
+import eamos.net.wire as wire
+from eamos.net.settings import LinkSettings
+
+__all__ = ["Peer", "Receiving", "Sending", "SessionCounters"]
+
+
+@dataclass
+class SessionCounters:
+    """What the protocol did, for the run summary (``report()["net"]``)."""
+
+    retransmissions: int = 0
+    duplicates_dropped: int = 0
+    reordered: int = 0
+    acks_sent: int = 0
+    nacks_sent: int = 0
+    acks_received: int = 0
+    heartbeats_sent: int = 0
+    old_telemetry: int = 0
+    abandoned: int = 0  # unacknowledged messages given up because their peer left
+
+
+@dataclass
+class _Out:
+    """One reliable message waiting for its acknowledgement."""
+
+    msg: wire.Message
+    first_sent: float
+    last_sent: float
+    tries: int = 0  # retransmissions so far
+
+
+@dataclass
+class Sending:
+    """The sending side of one link (or of this participant's broadcasts)."""
+
+    backoff: float
+    next_seq: int = 1
+    pending: dict[int, _Out] = field(default_factory=dict)  # insertion order = seq order
+    due: float | None = None  # when the retransmission timer fires
+
+    def number(self, msg: wire.Message, now: float) -> wire.Message:
+        """``msg`` with the next seq, kept until acknowledged."""
+        seq = self.next_seq
+        self.next_seq += 1
+        numbered = dataclasses.replace(msg, seq=seq)  # type: ignore[call-arg,arg-type]
+        self.pending[seq] = _Out(numbered, now, now)
+        return numbered
+
+    def acknowledge(self, upto: int, now: float | None) -> tuple[bool, float | None]:
+        """Forget every seq <= ``upto``: (any forgotten, a round-trip sample or None).
+
+        Karn: only a message sent once measures the round trip (``now`` None: no sample).
+        """
+        sample: float | None = None
+        progressed = False
+        pending = self.pending
+        while pending:
+            seq = next(iter(pending))
+            if seq > upto:
+                break
+            out = pending.pop(seq)
+            progressed = True
+            if out.tries == 0 and now is not None:
+                sample = now - out.first_sent
+        return progressed, sample
+
+    def resend(
+        self, now: float, window: int, *, recent: float = 0.0, after: int = 0
+    ) -> list[wire.Message]:
+        """Up to ``window`` unacknowledged messages with seq > ``after`` to send again.
+
+        Messages sent within the last ``recent`` seconds are skipped (a nack
+        may race with messages still in flight).
+        """
+        again: list[wire.Message] = []
+        for seq, out in self.pending.items():
+            if seq <= after:
+                continue
+            if len(again) >= window:
+                break
+            if recent and now - out.last_sent < recent:
+                continue
+            out.tries += 1
+            out.last_sent = now
+            again.append(out.msg)
+        return again
+
+    def back_off(self, now: float, rto_max: float, rng: random.Random) -> None:
+        """After a timeout: double the timeout (up to ``rto_max``, +-20 % jitter)."""
+        if not self.pending:
+            self.due = None
+            return
+        self.backoff = min(self.backoff * 2, rto_max)
+        self.due = now + self.backoff * rng.uniform(0.8, 1.2)
+
+
+@dataclass
+class Receiving:
+    """The receiving side of one sequence: a link's, or one peer's broadcasts."""
+
+    upto: int = 0  # every seq <= upto was delivered, in order
+    buffer: dict[int, wire.Message] = field(default_factory=dict)  # arrived early
+
+    def accept(self, msg: wire.Message, limit: int) -> list[wire.Message] | None:
+        """``msg`` (with ``seq`` > 0) arrived: what may be delivered now, in order.
+
+        None: a duplicate.  ``[]``: it came after a gap and waits in the buffer
+        (at most ``limit`` wait; beyond, the sender resends it later).
+        """
+        seq: int = msg.seq  # type: ignore[union-attr]
+        if seq <= self.upto or seq in self.buffer:
+            return None
+        if seq > self.upto + 1:
+            if len(self.buffer) < limit:
+                self.buffer[seq] = msg
+            return []
+        got = [msg]
+        upto = seq
+        while upto + 1 in self.buffer:
+            upto += 1
+            got.append(self.buffer.pop(upto))
+        self.upto = upto
+        return got
+
+
+@dataclass
+class Peer:
+    """Everything this participant knows about one peer."""
+
+    name: str
+    tx: Sending
+    rto: float
+    watched: bool = True  # its heartbeats are followed: it can be lost, back, left
+    rx: Receiving = field(default_factory=Receiving)  # the link peer -> me
+    brx: Receiving = field(default_factory=Receiving)  # the peer's broadcasts
+    acked_b: int = 0  # my broadcasts this peer acknowledged
+    ack_now: bool = False  # an explicit Ack at the end of this receive batch
+    nack: bool = False
+    last_nack: float = float("-inf")
+    state: str = "unknown"  # unknown | up | lost | left
+    heard: float | None = None
+    srtt: float | None = None
+    rttvar: float = 0.0
+    tel_time: float | None = None  # sample time of the latest telemetry from it
+    tel_heard: float | None = None
+    tel_stale: bool = False
+    retransmitted: int = 0
+    duplicates: int = 0
+
+    def stats(self) -> dict[str, Any]:
+        """State (``unwatched`` if its heartbeats are not followed), RTT, counts."""
+        return {
+            "state": self.state if self.watched else "unwatched",
+            "rtt_ms": None if self.srtt is None else round(self.srtt * 1e3, 3),
+            "retransmitted": self.retransmitted,
+            "duplicates": self.duplicates,
+        }
+
+    def measure(self, sample: float, s: LinkSettings) -> None:
+        """Fold a round-trip sample into the RTO (Jacobson)."""
+        if self.srtt is None:
+            self.srtt, self.rttvar = sample, sample / 2
+        else:
+            self.rttvar = 0.75 * self.rttvar + 0.25 * abs(self.srtt - sample)
+            self.srtt = 0.875 * self.srtt + 0.125 * sample
+        self.rto = min(max(self.srtt + 4 * self.rttvar, s.rto_min_s), s.rto_max_s)
+
+    def in_flight_window(self, s: LinkSettings) -> float:
+        """How recently sent a message may still be on its way (not resent on a nack)."""
+        if self.srtt is None:
+            return s.rto_min_s
+        return max(0.005, 1.5 * self.srtt)

@@ -1,0 +1,174 @@
+"""Socket set-up shared by the Out- and In-Bridge: options, CURVE, control pipes, monitors.
+
+Everything here runs on the thread that owns the socket (see
+:mod:`eamos.net.bridges` for the threading model).
+"""
+
+from __future__ import annotations
+
+import uuid
+from typing import TYPE_CHECKING, Any, Final
+
+import zmq
+from zmq.utils.monitor import parse_monitor_message
+
+from eamos.net.settings import DEFAULT_HEARTBEAT_MS
+
+if TYPE_CHECKING:
+    from eamos.net.keys import FleetKeys
+
+__all__ = [
+    "CMD_SEND",
+    "CMD_STOP",
+    "CMD_SUB",
+    "CONNECT_TIMEOUT_MS",
+    "DEFAULT_HEARTBEAT_MS",
+    "DEFAULT_HWM",
+    "DEFAULT_LINGER_MS",
+    "JOIN_TIMEOUT_S",
+    "RECONNECT_IVL_MAX_MS",
+    "RECONNECT_IVL_MS",
+    "Monitor",
+    "connection_options",
+    "control_pair",
+    "curve_client",
+    "curve_server",
+    "should_log",
+]
+
+DEFAULT_HWM: Final = 100_000
+"""Per-peer queue limit (messages).  ZeroMQ PUB sockets silently drop beyond it,
+so it is set far above any burst a mission produces (the default 1000 is not)."""
+
+DEFAULT_LINGER_MS: Final = 500
+"""How long ``Context.term()`` may wait to flush messages after ``close()``."""
+
+JOIN_TIMEOUT_S: Final = 5.0
+"""Upper bound on how long ``close()`` waits for a bridge thread to finish."""
+
+CONNECT_TIMEOUT_MS: Final = 1000
+"""A TCP connect attempt is abandoned (and retried) after this long."""
+
+RECONNECT_IVL_MS: Final = 100
+RECONNECT_IVL_MAX_MS: Final = 1000
+
+AUTH_FAILURES: Final[dict[int, str]] = {
+    zmq.EVENT_HANDSHAKE_FAILED_AUTH: "auth",
+    zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL: "protocol",
+    zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL: "no_detail",
+}
+MONITOR_EVENTS: Final = (
+    zmq.EVENT_HANDSHAKE_FAILED_AUTH
+    | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
+    | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL
+    | zmq.EVENT_HANDSHAKE_SUCCEEDED
+    | zmq.EVENT_DISCONNECTED
+)
+
+# Control-pipe commands (first frame).  Never on the network.
+CMD_SEND: Final = b"send"
+CMD_SUB: Final = b"sub"
+CMD_STOP: Final = b"stop"
+
+# Drops are logged one by one up to this count, then every LOG_EVERY-th, so a
+# flooding peer cannot fill the disk with log lines.
+LOG_FIRST: Final = 100
+LOG_EVERY: Final = 1000
+
+
+def control_pair(context: zmq.Context[Any], name: str) -> tuple[zmq.Socket[Any], zmq.Socket[Any]]:
+    """An inproc PAIR pipe ``(receiver, sender)`` with a unique address and no HWM."""
+    address = f"inproc://eamos-{name}-{uuid.uuid4().hex}"
+    rx = context.socket(zmq.PAIR)
+    tx = context.socket(zmq.PAIR)
+    for sock in (rx, tx):
+        sock.setsockopt(zmq.LINGER, 0)
+        sock.setsockopt(zmq.SNDHWM, 0)
+        sock.setsockopt(zmq.RCVHWM, 0)
+    rx.bind(address)
+    tx.connect(address)
+    return rx, tx
+
+
+def should_log(count: int) -> bool:
+    return count <= LOG_FIRST or count % LOG_EVERY == 0
+
+
+def connection_options(sock: zmq.Socket[Any], heartbeat_ms: int) -> None:
+    """Liveness and reconnection settings shared by both bridges' network sockets."""
+    if heartbeat_ms > 0:
+        sock.setsockopt(zmq.HEARTBEAT_IVL, heartbeat_ms)
+        sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, 5 * heartbeat_ms)
+        sock.setsockopt(zmq.HEARTBEAT_TTL, 5 * heartbeat_ms)
+    sock.setsockopt(zmq.CONNECT_TIMEOUT, CONNECT_TIMEOUT_MS)
+    sock.setsockopt(zmq.RECONNECT_IVL, RECONNECT_IVL_MS)
+    sock.setsockopt(zmq.RECONNECT_IVL_MAX, RECONNECT_IVL_MAX_MS)
+
+
+class Monitor:
+    """Reads one socket's monitor events on the bridge thread; logs handshake failures."""
+
+    def __init__(self, sock: zmq.Socket[Any], log: Any, peer: str) -> None:
+        self.socket = sock.get_monitor_socket(MONITOR_EVENTS)
+        self._owner = sock
+        self._log = log
+        self._peer = peer
+        self.failures = 0
+        self.connections = 0
+
+    def drain(self) -> None:
+        while True:
+            try:
+                frames = self.socket.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            try:
+                event = parse_monitor_message(frames)
+            except (ValueError, IndexError):  # pragma: no cover - libzmq wrote it
+                continue
+            kind = int(event["event"])
+            raw = event["endpoint"]
+            endpoint = raw.decode("utf-8", "replace") if isinstance(raw, bytes) else str(raw)
+            if kind in AUTH_FAILURES:
+                self.failures += 1
+                if should_log(self.failures):
+                    self._log.warning(
+                        "net.auth.failed",
+                        peer=self._peer,
+                        endpoint=endpoint,
+                        failure=AUTH_FAILURES[kind],
+                        code=event["value"],
+                        count=self.failures,
+                    )
+            elif kind == zmq.EVENT_HANDSHAKE_SUCCEEDED:
+                self.connections += 1
+                self._log.debug("net.connected", peer=self._peer, endpoint=endpoint)
+            elif kind == zmq.EVENT_DISCONNECTED:
+                self._log.debug("net.disconnected", peer=self._peer, endpoint=endpoint)
+
+    def close(self) -> None:
+        try:
+            self._owner.disable_monitor()
+        except zmq.ZMQError:
+            pass
+        self.socket.close(linger=0)
+
+
+def curve_server(sock: zmq.Socket[Any], keys: FleetKeys) -> None:
+    """Make ``sock`` (before it binds) a CURVE server that only ZAP-approved keys may join."""
+    from eamos.net.keys import ZAP_DOMAIN
+
+    sock.setsockopt(zmq.CURVE_SERVER, 1)
+    sock.setsockopt(zmq.CURVE_PUBLICKEY, keys.public)
+    sock.setsockopt(zmq.CURVE_SECRETKEY, keys.secret)
+    sock.setsockopt(zmq.ZAP_DOMAIN, ZAP_DOMAIN.encode())
+    # Without a ZAP handler on the context, refuse everyone (libzmq's default
+    # would be to accept any client key).
+    sock.setsockopt(zmq.ZAP_ENFORCE_DOMAIN, 1)
+
+
+def curve_client(sock: zmq.Socket[Any], keys: FleetKeys, server_key: bytes) -> None:
+    """Make ``sock`` (before it connects) a CURVE client of the server with ``server_key``."""
+    sock.setsockopt(zmq.CURVE_SERVERKEY, server_key)
+    sock.setsockopt(zmq.CURVE_PUBLICKEY, keys.public)
+    sock.setsockopt(zmq.CURVE_SECRETKEY, keys.secret)
