@@ -12,7 +12,7 @@ from pathlib import Path
 from types import FrameType
 
 from eamos.cli.exits import EXIT_CONNECT, EXIT_OK
-from eamos.hal.sim_vehicle import SimVehicle, VehicleOptions, parse_reject
+from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions, parse_reject
 
 
 def _home(text: str) -> tuple[float, float, float]:

@@ -30,7 +30,7 @@ from typing import Any
 
 from eamos.config import ConfigError
 from eamos.hal.api import AdapterError
-from eamos.hal.mavlink_settings import MavlinkSettings
+from eamos.hal.mavlink.settings import MavlinkSettings
 
 SIM_VEHICLE_KEYS = frozenset(
     {"autopilot", "speedup", "prearm_delay_s", "disarm_after_s", "sysid", "home", "reject"}

@@ -10,13 +10,13 @@ What other packages may use, by module:
 * :mod:`eamos.hal.api` (re-exported here): the :class:`Adapter` protocol
   (``run(command, done)`` takes a typed :class:`eamos.program.uniform.Command`),
   :class:`Telemetry`, :class:`ActionResult`, :class:`ActionHandle`, :class:`AdapterError`;
-* :mod:`eamos.hal.sim_core`: :class:`~eamos.hal.sim_core.SimCore`, the simulated
+* :mod:`eamos.hal.sim.core`: :class:`~eamos.hal.sim.core.SimCore`, the simulated
   quadcopter as pure logic stepped by its owner (virtual-time drivers), with
-  :class:`~eamos.hal.sim_settings.SimSettings`;
-* :mod:`eamos.hal.sim`, :mod:`eamos.hal.ground`, :mod:`eamos.hal.fake`,
-  :mod:`eamos.hal.mavlink`: the adapters (``make_adapter`` builds them);
-* :mod:`eamos.hal.mavlink_settings`: :class:`MavlinkSettings`;
-* :mod:`eamos.hal.sim_vehicle`: :class:`SimVehicle`, the MAVLink simulated vehicle.
+  :class:`~eamos.hal.sim.settings.SimSettings`;
+* :mod:`eamos.hal.sim.adapter`, :mod:`eamos.hal.ground`, :mod:`eamos.hal.fake`,
+  :mod:`eamos.hal.mavlink.adapter`: the adapters (``make_adapter`` builds them);
+* :mod:`eamos.hal.mavlink.settings`: :class:`MavlinkSettings`;
+* :mod:`eamos.hal.sitl.vehicle`: :class:`SimVehicle`, the MAVLink simulated vehicle.
 """
 
 from __future__ import annotations
@@ -46,10 +46,10 @@ def _lazy(module: str, name: str) -> AdapterFactory:
 #: Adapter kinds by their ``hal.adapter`` name (read-only).
 ADAPTERS: Mapping[str, AdapterFactory] = MappingProxyType(
     {
-        "sim": _lazy("eamos.hal.sim", "sim_adapter_from_settings"),
+        "sim": _lazy("eamos.hal.sim.adapter", "sim_adapter_from_settings"),
         "ground": _lazy("eamos.hal.ground", "ground_adapter_from_settings"),
         "fake": _lazy("eamos.hal.fake", "fake_adapter_from_settings"),
-        "mavlink": _lazy("eamos.hal.mavlink", "mavlink_adapter_from_settings"),
+        "mavlink": _lazy("eamos.hal.mavlink.adapter", "mavlink_adapter_from_settings"),
     }
 )
 

@@ -1,7 +1,7 @@
 """A pure kinematic quadcopter model and the local-to-global frame conversion.
 
 The model has no threads and no clock: callers advance it with
-:meth:`Quadcopter.step`.  It is shared by :class:`eamos.hal.sim.SimAdapter`
+:meth:`Quadcopter.step`.  It is shared by :class:`eamos.hal.sim.adapter.SimAdapter`
 and by the simulated MAVLink vehicle, so both fly the same way.
 
 Motion model.  Horizontal (X/Y, as one 2-D vector) and vertical (Z) motion are

@@ -1,7 +1,7 @@
 """The vehicles of a virtual run: simulated quadcopters stepped by the driver, ground pauses.
 
 The driver only needs what :class:`Vehicle` lists; :func:`sim_vehicles` makes
-the simulator's pure core (:class:`eamos.hal.sim_core.SimCore`) for every
+the simulator's pure core (:class:`eamos.hal.sim.core.SimCore`) for every
 drone, and tests or the pre-flight checker may pass their own factory.
 """
 
@@ -13,8 +13,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from ..hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
-from ..hal.sim_core import SIM_DT_S, SimCore
-from ..hal.sim_settings import SimSettings
+from ..hal.sim import SIM_DT_S, SimCore, SimSettings
 from ..program.uniform import Command
 
 #: A finished action: its done callback and its result.

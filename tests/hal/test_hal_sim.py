@@ -17,7 +17,7 @@ from eamos.hal import ADAPTERS, AdapterError, make_adapter
 from eamos.hal.fake import FakeAdapter
 from eamos.hal.ground import GroundAdapter
 from eamos.hal.kinematics import GeoFrame
-from eamos.hal.sim import SimAdapter, SimSettings, Waypoint
+from eamos.hal.sim.adapter import SimAdapter, SimSettings, Waypoint
 from eamos.logs import make_logger, read_log
 from tests.support.sim_fixtures import SimFactory
 

@@ -12,8 +12,8 @@ from typing import Any
 import pytest
 
 from eamos.hal.api import ActionHandle, ActionResult, Telemetry
-from eamos.hal.sim_core import PAYLOAD_DELAY_S, SIM_DT_S, SimCore
-from eamos.hal.sim_settings import SimSettings, Waypoint
+from eamos.hal.sim.core import PAYLOAD_DELAY_S, SIM_DT_S, SimCore
+from eamos.hal.sim.settings import SimSettings, Waypoint
 from eamos.program.uniform import (
     Arm,
     Command,

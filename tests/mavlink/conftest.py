@@ -8,8 +8,8 @@ from typing import Any, Literal
 
 import pytest
 
-from eamos.hal.mavlink import MavlinkAdapter, MavlinkSettings
-from eamos.hal.sim_vehicle import SimVehicle, VehicleOptions
+from eamos.hal.mavlink.adapter import MavlinkAdapter, MavlinkSettings
+from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions
 from eamos.logs import close_logger, make_logger
 
 from .mavlink_helpers import Flight, RawClient, connections

@@ -16,9 +16,9 @@ from typing import Any
 
 from eamos.ground.vehicles import free_port
 from eamos.hal.api import ActionHandle, ActionResult, Telemetry
-from eamos.hal.mavlink import MavlinkAdapter
-from eamos.hal.mavlink_link import load_mavutil, open_transport
-from eamos.hal.sim_vehicle import SimVehicle
+from eamos.hal.mavlink.adapter import MavlinkAdapter
+from eamos.hal.mavlink.link import load_mavutil, open_transport
+from eamos.hal.sitl.vehicle import SimVehicle
 from eamos.program.uniform import decode_command
 
 #: Generous bound for one wait on a shared, small machine.

@@ -11,7 +11,7 @@ import pytest
 
 from eamos.ground.vehicles import free_port
 from eamos.hal.api import AdapterError
-from eamos.hal.sim_vehicle import (
+from eamos.hal.sitl.vehicle import (
     DENIED,
     FAILED,
     TEMPORARILY_REJECTED,

@@ -29,7 +29,7 @@ from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, PositionNedYaw
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
-from eamos.hal.sim_vehicle import SimVehicle, VehicleOptions
+from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions
 
 from .mavlink_helpers import connections
 

@@ -15,7 +15,7 @@ import time
 import pytest
 
 from eamos.ground.vehicles import free_port
-from eamos.hal.sim_vehicle import (
+from eamos.hal.sitl.vehicle import (
     ACCEPTED,
     DENIED,
     FAILED,

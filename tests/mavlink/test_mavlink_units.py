@@ -9,22 +9,22 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from eamos.hal import ADAPTERS, AdapterError, make_adapter
-from eamos.hal.autopilots import (
+from eamos.hal.mavlink.adapter import MavlinkAdapter, MavlinkSettings
+from eamos.hal.mavlink.autopilots import (
     ArduPilot,
     Px4,
     autopilot_from_heartbeat,
     px4_custom_mode,
     px4_mode_of,
 )
-from eamos.hal.mavlink import MavlinkAdapter, MavlinkSettings
-from eamos.hal.mavlink_frames import (
+from eamos.hal.mavlink.frames import (
     NedOrigin,
     mission_to_ned,
     ned_to_mission,
     ned_velocity_to_mission,
 )
-from eamos.hal.mavlink_link import check_connection, result_name
-from eamos.hal.sim_vehicle import ACCEPTED, DENIED, FAILED, parse_reject
+from eamos.hal.mavlink.link import check_connection, result_name
+from eamos.hal.sitl.vehicle import ACCEPTED, DENIED, FAILED, parse_reject
 from eamos.logs import make_logger
 
 pytestmark = pytest.mark.timeout(60)

@@ -11,11 +11,11 @@ from typing import Any
 
 import pytest
 
-from eamos.hal.sim_core import SIM_DT_S
-from eamos.hal.sim_vehicle import PERSONALITIES
-from eamos.hal.sim_vehicle_core import VehicleCore
-from eamos.hal.sim_vehicle_inbox import Inbox
-from eamos.hal.sim_vehicle_wire import (
+from eamos.hal.sim.core import SIM_DT_S
+from eamos.hal.sitl.core import VehicleCore
+from eamos.hal.sitl.inbox import Inbox
+from eamos.hal.sitl.vehicle import PERSONALITIES
+from eamos.hal.sitl.wire import (
     ACCEPTED,
     DENIED,
     FAILED,

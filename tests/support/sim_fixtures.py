@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from eamos.hal.sim import SimAdapter, SimSettings
+from eamos.hal.sim.adapter import SimAdapter, SimSettings
 from eamos.logs import close_logger, make_logger
 
 SimFactory = Callable[..., SimAdapter]

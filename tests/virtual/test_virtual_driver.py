@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 from eamos.compiler import compile_file, compile_mission
 from eamos.hal.api import ActionHandle, ActionResult, Telemetry
-from eamos.hal.sim_settings import SimSettings
+from eamos.hal.sim.settings import SimSettings
 from eamos.program.uniform import Command
 from eamos.virtual import STEP_S, VirtualMission, run_virtual, sim_vehicles
 

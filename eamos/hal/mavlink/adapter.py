@@ -4,12 +4,12 @@
 (serial, UDP or TCP).  It detects the autopilot from the vehicle's
 HEARTBEAT (or takes ``autopilot`` from the settings).  The work is split:
 
-* :mod:`eamos.hal.mavlink_link`: the connection, its reader thread (the
+* :mod:`eamos.hal.mavlink.link`: the connection, its reader thread (the
   vehicle's state under one condition), sends, the periodic ticker;
-* :mod:`eamos.hal.mavlink_vehicle`: the vehicle in mission terms (home,
+* :mod:`eamos.hal.mavlink.vehicle`: the vehicle in mission terms (home,
   frames, modes, telemetry samples, PX4's setpoint stream);
-* :mod:`eamos.hal.mavlink_flight`: the flight procedures and their waits;
-* :mod:`eamos.hal.autopilots`: what differs between PX4 and ArduPilot;
+* :mod:`eamos.hal.mavlink.flight`: the flight procedures and their waits;
+* :mod:`eamos.hal.mavlink.autopilots`: what differs between PX4 and ArduPilot;
 * this module: the settings and the Adapter protocol (threads per action,
   exactly one ``done`` per action, cancel, abort, close, telemetry).
 
@@ -17,7 +17,7 @@ Frames.  Missions speak X north, Y east, Z up from home; the vehicle speaks
 local NED.  Home is the first LOCAL_POSITION_NED seen after :meth:`start`
 (the vehicle is expected on the ground then); the ground height is taken
 again before every arming, because PX4's local z on the ground drifts
-between flights.  See :mod:`eamos.hal.mavlink_frames`.
+between flights.  See :mod:`eamos.hal.mavlink.frames`.
 
 Actions.  Each action runs on a thread of its own and waits for the vehicle
 with ``Condition.wait_for`` against monotonic deadlines.  It completes on
@@ -73,11 +73,11 @@ from eamos.hal.api import (
     DoneCallback,
     TelemetryCallback,
 )
-from eamos.hal.autopilots import CommandRejected
-from eamos.hal.mavlink_flight import Ended, Failed, Flight, Run, RunKind, TimedOut
-from eamos.hal.mavlink_frames import Vector
-from eamos.hal.mavlink_settings import MavlinkSettings
-from eamos.hal.mavlink_vehicle import MavlinkVehicle
+from eamos.hal.mavlink.autopilots import CommandRejected
+from eamos.hal.mavlink.flight import Ended, Failed, Flight, Run, RunKind, TimedOut
+from eamos.hal.mavlink.frames import Vector
+from eamos.hal.mavlink.settings import MavlinkSettings
+from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.logs import make_logger
 from eamos.program.uniform import Arm, Command, Disarm, PauseFor, Payload
 

@@ -22,7 +22,7 @@ import math
 from abc import ABC, abstractmethod
 from typing import Literal, Protocol
 
-from eamos.hal.mavlink_frames import Vector
+from eamos.hal.mavlink.frames import Vector
 
 #: HEARTBEAT.autopilot values (MAV_AUTOPILOT).
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3

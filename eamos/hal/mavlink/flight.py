@@ -8,8 +8,8 @@ early when the action is finished by someone else (cancel, abort, close), when
 HEARTBEATs stop, or when a guard sees that someone else took the vehicle over.
 
 What differs between PX4 and ArduPilot is asked of the vehicle's
-:class:`~eamos.hal.autopilots.Autopilot`, through a :class:`RunControl`: the
-:class:`~eamos.hal.autopilots.Controller` bound to one running action.
+:class:`~eamos.hal.mavlink.autopilots.Autopilot`, through a :class:`RunControl`: the
+:class:`~eamos.hal.mavlink.autopilots.Controller` bound to one running action.
 """
 
 from __future__ import annotations
@@ -22,15 +22,15 @@ from dataclasses import dataclass
 from typing import Literal
 
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
-from eamos.hal.autopilots import CommandRejected
-from eamos.hal.mavlink_frames import Vector, mission_to_ned
-from eamos.hal.mavlink_link import (
+from eamos.hal.mavlink.autopilots import CommandRejected
+from eamos.hal.mavlink.frames import Vector, mission_to_ned
+from eamos.hal.mavlink.link import (
     MAV_RESULT_ACCEPTED,
     MAV_RESULT_TEMPORARILY_REJECTED,
     LinkState,
     result_name,
 )
-from eamos.hal.mavlink_vehicle import MavlinkVehicle
+from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.program.uniform import (
     Arm,
     Command,
@@ -93,7 +93,7 @@ Guard = Callable[[LinkState], str | None]
 
 
 class RunControl:
-    """The :class:`~eamos.hal.autopilots.Controller` of one run: commands, targets, waits.
+    """The :class:`~eamos.hal.mavlink.autopilots.Controller` of one run: commands, targets, waits.
 
     Every vehicle-changing step takes the vehicle's command lock and checks
     that the run is still going, so a cancel's hold (which takes the same lock

@@ -17,7 +17,7 @@ Heartbeat loss is tracked here: when no HEARTBEAT came for more than
 ``heartbeat_timeout_s`` the state's ``link_ok`` turns False (and waiters
 wake); the next HEARTBEAT turns it True again.  A TCP connection the vehicle
 closes is re-dialled every half second.  How each message changes the state
-is :class:`~eamos.hal.mavlink_state.StateTracker`'s business.
+is :class:`~eamos.hal.mavlink.state.StateTracker`'s business.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
-from eamos.hal.mavlink_state import (
+from eamos.hal.mavlink.state import (
     MAV_AUTOPILOT_INVALID,
     MAV_RESULT_NAMES,
     MAV_TYPE_GCS,

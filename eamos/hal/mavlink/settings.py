@@ -10,8 +10,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any, Literal
 
-from eamos.hal.autopilots import TakeoffMode
-from eamos.hal.mavlink_link import check_connection
+from eamos.hal.mavlink.autopilots import TakeoffMode
+from eamos.hal.mavlink.link import check_connection
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, number, require_mapping
 
 

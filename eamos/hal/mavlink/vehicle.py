@@ -1,7 +1,7 @@
 """One MAVLink autopilot in mission terms: home, frames, modes, and what it is being told.
 
-:class:`MavlinkVehicle` sits between the raw link (:mod:`eamos.hal.mavlink_link`)
-and the flight procedures (:mod:`eamos.hal.mavlink_flight`).  It connects
+:class:`MavlinkVehicle` sits between the raw link (:mod:`eamos.hal.mavlink.link`)
+and the flight procedures (:mod:`eamos.hal.mavlink.flight`).  It connects
 (waits for the HEARTBEAT, detects PX4 or ArduPilot, requests telemetry), knows
 where home is in the vehicle's local NED frame, turns the link's state into
 mission-frame positions and :class:`~eamos.hal.api.Telemetry` samples, and
@@ -22,10 +22,10 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from eamos.hal.api import AdapterError, Telemetry
-from eamos.hal.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
 from eamos.hal.kinematics import EARTH_RADIUS_M, GeoFrame
-from eamos.hal.mavlink_frames import NedOrigin, Vector, ned_to_mission
-from eamos.hal.mavlink_link import (
+from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
+from eamos.hal.mavlink.frames import NedOrigin, Vector, ned_to_mission
+from eamos.hal.mavlink.link import (
     MAV_SYS_STATUS_PREARM_CHECK,
     LinkError,
     LinkState,
@@ -35,7 +35,7 @@ from eamos.hal.mavlink_link import (
 from eamos.hal.settings import field_error
 
 if TYPE_CHECKING:
-    from eamos.hal.mavlink_settings import MavlinkSettings
+    from eamos.hal.mavlink.settings import MavlinkSettings
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_FRAME_LOCAL_NED = 1

@@ -1,6 +1,6 @@
 """A simulated quadcopter adapter built on the kinematic model.
 
-The vehicle itself is the pure :class:`~eamos.hal.sim_core.SimCore` (no
+The vehicle itself is the pure :class:`~eamos.hal.sim.core.SimCore` (no
 threads, no clock); :class:`SimAdapter` runs one thread that steps it every
 :data:`SIM_DT_S` simulated seconds.  The thread paces itself in wall time
 with ``stop_event.wait(...)``: that wait *is* the simulator's clock, and
@@ -64,8 +64,8 @@ from eamos.hal.api import (
     TelemetryCallback,
 )
 from eamos.hal.kinematics import VehicleState
-from eamos.hal.sim_core import SIM_DT_S, Finished, SimCore
-from eamos.hal.sim_settings import SimSettings, Waypoint
+from eamos.hal.sim.core import SIM_DT_S, Finished, SimCore
+from eamos.hal.sim.settings import SimSettings, Waypoint
 from eamos.logs import make_logger
 from eamos.program.uniform import Command
 

@@ -3,9 +3,9 @@
 :class:`SimCore` holds everything the simulated vehicle does (the kinematic
 model, the action rules and timeouts, the scripted pilot, battery drain,
 telemetry sampling and the adapter log events, all described in
-:mod:`eamos.hal.sim`) and advances only when told: each :meth:`SimCore.step`
+:mod:`eamos.hal.sim.adapter`) and advances only when told: each :meth:`SimCore.step`
 is one :data:`SIM_DT_S` step of simulated time.  Whoever owns the core is its
-clock: :class:`eamos.hal.sim.SimAdapter` steps it from a thread paced in wall
+clock: :class:`eamos.hal.sim.adapter.SimAdapter` steps it from a thread paced in wall
 time; a virtual-time driver steps it as fast as it likes.
 
 Requests (:meth:`~SimCore.run`, :meth:`~SimCore.cancel`, :meth:`~SimCore.abort`)
@@ -37,7 +37,7 @@ from typing import Any, Literal
 
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
 from eamos.hal.kinematics import GeoFrame, Quadcopter, VehicleState
-from eamos.hal.sim_settings import SimSettings, Waypoint
+from eamos.hal.sim.settings import SimSettings, Waypoint
 from eamos.program.uniform import (
     Arm,
     Command,

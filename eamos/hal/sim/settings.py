@@ -1,7 +1,7 @@
 """Settings of one simulated quadcopter (:class:`SimSettings`) and its scripted pilot's path.
 
-Shared by the pure simulator core (:mod:`eamos.hal.sim_core`) and its threaded
-pacer (:mod:`eamos.hal.sim`); see :mod:`eamos.hal.sim` for what each setting does.
+Shared by the pure simulator core (:mod:`eamos.hal.sim.core`) and its threaded
+pacer (:mod:`eamos.hal.sim.adapter`); see :mod:`eamos.hal.sim.adapter` for what each setting does.
 """
 
 from __future__ import annotations

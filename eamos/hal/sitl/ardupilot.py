@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import math
 
-from eamos.hal.autopilots import ARDUCOPTER_MODES, MAV_AUTOPILOT_ARDUPILOTMEGA
-from eamos.hal.sim_vehicle_core import Params, Personality, VehicleCore
-from eamos.hal.sim_vehicle_wire import (
+from eamos.hal.mavlink.autopilots import ARDUCOPTER_MODES, MAV_AUTOPILOT_ARDUPILOTMEGA
+from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.wire import (
     ACCEPTED,
     ARDUPILOT_READY_S,
     FAILED,

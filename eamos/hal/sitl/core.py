@@ -4,15 +4,15 @@
 kinematic model, arming and disarming (pre-arm delay, automatic disarm before
 take-off and after touchdown, forced disarm), modes, parameters
 (:class:`ParamTable`) and STATUSTEXT; the messages that act on it are decoded
-by :mod:`eamos.hal.sim_vehicle_inbox`.  Everything that differs between the
-two is asked of its :class:`Personality` (:mod:`eamos.hal.sim_vehicle_px4`,
-:mod:`eamos.hal.sim_vehicle_ardupilot`): mode names and numbers, arming rules
+by :mod:`eamos.hal.sitl.inbox`.  Everything that differs between the
+two is asked of its :class:`Personality` (:mod:`eamos.hal.sitl.px4`,
+:mod:`eamos.hal.sitl.ardupilot`): mode names and numbers, arming rules
 and texts, take-off, landing and repositioning, setpoint streams, parameters
 and their wire encoding.
 
 The core owns no thread and no connection: its owner
-(:class:`eamos.hal.sim_vehicle.SimVehicle`) feeds it messages (through an
-:class:`~eamos.hal.sim_vehicle_inbox.Inbox`), steps it
+(:class:`eamos.hal.sitl.vehicle.SimVehicle`) feeds it messages (through an
+:class:`~eamos.hal.sitl.inbox.Inbox`), steps it
 (:meth:`VehicleCore.step`) and gives it a ``send`` function.  The only clock
 it reads is the injected ``wall`` clock (PX4's setpoint-loss check also counts
 wall seconds).
@@ -25,9 +25,9 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from eamos.hal.kinematics import GeoFrame, Quadcopter
-from eamos.hal.sim_core import SIM_DT_S
-from eamos.hal.sim_vehicle_streams import Identity, Send, Status, Streams
-from eamos.hal.sim_vehicle_wire import (
+from eamos.hal.sim.core import SIM_DT_S
+from eamos.hal.sitl.streams import Identity, Send, Status, Streams
+from eamos.hal.sitl.wire import (
     BOOT_S,
     LAND_DISARM_S,
     PREARM_TEXT_PERIOD_S,

@@ -2,7 +2,7 @@
 
 :class:`Inbox` decodes what a GCS sends (HEARTBEAT, COMMAND_LONG/COMMAND_INT,
 SET_POSITION_TARGET_*, REQUEST_DATA_STREAM, PARAM_*) and acts on the
-:class:`~eamos.hal.sim_vehicle_core.VehicleCore`; every command gets exactly
+:class:`~eamos.hal.sitl.core.VehicleCore`; every command gets exactly
 one COMMAND_ACK (ACCEPTED, a refusal, UNSUPPORTED, or a ``reject`` test fault).
 Where PX4 and ArduPilot differ it asks the vehicle's personality.
 """
@@ -13,8 +13,8 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from eamos.hal.sim_vehicle_core import VehicleCore
-from eamos.hal.sim_vehicle_wire import (
+from eamos.hal.sitl.core import VehicleCore
+from eamos.hal.sitl.wire import (
     ACCEPTED,
     CMD_COMPONENT_ARM_DISARM,
     CMD_DO_REPOSITION,

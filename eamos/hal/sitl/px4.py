@@ -21,9 +21,9 @@ from __future__ import annotations
 import math
 import struct
 
-from eamos.hal.autopilots import MAV_AUTOPILOT_PX4, PX4_MODES, px4_custom_mode
-from eamos.hal.sim_vehicle_core import Params, Personality, VehicleCore
-from eamos.hal.sim_vehicle_wire import (
+from eamos.hal.mavlink.autopilots import MAV_AUTOPILOT_PX4, PX4_MODES, px4_custom_mode
+from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.wire import (
     ACCEPTED,
     DEFAULT_STREAM_RATES,
     DENIED,

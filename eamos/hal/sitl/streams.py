@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from eamos.hal.kinematics import GeoFrame, VehicleState
-from eamos.hal.sim_vehicle_wire import (
+from eamos.hal.sitl.wire import (
     ACCEPTED,
     BOOT_S,
     DATA_STREAMS,

@@ -42,13 +42,13 @@ It flies the same :class:`~eamos.hal.kinematics.Quadcopter` model as the
 ``sim`` adapter, stepped on its own simulated clock (paced by
 ``Event.wait``, ``speedup`` times real time).  The parts:
 
-* :mod:`eamos.hal.sim_vehicle_core`: what both autopilots share (state,
+* :mod:`eamos.hal.sitl.core`: what both autopilots share (state,
   arming, modes, commands, parameters), asking a personality where they differ;
-* :mod:`eamos.hal.sim_vehicle_px4` and :mod:`eamos.hal.sim_vehicle_ardupilot`:
+* :mod:`eamos.hal.sitl.px4` and :mod:`eamos.hal.sitl.ardupilot`:
   the two personalities;
-* :mod:`eamos.hal.sim_vehicle_inbox`: the messages it understands, and its answers;
-* :mod:`eamos.hal.sim_vehicle_streams`: HEARTBEAT and telemetry streams;
-* :mod:`eamos.hal.sim_vehicle_wire`: MAVLink numbers, :class:`VehicleOptions`,
+* :mod:`eamos.hal.sitl.inbox`: the messages it understands, and its answers;
+* :mod:`eamos.hal.sitl.streams`: HEARTBEAT and telemetry streams;
+* :mod:`eamos.hal.sitl.wire`: MAVLink numbers, :class:`VehicleOptions`,
   :func:`parse_reject`;
 * this module: :class:`SimVehicle`, the thread and the connection.
 
@@ -70,13 +70,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from eamos.hal.mavlink_link import load_mavutil
-from eamos.hal.sim import paced_ticks
-from eamos.hal.sim_vehicle_ardupilot import ArduPilotPersonality
-from eamos.hal.sim_vehicle_core import Params, Personality, VehicleCore
-from eamos.hal.sim_vehicle_inbox import Inbox
-from eamos.hal.sim_vehicle_px4 import Px4Personality
-from eamos.hal.sim_vehicle_wire import (
+from eamos.hal.mavlink.link import load_mavutil
+from eamos.hal.sim.adapter import paced_ticks
+from eamos.hal.sitl.ardupilot import ArduPilotPersonality
+from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.inbox import Inbox
+from eamos.hal.sitl.px4 import Px4Personality
+from eamos.hal.sitl.wire import (
     ACCEPTED,
     DENIED,
     FAILED,

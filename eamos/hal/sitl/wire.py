@@ -1,7 +1,7 @@
 """The simulated MAVLink vehicle's wire: MAVLink numbers, build options, ``--reject`` parsing.
 
-Shared by the vehicle core (:mod:`eamos.hal.sim_vehicle_core`), its PX4 and
-ArduPilot personalities and the threaded vehicle (:mod:`eamos.hal.sim_vehicle`).
+Shared by the vehicle core (:mod:`eamos.hal.sitl.core`), its PX4 and
+ArduPilot personalities and the threaded vehicle (:mod:`eamos.hal.sitl.vehicle`).
 The numbers are kept here, not read from pymavlink, so the simulator reads
 (and imports) without pymavlink loaded.
 """
@@ -16,7 +16,7 @@ from types import ModuleType
 from typing import Any, Literal
 
 from eamos.hal.kinematics import Limits
-from eamos.hal.mavlink_link import load_mavutil
+from eamos.hal.mavlink.link import load_mavutil
 
 AutopilotName = Literal["px4", "ardupilot"]
 

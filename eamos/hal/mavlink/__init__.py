@@ -1,0 +1,14 @@
+"""The MAVLink adapter: PX4 and ArduPilot autopilots (real, SITL, or ``eamos-sim-vehicle``).
+
+Modules: :mod:`.adapter` (the adapter the uniform API drives), :mod:`.flight` (one
+action at a time: arm, take off, move, land, cancel), :mod:`.vehicle` (the vehicle's
+state from telemetry), :mod:`.link` and :mod:`.state` (the MAVLink connection and the
+messages it reads), :mod:`.autopilots` (what differs between PX4 and ArduPilot),
+:mod:`.frames` (mission frame <-> NED), :mod:`.settings` (the ``hal`` section).
+Importing this package does not load pymavlink; connecting does.
+"""
+
+from eamos.hal.mavlink.adapter import MavlinkAdapter, mavlink_adapter_from_settings
+from eamos.hal.mavlink.settings import MavlinkSettings
+
+__all__ = ["MavlinkAdapter", "MavlinkSettings", "mavlink_adapter_from_settings"]

@@ -1,0 +1,22 @@
+"""The simulated drone adapter: a kinematic quadcopter in this process.
+
+:class:`SimCore` is the vehicle with no thread and no clock (``step()`` advances it
+one :data:`SIM_DT_S`); :class:`SimAdapter` paces a core in (scaled) real time for
+``eamos-node``; the virtual-time driver (:mod:`eamos.virtual`) steps cores itself.
+"""
+
+from eamos.hal.sim.adapter import SimAdapter, paced_ticks, sim_adapter_from_settings
+from eamos.hal.sim.core import PAYLOAD_DELAY_S, SIM_DT_S, Finished, SimCore
+from eamos.hal.sim.settings import SimSettings, Waypoint
+
+__all__ = [
+    "PAYLOAD_DELAY_S",
+    "SIM_DT_S",
+    "Finished",
+    "SimAdapter",
+    "SimCore",
+    "SimSettings",
+    "Waypoint",
+    "paced_ticks",
+    "sim_adapter_from_settings",
+]
