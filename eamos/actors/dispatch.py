@@ -3,29 +3,39 @@
 A drone program has hundreds of nodes (the paper's stress test: 634 on one
 drone).  One OS thread per node actor, as :class:`pykka.ThreadingActor` does,
 costs about a millisecond per thread to start on a small companion computer
-and a context switch per message.  :class:`PooledActor` keeps Pykka's whole
-contract (``ActorRef.tell``/``ask``, proxies, futures, ``on_start``/``on_stop``/
-``on_failure``, stop semantics, the registry) but runs on the worker threads
-of one :class:`Dispatcher` per runtime: an actor with mail is *scheduled*; a
-worker takes it, handles a batch of its messages, and hands it back.  An actor
-is never run by two workers at once, so its messages are handled one at a
-time and in order, as with a thread of its own.
+and a context switch per message.  :class:`PooledActor` keeps Pykka's contract
+(``ActorRef.tell``/``ask``, proxies, futures, ``on_start``/``on_stop``, stop
+semantics, the registry) but runs on the worker threads of one
+:class:`Dispatcher` per runtime: an actor with mail is *scheduled*; a worker
+takes it, handles a batch of its messages, and hands it back.  An actor is
+never run by two workers at once, so its messages are handled one at a time
+and in order, as with a thread of its own.
 
-Pooled actors must not block waiting for another pooled actor (no ``ask(...)
-.get()`` between them): workers are few.  Node actors only ``tell``.
+Failures differ from Pykka on purpose: an exception raised by a ``tell``-ed
+message calls :meth:`PooledActor.on_failure` and the actor *lives on* unless
+the hook stops it (a mission node must resolve ``failed``, not vanish); the
+default hook does what Pykka does (log with the traceback, stop).  A
+``BaseException`` stops the actor and every other one, as in Pykka.
+
+Pykka's internals are used only through :mod:`.pykka_seam`.  Pooled actors
+must not block waiting for another pooled actor (no ``ask(...).get()`` between
+them): workers are few.  Node actors only ``tell``.
 """
 
 from __future__ import annotations
 
 import logging
-import sys
 import threading
 from collections import deque
-from typing import Any
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
 
-import pykka
-from pykka import ActorDeadError, messages
-from pykka._envelope import Envelope
+from .pykka_seam import ExcInfo, ExternalLoopActor
+
+if TYPE_CHECKING:
+    from .pykka_seam import Envelope
+
+__all__ = ["Dispatcher", "PooledActor"]
 
 logger = logging.getLogger(__name__)
 
@@ -47,6 +57,7 @@ class Dispatcher:
             thread.start()
 
     def schedule(self, actor: PooledActor) -> None:
+        """Queue ``actor`` for a worker (it has mail, or has not started yet)."""
         with self._cond:
             self._ready.append(actor)
             self._cond.notify()
@@ -59,7 +70,10 @@ class Dispatcher:
                 if not self._ready:
                     return
                 actor = self._ready.popleft()
-            actor._run_slice()
+            try:
+                actor._run_slice()
+            except BaseException:  # a worker serves every actor: it must survive any one
+                logger.exception("dispatcher: %s escaped its actor", actor)
 
     def shutdown(self, timeout_s: float = 10.0) -> None:
         """Finish the scheduled work, then stop the workers (stop the actors first)."""
@@ -96,6 +110,11 @@ class _Inbox:
         with self._lock:
             return not self._queue
 
+    def claim(self) -> None:
+        """Mark the actor scheduled (its first slice runs ``on_start``)."""
+        with self._lock:
+            self._scheduled = True
+
     def take_batch(self) -> list[Envelope[Any]]:
         with self._lock:
             n = min(_BATCH, len(self._queue))
@@ -110,11 +129,12 @@ class _Inbox:
             return False
 
 
-class PooledActor(pykka.Actor):
+class PooledActor(ExternalLoopActor):
     """A Pykka actor that runs on a :class:`Dispatcher` instead of its own thread.
 
     Subclasses take ``dispatcher`` as their first constructor argument and pass
-    it to ``super().__init__(dispatcher)``.
+    it to ``super().__init__(dispatcher)``.  Override :meth:`on_failure` to
+    decide what an exception in a message handler means for the actor.
     """
 
     def __init__(self, dispatcher: Dispatcher, *args: Any, **kwargs: Any) -> None:
@@ -122,62 +142,54 @@ class PooledActor(pykka.Actor):
         self._started = False
         super().__init__(*args, **kwargs)
 
-    def _create_actor_inbox(self) -> _Inbox:  # type: ignore[override]
+    def new_inbox(self) -> _Inbox:
         return _Inbox(self)
 
-    @staticmethod
-    def _create_future() -> pykka.Future[Any]:
-        return pykka.ThreadingFuture()
-
-    def _start_actor_loop(self) -> None:
+    def loop_started(self) -> None:
         # on_start runs on a worker, before any message, like a thread's first step.
-        inbox: _Inbox = self.actor_inbox  # type: ignore[assignment]
-        with inbox._lock:
-            inbox._scheduled = True
+        self._pooled_inbox.claim()
         self._dispatcher.schedule(self)
 
+    @property
+    def _pooled_inbox(self) -> _Inbox:
+        inbox = self.actor_inbox
+        assert isinstance(inbox, _Inbox)
+        return inbox
+
+    def on_failure(
+        self,
+        exception_type: type[BaseException] | None,
+        exception_value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        """A ``tell``-ed message raised: by default, log it with its traceback and stop.
+
+        Called on the actor's worker with the exception's ``sys.exc_info()``.  An
+        override that returns keeps the actor alive (it may stop it itself); one
+        that raises stops it, with both tracebacks logged.
+        """
+        assert exception_type is not None and exception_value is not None
+        self.die((exception_type, exception_value, traceback))
+
+    def failed(self, exc_info: ExcInfo) -> None:
+        try:
+            self.on_failure(*exc_info)
+        except Exception as hook_error:
+            logger.error("%s: on_failure raised", self, exc_info=exc_info)
+            self.die((type(hook_error), hook_error, hook_error.__traceback__))
+
     def _run_slice(self) -> None:
-        inbox: _Inbox = self.actor_inbox  # type: ignore[assignment]
+        inbox = self._pooled_inbox
         if not self._started:
             self._started = True
-            self._actor_loop_setup()
+            self.begin()
         for envelope in inbox.take_batch():
             if self.actor_stopped.is_set():
-                self._reject(envelope)
-                continue
-            self._handle(envelope)
+                self.refuse(envelope)
+            else:
+                self.deliver(envelope)
         if self.actor_stopped.is_set():
             while not inbox.empty():
-                self._reject(inbox.get())
+                self.refuse(inbox.get())
         if inbox.release():
             self._dispatcher.schedule(self)
-
-    def _handle(self, envelope: Envelope[Any]) -> None:
-        # The body of pykka.Actor._actor_loop_running for one envelope.
-        try:
-            response = self._handle_receive(envelope.message)
-            if envelope.reply_to is not None:
-                envelope.reply_to.set(response)
-        except Exception:
-            if envelope.reply_to is not None:
-                envelope.reply_to.set_exception()
-            else:
-                self._handle_failure(*sys.exc_info())
-                try:
-                    self.on_failure(*sys.exc_info())
-                except Exception:
-                    self._handle_failure(*sys.exc_info())
-
-    def _reject(self, envelope: Envelope[Any]) -> None:
-        if envelope.reply_to is None:
-            return
-        if isinstance(envelope.message, messages._ActorStop):
-            envelope.reply_to.set(None)
-        else:
-            envelope.reply_to.set_exception(
-                exc_info=(
-                    ActorDeadError,
-                    ActorDeadError(f"{self.actor_ref} stopped before handling the message"),
-                    None,
-                )
-            )

@@ -2,11 +2,17 @@
 
 :class:`DroneRuntime` loads a drone program and builds, for that drone only:
 one :class:`~.node.MissionNode` actor per native MDG node, the uniform-API
-actor over its adapter, a :class:`TelemetryBoard` (latest property values,
-pushed to the conditions that read them), an :class:`Outbox` (the Out-Bridge) and an
-In-Bridge to the other participants, and a :class:`DroneExecutive` that keeps
+actor over its adapter, a :class:`~.board.TelemetryBoard` (latest property
+values, pushed to the conditions that read them), an :class:`~.outbox.Outbox`
+(the Out-Bridge) and an In-Bridge (:class:`~.inbound.InRouter` on the link) to
+the other participants, and a :class:`~.executive.DroneExecutive` that keeps
 the records.  It holds no global state: two runtimes live happily in one
 process (as the tests do).
+
+Failures of its own parts (not the nodes', which resolve ``failed``) go to a
+:class:`~.failure.FailurePolicy`: logged once with the traceback, the drone
+aborts (it lands), the drones waiting for it are released, and the ground
+station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).
 """
 
 from __future__ import annotations
@@ -21,376 +27,51 @@ from typing import Any
 import pykka
 import zmq
 
-from ..hal.api import Adapter, AdapterError, Telemetry
+from ..hal.api import Adapter, AdapterError
 from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
 from ..net.keys import FleetKeys, KeysError, plain_refusal
-from ..net.link import Link, LinkSettings, PeerStatus, TelemetryStale
+from ..net.link import Link, LinkSettings
 from ..program.format import DroneProgram
-from ..program.uniform import GROUND_STATION, PROPERTY_FIELDS
+from .board import LocalSample, TelemetryBoard, WhenLanded, ask_final_sample
+from .board import stale_values as stale_values
+from .board import telemetry_values as telemetry_values
 from .dispatch import Dispatcher
-from .messages import (
-    AbortMission,
-    ActionRecord,
-    Fire,
-    Interrupt,
-    LocalTelemetry,
-    NodeEvent,
-    NodeResolved,
-    RemoteTelemetry,
-    SendInterrupt,
-    SendTrigger,
-    TelemetryChanged,
-    Trigger,
-    Unwatch,
-    Watch,
-)
-from .node import BroadcastInterrupt, Links, MissionNode, Route, Wire
+from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
+from .executive import DroneExecutive as DroneExecutive
+from .executive import ask_snapshot
+from .failure import FailurePolicy, RuntimeFailure
+from .inbound import InRouter
+from .logic import program_wiring
+from .messages import AbortMission, Fire
+from .node import Links, MissionNode, Wire
+from .outbox import Outbox
+from .report import DroneReport
 from .uniform_api import Abort as HalAbort
 from .uniform_api import UniformAPI
+from .wiring import destinations, released_arcs, subscriptions, watched_peers
+
+__all__ = [
+    "FINAL_SAMPLE_WAIT_S",
+    "DroneExecutive",
+    "DroneRuntime",
+    "DroneRuntimeError",
+    "NetSettings",
+    "Outbox",
+    "TelemetryBoard",
+    "stale_values",
+    "telemetry_values",
+]
+
+#: How long the report waits for the vehicle's first sample after its last
+#: state-changing action (adapters send one when the state changes).
+FINAL_SAMPLE_WAIT_S = 0.5
+_ASK_TIMEOUT_S = 30.0
 
 
 class DroneRuntimeError(Exception):
     """A drone runtime cannot start or run (bad program, adapter unusable, network)."""
-
-
-def telemetry_values(sample: Telemetry | wire.TelemetrySample) -> dict[str, Any]:
-    """Uniform property values (``X``, ``Battery`` ...) of a telemetry sample."""
-    values = {prop: getattr(sample, fld) for prop, fld in PROPERTY_FIELDS.items()}
-    values["_time_s"] = sample.time_s
-    values["_landed"] = sample.landed
-    return values
-
-
-def stale_values(age_s: float) -> dict[str, Any]:
-    """Property values of a drone whose telemetry went stale: none (conditions wait)."""
-    values: dict[str, Any] = dict.fromkeys(PROPERTY_FIELDS)
-    values["_stale_s"] = age_s
-    return values
-
-
-# -- actors -------------------------------------------------------------------
-
-
-class TelemetryBoard(pykka.ThreadingActor):
-    """Latest property values per drone; pushes changes to the nodes watching them."""
-
-    def __init__(self, drone: str, out_bridge: Any, mission_id: str) -> None:
-        super().__init__()
-        self.drone = drone
-        self.out_bridge = out_bridge
-        self.mission_id = mission_id
-        self.latest: dict[str, dict[str, Any]] = {}
-        self.local: Telemetry | None = None
-        self.watchers: dict[Any, tuple[str, ...]] = {}
-        self.landed_waiters: list[threading.Event] = []
-
-    def on_receive(self, message: Any) -> Any:
-        if isinstance(message, LocalTelemetry):
-            sample: Telemetry = message.sample
-            self.local = sample
-            self._update(self.drone, telemetry_values(sample))
-            if self.out_bridge is not None:
-                self.out_bridge.tell(
-                    wire.TelemetrySample(
-                        mission=self.mission_id,
-                        sender=self.drone,
-                        time_s=sample.time_s,
-                        x_m=sample.x_m,
-                        y_m=sample.y_m,
-                        z_m=sample.z_m,
-                        lat_deg=sample.lat_deg,
-                        lon_deg=sample.lon_deg,
-                        alt_m=sample.alt_m,
-                        battery_pct=sample.battery_pct,
-                        armed=sample.armed,
-                        landed=sample.landed,
-                    )
-                )
-            if sample.landed:
-                for event in self.landed_waiters:
-                    event.set()
-                self.landed_waiters.clear()
-        elif isinstance(message, RemoteTelemetry):
-            self._update(message.drone, message.values)
-        elif isinstance(message, Watch):
-            self.watchers[message.watcher] = message.drones
-            for drone in message.drones:
-                if drone in self.latest:
-                    message.watcher.tell(TelemetryChanged(drone, self.latest[drone]))
-        elif isinstance(message, Unwatch):
-            self.watchers.pop(message.watcher, None)
-        elif isinstance(message, _LatestLocal):
-            return self.local
-        elif isinstance(message, _WhenLanded):
-            if self.local is None or self.local.landed:
-                message.event.set()
-            else:
-                self.landed_waiters.append(message.event)
-        return None
-
-    def _update(self, drone: str, values: dict[str, Any]) -> None:
-        old = self.latest.get(drone)
-        self.latest[drone] = values
-        if old is not None and all(
-            old.get(k) == v for k, v in values.items() if not k.startswith("_")
-        ):
-            return  # nothing a condition reads changed
-        for watcher, drones in list(self.watchers.items()):
-            if drone in drones:
-                watcher.tell(TelemetryChanged(drone, values))
-
-
-@dataclass(frozen=True)
-class _LatestLocal:
-    pass
-
-
-@dataclass(frozen=True)
-class _WhenLanded:
-    event: threading.Event
-
-
-class Outbox:
-    """The Out-Bridge (paper Figures 10, 11): packs messages for remote drones onto the wire.
-
-    It takes messages with ``tell`` like an actor, but handles them in the
-    caller's thread: the link's ``send`` (:class:`~eamos.net.link.Link`, which
-    numbers reliable messages and retransmits them until acknowledged) is
-    already a thread-safe hand-over to the bridge's socket thread, and a second
-    queue would only add a context switch to every cross-drone trigger.
-    ``triggers_sent`` counts each trigger once, however often the link had to
-    retransmit it (the Table 7 check).
-    """
-
-    def __init__(self, bridge: Link, drone: str, mission_id: str, log: Any) -> None:
-        self.bridge = bridge
-        self.drone = drone
-        self.mission_id = mission_id
-        self.log = log
-        self._lock = threading.Lock()
-        self.triggers_sent = 0
-        self.sent_by_dest: dict[str, int] = {}
-
-    def tell(self, message: Any) -> None:
-        if isinstance(message, SendTrigger):
-            t = message.trigger
-            self.bridge.send(
-                wire.Trigger(
-                    mission=self.mission_id,
-                    sender=self.drone,
-                    dest=message.dest,
-                    src_node=t.src,
-                    dst_node=t.dst,
-                    iteration=t.iteration,
-                    status=t.status,
-                )
-            )
-            with self._lock:
-                self.triggers_sent += 1
-                self.sent_by_dest[message.dest] = self.sent_by_dest.get(message.dest, 0) + 1
-            self.log.info(
-                "mission.outbridge.sent",
-                dest=message.dest,
-                src=t.src,
-                dst=t.dst,
-                iteration=list(t.iteration),
-                status=t.status,
-            )
-        elif isinstance(message, SendInterrupt):
-            i = message.interrupt
-            self.bridge.send(
-                wire.Interrupt(
-                    mission=self.mission_id,
-                    sender=self.drone,
-                    dest=message.dest,
-                    scope=str(i.scope),
-                    iteration=i.iteration,
-                    mode=i.mode,
-                )
-            )
-            self.log.info(
-                "mission.outbridge.interrupt",
-                dest=message.dest,
-                scope=i.scope,
-                iteration=list(i.iteration),
-                mode=i.mode,
-            )
-        else:
-            self.bridge.send(message)
-
-    def counts(self) -> dict[str, Any]:
-        with self._lock:
-            return {"triggers_sent": self.triggers_sent, "by_dest": dict(self.sent_by_dest)}
-
-
-PROGRESS_INTERVAL_S = 0.1
-
-
-@dataclass(frozen=True)
-class _FlushProgress:
-    pass
-
-
-@dataclass(frozen=True)
-class _TriggerReceived:
-    src_drone: str
-
-
-@dataclass(frozen=True)
-class _DeliverInterrupt:
-    interrupt: Interrupt
-
-
-@dataclass(frozen=True)
-class _Snapshot:
-    pass
-
-
-class DroneExecutive(pykka.ThreadingActor):
-    """Keeps the drone's records and tells the ground station how it is doing."""
-
-    def __init__(
-        self,
-        program: DroneProgram,
-        nodes: Mapping[str, Any],
-        out_bridge: Any,
-        to_ground: Callable[[Any], None],
-        log: Any,
-    ) -> None:
-        super().__init__()
-        self.program = program
-        self.drone = program.drone
-        self.nodes = nodes
-        self.out_bridge = out_bridge
-        self.to_ground = to_ground
-        self.log = log
-        self.top_level = {n.key for n in program.native_nodes() if not n.loops}
-        self.labels = {n.key: n.label for n in program.native_nodes()}
-        self.resolved: dict[str, str] = {}
-        self.records: list[ActionRecord] = []
-        self.triggers_received = 0
-        self.current: dict[str, str] = {}
-        self.scope_index: dict[int, list[Any]] = {}
-        for node in program.native_nodes():
-            for scope in node.scopes:
-                self.scope_index.setdefault(scope, []).append(nodes[node.key])
-        self.finished_actions = 0
-        self._pending_progress: wire.Progress | None = None
-        self._last_progress = float("-inf")
-        self._flush_timer: threading.Timer | None = None
-        self.resolved_event = threading.Event()
-        if not self.top_level:
-            self.resolved_event.set()
-
-    def on_start(self) -> None:
-        if not self.top_level:
-            self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
-
-    def on_receive(self, message: Any) -> Any:
-        if isinstance(message, NodeResolved):
-            self.resolved[message.node] = message.status
-            if self.top_level <= self.resolved.keys() and not self.resolved_event.is_set():
-                self._flush_progress()
-                self.resolved_event.set()
-                self.log.info("mission.resolved", nodes=len(self.resolved))
-                self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
-        elif isinstance(message, ActionRecord):
-            self.records.append(message)
-            self._progress(
-                message.result,
-                message.node,
-                self.labels.get(message.node, message.action),
-                message.iteration,
-                message.reason,
-                urgent=message.result != "ok",
-            )
-        elif isinstance(message, NodeEvent):
-            self._progress(
-                message.state,
-                message.node,
-                message.action,
-                message.iteration,
-                message.detail,
-                urgent=message.state in ("failed", "blocked"),
-            )
-        elif isinstance(message, _FlushProgress):
-            self._flush_timer = None
-            self._flush_progress()
-        elif isinstance(message, BroadcastInterrupt):
-            for drone in message.drones:
-                if drone == self.drone:
-                    self._deliver(message.interrupt)
-                else:
-                    self.out_bridge.tell(SendInterrupt(drone, message.interrupt))
-        elif isinstance(message, _DeliverInterrupt):
-            self._deliver(message.interrupt)
-        elif isinstance(message, _TriggerReceived):
-            self.triggers_received += 1
-        elif isinstance(message, _Snapshot):
-            return {
-                "records": list(self.records),
-                "triggers_received": self.triggers_received,
-                "resolved": dict(self.resolved),
-                "all_resolved": self.resolved_event.is_set(),
-            }
-        return None
-
-    def _progress(
-        self,
-        state: str,
-        node: str,
-        action: str,
-        iteration: tuple[int, ...],
-        detail: str,
-        urgent: bool,
-    ) -> None:
-        """Tell the ground station, at most every PROGRESS_INTERVAL_S unless it matters.
-
-        Progress is for people watching; bursts of instant actions would otherwise
-        flood the link and slow the mission itself.  The latest state always
-        arrives: a pending update is flushed by a timer, or before Resolved.
-        """
-        if state in ("ok", "failed", "cancelled"):
-            self.finished_actions += 1
-        self._pending_progress = wire.Progress(
-            mission=self.program.mission_id,
-            sender=self.drone,
-            state=state,
-            node=node,
-            action=action,
-            detail={
-                "iteration": list(iteration),
-                "detail": detail,
-                "finished": self.finished_actions,
-            },
-        )
-        now = time.monotonic()
-        if urgent or now - self._last_progress >= PROGRESS_INTERVAL_S:
-            self._flush_progress()
-        elif self._flush_timer is None:
-            delay = PROGRESS_INTERVAL_S - (now - self._last_progress)
-            self._flush_timer = threading.Timer(delay, self.actor_ref.tell, (_FlushProgress(),))
-            self._flush_timer.daemon = True
-            self._flush_timer.start()
-
-    def _flush_progress(self) -> None:
-        if self._pending_progress is not None:
-            self.to_ground(self._pending_progress)
-            self._pending_progress = None
-            self._last_progress = time.monotonic()
-
-    def on_stop(self) -> None:
-        if self._flush_timer is not None:
-            self._flush_timer.cancel()
-
-    def _deliver(self, interrupt: Interrupt) -> None:
-        for ref in self.scope_index.get(interrupt.scope, ()):
-            ref.tell(interrupt)
-
-
-# -- the runtime ----------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -445,61 +126,98 @@ class DroneRuntime:
         self.extra_topics = extra_topics
         self.logs = DroneLogs.open(log_dir, self.drone)
         self.log = self.logs.mission
+        self.failures = FailurePolicy(self.log, self._fail_safe)
         self.link: Link | None = None
         self.out: OutBridge | None = None
         self.inb: InBridge | None = None
-        self.out_actor: Any = None
+        self.outbox: Outbox | None = None
         self.board: Any = None
         self.hal: Any = None
         self.executive: Any = None
         self.nodes: dict[str, Any] = {}
-        self.dispatcher: Dispatcher | None = None
+        self.router: InRouter | None = None  # the in-bridge's callback, once connected
+        self.dispatcher: Dispatcher | None = None  # the node actors'
+        self.services: Dispatcher | None = None  # the board's and the executive's
         self.completed = threading.Event()
         self.aborted = threading.Event()
         self.abort_reason = ""
         self.adapter_error: AdapterError | None = None
+        self._lock = threading.Lock()
+        self._resolved_told = False
         self._stopped = False
         self.started_at = 0.0
+
+    @property
+    def out_actor(self) -> Outbox | None:
+        """The Out-Bridge (older name of :attr:`outbox`)."""
+        return self.outbox
 
     # -- building -------------------------------------------------------------------
 
     def start(self) -> None:
         """Build every actor and bridge; raise :class:`DroneRuntimeError` if the drone can't run."""
-        program = self.program
         self.started_at = time.monotonic()
+        try:
+            self._check_settings()
+            self._open_link()
+            self._start_board()
+            self._start_uniform_api()
+            self._start_nodes()
+            self._start_executive()
+            self._wire_nodes()
+            self._connect()
+        except DroneRuntimeError:
+            self.stop()
+            raise
+        assert self.link is not None
+        self.log.info(
+            "mission.runtime.started",
+            nodes=len(self.nodes),
+            program=self.program.checksum,
+            seconds=round(time.monotonic() - self.started_at, 4),
+            secure=self.link.secure,
+        )
+
+    def _check_settings(self) -> None:
         refusal = self.net.refusal(self.drone)
         if refusal is not None:
-            self.stop()
             raise DroneRuntimeError(f"{self.drone}: {refusal}")
+
+    def _open_link(self) -> None:
+        """Bind the Out-Bridge (the in-bridge connects last, once every actor exists)."""
         try:
             self.link = Link(
                 self.context,
                 self.drone,
-                program.mission_id,
+                self.program.mission_id,
                 self.net.bind,
                 self.logs.mission,
                 keys=self.net.keys,
                 settings=self.net.link,
             )
         except (zmq.ZMQError, KeysError) as exc:
-            self.stop()
             raise DroneRuntimeError(
                 f"cannot bind the out-bridge at {self.net.bind}: {exc}"
             ) from exc
         self.out = self.link.out
-        self.out_actor = Outbox(self.link, self.drone, program.mission_id, self.logs.mission)
-        self.dispatcher = Dispatcher(workers=2, name=f"eamos-{self.drone}")
-        self.board = TelemetryBoard.start(self.drone, self.out_actor, program.mission_id)
+        self.outbox = Outbox(self.link, self.drone, self.program.mission_id, self.logs.mission)
+
+    def _start_board(self) -> None:
+        self.services = Dispatcher(workers=2, name=f"eamos-{self.drone}-services")
+        self.board = TelemetryBoard.start(
+            self.services, self.drone, self.outbox, self.program.mission_id, self.failures
+        )
+
+    def _start_uniform_api(self) -> None:
+        """Start the adapter behind the uniform-API actor; an unusable one stops the start."""
         start_error: list[AdapterError] = []
         board = self.board
         self.hal = UniformAPI.start(
             self.adapter,
             self.logs.uniform,
-            lambda sample: board.tell(LocalTelemetry(sample)),
+            lambda sample: board.tell(LocalSample(sample)),
             start_error.append,
         )
-        # on_start has run once a first message is answered; an adapter that could
-        # not start stops the actor, which the ask below reveals.
         try:
             # Answered only after on_start ran: the adapter is up, or the actor died.
             self.hal.proxy().drone.get(timeout=60)
@@ -508,84 +226,72 @@ class DroneRuntime:
         if start_error or not self.hal.is_alive():
             reason = str(start_error[0]) if start_error else "the adapter did not start"
             self.adapter_error = start_error[0] if start_error else AdapterError(reason)
-            self.stop()
             raise DroneRuntimeError(f"{self.drone}: {reason}")
 
-        routes: dict[str, list[Route]] = {}
-        entry: dict[str, set[str]] = {}
-        loop: dict[str, set[str]] = {}
-        drone_of = {n.key: n.drone for n in program.nodes}
-        kind_of = {n.key: n.kind for n in program.nodes}
-        for arc in program.arcs:
-            routes.setdefault(arc.src, []).append(
-                Route(arc.dst, drone_of[arc.dst], arc.kind, arc.external)
-            )
-            (loop if arc.kind == "loop" else entry).setdefault(arc.dst, set()).add(arc.src)
-        for node in program.native_nodes():
-            self.nodes[node.key] = MissionNode.start(
+    def _start_nodes(self) -> None:
+        """One node actor per native node, on the node dispatcher (not started wired)."""
+        self.dispatcher = Dispatcher(workers=2, name=f"eamos-{self.drone}")
+        for key, w in program_wiring(self.program).items():
+            self.nodes[key] = MissionNode.start(
                 self.dispatcher,
-                node,
-                tuple(routes.get(node.key, ())),
-                frozenset(entry.get(node.key, ())),
-                frozenset(loop.get(node.key, ())),
+                w.spec,
+                w.routes,
+                w.entry,
+                w.loop,
                 self.drone,
                 self.logs.mission,
-                kind_of.get(f"n{node.begin}", "") if node.begin is not None else "",
+                w.begin_kind,
             )
-        to_ground = self._to_ground
+
+    def _start_executive(self) -> None:
+        assert self.services is not None
         self.executive = DroneExecutive.start(
-            program, dict(self.nodes), self.out_actor, to_ground, self.logs.mission
+            self.services,
+            self.program,
+            dict(self.nodes),
+            self.outbox,
+            self._to_ground,
+            self.logs.mission,
+            self.failures,
         )
-        links = Links(dict(self.nodes), self.hal, self.board, self.out_actor, self.executive)
+
+    def _wire_nodes(self) -> None:
+        """Give every node its links: all the actors it talks to exist now."""
+        links = Links(dict(self.nodes), self.hal, self.board, self.outbox, self.executive)
         for ref in self.nodes.values():
             ref.tell(Wire(links))
-        topics = [wire.TOPIC_ALL, wire.topic_to(self.drone)]
-        topics += [wire.topic_telemetry(d) for d in program.telemetry_from]
-        topics += [t for t in self.extra_topics if t not in topics]
+
+    def _connect(self) -> None:
+        """Connect the In-Bridge to the peers; from now on messages arrive."""
+        assert self.link is not None
+        self.router = router = InRouter(
+            self.drone,
+            self.nodes,
+            self.executive,
+            self.board,
+            self.log,
+            self.abort,
+            self.completed,
+            self.failures,
+            self.ground_handler,
+        )
+        topics = subscriptions(self.program, self.extra_topics)
         peers = {name: ep for name, ep in self.net.peers.items() if name != self.drone}
         try:
-            self.link.connect(peers, topics, self._on_message, watch=self.watched_peers())
+            self.link.connect(peers, topics, router, watch=self.watched_peers())
         except (zmq.ZMQError, ValueError) as exc:
-            self.stop()
             raise DroneRuntimeError(f"cannot connect the in-bridge to {peers}: {exc}") from exc
         self.inb = self.link.inb
-        self.log.info(
-            "mission.runtime.started",
-            nodes=len(self.nodes),
-            program=program.checksum,
-            seconds=round(time.monotonic() - self.started_at, 4),
-            secure=self.link.secure,
-        )
 
     def watched_peers(self) -> list[str] | None:
-        """Peers whose heartbeats this participant follows (None: every peer).
-
-        The ground station watches the whole fleet; a drone, the participants
-        it exchanges triggers, interrupts or telemetry with, and the ground
-        station.  (Each heartbeat wakes its receiver: all-to-all would grow
-        with the square of the fleet.)
-        """
-        if self.ground_handler is not None or self.drone == GROUND_STATION:
-            return None
-        native = {n.key for n in self.program.native_nodes()}
-        drone_of = {n.key: n.drone for n in self.program.nodes}
-        sources = {drone_of[a.src] for a in self.program.arcs if a.external and a.dst in native}
-        watch = {*self.destinations(), *sources, *self.program.telemetry_from, GROUND_STATION}
-        watch.discard(self.drone)
-        return sorted(watch)
+        """Peers whose heartbeats this participant follows (None: every peer)."""
+        return watched_peers(self.program, whole_fleet=self.ground_handler is not None)
 
     # -- readiness ---------------------------------------------------------------------
 
     def destinations(self) -> list[str]:
         """Every participant this drone sends to (the ground station always)."""
-        native = {n.key for n in self.program.native_nodes()}
-        drone_of = {n.key: n.drone for n in self.program.nodes}
-        dests = {drone_of[a.dst] for a in self.program.arcs if a.external and a.src in native}
-        for node in self.program.native_nodes():
-            dests.update(node.interrupt_drones)
-        dests.add(GROUND_STATION)
-        dests.discard(self.drone)
-        return sorted(dests)
+        return destinations(self.program)
 
     def wait_subscribed(self, timeout_s: float) -> bool:
         """Block until every participant this drone sends to listens to it."""
@@ -623,140 +329,84 @@ class DroneRuntime:
 
     def abort(self, reason: str) -> None:
         """Stop the mission on this drone: no more actions; the vehicle lands."""
-        if self.aborted.is_set():
-            return
-        self.abort_reason = reason
-        self.aborted.set()
+        with self._lock:
+            if self.aborted.is_set():
+                return
+            self.abort_reason = reason
+            self.aborted.set()
         self.log.warning("mission.abort", reason=reason)
         for ref in self.nodes.values():
             ref.tell(AbortMission(reason))
         if self.hal is not None:
             self.hal.tell(HalAbort())
 
+    def _fail_safe(self, failure: RuntimeFailure) -> None:
+        """The failure policy's reaction to the first exception in a part of this runtime.
+
+        Nothing this drone's nodes do can be trusted any more: its out-bridge stops
+        speaking for them, the drone aborts (it lands), every outgoing arc outside
+        loops not yet triggered gets ``failed`` (the drones waiting for this one
+        are blocked and finish), and the ground station hears ``Resolved`` now.
+        """
+        if self.outbox is not None:
+            self.outbox.seal()
+        self.abort(failure.reason())
+        if self.outbox is not None:
+            released = self.outbox.release(released_arcs(self.program))
+            self.log.warning("mission.failure.released", triggers=released)
+        self._to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
+
     def wait_landed(self, timeout_s: float) -> bool:
         """Wait (on telemetry, not polling) until the vehicle reports it is on the ground."""
         if self.board is None:
             return True
         event = threading.Event()
-        self.board.tell(_WhenLanded(event))
+        self.board.tell(WhenLanded(event))
         return event.wait(timeout_s)
 
     def _to_ground(self, msg: Any) -> None:
+        if isinstance(msg, wire.Resolved):
+            with self._lock:  # the executive and the failure policy may both say it
+                if self._resolved_told:
+                    return
+                self._resolved_told = True
         if self.ground_handler is not None:
             self.ground_handler(msg)
-        elif self.out_actor is not None:
-            self.out_actor.tell(msg)
+        elif self.outbox is not None:
+            self.outbox.tell(msg)
 
     def send(self, msg: Any) -> None:
         """Publish a wire message through this participant's out-bridge."""
-        if self.out_actor is not None:
-            self.out_actor.tell(msg)
-
-    def _on_message(self, msg: wire.Message) -> None:
-        """In-Bridge callback (its own thread): route each message to its actor."""
-        if isinstance(msg, wire.Trigger):
-            ref = self.nodes.get(msg.dst_node)
-            if ref is None or msg.dest != self.drone:
-                self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
-                return
-            self.log.info(
-                "mission.inbridge.received",
-                src_drone=msg.sender,
-                src=msg.src_node,
-                dst=msg.dst_node,
-                iteration=list(msg.iteration),
-                status=msg.status,
-            )
-            self.executive.tell(_TriggerReceived(msg.sender))
-            ref.tell(Trigger(msg.src_node, msg.dst_node, tuple(msg.iteration), msg.status))  # type: ignore[arg-type]
-        elif isinstance(msg, wire.TelemetrySample):
-            self.board.tell(RemoteTelemetry(msg.sender, telemetry_values(msg)))
-            if self.ground_handler is not None:
-                self.ground_handler(msg)
-        elif isinstance(msg, TelemetryStale):
-            # Withdraw the drone's values: a condition reading them now waits
-            # (Unknown) for a fresh sample instead of deciding on old data.
-            # The link logged mission.telemetry.stale.
-            self.board.tell(RemoteTelemetry(msg.sender, stale_values(msg.age_s)))
-        elif isinstance(msg, PeerStatus):
-            # The link logged mission.peer.<state>; the ground station shows it.
-            if self.ground_handler is not None:
-                self.ground_handler(msg)
-        elif isinstance(msg, wire.Interrupt):
-            try:
-                scope = int(msg.scope)
-            except ValueError:
-                self.log.warning("mission.inbridge.bad_interrupt", scope=msg.scope)
-                return
-            self.executive.tell(_DeliverInterrupt(Interrupt(scope, tuple(msg.iteration), msg.mode)))
-        elif isinstance(msg, wire.Abort):
-            self.abort(msg.reason or f"abort from {msg.sender}")
-        elif isinstance(msg, wire.Complete):
-            self.log.info("mission.complete", sender=msg.sender)
-            self.completed.set()
-        elif isinstance(msg, wire.Start):
-            self.log.info("mission.start", sender=msg.sender)
-        elif self.ground_handler is not None:
-            self.ground_handler(msg)
+        if self.outbox is not None:
+            self.outbox.tell(msg)
 
     # -- results ---------------------------------------------------------------------------
 
-    def report(self) -> dict[str, Any]:
-        """This drone's part of the run summary."""
-        snap: dict[str, Any] = (
-            self.executive.ask(_Snapshot(), timeout=30)
-            if self.executive
-            else {"records": [], "triggers_received": 0, "resolved": {}, "all_resolved": False}
+    def drone_report(self, final_wait_s: float = FINAL_SAMPLE_WAIT_S) -> DroneReport:
+        """This drone's part of the run summary.
+
+        The final state is the vehicle's once its last action ended: the first
+        sample after the last action that could change it (waiting up to
+        ``final_wait_s`` for it), never one taken before.
+        """
+        snap = ask_snapshot(self.executive, _ASK_TIMEOUT_S)
+        counts = self.outbox.counts() if self.outbox else {"triggers_sent": 0}
+        return DroneReport.build(
+            self.program,
+            snap,
+            triggers_sent=counts["triggers_sent"],
+            net=self.link.stats() if self.link is not None else {},
+            final=ask_final_sample(
+                self.board, snap.state_changed_s, snap.state_action, final_wait_s, _ASK_TIMEOUT_S
+            ),
+            aborted=self.aborted.is_set(),
+            abort_reason=self.abort_reason,
+            adapter_error=str(self.adapter_error) if self.adapter_error else "",
         )
-        counts = self.out_actor.counts() if self.out_actor else {"triggers_sent": 0}
-        net = self.link.stats() if self.link is not None else {}
-        local = self.board.ask(_LatestLocal(), timeout=30) if self.board else None
-        stats = self.program.stats()
-        actions = [
-            {
-                "node": r.node,
-                "action": r.action,
-                "args": list(r.args),
-                "iteration": list(r.iteration),
-                "start": r.start,
-                "end": r.end,
-                "result": r.result,
-                **({"reason": r.reason} if r.reason else {}),
-            }
-            for r in sorted(snap["records"], key=lambda r: (r.start, r.node))
-        ]
-        failed = [a for a in actions if a["result"] == "failed"]
-        blocked = sorted(k for k, s in snap["resolved"].items() if s == "failed")
-        return {
-            "ok": bool(snap["all_resolved"])
-            and not failed
-            and not blocked
-            and not self.aborted.is_set(),
-            "resolved": bool(snap["all_resolved"]),
-            "aborted": self.aborted.is_set(),
-            "abort_reason": self.abort_reason,
-            "triggers_sent": counts["triggers_sent"],
-            "triggers_received": snap["triggers_received"],
-            "external_out": stats["external_out"],
-            "external_in": stats["external_in"],
-            "mdg": stats,
-            "blocked_nodes": blocked,
-            "actions": actions,
-            "final": None
-            if local is None
-            else {
-                "x": local.x_m,
-                "y": local.y_m,
-                "z": local.z_m,
-                "armed": local.armed,
-                "battery": local.battery_pct,
-            },
-            "adapter_error": str(self.adapter_error) if self.adapter_error else "",
-            # Each trigger counts once above; what it took on the network is here.
-            "retransmissions": net.get("retransmissions", 0),
-            "duplicates_dropped": net.get("duplicates_dropped", 0),
-            "net": net,
-        }
+
+    def report(self) -> dict[str, Any]:
+        """:meth:`drone_report` as JSON (what goes to the ground station)."""
+        return self.drone_report().to_json()
 
     def stop(self) -> None:
         """Stop every actor and close the bridges; idempotent."""
@@ -773,8 +423,9 @@ class DroneRuntime:
                     ref.stop(block=True, timeout=30)
                 except (pykka.ActorDeadError, pykka.Timeout):
                     pass
-        if self.dispatcher is not None:
-            self.dispatcher.shutdown()
+        for dispatcher in (self.dispatcher, self.services):
+            if dispatcher is not None:
+                dispatcher.shutdown()
         if self.link is not None:
             self.link.close()
         if self._own_context:

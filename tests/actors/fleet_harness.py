@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import itertools
 import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import zmq
@@ -53,7 +55,10 @@ class Fleet:
         return self.station.wait_resolved(timeout_s)
 
     def finish(self) -> dict[str, dict[str, Any]]:
-        self.reports = {name: rt.report() for name, rt in self.runtimes.items()}
+        # In parallel: each report may wait (bounded) for its vehicle's final sample.
+        with ThreadPoolExecutor(len(self.runtimes)) as pool:
+            reports = pool.map(DroneRuntime.report, self.runtimes.values())
+            self.reports = dict(zip(self.runtimes, reports, strict=True))
         return self.reports
 
     def close(self) -> None:
@@ -69,8 +74,17 @@ class Fleet:
         ]
 
 
-def make_fleet(source: str, adapters: dict[str, Any] | None = None, *, auto: bool = True) -> Fleet:
-    """Compile ``source`` and build every participant's runtime (not started yet)."""
+def make_fleet(
+    source: str,
+    adapters: dict[str, Any] | None = None,
+    *,
+    auto: bool = True,
+    log_dir: Path | None = None,
+) -> Fleet:
+    """Compile ``source`` and build every participant's runtime (not started yet).
+
+    With ``log_dir``, each participant logs to ``log_dir / name`` (else nowhere).
+    """
     compiled = compile_mission(source, "test.go")
     names = list(compiled.programs)
     fid = next(_fleet_ids)
@@ -89,7 +103,7 @@ def make_fleet(source: str, adapters: dict[str, Any] | None = None, *, auto: boo
             compiled.programs[name],
             adapter,
             NetSettings(endpoints[name], endpoints),
-            None,
+            None if log_dir is None else log_dir / name,
             context=context,
             ground_handler=station.handle if name == GROUND_STATION else None,
             extra_topics=tuple(wire.topic_telemetry(d) for d in drones)

@@ -1,0 +1,256 @@
+"""The drone executive: records, trigger counts, resolution, progress to the ground station."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Any
+
+import pykka
+
+from ..net import wire
+from ..program.format import DroneProgram
+from ..program.uniform import MOTION_ACTIONS
+from .dispatch import Dispatcher, PooledActor
+from .failure import FailureSink
+from .messages import ActionRecord, Interrupt, NodeEvent, NodeResolved, SendInterrupt
+from .node import BroadcastInterrupt
+
+__all__ = [
+    "PROGRESS_INTERVAL_S",
+    "STATE_ACTIONS",
+    "DeliverInterrupt",
+    "DroneExecutive",
+    "ExecutiveSnapshot",
+    "Snapshot",
+    "TriggerReceived",
+    "ask_snapshot",
+]
+
+PROGRESS_INTERVAL_S = 0.1
+
+#: Actions after which the vehicle's reported state (position, armed) may differ.
+STATE_ACTIONS = MOTION_ACTIONS | {"Arm", "Disarm"}
+
+
+@dataclass(frozen=True)
+class TriggerReceived:
+    """The in-bridge delivered a trigger from ``src_drone`` (counted for Table 7)."""
+
+    src_drone: str
+
+
+@dataclass(frozen=True)
+class DeliverInterrupt:
+    """An interrupt from another drone, for this drone's nodes in its scope."""
+
+    interrupt: Interrupt
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Ask: the executive's :class:`ExecutiveSnapshot`."""
+
+
+@dataclass(frozen=True)
+class ExecutiveSnapshot:
+    """What the executive knows at one moment (for the drone's report)."""
+
+    records: tuple[ActionRecord, ...] = ()
+    triggers_received: int = 0
+    resolved: Mapping[str, str] = field(default_factory=dict)
+    all_resolved: bool = False
+    state_changed_s: float | None = None  # monotonic: last STATE_ACTIONS record arrived
+    state_action: str | None = None  # and its action
+
+
+def ask_snapshot(executive: Any, timeout_s: float) -> ExecutiveSnapshot:
+    """The executive's snapshot (an empty one if there is no executive, or it stopped)."""
+    if executive is None:
+        return ExecutiveSnapshot()
+    try:
+        snap: ExecutiveSnapshot = executive.ask(Snapshot(), timeout=timeout_s)
+    except pykka.ActorDeadError:
+        return ExecutiveSnapshot()
+    return snap
+
+
+@dataclass(frozen=True)
+class _FlushProgress:
+    pass
+
+
+class DroneExecutive(PooledActor):
+    """Keeps the drone's records and tells the ground station how it is doing."""
+
+    def __init__(
+        self,
+        dispatcher: Dispatcher,
+        program: DroneProgram,
+        nodes: Mapping[str, Any],
+        out_bridge: Any,
+        to_ground: Callable[[Any], None],
+        log: Any,
+        failure: FailureSink | None = None,
+    ) -> None:
+        super().__init__(dispatcher)
+        self.program = program
+        self.drone = program.drone
+        self.nodes = nodes
+        self.out_bridge = out_bridge
+        self.to_ground = to_ground
+        self.log = log
+        self.failure = failure
+        self.top_level = {n.key for n in program.native_nodes() if not n.loops}
+        self.labels = {n.key: n.label for n in program.native_nodes()}
+        self.resolved: dict[str, str] = {}
+        self.records: list[ActionRecord] = []
+        self.triggers_received = 0
+        self.state_changed_s: float | None = None
+        self.state_action: str | None = None
+        self.scope_index: dict[int, list[Any]] = {}
+        for node in program.native_nodes():
+            for scope in node.scopes:
+                self.scope_index.setdefault(scope, []).append(nodes[node.key])
+        self.finished_actions = 0
+        self._pending_progress: wire.Progress | None = None
+        self._last_progress = float("-inf")
+        self._flush_timer: threading.Timer | None = None
+        self.resolved_event = threading.Event()
+        if not self.top_level:
+            self.resolved_event.set()
+
+    def on_start(self) -> None:
+        if not self.top_level:
+            self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
+
+    def on_receive(self, message: Any) -> Any:
+        if isinstance(message, NodeResolved):
+            self._node_resolved(message)
+        elif isinstance(message, ActionRecord):
+            self._record(message)
+        elif isinstance(message, NodeEvent):
+            self._progress(
+                message.state,
+                message.node,
+                message.action,
+                message.iteration,
+                message.detail,
+                urgent=message.state in ("failed", "blocked"),
+            )
+        elif isinstance(message, _FlushProgress):
+            self._flush_timer = None
+            self._flush_progress()
+        elif isinstance(message, BroadcastInterrupt):
+            for drone in message.drones:
+                if drone == self.drone:
+                    self._deliver(message.interrupt)
+                else:
+                    self.out_bridge.tell(SendInterrupt(drone, message.interrupt))
+        elif isinstance(message, DeliverInterrupt):
+            self._deliver(message.interrupt)
+        elif isinstance(message, TriggerReceived):
+            self.triggers_received += 1
+        elif isinstance(message, Snapshot):
+            return self.snapshot()
+        return None
+
+    def on_failure(
+        self,
+        exception_type: type[BaseException] | None,
+        exception_value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        """Tell the runtime's failure policy (it aborts the drone); stay alive for the report."""
+        if self.failure is None or exception_value is None:
+            super().on_failure(exception_type, exception_value, traceback)
+        else:
+            self.failure("executive", exception_value)
+
+    def on_stop(self) -> None:
+        if self._flush_timer is not None:
+            self._flush_timer.cancel()
+
+    def snapshot(self) -> ExecutiveSnapshot:
+        """The records and counts so far."""
+        return ExecutiveSnapshot(
+            records=tuple(self.records),
+            triggers_received=self.triggers_received,
+            resolved=dict(self.resolved),
+            all_resolved=self.resolved_event.is_set(),
+            state_changed_s=self.state_changed_s,
+            state_action=self.state_action,
+        )
+
+    def _node_resolved(self, message: NodeResolved) -> None:
+        self.resolved[message.node] = message.status
+        if self.top_level <= self.resolved.keys() and not self.resolved_event.is_set():
+            self._flush_progress()
+            self.resolved_event.set()
+            self.log.info("mission.resolved", nodes=len(self.resolved))
+            self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
+
+    def _record(self, record: ActionRecord) -> None:
+        self.records.append(record)
+        if record.action in STATE_ACTIONS:
+            self.state_changed_s = time.monotonic()
+            self.state_action = record.action
+        self._progress(
+            record.result,
+            record.node,
+            self.labels.get(record.node, record.action),
+            record.iteration,
+            record.reason,
+            urgent=record.result != "ok",
+        )
+
+    def _progress(
+        self,
+        state: str,
+        node: str,
+        action: str,
+        iteration: tuple[int, ...],
+        detail: str,
+        urgent: bool,
+    ) -> None:
+        """Tell the ground station, at most every PROGRESS_INTERVAL_S unless it matters.
+
+        Progress is for people watching; bursts of instant actions would otherwise
+        flood the link and slow the mission itself.  The latest state always
+        arrives: a pending update is flushed by a timer, or before Resolved.
+        """
+        if state in ("ok", "failed", "cancelled"):
+            self.finished_actions += 1
+        self._pending_progress = wire.Progress(
+            mission=self.program.mission_id,
+            sender=self.drone,
+            state=state,
+            node=node,
+            action=action,
+            detail={
+                "iteration": list(iteration),
+                "detail": detail,
+                "finished": self.finished_actions,
+            },
+        )
+        now = time.monotonic()
+        if urgent or now - self._last_progress >= PROGRESS_INTERVAL_S:
+            self._flush_progress()
+        elif self._flush_timer is None:
+            delay = PROGRESS_INTERVAL_S - (now - self._last_progress)
+            self._flush_timer = threading.Timer(delay, self.actor_ref.tell, (_FlushProgress(),))
+            self._flush_timer.daemon = True
+            self._flush_timer.start()
+
+    def _flush_progress(self) -> None:
+        if self._pending_progress is not None:
+            self.to_ground(self._pending_progress)
+            self._pending_progress = None
+            self._last_progress = time.monotonic()
+
+    def _deliver(self, interrupt: Interrupt) -> None:
+        for ref in self.scope_index.get(interrupt.scope, ()):
+            ref.tell(interrupt)

@@ -1,0 +1,67 @@
+"""What a drone runtime does when one of its own parts raises (issue 9's failure policy).
+
+Node actors handle their own failures (a node resolves ``failed``; see
+:mod:`.node`).  The other parts -- the telemetry board, the executive, the
+in-bridge callback -- hold state every node relies on (watched values,
+resolutions, interrupts), so after an exception in one of them nothing about
+the rest of the mission on this drone is safe: the runtime aborts the drone (it
+lands through the uniform API), releases the drones waiting for it, and tells
+the ground station at once.  :class:`FailurePolicy` logs every exception once,
+with its traceback, in the mission log, and runs that reaction once.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["FailurePolicy", "FailureSink", "RuntimeFailure"]
+
+#: Where a runtime part reports an exception: ``sink(part, exception)``.
+FailureSink = Callable[[str, BaseException], None]
+
+
+@dataclass(frozen=True)
+class RuntimeFailure:
+    """One exception in a part of a drone runtime."""
+
+    part: str  # "executive", "telemetry board", "in-bridge"
+    error: str  # repr of the exception
+    traceback: str
+
+    def reason(self) -> str:
+        """Why the drone aborted, as the report and the ground station show it."""
+        return f"internal error in the {self.part}: {self.error}"
+
+
+class FailurePolicy:
+    """Log each exception once; run ``react`` for the first one (thread-safe)."""
+
+    def __init__(self, log: Any, react: Callable[[RuntimeFailure], None]) -> None:
+        self._log = log
+        self._react = react
+        self._lock = threading.Lock()
+        self.failures: list[RuntimeFailure] = []
+
+    def __call__(self, part: str, exc: BaseException) -> None:
+        """Called by the part that raised, on its own thread, with the exception."""
+        failure = RuntimeFailure(
+            part, repr(exc), "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+        )
+        with self._lock:
+            first = not self.failures
+            self.failures.append(failure)
+        self._log.error(
+            "mission.failure", part=part, error=failure.error, traceback=failure.traceback
+        )
+        if first:
+            self._react(failure)
+
+    @property
+    def first(self) -> RuntimeFailure | None:
+        """The failure the drone aborted for (None: none happened)."""
+        with self._lock:
+            return self.failures[0] if self.failures else None

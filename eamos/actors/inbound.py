@@ -1,0 +1,108 @@
+"""The In-Bridge's routing (paper Figures 10, 11): each wire message to the actor it is for."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import pykka
+
+from ..net import wire
+from ..net.link import PeerStatus, TelemetryStale
+from .board import stale_values, telemetry_values
+from .executive import DeliverInterrupt, TriggerReceived
+from .failure import FailureSink
+from .messages import Interrupt, RemoteTelemetry, Trigger
+
+__all__ = ["InRouter"]
+
+
+@dataclass(frozen=True)
+class InRouter:
+    """Called by the link (on its receive thread) with every message for this participant.
+
+    ``ground_handler`` is set on the ground station: it also sees reports,
+    progress, peer status and the fleet's telemetry.  An exception while routing
+    to the runtime's actors goes to the runtime's failure policy (``failure``);
+    one in the ground station's handler goes back to the link, which logs it.
+    """
+
+    drone: str
+    nodes: Mapping[str, Any]
+    executive: Any
+    board: Any
+    log: Any
+    abort: Callable[[str], None]
+    completed: threading.Event
+    failure: FailureSink
+    ground_handler: Callable[[Any], None] | None = None
+
+    def __call__(self, msg: wire.Message) -> None:
+        try:
+            for_station = self.route(msg)
+        except pykka.ActorDeadError:
+            # Only while the runtime stops: its actors go before the link's last callback.
+            self.log.debug("mission.inbridge.receiver_gone", message=type(msg).__name__)
+            return
+        except Exception as exc:
+            self.failure("in-bridge", exc)
+            return
+        if for_station and self.ground_handler is not None:
+            self.ground_handler(msg)
+
+    def route(self, msg: Any) -> bool:
+        """Hand ``msg`` to the node, board, executive or runtime it is for.
+
+        True if the ground station (if this is it) should see it too.
+        """
+        if isinstance(msg, wire.Trigger):
+            self._trigger(msg)
+        elif isinstance(msg, wire.TelemetrySample):
+            self.board.tell(RemoteTelemetry(msg.sender, telemetry_values(msg)))
+            return True
+        elif isinstance(msg, TelemetryStale):
+            # Withdraw the drone's values: a condition reading them now waits
+            # (Unknown) for a fresh sample instead of deciding on old data.
+            # The link logged mission.telemetry.stale.
+            self.board.tell(RemoteTelemetry(msg.sender, stale_values(msg.age_s)))
+        elif isinstance(msg, PeerStatus):
+            # The link logged mission.peer.<state>; the ground station shows it.
+            return True
+        elif isinstance(msg, wire.Interrupt):
+            self._interrupt(msg)
+        elif isinstance(msg, wire.Abort):
+            self.abort(msg.reason or f"abort from {msg.sender}")
+        elif isinstance(msg, wire.Complete):
+            self.log.info("mission.complete", sender=msg.sender)
+            self.completed.set()
+        elif isinstance(msg, wire.Start):
+            self.log.info("mission.start", sender=msg.sender)
+        else:
+            return True  # Ready, Progress, Resolved, Report ...: for the ground station
+        return False
+
+    def _trigger(self, msg: wire.Trigger) -> None:
+        ref = self.nodes.get(msg.dst_node)
+        if ref is None or msg.dest != self.drone:
+            self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
+            return
+        self.log.info(
+            "mission.inbridge.received",
+            src_drone=msg.sender,
+            src=msg.src_node,
+            dst=msg.dst_node,
+            iteration=list(msg.iteration),
+            status=msg.status,
+        )
+        self.executive.tell(TriggerReceived(msg.sender))
+        ref.tell(Trigger(msg.src_node, msg.dst_node, tuple(msg.iteration), msg.status))  # type: ignore[arg-type]
+
+    def _interrupt(self, msg: wire.Interrupt) -> None:
+        try:
+            scope = int(msg.scope)
+        except ValueError:
+            self.log.warning("mission.inbridge.bad_interrupt", scope=msg.scope)
+            return
+        self.executive.tell(DeliverInterrupt(Interrupt(scope, tuple(msg.iteration), msg.mode)))

@@ -1,0 +1,120 @@
+"""The Out-Bridge (paper Figures 10, 11): packs messages for remote drones onto the wire."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterable
+from typing import Any
+
+from ..net import wire
+from ..net.link import Link
+from .messages import SendInterrupt, SendTrigger, Trigger
+
+__all__ = ["Outbox"]
+
+
+class Outbox:
+    """Takes messages with ``tell`` like an actor, but handles them in the caller's thread.
+
+    The link's ``send`` (:class:`~eamos.net.link.Link`, which numbers reliable
+    messages and retransmits them until acknowledged) is already a thread-safe
+    hand-over to the bridge's socket thread, and a second queue would only add a
+    context switch to every cross-drone trigger.  ``triggers_sent`` counts each
+    trigger once, however often the link had to retransmit it (the Table 7
+    check).  After :meth:`seal` (the drone aborted on an internal failure) node
+    triggers are dropped: only :meth:`release` speaks for this drone's nodes.
+    """
+
+    def __init__(self, bridge: Link, drone: str, mission_id: str, log: Any) -> None:
+        self.bridge = bridge
+        self.drone = drone
+        self.mission_id = mission_id
+        self.log = log
+        self._lock = threading.Lock()
+        self.triggers_sent = 0
+        self.sent_by_dest: dict[str, int] = {}
+        self._sent: set[tuple[str, str, tuple[int, ...]]] = set()  # (src, dst, iteration)
+        self._sealed = False
+
+    def tell(self, message: Any) -> None:
+        """Send ``message`` (a :class:`SendTrigger`, :class:`SendInterrupt` or wire message)."""
+        if isinstance(message, SendTrigger):
+            self._send_trigger(message.dest, message.trigger, sealed_ok=False)
+        elif isinstance(message, SendInterrupt):
+            if self._is_sealed():
+                return
+            i = message.interrupt
+            self.bridge.send(
+                wire.Interrupt(
+                    mission=self.mission_id,
+                    sender=self.drone,
+                    dest=message.dest,
+                    scope=str(i.scope),
+                    iteration=i.iteration,
+                    mode=i.mode,
+                )
+            )
+            self.log.info(
+                "mission.outbridge.interrupt",
+                dest=message.dest,
+                scope=i.scope,
+                iteration=list(i.iteration),
+                mode=i.mode,
+            )
+        else:
+            self.bridge.send(message)
+
+    def _is_sealed(self) -> bool:
+        with self._lock:
+            return self._sealed
+
+    def _send_trigger(self, dest: str, t: Trigger, sealed_ok: bool) -> bool:
+        key = (t.src, t.dst, tuple(t.iteration))
+        with self._lock:
+            if (self._sealed and not sealed_ok) or (sealed_ok and key in self._sent):
+                return False
+            self._sent.add(key)
+            self.triggers_sent += 1
+            self.sent_by_dest[dest] = self.sent_by_dest.get(dest, 0) + 1
+        self.bridge.send(
+            wire.Trigger(
+                mission=self.mission_id,
+                sender=self.drone,
+                dest=dest,
+                src_node=t.src,
+                dst_node=t.dst,
+                iteration=t.iteration,
+                status=t.status,
+            )
+        )
+        self.log.info(
+            "mission.outbridge.sent",
+            dest=dest,
+            src=t.src,
+            dst=t.dst,
+            iteration=list(t.iteration),
+            status=t.status,
+        )
+        return True
+
+    def seal(self) -> None:
+        """Drop node triggers and interrupts from now on (the drone's nodes no longer speak)."""
+        with self._lock:
+            self._sealed = True
+
+    def release(self, arcs: Iterable[tuple[str, str, str]]) -> int:
+        """Send ``failed`` on each ``(dest, src, dst)`` arc of activation () not sent yet.
+
+        Dead-path elimination for a drone that aborted: the nodes waiting for it
+        on other drones are blocked and finish, instead of waiting for ever.
+        Returns how many triggers went out.
+        """
+        return sum(
+            self._send_trigger(dest, Trigger(src, dst, (), "failed"), sealed_ok=True)
+            for dest, src, dst in arcs
+        )
+
+    def counts(self) -> dict[str, Any]:
+        """Triggers sent (each once), in all and per destination."""
+        with self._lock:
+            return {"triggers_sent": self.triggers_sent, "by_dest": dict(self.sent_by_dest)}

@@ -1,0 +1,233 @@
+"""A drone's part of the run summary, as a typed value (:class:`DroneReport`).
+
+The drone sends it to the ground station as JSON (``wire.Report``) and writes
+it to ``report.json``; the ground station, ``eamos.ops`` and ``eamos report``
+read it back with :meth:`DroneReport.from_json`.  The JSON keys are the ones
+the first version wrote; :meth:`DroneReport.to_json` keeps them exactly, in
+the same order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the report itself needs only the standard library
+    from ..hal.api import Telemetry
+    from ..program.format import DroneProgram
+    from .executive import ExecutiveSnapshot
+    from .messages import ActionRecord
+
+__all__ = ["ActionEntry", "DroneReport", "FinalState", "ReportError"]
+
+
+class ReportError(ValueError):
+    """A report's JSON lacks a key or has a value of the wrong type."""
+
+
+def _get(data: Mapping[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    """``data[key]`` if present and of ``kind`` (a bool is not a number here)."""
+    if key not in data:
+        raise ReportError(f"{where}: no {key!r}")
+    value = data[key]
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+        raise ReportError(f"{where}: {key!r} is {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class FinalState:
+    """Where the vehicle was, and how, once its last action ended."""
+
+    x: float
+    y: float
+    z: float
+    armed: bool
+    battery: float
+
+    @classmethod
+    def of(cls, sample: Telemetry) -> FinalState:
+        """The final state a telemetry sample shows."""
+        return cls(sample.x_m, sample.y_m, sample.z_m, sample.armed, sample.battery_pct)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"x": self.x, "y": self.y, "z": self.z, "armed": self.armed, "battery": self.battery}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> FinalState:
+        num = (int, float)
+        return cls(
+            float(_get(data, "x", num, "final")),
+            float(_get(data, "y", num, "final")),
+            float(_get(data, "z", num, "final")),
+            bool(_get(data, "armed", bool, "final")),
+            float(_get(data, "battery", num, "final")),
+        )
+
+
+@dataclass(frozen=True)
+class ActionEntry:
+    """One action the drone ran (``reason`` only when there is one)."""
+
+    node: str
+    action: str
+    args: tuple[float, ...]
+    iteration: tuple[int, ...]
+    start: float
+    end: float
+    result: str  # "ok" | "failed" | "cancelled"
+    reason: str = ""
+
+    @classmethod
+    def of(cls, r: ActionRecord) -> ActionEntry:
+        """The entry for one action record of the executive."""
+        return cls(
+            r.node, r.action, tuple(r.args), tuple(r.iteration), r.start, r.end, r.result, r.reason
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "node": self.node,
+            "action": self.action,
+            "args": list(self.args),
+            "iteration": list(self.iteration),
+            "start": self.start,
+            "end": self.end,
+            "result": self.result,
+            **({"reason": self.reason} if self.reason else {}),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ActionEntry:
+        where = "action"
+        num = (int, float)
+        return cls(
+            node=_get(data, "node", str, where),
+            action=_get(data, "action", str, where),
+            args=tuple(float(a) for a in _get(data, "args", list, where)),
+            iteration=tuple(int(i) for i in _get(data, "iteration", list, where)),
+            start=float(_get(data, "start", num, where)),
+            end=float(_get(data, "end", num, where)),
+            result=_get(data, "result", str, where),
+            reason=str(data.get("reason", "")),
+        )
+
+
+@dataclass(frozen=True)
+class DroneReport:
+    """One drone's part of the run summary (see the module docstring for its JSON)."""
+
+    ok: bool
+    resolved: bool
+    aborted: bool
+    abort_reason: str
+    triggers_sent: int
+    triggers_received: int
+    external_out: int
+    external_in: int
+    mdg: Mapping[str, int]
+    blocked_nodes: tuple[str, ...]
+    actions: tuple[ActionEntry, ...]
+    final: FinalState | None
+    adapter_error: str = ""
+    retransmissions: int = 0
+    duplicates_dropped: int = 0
+    net: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def build(
+        cls,
+        program: DroneProgram,
+        snap: ExecutiveSnapshot,
+        *,
+        triggers_sent: int,
+        net: Mapping[str, Any],
+        final: Telemetry | None,
+        aborted: bool,
+        abort_reason: str,
+        adapter_error: str,
+    ) -> DroneReport:
+        """The report of a drone from what its runtime knows at the end."""
+        stats = program.stats()
+        actions = tuple(
+            ActionEntry.of(r) for r in sorted(snap.records, key=lambda r: (r.start, r.node))
+        )
+        failed = any(a.result == "failed" for a in actions)
+        blocked = tuple(sorted(k for k, s in snap.resolved.items() if s == "failed"))
+        return cls(
+            ok=snap.all_resolved and not failed and not blocked and not aborted,
+            resolved=snap.all_resolved,
+            aborted=aborted,
+            abort_reason=abort_reason,
+            triggers_sent=triggers_sent,
+            triggers_received=snap.triggers_received,
+            external_out=stats["external_out"],
+            external_in=stats["external_in"],
+            mdg=stats,
+            blocked_nodes=blocked,
+            actions=actions,
+            final=None if final is None else FinalState.of(final),
+            adapter_error=adapter_error,
+            retransmissions=int(net.get("retransmissions", 0)),
+            duplicates_dropped=int(net.get("duplicates_dropped", 0)),
+            net=net,
+        )
+
+    @property
+    def failed_actions(self) -> list[ActionEntry]:
+        """The actions that ended ``failed``."""
+        return [a for a in self.actions if a.result == "failed"]
+
+    def to_json(self) -> dict[str, Any]:
+        """The report as the first version's JSON object (same keys, same order)."""
+        return {
+            "ok": self.ok,
+            "resolved": self.resolved,
+            "aborted": self.aborted,
+            "abort_reason": self.abort_reason,
+            "triggers_sent": self.triggers_sent,
+            "triggers_received": self.triggers_received,
+            "external_out": self.external_out,
+            "external_in": self.external_in,
+            "mdg": dict(self.mdg),
+            "blocked_nodes": list(self.blocked_nodes),
+            "actions": [a.to_json() for a in self.actions],
+            "final": None if self.final is None else self.final.to_json(),
+            "adapter_error": self.adapter_error,
+            # Each trigger counts once above; what it took on the network is here.
+            "retransmissions": self.retransmissions,
+            "duplicates_dropped": self.duplicates_dropped,
+            "net": dict(self.net),
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> DroneReport:
+        """Read a report back; :class:`ReportError` names a missing or mistyped key.
+
+        Keys the summary adds around a report (``exit_code``, ``error`` ...) are ignored.
+        """
+        where = "report"
+        final = data.get("final")
+        if final is not None and not isinstance(final, Mapping):
+            raise ReportError(f"{where}: 'final' is {final!r}")
+        actions: Sequence[Any] = _get(data, "actions", list, where)
+        return cls(
+            ok=_get(data, "ok", bool, where),
+            resolved=_get(data, "resolved", bool, where),
+            aborted=_get(data, "aborted", bool, where),
+            abort_reason=_get(data, "abort_reason", str, where),
+            triggers_sent=_get(data, "triggers_sent", int, where),
+            triggers_received=_get(data, "triggers_received", int, where),
+            external_out=_get(data, "external_out", int, where),
+            external_in=_get(data, "external_in", int, where),
+            mdg=dict(_get(data, "mdg", dict, where)),
+            blocked_nodes=tuple(_get(data, "blocked_nodes", list, where)),
+            actions=tuple(ActionEntry.from_json(a) for a in actions),
+            final=None if final is None else FinalState.from_json(final),
+            adapter_error=str(data.get("adapter_error", "")),
+            retransmissions=int(data.get("retransmissions", 0)),
+            duplicates_dropped=int(data.get("duplicates_dropped", 0)),
+            net=dict(data.get("net") or {}),
+        )

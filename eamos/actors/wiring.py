@@ -1,0 +1,74 @@
+"""Who a drone talks to, read from its program alone (pure functions, no actors).
+
+The runtime uses these to subscribe the in-bridge, to wait until the drones it
+sends to listen (no trigger lost at start), to choose whose heartbeats to
+follow, and, when it aborts on an internal failure, to release the drones that
+wait for it.
+"""
+
+from __future__ import annotations
+
+from ..net import wire
+from ..program.format import DroneProgram
+from ..program.uniform import GROUND_STATION
+
+__all__ = ["destinations", "released_arcs", "subscriptions", "watched_peers"]
+
+
+def destinations(program: DroneProgram) -> list[str]:
+    """Every participant this drone sends to (the ground station always)."""
+    native = {n.key for n in program.native_nodes()}
+    drone_of = {n.key: n.drone for n in program.nodes}
+    dests = {drone_of[a.dst] for a in program.arcs if a.external and a.src in native}
+    for node in program.native_nodes():
+        dests.update(node.interrupt_drones)
+    dests.add(GROUND_STATION)
+    dests.discard(program.drone)
+    return sorted(dests)
+
+
+def watched_peers(program: DroneProgram, whole_fleet: bool) -> list[str] | None:
+    """Peers whose heartbeats this participant follows (None: every peer).
+
+    The ground station watches the whole fleet (``whole_fleet``); a drone, the
+    participants it exchanges triggers, interrupts or telemetry with, and the
+    ground station.  (Each heartbeat wakes its receiver: all-to-all would grow
+    with the square of the fleet.)
+    """
+    if whole_fleet or program.drone == GROUND_STATION:
+        return None
+    native = {n.key for n in program.native_nodes()}
+    drone_of = {n.key: n.drone for n in program.nodes}
+    sources = {drone_of[a.src] for a in program.arcs if a.external and a.dst in native}
+    watch = {*destinations(program), *sources, *program.telemetry_from, GROUND_STATION}
+    watch.discard(program.drone)
+    return sorted(watch)
+
+
+def subscriptions(program: DroneProgram, extra: tuple[bytes, ...] = ()) -> list[bytes]:
+    """The in-bridge's topics: broadcasts, this drone's own, the telemetry it reads."""
+    topics = [wire.TOPIC_ALL, wire.topic_to(program.drone)]
+    topics += [wire.topic_telemetry(d) for d in program.telemetry_from]
+    topics += [t for t in extra if t not in topics]
+    return topics
+
+
+def released_arcs(program: DroneProgram) -> list[tuple[str, str, str]]:
+    """``(dest drone, src node, dst node)`` of the outgoing external arcs outside loops.
+
+    Their one activation is ``()``: when this drone aborts on an internal
+    failure it sends ``failed`` on each one not sent yet, so the nodes waiting
+    for it are blocked and finish (dead-path elimination).  Arcs inside loops
+    carry iteration counters only the nodes know, so they are not released.
+    """
+    native = {n.key for n in program.native_nodes()}
+    node_of = {n.key: n for n in program.nodes}
+    return [
+        (node_of[a.dst].drone, a.src, a.dst)
+        for a in program.arcs
+        if a.external
+        and a.src in native
+        and a.kind != "loop"
+        and not node_of[a.src].loops
+        and not node_of[a.dst].loops
+    ]

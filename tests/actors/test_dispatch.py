@@ -1,0 +1,142 @@
+"""The M:N dispatcher keeps Pykka's actor contract, with an explicit failure hook.
+
+Real threads and real Pykka refs and futures; every wait is on a future or an event.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from types import TracebackType
+from typing import Any
+
+import pykka
+import pytest
+
+from eamos.actors.dispatch import Dispatcher, PooledActor
+from eamos.actors.pykka_seam import shape_problems
+
+WAIT_S = 30.0
+
+
+class Recorder(PooledActor):
+    """Records what it receives; ``"boom"`` raises, ``"exit"`` raises SystemExit."""
+
+    def __init__(self, dispatcher: Dispatcher, keep_alive: bool | None = None) -> None:
+        super().__init__(dispatcher)
+        self.seen: list[Any] = []
+        self.failures: list[str] = []
+        self.keep_alive = keep_alive  # None: Pykka's default hook
+        self.stopped = threading.Event()
+
+    def on_receive(self, message: Any) -> Any:
+        if message == "boom":
+            raise ValueError("boom")
+        if message == "exit":
+            raise SystemExit(3)
+        self.seen.append(message)
+        return len(self.seen)
+
+    def on_failure(
+        self,
+        exception_type: type[BaseException] | None,
+        exception_value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        if self.keep_alive is None:
+            super().on_failure(exception_type, exception_value, traceback)
+            return
+        self.failures.append(repr(exception_value))
+        if not self.keep_alive:
+            raise RuntimeError("the hook gives up")
+
+    def on_stop(self) -> None:
+        self.stopped.set()
+
+    def seen_so_far(self) -> list[Any]:
+        return list(self.seen)
+
+
+@pytest.fixture
+def dispatcher() -> Iterator[Dispatcher]:
+    d = Dispatcher(workers=2, name="test")
+    yield d
+    d.shutdown()
+
+
+def test_pykka_internals_have_the_shape_the_seam_relies_on() -> None:
+    """Fails when a Pykka upgrade changes what eamos/actors/pykka_seam.py uses."""
+    assert shape_problems() == []
+
+
+def test_messages_are_handled_in_order_and_asks_are_answered(dispatcher: Dispatcher) -> None:
+    refs = [Recorder.start(dispatcher) for _ in range(20)]
+    for i in range(200):
+        for ref in refs:
+            ref.tell(i)
+    for ref in refs:
+        assert ref.ask("last", timeout=WAIT_S) == 201
+        assert ref.proxy().seen_so_far().get(timeout=WAIT_S) == [*range(200), "last"]
+        assert ref.stop(block=True, timeout=WAIT_S) is True
+        assert not ref.is_alive()
+    with pytest.raises(pykka.ActorDeadError):
+        refs[0].tell("late")
+
+
+def test_an_exception_answers_the_asker_and_the_actor_lives(dispatcher: Dispatcher) -> None:
+    ref = Recorder.start(dispatcher)
+    with pytest.raises(ValueError, match="boom"):
+        ref.ask("boom", timeout=WAIT_S)
+    assert ref.ask("after", timeout=WAIT_S) == 1
+    ref.stop(block=True, timeout=WAIT_S)
+
+
+def test_the_failure_hook_keeps_the_actor_alive(dispatcher: Dispatcher) -> None:
+    ref = Recorder.start(dispatcher, keep_alive=True)
+    ref.tell("boom")
+    assert ref.ask("after", timeout=WAIT_S) == 1
+    assert ref.proxy().failures.get(timeout=WAIT_S) == ["ValueError('boom')"]
+    ref.stop(block=True, timeout=WAIT_S)
+
+
+def test_without_a_hook_a_failure_stops_the_actor_as_in_pykka(
+    dispatcher: Dispatcher, caplog: pytest.LogCaptureFixture
+) -> None:
+    ref = Recorder.start(dispatcher)
+    ref.tell("boom")
+    with pytest.raises(pykka.ActorDeadError):
+        ref.ask("after", timeout=WAIT_S)
+    assert not ref.is_alive()
+    logged = [r for r in caplog.records if r.exc_info and "boom" in str(r.exc_info[1])]
+    assert len(logged) == 1  # once, with its traceback
+
+
+def test_a_hook_that_raises_stops_the_actor(dispatcher: Dispatcher) -> None:
+    ref = Recorder.start(dispatcher, keep_alive=False)
+    ref.tell("boom")
+    with pytest.raises(pykka.ActorDeadError):
+        ref.ask("after", timeout=WAIT_S)
+
+
+def test_a_base_exception_stops_the_actor_and_every_other(dispatcher: Dispatcher) -> None:
+    """Pykka's BaseException branch: SystemExit in one actor stops them all."""
+    one, other = Recorder.start(dispatcher), Recorder.start(dispatcher)
+    threaded = pykka.ThreadingActor.start()
+    one.tell("exit")
+    for ref in (one, other, threaded):
+        with pytest.raises(pykka.ActorDeadError):
+            ref.ask("after", timeout=WAIT_S)
+    assert not one.is_alive() and not other.is_alive()
+
+
+class FailsToStart(PooledActor):
+    def on_start(self) -> None:
+        raise RuntimeError("cannot start")
+
+
+def test_an_actor_that_fails_to_start_is_stopped(dispatcher: Dispatcher) -> None:
+    ref = FailsToStart.start(dispatcher)
+    with pytest.raises(pykka.ActorDeadError):
+        ref.ask("hello", timeout=WAIT_S)
+    # The workers survive: other actors still run.
+    assert Recorder.start(dispatcher).ask("x", timeout=WAIT_S) == 1
