@@ -22,7 +22,8 @@ class Block(importlib.abc.MetaPathFinder):
 
 sys.meta_path.insert(0, Block())
 from pathlib import Path
-import eamos.node  # everything eamos-node imports
+import eamos.cli.node  # everything eamos-node imports
+import eamos.actors.drone
 from eamos.actors.runtime import DroneRuntime, NetSettings
 from eamos.hal.fake import FakeAdapter
 from eamos.program.format import load_program

@@ -17,9 +17,9 @@ from typing import Any
 import pytest
 import zmq
 
-from eamos.actors.ground import GroundStation
 from eamos.actors.runtime import DroneRuntime, NetSettings
 from eamos.compiler import compile_mission
+from eamos.ground.station import GroundStation
 from eamos.hal import make_adapter
 from eamos.hal.fake import FakeAdapter
 from eamos.logs import make_logger, read_log

@@ -315,7 +315,7 @@ def write_fleet(
 
 def node_argv(config: Path) -> list[str]:
     """The command running ``eamos-node`` with ``config`` in this Python environment."""
-    return [sys.executable, "-m", "eamos.node", "--config", str(config)]
+    return [sys.executable, "-m", "eamos.cli.node", "--config", str(config)]
 
 
 # -- delay proxy ------------------------------------------------------------------------
