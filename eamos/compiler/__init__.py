@@ -7,7 +7,7 @@ Public surface; everything else in this package is private.
 
 from .artifacts import write_artifacts
 from .drawing import render_svg, to_dot, to_graphml
-from .errors import CompilerBug, Diagnostic, MissionError, SourceLocation
+from .errors import CompilerBug, Diagnostic, MissionError, SourceLocation, render_diagnostics
 from .phases import CompiledMission, compile_file, compile_mission
 
 __all__ = [
@@ -18,6 +18,7 @@ __all__ = [
     "SourceLocation",
     "compile_file",
     "compile_mission",
+    "render_diagnostics",
     "render_svg",
     "to_dot",
     "to_graphml",

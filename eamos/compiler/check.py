@@ -9,6 +9,7 @@ blocks, empty blocks, blocks never reached.  Returns the warnings; raises one
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 from ..program.uniform import (
@@ -20,6 +21,7 @@ from ..program.uniform import (
     DroneType,
 )
 from .errors import Diagnostic, MissionError, SourceLocation, did_you_mean
+from .limits import MAX_DISTANCE_M, MAX_DURATION_S, block_limit_errors, fleet_limit_error
 from .syntax import (
     ActionCall,
     Binary,
@@ -99,7 +101,12 @@ class _Checker:
                 )
             for stmt in block.statements:
                 self.statement(stmt)
-        self.recursion()
+        too_many = fleet_limit_error(m)
+        if too_many is not None:
+            self.diags.append(too_many)
+        if self.recursion():
+            # Only a mission without cycles has a finite size to count.
+            self.diags.extend(block_limit_errors(m))
         self.reachability()
         used = {
             s.drone
@@ -182,14 +189,9 @@ class _Checker:
         for value, param, loc in zip(
             call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args), strict=False
         ):
-            if (param in ("height_m", "duration_s") and value < 0) or (
-                param == "height_m" and value == 0
-            ):
-                self.error(loc, f"{call.action}'s {param} must be positive, got {value:g}")
-            if param == "lat_deg" and not -90 <= value <= 90:
-                self.error(loc, f"latitude must be within -90..90 degrees, got {value:g}")
-            if param == "lon_deg" and not -180 <= value <= 180:
-                self.error(loc, f"longitude must be within -180..180 degrees, got {value:g}")
+            problem = _argument_problem(call.action, param, value)
+            if problem:
+                self.error(loc, problem)
 
     def control(self, ctl: Control) -> None:
         for ref in (ctl.body, ctl.orelse, ctl.exit):
@@ -272,33 +274,45 @@ class _Checker:
 
     # -- whole-mission checks -----------------------------------------------
 
-    def recursion(self) -> None:
+    def recursion(self) -> bool:
+        """Report every cycle of block calls; True if there is none.
+
+        A depth-first walk with an explicit stack: a chain of thousands of blocks
+        must not exhaust Python's.
+        """
         blocks = self.mission.blocks
         state: dict[str, int] = {}  # 1 = on the current path, 2 = done
         path: list[str] = []
-
-        def visit(name: str) -> None:
-            state[name] = 1
-            path.append(name)
-            for stmt in blocks[name].statements:
-                for ref in _refs(stmt):
+        acyclic = True
+        for root in blocks:
+            if root in state:
+                continue
+            state[root] = 1
+            path.append(root)
+            stack = [iter([r for s in blocks[root].statements for r in _refs(s)])]
+            while stack:
+                for ref in stack[-1]:
                     if ref.name not in blocks:
                         continue
                     if state.get(ref.name) == 1:
+                        acyclic = False
                         cycle = [*path[path.index(ref.name) :], ref.name]
                         self.error(
                             ref.loc,
-                            "recursion between blocks: " + " -> ".join(cycle),
+                            "recursion between blocks: " + " -> ".join(_shorten(cycle)),
                             "a mission is finite: use RepeatWhile/RepeatFor to repeat a block",
                         )
                     elif ref.name not in state:
-                        visit(ref.name)
-            path.pop()
-            state[name] = 2
-
-        for name in blocks:
-            if name not in state:
-                visit(name)
+                        state[ref.name] = 1
+                        path.append(ref.name)
+                        stack.append(
+                            iter([r for s in blocks[ref.name].statements for r in _refs(s)])
+                        )
+                        break
+                else:
+                    stack.pop()
+                    state[path.pop()] = 2
+        return acyclic
 
     def reachability(self) -> None:
         blocks = self.mission.blocks
@@ -319,6 +333,39 @@ class _Checker:
                     f"block '{name}' is never reached from {self.mission.entry}",
                     "call it from another block, or remove it",
                 )
+
+
+def _shorten(cycle: list[str]) -> list[str]:
+    return cycle if len(cycle) <= 8 else [*cycle[:4], "...", *cycle[-3:]]
+
+
+# The range of each argument, by parameter name (see docs/mission-language.md, "Limits").
+_RANGES: dict[str, tuple[float, float, str]] = {
+    "height_m": (0.0, MAX_DISTANCE_M, "m"),
+    "distance_m": (-MAX_DISTANCE_M, MAX_DISTANCE_M, "m"),
+    "x_m": (-MAX_DISTANCE_M, MAX_DISTANCE_M, "m"),
+    "y_m": (-MAX_DISTANCE_M, MAX_DISTANCE_M, "m"),
+    "z_m": (-MAX_DISTANCE_M, MAX_DISTANCE_M, "m"),
+    "alt_m": (-MAX_DISTANCE_M, MAX_DISTANCE_M, "m"),
+    "duration_s": (0.0, MAX_DURATION_S, "s"),
+}
+
+
+def _argument_problem(action: str, param: str, value: float) -> str:
+    """What is wrong with one argument value ("" if nothing)."""
+    if not math.isfinite(value):  # pragma: no cover - the parser refuses these
+        return f"{action}'s {param} must be a finite number"
+    if (param in ("height_m", "duration_s") and value < 0) or (param == "height_m" and value == 0):
+        return f"{action}'s {param} must be positive, got {value:g}"
+    if param == "lat_deg" and not -90 <= value <= 90:
+        return f"latitude must be within -90..90 degrees, got {value:g}"
+    if param == "lon_deg" and not -180 <= value <= 180:
+        return f"longitude must be within -180..180 degrees, got {value:g}"
+    bounds = _RANGES.get(param)
+    if bounds is not None and not bounds[0] <= value <= bounds[1]:
+        low, high, unit = bounds
+        return f"{action}'s {param} must be within {low:g}..{high:g} {unit}, got {value:g}"
+    return ""
 
 
 def _props(expr: Expr | None) -> Iterator[Prop]:

@@ -31,7 +31,8 @@ from __future__ import annotations
 import networkx as nx
 
 from ..program.uniform import GROUND_STATION
-from .errors import CompilerBug
+from .errors import CompilerBug, Diagnostic, MissionError, SourceLocation
+from .limits import MAX_SYNC_ARCS, amount
 
 
 def node_key(meg: nx.DiGraph, node: int, drone: str) -> str:
@@ -160,9 +161,52 @@ def fleet(meg: nx.DiGraph) -> list[str]:
 
 
 def slice_dependency_graphs(meg: nx.DiGraph) -> dict[str, nx.DiGraph]:
-    """Slice the MEG into one MDG per participant (ground station included)."""
+    """Slice the MEG into one MDG per participant (ground station included).
+
+    Raises :class:`~.errors.MissionError` (before slicing) for a mission whose
+    forks would need more than :data:`~.limits.MAX_SYNC_ARCS` arcs.
+    """
     index = _MegIndex(meg)
+    too_many = _sync_arcs_error(index)
+    if too_many is not None:
+        raise MissionError([too_many])
     return {drone: _Slicer(index, drone).run() for drone in fleet(meg)}
+
+
+def _sync_arcs_error(index: _MegIndex) -> Diagnostic | None:
+    """An error if the forks would tie too many branches to too many drones.
+
+    A PAR block that starts right after p parallel branches end makes each of
+    its d drones hear from each branch: p x d arcs (twice: sender and receiver
+    MDGs).  Two PAR blocks of 1 000 drones in a row would need a million, so
+    the sum is counted here, in one pass, before anything is sliced.
+    """
+    total, worst, worst_arcs = 0, -1, 0
+    for fork in sorted(index.forks):
+        ends = sum(1 for p in index.pred[fork] if p not in index.forks)
+        if not ends:
+            continue
+        arcs = ends * len(index.leaf_drones(fork))
+        total += arcs
+        if arcs > worst_arcs:
+            worst, worst_arcs = fork, arcs
+    if total <= MAX_SYNC_ARCS:
+        return None
+    attrs = index.meg.nodes[worst]
+    ends = sum(1 for p in index.pred[worst] if p not in index.forks)
+    drones = len(index.leaf_drones(worst))
+    block = str(attrs.get("label", ""))
+    loc = SourceLocation(int(attrs.get("line", 1)), int(attrs.get("col", 1)))
+    return Diagnostic(
+        "error",
+        loc,
+        f"block '{block}' starts {drones} drones right after {ends} parallel branches end: "
+        f"each drone waits for each branch ({amount(worst_arcs)} arcs; {amount(total)} in the "
+        f"whole mission, more than the limit of {amount(MAX_SYNC_ARCS)})",
+        "put one step between the PAR blocks (e.g. Drone1.PauseFor(0)): the branches then "
+        "tell one drone, and it tells the next ones",
+        loc.col + len(block),
+    )
 
 
 def mdg_stats(mdg: nx.DiGraph) -> dict[str, int]:

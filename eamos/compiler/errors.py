@@ -9,10 +9,12 @@ those are our mistakes, not the user's, and are reported differently.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 from ..hints import closest
+from .source import display_line, split_lines
 
 Severity = Literal["error", "warning"]
 
@@ -30,35 +32,92 @@ class SourceLocation:
 
 NOWHERE = SourceLocation(1, 1)
 
+# Longest part of a source line printed under a diagnostic, in characters.
+_EXCERPT = 160
+
 
 @dataclass(frozen=True)
 class Diagnostic:
-    """One finding about a mission, with where it is and how to fix it."""
+    """One finding about a mission, with where it is and how to fix it.
+
+    ``loc`` is a line and a *character* column by the definition of
+    :mod:`.source`.  ``source_line`` is the text of that line, filled in by
+    :func:`~.phases.compile_mission` so that rendering one diagnostic does not
+    split the whole file again (which made printing many warnings quadratic).
+    """
 
     severity: Severity
     loc: SourceLocation
     message: str
     hint: str = ""
     end_col: int | None = None  # last column of the offending text, for the caret
+    source_line: str | None = field(default=None, compare=False, repr=False)
 
     def render(self, path: str, source: str | None) -> str:
         """``file:line:col: severity: message``, the line with a caret, and the hint."""
+        if source is None:
+            return self.render_line(path, None)
+        if self.source_line is not None:
+            return self.render_line(path, self.source_line)
+        return self.render_line(path, _line_of(split_lines(source), self.loc.line))
+
+    def render_line(self, path: str, line: str | None) -> str:
+        """As :meth:`render`, given the text of the diagnostic's line (None: no excerpt)."""
         out = [f"{path}:{self.loc}: {self.severity}: {self.message}"]
-        if source is not None:
-            lines = source.splitlines()
-            if 1 <= self.loc.line <= len(lines):
-                text = lines[self.loc.line - 1].expandtabs(4)
-                raw = lines[self.loc.line - 1]
-                # Tabs were expanded for display; move the caret the same way.
-                col = len(raw[: self.loc.col - 1].expandtabs(4)) + 1
-                width = 1
-                if self.end_col is not None and self.end_col > self.loc.col:
-                    width = len(raw[self.loc.col - 1 : self.end_col - 1].expandtabs(4)) or 1
-                out.append(f"    {text}")
-                out.append("    " + " " * (col - 1) + "^" + "~" * (width - 1))
+        if line is not None:
+            raw, first, last = _excerpt(line, self.loc.col, self.end_col)
+            text = raw.expandtabs(4)
+            # Tabs were expanded for display; move the caret the same way.
+            col = len(raw[: first - 1].expandtabs(4)) + 1
+            width = 1
+            if last is not None and last > first:
+                width = len(raw[first - 1 : last - 1].expandtabs(4)) or 1
+            out.append(f"    {text}")
+            out.append("    " + " " * (col - 1) + "^" + "~" * (width - 1))
         if self.hint:
             out.append(f"    hint: {self.hint}")
         return "\n".join(out)
+
+
+def _excerpt(line: str, col: int, end_col: int | None) -> tuple[str, int, int | None]:
+    """The part of a line shown under a diagnostic, and the caret's columns in it.
+
+    A long line (a generated mission may be one 2 MB line) is cut to a window
+    around the caret, so the output stays proportional to the diagnostics.
+    """
+    if len(line) <= _EXCERPT:
+        return display_line(line), col, end_col
+    # Cut first, then clean: display_line maps one character to one, and cleaning the
+    # whole line for each diagnostic would make many diagnostics on it quadratic.
+    start = max(0, min(col - 1 - _EXCERPT // 2, len(line) - _EXCERPT))
+    prefix = "..." if start > 0 else ""
+    suffix = "..." if start + _EXCERPT < len(line) else ""
+    window = prefix + display_line(line[start : start + _EXCERPT]) + suffix
+    shift = len(prefix) - start
+    last = None if end_col is None else min(end_col, start + _EXCERPT + 1) + shift
+    return window, col + shift, last
+
+
+def _line_of(lines: list[str], number: int) -> str | None:
+    return lines[number - 1] if 1 <= number <= len(lines) else None
+
+
+def with_source_lines(diagnostics: list[Diagnostic], source: str) -> list[Diagnostic]:
+    """The diagnostics, each carrying the text of its line (one split of the source)."""
+    lines = split_lines(source)
+    return [
+        d if d.source_line is not None else replace(d, source_line=_line_of(lines, d.loc.line))
+        for d in diagnostics
+    ]
+
+
+def render_diagnostics(diagnostics: Iterable[Diagnostic], path: str, source: str | None) -> str:
+    """Every diagnostic rendered, one after another; linear in the source and their number."""
+    lines = split_lines(source) if source is not None else None
+    return "\n".join(
+        d.render_line(path, None if lines is None else _line_of(lines, d.loc.line))
+        for d in diagnostics
+    )
 
 
 class MissionError(Exception):
@@ -77,7 +136,7 @@ class MissionError(Exception):
     def render(self, path: str, source: str | None) -> str:
         """All diagnostics, in source order, as the CLI prints them."""
         n = sum(1 for d in self.diagnostics if d.severity == "error")
-        body = "\n".join(d.render(path, source) for d in self.diagnostics)
+        body = render_diagnostics(self.diagnostics, path, source)
         return f"{body}\n{n} error{'s' if n != 1 else ''} in {path}"
 
 

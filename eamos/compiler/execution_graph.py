@@ -105,11 +105,12 @@ class _Closer:
             return _Fragment(frags[0].entries, frags[-1].exits)
         if kind == "par":
             fork = self.add(node, loops, scopes)
-            exits: list[int] = []
+            # An insertion-ordered set: a PAR block of thousands of branches stays linear.
+            exits: dict[int, None] = {}
             for child in self.children(node):
                 frag = self.build(child, loops, scopes)
                 self.connect((fork,), frag.entries, "seq")
-                exits.extend(x for x in frag.exits if x not in exits)
+                exits.update(dict.fromkeys(frag.exits))
             return _Fragment((fork,), tuple(exits))
         if kind == "action":
             self.add(node, loops, scopes)

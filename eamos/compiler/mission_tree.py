@@ -45,7 +45,8 @@ import networkx as nx
 from ..program.conditions import Condition, to_text
 from ..program.uniform import GROUND_STATION
 from .check import props_read
-from .errors import CompilerBug
+from .errors import CompilerBug, MissionError
+from .limits import block_limit_errors
 from .syntax import (
     ActionCall,
     Binary,
@@ -112,6 +113,9 @@ class _Builder:
     tree: nx.DiGraph = field(default_factory=nx.DiGraph)
     last_drone: str = GROUND_STATION
     next_id: int = 0
+    # The first drone of each block, computed once: a block called from many controls
+    # would otherwise be rescanned for each (quadratic on wide missions).
+    first_drones: dict[str, str | None] = field(default_factory=dict)
 
     def add(self, **attrs: object) -> int:
         node = self.next_id
@@ -212,9 +216,17 @@ class _Builder:
                     shared[ctl.exit.name] = exit_node
 
     def _first_drone(self, name: str, seen: frozenset[str] = frozenset()) -> str | None:
-        """The drone of the first action in a block, in reading order."""
+        """The drone of the first action in a block, in reading order.
+
+        Recursion is bounded by the checked nesting limit (``limits.MAX_BLOCK_DEPTH``).
+        """
         if name in seen or name not in self.mission.blocks:
             return None
+        if name not in self.first_drones:
+            self.first_drones[name] = self._scan_first_drone(name, seen)
+        return self.first_drones[name]
+
+    def _scan_first_drone(self, name: str, seen: frozenset[str]) -> str | None:
         for stmt in self.mission.blocks[name].statements:
             if isinstance(stmt, ActionCall) and stmt.drone is not None:
                 return stmt.drone
@@ -235,7 +247,14 @@ class _Builder:
 
 
 def build_mission_tree(mission: Mission) -> nx.DiGraph:
-    """Expand a checked mission into its Abstract Mission Tree (root: node 0, ``init``)."""
+    """Expand a checked mission into its Abstract Mission Tree (root: node 0, ``init``).
+
+    Counts before expanding: a mission over the size or nesting limits (normally
+    refused by the checks already) raises :class:`~.errors.MissionError` here too.
+    """
+    too_big = block_limit_errors(mission)
+    if too_big:
+        raise MissionError(too_big)
     builder = _Builder(mission)
     root = builder.add(kind="init", drone=GROUND_STATION, label="INIT", block="", line=1, col=1)
     builder.block(mission.entry, root, role="child")

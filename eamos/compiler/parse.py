@@ -10,29 +10,25 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from ..program.uniform import ACTIONS, PROPERTIES
+from ..program.uniform import ACTIONS
 from .errors import Diagnostic, MissionError, SourceLocation
+from .limits import MAX_REPEAT, MAX_SOURCE_BYTES
+from .parse_expressions import Node, NodeReader, text
+from .source import SourceText
 from .syntax import (
     CONTROL_KINDS,
     ActionCall,
-    Binary,
     Block,
     BlockCall,
     BlockRef,
-    Bool,
     Control,
     DroneDecl,
     Expr,
     Mission,
-    Num,
-    Prop,
     Statement,
-    Unary,
 )
 
-Node = Any  # tree_sitter.Node; typed loosely so the module imports without it
-
-MAX_SOURCE_BYTES = 2_000_000
+__all__ = ["MAX_SOURCE_BYTES", "parse_mission", "parse_partial", "parse_with_warnings"]
 
 # Go statements a mission cannot contain, and what to write instead.
 _UNSUPPORTED_STATEMENTS = {
@@ -83,8 +79,6 @@ _CONTROL_SIGNATURES = {
     "DoUntil": "DoUntil(cond, Body[, Exit])",
 }
 
-_BINARY_OPS = {"&&", "||", "==", "!=", "<", "<=", ">", ">=", "+", "-", "*", "/"}
-
 
 def _go_parser() -> Any:
     try:
@@ -104,54 +98,13 @@ def _go_parser() -> Any:
     return tree_sitter.Parser(tree_sitter.Language(tree_sitter_go.language()))
 
 
-def _loc(node: Node) -> SourceLocation:
-    return SourceLocation(node.start_point.row + 1, node.start_point.column + 1)
-
-
-def _end_col(node: Node) -> int | None:
-    if node.end_point.row != node.start_point.row:
-        return None
-    return int(node.end_point.column) + 1
-
-
-def _text(node: Node) -> str:
-    return bytes(node.text).decode("utf-8", errors="replace")
-
-
-class _Reader:
+class _Reader(NodeReader):
     """Walks one tree-sitter tree, collecting diagnostics instead of stopping."""
 
-    def __init__(self, source: str) -> None:
-        self.source = source
-        self.diags: list[Diagnostic] = []
+    def __init__(self, source: str, source_text: SourceText) -> None:
+        super().__init__(source_text)
+        self.original = source
         self.incomplete: set[str] = set()
-
-    def error(self, node: Node, message: str, hint: str = "") -> None:
-        self.diags.append(Diagnostic("error", _loc(node), message, hint, _end_col(node)))
-
-    def warn(self, node: Node, message: str, hint: str = "") -> None:
-        self.diags.append(Diagnostic("warning", _loc(node), message, hint, _end_col(node)))
-
-    # -- syntax errors ------------------------------------------------------
-
-    def syntax_errors(self, root: Node) -> None:
-        """Report each ERROR / MISSING node once, at its innermost position."""
-        stack = [root]
-        while stack:
-            node = stack.pop()
-            if node.is_missing:
-                self.error(node, f"syntax error: missing '{node.type}'", "check the line above")
-                continue
-            if node.type == "ERROR":
-                snippet = _text(node).strip().splitlines()[0][:40] if _text(node).strip() else ""
-                self.error(
-                    node,
-                    f"syntax error near '{snippet}'" if snippet else "syntax error",
-                    "check brackets, parentheses and commas",
-                )
-                continue
-            if node.has_error:
-                stack.extend(reversed(node.children))
 
     # -- top level ----------------------------------------------------------
 
@@ -169,7 +122,7 @@ class _Reader:
                     (c for c in node.named_children if c.type == "package_identifier"), None
                 )
                 if ident is not None:
-                    name = _text(ident)
+                    name = text(ident)
             elif kind == "var_declaration":
                 for decl in self._var_specs(node):
                     if decl.name in drones:
@@ -224,7 +177,7 @@ class _Reader:
             blocks=blocks,
             drones=drones,
             entry=entry,
-            source=self.source,
+            source=self.original,
             incomplete_blocks=frozenset(self.incomplete),
         )
 
@@ -249,7 +202,7 @@ class _Reader:
                 )
                 continue
             out.extend(
-                DroneDecl(_text(n), _text(type_node), _loc(n), _loc(type_node)) for n in names
+                DroneDecl(text(n), text(type_node), self.loc(n), self.loc(type_node)) for n in names
             )
         return out
 
@@ -257,7 +210,7 @@ class _Reader:
         name_node = node.child_by_field_name("name")
         if name_node is None:
             return None
-        name = _text(name_node)
+        name = text(name_node)
         params = node.child_by_field_name("parameters")
         if params is not None and params.named_child_count:
             self.error(
@@ -291,7 +244,7 @@ class _Reader:
                     statements.append(stmt)
                 else:
                     self.incomplete.add(name)
-        return Block(name=name, mode=mode, statements=tuple(statements), loc=_loc(name_node))
+        return Block(name=name, mode=mode, statements=tuple(statements), loc=self.loc(name_node))
 
     def _statement_nodes(self, body: Node) -> list[Node]:
         out: list[Node] = []
@@ -332,7 +285,7 @@ class _Reader:
         if function is None:
             return None
         if function.type == "identifier":
-            name = _text(function)
+            name = text(function)
             if name in CONTROL_KINDS:
                 return self._control(name, None, call, args)
             if name == "PauseFor":
@@ -353,7 +306,7 @@ class _Reader:
                     "blocks are called without arguments: " + f"{name}()",
                 )
                 return None
-            return BlockCall(name, _loc(function))
+            return BlockCall(name, self.loc(function))
         if function.type == "selector_expression":
             operand = function.child_by_field_name("operand")
             field = function.child_by_field_name("field")
@@ -362,7 +315,7 @@ class _Reader:
                     function, "an action is called on a drone by name", "e.g. Drone1.Takeoff(1.5)"
                 )
                 return None
-            drone, action = _text(operand), _text(field)
+            drone, action = text(operand), text(field)
             if action in ("PauseWhile", "PauseUntil"):
                 return self._control(action, drone, call, args)
             return self._action_call(drone, action, call, args, field)
@@ -381,60 +334,26 @@ class _Reader:
         locs: list[SourceLocation] = []
         ok = True
         for arg in args:
-            value = self._number(arg)
+            if self.too_deep(arg, "this argument"):
+                ok = False
+                continue
+            value = self.number(arg)
             if value is None:
                 ok = False
                 continue
             values.append(value)
-            locs.append(_loc(arg))
+            locs.append(self.loc(arg))
         if not ok:
             return None
-        return ActionCall(drone, action, tuple(values), _loc(call), tuple(locs), _loc(name_node))
-
-    def _number(self, node: Node) -> float | None:
-        """A literal number argument (with an optional sign)."""
-        sign = 1.0
-        inner = node
-        while (
-            inner.type == "unary_expression"
-            and _text(inner.child_by_field_name("operator")) in "+-"
-        ):
-            if _text(inner.child_by_field_name("operator")) == "-":
-                sign = -sign
-            inner = inner.child_by_field_name("operand")
-        if inner.type == "parenthesized_expression" and inner.named_child_count == 1:
-            return self._number(inner.named_children[0])
-        if inner.type in ("int_literal", "float_literal"):
-            try:
-                text = _text(inner).replace("_", "")
-                value = float(int(text, 0)) if inner.type == "int_literal" else float(text)
-            except ValueError:
-                self.error(
-                    inner,
-                    f"'{_text(inner)}' is not a number this compiler understands",
-                    "write decimal numbers like 1.5 or -2",
-                )
-                return None
-            return sign * value
-        kind = {
-            "interpreted_string_literal": "a string",
-            "raw_string_literal": "a string",
-            "true": "a boolean",
-            "false": "a boolean",
-            "identifier": "a name",
-        }.get(inner.type, "an expression")
-        self.error(
-            node,
-            f"action arguments are literal numbers, not {kind}",
-            "write the value itself, e.g. Drone1.Takeoff(1.5)",
+        return ActionCall(
+            drone, action, tuple(values), self.loc(call), tuple(locs), self.loc(name_node)
         )
-        return None
 
     def _control(
         self, kind: str, drone: str | None, call: Node, args: list[Node]
     ) -> Control | None:
         sig = _CONTROL_SIGNATURES[kind]
-        loc = _loc(call)
+        loc = self.loc(call)
         needs_cond = kind != "RepeatFor"
         min_args, max_args = {
             "If": (2, 3),
@@ -455,24 +374,26 @@ class _Reader:
                     loc,
                     f"{kind} takes {_count(min_args, max_args)}, got {len(args)}",
                     f"write {sig}",
-                    _end_col(call),
+                    self.end_col(call),
                 )
             )
             return None
         cond: Expr | None = None
         count: int | None = None
+        if self.too_deep(args[0], "this condition" if needs_cond else "this count"):
+            return None
         if needs_cond:
             cond = self.expr(args[0])
             if cond is None:
                 return None
         else:
-            value = self._number(args[0])
+            value = self.number(args[0])
             if value is None:
                 return None
-            if value != int(value) or value < 0:
+            if value != int(value) or not 0 <= value <= MAX_REPEAT:
                 self.error(
                     args[0],
-                    "RepeatFor repeats a whole number of times (0 or more)",
+                    f"RepeatFor repeats a whole number of times, 0 to {MAX_REPEAT}",
                     "e.g. RepeatFor(3, SEQ_Body)",
                 )
                 return None
@@ -480,10 +401,10 @@ class _Reader:
         refs: list[BlockRef] = []
         for arg in args[1:]:
             if arg.type == "identifier":
-                refs.append(BlockRef(_text(arg), _loc(arg)))
+                refs.append(BlockRef(text(arg), self.loc(arg)))
             elif arg.type == "call_expression":
                 fn = arg.child_by_field_name("function")
-                name = _text(fn) if fn is not None else "?"
+                name = text(fn) if fn is not None else "?"
                 self.error(
                     arg, f"name the block without calling it: {name}, not {name}()", f"write {sig}"
                 )
@@ -496,88 +417,6 @@ class _Reader:
         if kind == "If":
             return Control("If", loc, cond=cond, body=body, orelse=rest)  # type: ignore[arg-type]
         return Control(kind, loc, cond=cond, count=count, body=body, exit=rest, drone=drone)  # type: ignore[arg-type]
-
-    # -- conditions ---------------------------------------------------------
-
-    def expr(self, node: Node) -> Expr | None:
-        kind = node.type
-        loc = _loc(node)
-        if kind == "parenthesized_expression":
-            inner = [c for c in node.named_children if c.type != "comment"]
-            return self.expr(inner[0]) if len(inner) == 1 else None
-        if kind in ("int_literal", "float_literal"):
-            value = self._number(node)
-            return None if value is None else Num(value, loc)
-        if kind in ("true", "false"):
-            return Bool(kind == "true", loc)
-        if kind == "unary_expression":
-            op = _text(node.child_by_field_name("operator"))
-            operand = self.expr(node.child_by_field_name("operand"))
-            if operand is None:
-                return None
-            if op == "+":
-                return operand
-            if op not in ("!", "-"):
-                self.error(
-                    node,
-                    f"operator '{op}' is not supported in conditions",
-                    "use numbers, comparisons, &&, ||, ! and + - * /",
-                )
-                return None
-            return Unary(op, operand, loc)  # type: ignore[arg-type]
-        if kind == "binary_expression":
-            op = _text(node.child_by_field_name("operator"))
-            left = self.expr(node.child_by_field_name("left"))
-            right = self.expr(node.child_by_field_name("right"))
-            if op not in _BINARY_OPS:
-                self.error(
-                    node.child_by_field_name("operator"),
-                    f"operator '{op}' is not supported in conditions",
-                    "use comparisons, &&, ||, ! and + - * /",
-                )
-                return None
-            if left is None or right is None:
-                return None
-            return Binary(op, left, right, _loc(node.child_by_field_name("operator")))
-        if kind == "call_expression":
-            fn = node.child_by_field_name("function")
-            args = node.child_by_field_name("arguments")
-            if fn is not None and fn.type == "selector_expression":
-                operand = fn.child_by_field_name("operand")
-                field = fn.child_by_field_name("field")
-                if operand is not None and operand.type == "identifier" and field is not None:
-                    if args is not None and args.named_child_count:
-                        self.error(
-                            args,
-                            "drone properties take no arguments",
-                            f"write {_text(operand)}.{_text(field)}()",
-                        )
-                        return None
-                    return Prop(_text(operand), _text(field), loc)
-            self.error(
-                node,
-                "only drone properties can be called in a condition",
-                "e.g. D3.X() > 10 && Drone1.Battery() > 30",
-            )
-            return None
-        if kind == "identifier":
-            name = _text(node)
-            hint = (
-                f"read it from a drone: Drone1.{name}()"
-                if name in PROPERTIES
-                else f"did you mean {name}.X()? properties are called with ()"
-            )
-            self.error(node, f"'{name}' is a bare name; conditions read drone properties", hint)
-            return None
-        if kind == "selector_expression":
-            self.error(node, "a property is read by calling it", f"write {_text(node)}()")
-            return None
-        self.error(
-            node,
-            "this expression is not supported in conditions",
-            "use numbers, drone properties like D3.X(), comparisons, &&, ||, !",
-        )
-        return None
 
 
 def _count(lo: int, hi: int) -> str:
@@ -619,7 +458,8 @@ def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
                 )
             ]
         )
-    encoded = source.encode("utf-8", errors="surrogatepass")
+    source_text = SourceText(source)
+    encoded = source_text.data
     if len(encoded) > MAX_SOURCE_BYTES:
         raise MissionError(
             [
@@ -632,8 +472,9 @@ def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
             ]
         )
     tree = _go_parser().parse(encoded)
-    reader = _Reader(source)
+    reader = _Reader(source, source_text)
     reader.syntax_errors(tree.root_node)
+    reader.long_names(tree.root_node)
     syntax_broken = any(d.severity == "error" for d in reader.diags)
     mission = reader.mission(tree.root_node)
     errors = [d for d in reader.diags if d.severity == "error"]

@@ -22,7 +22,7 @@ from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION
 from .check import collect_diagnostics, drone_types
 from .dependency_graph import fleet, mdg_stats, slice_dependency_graphs
-from .errors import Diagnostic, MissionError, SourceLocation
+from .errors import Diagnostic, MissionError, SourceLocation, with_source_lines
 from .execution_graph import build_execution_graph
 from .mission_tree import build_mission_tree
 from .parse import parse_partial
@@ -64,7 +64,14 @@ def compile_mission(source: str, source_file: str = "<mission>") -> CompiledMiss
     was_enabled = gc.isenabled()
     gc.disable()
     try:
-        return _compile(source, source_file)
+        compiled = _compile(source, source_file)
+    except MissionError as exc:
+        # Each diagnostic keeps its line, so printing many of them stays linear.
+        exc.diagnostics = with_source_lines(exc.diagnostics, source)
+        raise
+    else:
+        warnings = with_source_lines(list(compiled.warnings), source)
+        return dataclasses.replace(compiled, warnings=tuple(warnings))
     finally:
         if was_enabled:
             gc.enable()

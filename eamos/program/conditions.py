@@ -4,14 +4,22 @@ A condition is a nested JSON-able list: ``["num", 5.0]``, ``["bool", true]``,
 ``["prop", "D3", "X"]``, ``["not", e]``, ``["neg", e]``, or ``[op, a, b]``
 with ``op`` one of ``&& || == != < <= > >= + - * /``.  It is evaluated by a
 small interpreter over telemetry values, never by ``eval``.
+
+A condition nests at most :data:`MAX_DEPTH` operators: the compiler refuses
+deeper ones and :func:`validate` rejects them in a loaded program, so the
+recursive :func:`evaluate` and :func:`to_text` stay far from Python's stack limit.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
 Condition = list[Any]
+
+#: Most operators nested in one condition (``!``, ``-``, ``&&`` ... each count one).
+MAX_DEPTH = 100
 
 BINARY_OPS: dict[str, Callable[[Any, Any], Any]] = {
     "<": lambda a, b: a < b,
@@ -72,30 +80,48 @@ def evaluate(cond: Condition, lookup: Lookup) -> bool | float:
 def properties(cond: Condition | None) -> list[tuple[str, str]]:
     """Every (drone, property) a condition reads, in order, without repeats."""
     out: list[tuple[str, str]] = []
-
-    def walk(c: Condition) -> None:
+    todo = [cond] if cond is not None else []
+    while todo:  # an explicit stack: no recursion, whatever the depth
+        c = todo.pop()
         if c[0] == "prop":
             if (c[1], c[2]) not in out:
                 out.append((c[1], c[2]))
-        elif c[0] in ("num", "bool"):
-            return
-        else:
-            for sub in c[1:]:
-                walk(sub)
-
-    if cond is not None:
-        walk(cond)
+        elif c[0] not in ("num", "bool"):
+            todo.extend(reversed(c[1:]))
     return out
 
 
 def validate(cond: Any) -> None:
-    """Raise :class:`ConditionError` unless ``cond`` is a well-formed condition."""
+    """Raise :class:`ConditionError` unless ``cond`` is a well-formed condition.
+
+    Iterative, so a hostile program nested thousands deep is rejected, not a crash.
+    """
+    todo: list[tuple[Any, int]] = [(cond, 0)]
+    while todo:
+        c, depth = todo.pop()
+        _validate_one(c)
+        if c[0] in ("num", "bool", "prop"):
+            continue
+        if depth >= MAX_DEPTH:
+            raise ConditionError(f"a condition nests more than {MAX_DEPTH} operators")
+        todo.extend((sub, depth + 1) for sub in c[1:])
+
+
+def _validate_one(cond: Any) -> None:
+    """Check one level of a condition (its operands are checked by the caller)."""
     if not isinstance(cond, list) or not cond:
         raise ConditionError("a condition is a non-empty list")
     tag = cond[0]
+    if not isinstance(tag, str):
+        raise ConditionError("a condition starts with its operator's name")
     if tag == "num":
-        if len(cond) != 2 or not isinstance(cond[1], int | float) or isinstance(cond[1], bool):
-            raise ConditionError("['num', value] needs a number")
+        if (
+            len(cond) != 2
+            or not isinstance(cond[1], int | float)
+            or isinstance(cond[1], bool)
+            or not math.isfinite(cond[1])
+        ):
+            raise ConditionError("['num', value] needs a finite number")
     elif tag == "bool":
         if len(cond) != 2 or not isinstance(cond[1], bool):
             raise ConditionError("['bool', value] needs true/false")
@@ -105,12 +131,9 @@ def validate(cond: Any) -> None:
     elif tag in ("not", "neg"):
         if len(cond) != 2:
             raise ConditionError(f"[{tag!r}, e] takes one operand")
-        validate(cond[1])
     elif tag in BINARY_OPS or tag in ("&&", "||"):
         if len(cond) != 3:
             raise ConditionError(f"[{tag!r}, a, b] takes two operands")
-        validate(cond[1])
-        validate(cond[2])
     else:
         raise ConditionError(f"unknown operator {tag!r}")
 

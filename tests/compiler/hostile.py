@@ -1,0 +1,78 @@
+"""Shared checks for bad and odd missions (issue 17): only located MissionErrors, quickly.
+
+Used by the seeded corpus (test_hostile_missions.py) and the hypothesis fuzz
+test (test_fuzz_missions.py).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from eamos.compiler import CompiledMission, Diagnostic, MissionError, compile_mission
+from eamos.compiler.source import split_lines
+
+# Per mission, on a loaded 2-core machine; the slowest input within the caps
+# (2 MB of junk) takes about 6 s, every fuzzed or corpus mission well under 1 s.
+SECONDS_PER_MISSION = 10.0
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What compiling one mission gave: the compiled mission or the MissionError."""
+
+    compiled: CompiledMission | None
+    error: MissionError | None
+    seconds: float
+
+    @property
+    def diagnostics(self) -> list[Diagnostic]:
+        if self.error is not None:
+            return self.error.diagnostics
+        assert self.compiled is not None
+        return list(self.compiled.warnings)
+
+    def first_error(self) -> Diagnostic:
+        assert self.error is not None, "the mission compiled"
+        return next(d for d in self.error.diagnostics if d.severity == "error")
+
+
+def compile_checked(text: str, name: str = "odd.go") -> Outcome:
+    """Compile ``text``: anything but a MissionError fails; every location is checked."""
+    start = time.monotonic()
+    try:
+        compiled = compile_mission(text, name)
+    except MissionError as exc:
+        outcome = Outcome(None, exc, time.monotonic() - start)
+        rendered = exc.render(name, text)
+        assert rendered.startswith(f"{name}:"), rendered[:200]
+    else:
+        outcome = Outcome(compiled, None, time.monotonic() - start)
+    assert outcome.seconds < SECONDS_PER_MISSION, f"{outcome.seconds:.1f} s"
+    assert_located(outcome.diagnostics, text)
+    return outcome
+
+
+def assert_located(diagnostics: list[Diagnostic], text: str) -> None:
+    """Every diagnostic points inside the text: a real line, a column on it (or just past)."""
+    lines = split_lines(text)
+    for d in diagnostics:
+        assert 1 <= d.loc.line <= len(lines), (d, len(lines))
+        line = lines[d.loc.line - 1]
+        assert 1 <= d.loc.col <= len(line) + 1, (d, len(line))
+        if d.end_col is not None:
+            assert d.loc.col <= d.end_col <= len(line) + 1, (d, len(line))
+        if d.source_line is not None:
+            assert d.source_line == line, d
+
+
+def text_at(text: str, d: Diagnostic) -> str:
+    """The source from a diagnostic's location to the end of its line."""
+    return split_lines(text)[d.loc.line - 1][d.loc.col - 1 :]
+
+
+def caret_text(text: str, d: Diagnostic) -> str:
+    """The characters a diagnostic's caret underlines (one if it has no end column)."""
+    line = split_lines(text)[d.loc.line - 1]
+    end = d.end_col if d.end_col is not None else d.loc.col + 1
+    return line[d.loc.col - 1 : end - 1]
