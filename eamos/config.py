@@ -402,16 +402,3 @@ class FleetConfig:
             if not isinstance(value, dict):
                 raise ConfigError(f"{w}{key}: must be a table")
         return cls(path, dict(default_hal), drones, dict(ssh_defaults), ssh, binds, dict(ground))
-
-
-def positive_number(text: str) -> float:
-    """argparse type for a number greater than zero (seconds, speed-ups)."""
-    import argparse
-
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError("must be greater than 0")
-    return value

@@ -171,7 +171,8 @@ def _say(text: str) -> None:
 
 def cmd_rollout(args: argparse.Namespace) -> int:
     """``eamos rollout``."""
-    from eamos.ops.rollout import RolloutOptions, paper_table, rollout
+    from eamos.ops.record import paper_table
+    from eamos.ops.rollout import RolloutOptions, rollout
 
     opts = RolloutOptions(args.mission, args.fleet, args.run_dir, args.speedup, args.svg)
     result = rollout(opts, _say)
@@ -197,29 +198,30 @@ def print_table7(durations: dict[str, float]) -> None:
 def cmd_start(args: argparse.Namespace) -> int:
     """``eamos start``."""
     from eamos.ground import install_stop_handler
-    from eamos.ops.ground import StartOptions, start
+    from eamos.ops.ground import StartOptions, fly_rollout
 
     stop = threading.Event()
     install_stop_handler(stop)
     opts = StartOptions(
         args.run_dir, args.timeout, args.ready_timeout, live=False if args.plain else None
     )
-    summary = start(opts, stop)
-    status = "finished" if summary["ok"] else f"FAILED ({summary['outcome']})"
-    print(f"mission {summary['mission']} {status} in {summary['duration_s']:.1f} s")
-    for name, report in summary["drones"].items():
-        if report.get("error") == "no report":
-            print(f"  {name} ({report.get('host')}): no report")
+    summary = fly_rollout(opts, stop)
+    status = "finished" if summary.ok else f"FAILED ({summary.outcome})"
+    print(f"mission {summary.mission} {status} in {summary.duration_s:.1f} s")
+    for name, result in summary.drones.items():
+        report = result.report
+        if report is None:
+            print(f"  {name} ({result.host}): no report")
             continue
         print(
-            f"  {name} ({report.get('host')}): {'ok' if report.get('ok') else 'not ok'}, "
-            f"{len(report.get('actions', []))} actions, triggers sent/received "
-            f"{report.get('triggers_sent')}/{report.get('triggers_received')} "
-            f"(MDG external arcs out/in {report.get('external_out')}/{report.get('external_in')})"
+            f"  {name} ({result.host}): {'ok' if result.ok else 'not ok'}, "
+            f"{len(report.actions)} actions, triggers sent/received "
+            f"{report.triggers_sent}/{report.triggers_received} "
+            f"(MDG external arcs out/in {report.external_out}/{report.external_in})"
         )
-    print_table7(summary["rollout"]["durations"])
-    print(f"summary: {summary['run_dir']}/summary.json; logs: eamos logs fetch {args.run_dir}")
-    return EXIT_OK if summary["ok"] else EXIT_MISSION_FAILED
+    print_table7((summary.rollout or {}).get("durations", {}))
+    print(f"summary: {summary.run_dir}/summary.json; logs: eamos logs fetch {args.run_dir}")
+    return EXIT_OK if summary.ok else EXIT_MISSION_FAILED
 
 
 def _deployment(args: argparse.Namespace) -> Deployment:

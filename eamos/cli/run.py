@@ -3,17 +3,24 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from eamos.cli.exits import EXIT_BAD_INPUT, EXIT_MISSION_FAILED, EXIT_OK
-from eamos.compiler import MissionError
-from eamos.config import ConfigError, FleetConfig
-from eamos.config import positive_number as _positive
+from eamos.cli.exits import EXIT_MISSION_FAILED, EXIT_OK
+from eamos.cli.options import (
+    add_fleet_file,
+    add_mission,
+    add_plain,
+    add_run_dir,
+    add_seconds,
+    add_speedup,
+    add_svg,
+    add_verbose,
+)
+from eamos.config import FleetConfig
 
 if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `eamos compile`)
     from eamos.ground import Display, RunSummary
@@ -43,49 +50,25 @@ def add_run_parser(sub: Any) -> None:
         epilog=_RUN_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    run.add_argument("mission", metavar="MISSION.go", type=Path, help="the mission file")
-    run.add_argument(
-        "--fleet",
-        type=Path,
-        metavar="FLEET.toml",
-        help="per-drone hardware settings (default: every drone simulated)",
-    )
-    run.add_argument(
-        "--speedup",
-        type=_positive,
-        metavar="K",
-        help="simulated time runs K times faster than real time (default 1)",
-    )
+    add_mission(run)
+    add_fleet_file(run, required=False)
+    add_speedup(run)
     run.add_argument(
         "--summary", type=Path, metavar="PATH", help="also write the summary JSON here"
     )
-    run.add_argument(
-        "--run-dir",
-        type=Path,
-        metavar="DIR",
-        help="the run folder (default: runs/<mission>-<date-time>/)",
-    )
-    run.add_argument(
+    add_run_dir(run)
+    add_seconds(
+        run,
         "--timeout",
-        type=_positive,
+        "abort (everyone lands) if the mission is not over after this long, wall-clock",
         default=600.0,
-        metavar="SECONDS",
-        help="abort (everyone lands) if the mission is not over after this long (600)",
     )
-    run.add_argument(
-        "--ready-timeout",
-        type=_positive,
-        default=60.0,
-        metavar="SECONDS",
-        help="how long drones may take to start and connect (60)",
+    add_seconds(
+        run, "--ready-timeout", "how long drones may take to start and connect", default=60.0
     )
-    run.add_argument(
-        "--plain", action="store_true", help="plain progress lines instead of a live table"
-    )
-    run.add_argument(
-        "--no-svg", dest="svg", action="store_false", help="skip drawing graph pictures"
-    )
-    run.add_argument("-v", "--verbose", action="store_true", help="tracebacks of internal errors")
+    add_plain(run)
+    add_svg(run, default=True)
+    add_verbose(run)
     run.set_defaults(func=cmd_run)
 
 
@@ -164,12 +147,8 @@ def summary_lines(summary: RunSummary) -> list[str]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """``eamos run``."""
-    try:
-        fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
-    except ConfigError as exc:
-        print(f"eamos run: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    """``eamos run``; a bad mission or fleet file reaches the dispatcher (exit 2)."""
+    fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
     from eamos.ground import install_stop_handler
 
     stop = threading.Event()
@@ -185,18 +164,6 @@ def cmd_run(args: argparse.Namespace) -> int:
         live=False if args.plain else None,
         svg=args.svg,
     )
-    try:
-        summary = run_mission(opts, stop)
-    except MissionError as exc:
-        source = None
-        try:
-            source = Path(args.mission).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError):
-            pass
-        print(exc.render(str(args.mission), source), file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except ConfigError as exc:
-        print(f"eamos run: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    summary = run_mission(opts, stop)
     print("\n".join(summary_lines(summary)))
     return EXIT_OK if summary.ok else EXIT_MISSION_FAILED

@@ -51,8 +51,9 @@ from ..net import wire
 from ..program.format import DroneProgram, load_program
 from ..program.uniform import GROUND_STATION
 from .deployment import Deployment, from_run_dir, resolve
-from .rollout import ROLLOUT_FILE, RUNNING_SH, paper_table, read_rollout
-from .ssh import FleetError, classify
+from .probe import RUNNING_SH
+from .record import ROLLOUT_FILE, paper_table, read_rollout
+from .ssh import FleetConnectError, FleetError, classify
 from .targets import SshTarget
 
 GROUND_PID_FILE = "ground.pid"
@@ -174,14 +175,6 @@ class StartOptions:
     live: bool | None = None
 
 
-def start(opts: StartOptions, stop: threading.Event, say: Say | None = None) -> dict[str, Any]:
-    """Be the ground station of a rolled-out mission; return the summary's JSON (also written).
-
-    The typed summary is :func:`fly_rollout`'s.
-    """
-    return fly_rollout(opts, stop, say).to_json()
-
-
 def fly_rollout(
     opts: StartOptions,
     stop: threading.Event,
@@ -249,7 +242,7 @@ def fly_rollout(
         try:
             runtime.start()
         except DroneRuntimeError as exc:
-            raise FleetError(
+            raise FleetConnectError(
                 f"cannot be the ground station at {dep.ground_bind}: {exc} "
                 "([ground] bind must be an address of this machine that the drones reach; "
                 "is another `eamos start` running?)"
@@ -454,7 +447,7 @@ def broadcast_abort(
         try:
             runtime.start()
         except DroneRuntimeError as exc:
-            raise FleetError(
+            raise FleetConnectError(
                 f"cannot be the ground station at {dep.ground_bind}: {exc} "
                 "(is `eamos start` running somewhere else?)"
             ) from exc
@@ -495,6 +488,5 @@ __all__ = [
     "abort",
     "broadcast_abort",
     "fly_rollout",
-    "start",
     "wait_pid_exit",
 ]

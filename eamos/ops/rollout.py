@@ -65,15 +65,11 @@ from .plan import (
     launch_script,
     stage,
 )
-from .probe import RUNNING_SH, check_version, probe, sections
+from .probe import check_version, probe, sections
 from .record import (
-    ROLLOUT_FILE,
     Rollout,
     Say,
     Steps,
-    paper_table,
-    read_rollout,
-    targets_of,
     write_rollout,
 )
 from .ssh import DroneError, FleetError, copy_to, for_each, remote_error, run_remote
@@ -293,15 +289,4 @@ def rollout(opts: RolloutOptions, say: Say) -> Rollout:
     return result
 
 
-# RUNNING_SH, ROLLOUT_FILE, paper_table, read_rollout and targets_of are re-exported
-# for the modules that found them here (ops.ground, ops.status, ops.deployment).
-__all__ = [
-    "ROLLOUT_FILE",
-    "RUNNING_SH",
-    "Rollout",
-    "RolloutOptions",
-    "paper_table",
-    "read_rollout",
-    "rollout",
-    "targets_of",
-]
+__all__ = ["RolloutOptions", "rollout"]
