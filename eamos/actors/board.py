@@ -16,16 +16,15 @@ import time
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
-from types import TracebackType
 from typing import Any
 
 import pykka
 
 from ..hal.api import Telemetry
 from ..net import wire
-from ..program.uniform import PROPERTY_FIELDS
-from .dispatch import Dispatcher, PooledActor
-from .failure import FailureSink
+from .dispatch import Dispatcher
+from .failure import FailureSink, RuntimePart
+from .logic.telemetry import stale_values, telemetry_values
 from .messages import LocalTelemetry, RemoteTelemetry, TelemetryChanged, Unwatch, Watch
 
 __all__ = [
@@ -38,21 +37,6 @@ __all__ = [
     "stale_values",
     "telemetry_values",
 ]
-
-
-def telemetry_values(sample: Telemetry | wire.TelemetrySample) -> dict[str, Any]:
-    """Uniform property values (``X``, ``Battery`` ...) of a telemetry sample."""
-    values = {prop: getattr(sample, fld) for prop, fld in PROPERTY_FIELDS.items()}
-    values["_time_s"] = sample.time_s
-    values["_landed"] = sample.landed
-    return values
-
-
-def stale_values(age_s: float) -> dict[str, Any]:
-    """Property values of a drone whose telemetry went stale: none (conditions wait)."""
-    values: dict[str, Any] = dict.fromkeys(PROPERTY_FIELDS)
-    values["_stale_s"] = age_s
-    return values
 
 
 def wire_sample(sample: Telemetry, mission_id: str, sender: str) -> wire.TelemetrySample:
@@ -138,8 +122,10 @@ class _FinalDeadline:
     request: FinalSample
 
 
-class TelemetryBoard(PooledActor):
+class TelemetryBoard(RuntimePart):
     """Latest property values per drone; pushes changes to the nodes watching them."""
+
+    part = "telemetry board"
 
     def __init__(
         self,
@@ -186,18 +172,6 @@ class TelemetryBoard(PooledActor):
         elif isinstance(message, _FinalDeadline):
             self._answer(message.request)
         return None
-
-    def on_failure(
-        self,
-        exception_type: type[BaseException] | None,
-        exception_value: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        """Tell the runtime's failure policy (it aborts the drone); stay alive for the report."""
-        if self.failure is None or exception_value is None:
-            super().on_failure(exception_type, exception_value, traceback)
-        else:
-            self.failure("telemetry board", exception_value)
 
     def on_stop(self) -> None:
         for timer in self._timers:

@@ -6,7 +6,6 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from types import TracebackType
 from typing import Any
 
 import pykka
@@ -14,8 +13,8 @@ import pykka
 from ..net import wire
 from ..program.format import DroneProgram
 from ..program.uniform import MOTION_ACTIONS
-from .dispatch import Dispatcher, PooledActor
-from .failure import FailureSink
+from .dispatch import Dispatcher
+from .failure import FailureSink, RuntimePart
 from .messages import ActionRecord, Interrupt, NodeEvent, NodeResolved, SendInterrupt
 from .node import BroadcastInterrupt
 
@@ -83,8 +82,10 @@ class _FlushProgress:
     pass
 
 
-class DroneExecutive(PooledActor):
+class DroneExecutive(RuntimePart):
     """Keeps the drone's records and tells the ground station how it is doing."""
+
+    part = "executive"
 
     def __init__(
         self,
@@ -157,18 +158,6 @@ class DroneExecutive(PooledActor):
         elif isinstance(message, Snapshot):
             return self.snapshot()
         return None
-
-    def on_failure(
-        self,
-        exception_type: type[BaseException] | None,
-        exception_value: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        """Tell the runtime's failure policy (it aborts the drone); stay alive for the report."""
-        if self.failure is None or exception_value is None:
-            super().on_failure(exception_type, exception_value, traceback)
-        else:
-            self.failure("executive", exception_value)
 
     def on_stop(self) -> None:
         if self._flush_timer is not None:

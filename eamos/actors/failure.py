@@ -16,9 +16,12 @@ import threading
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from types import TracebackType
+from typing import Any, ClassVar
 
-__all__ = ["FailurePolicy", "FailureSink", "RuntimeFailure"]
+from .dispatch import PooledActor
+
+__all__ = ["FailurePolicy", "FailureSink", "RuntimeFailure", "RuntimePart"]
 
 #: Where a runtime part reports an exception: ``sink(part, exception)``.
 FailureSink = Callable[[str, BaseException], None]
@@ -65,3 +68,27 @@ class FailurePolicy:
         """The failure the drone aborted for (None: none happened)."""
         with self._lock:
             return self.failures[0] if self.failures else None
+
+
+class RuntimePart(PooledActor):
+    """A runtime part (board, executive) whose exceptions go to the drone's failure policy.
+
+    The part stays alive after reporting, so the drone's report can still be
+    built; without a sink (a part built alone in a test) Pykka's default applies.
+    """
+
+    #: The part's name in ``mission.failure`` lines.
+    part: ClassVar[str] = "runtime part"
+    failure: FailureSink | None = None
+
+    def on_failure(
+        self,
+        exception_type: type[BaseException] | None,
+        exception_value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        """Tell the runtime's failure policy (it aborts the drone); stay alive for the report."""
+        if self.failure is None or exception_value is None:
+            super().on_failure(exception_type, exception_value, traceback)
+        else:
+            self.failure(self.part, exception_value)

@@ -39,11 +39,12 @@ from ..actors.logic import (
     WatchTelemetry,
     program_wiring,
 )
+from ..actors.logic.telemetry import telemetry_values
 from ..actors.messages import ActionRecord
 from ..actors.state import Iteration
 from ..hal.api import ActionHandle, ActionResult, Telemetry
 from ..program.format import DroneProgram
-from ..program.uniform import GROUND_STATION, PROPERTY_FIELDS, CommandError, decode_command
+from ..program.uniform import GROUND_STATION, CommandError, decode_command
 from .result import DroneOutcome, VirtualRun, Waiting
 from .vehicles import STEP_S, GroundPauses, Vehicle, VehicleFactory, sim_vehicles
 
@@ -51,14 +52,6 @@ from .vehicles import STEP_S, GroundPauses, Vehicle, VehicleFactory, sim_vehicle
 TIME_LIMIT_S = 1800.0
 
 NodeId = tuple[str, str]  # (drone, node key)
-
-
-def telemetry_values(sample: Telemetry) -> dict[str, Any]:
-    """Uniform property values of a sample, as the runtime's telemetry board keeps them."""
-    values: dict[str, Any] = {prop: getattr(sample, fld) for prop, fld in PROPERTY_FIELDS.items()}
-    values["_time_s"] = sample.time_s
-    values["_landed"] = sample.landed
-    return values
 
 
 @dataclass
