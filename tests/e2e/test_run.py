@@ -13,9 +13,8 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-MISSIONS = REPO / "missions"
-RUN_TIMEOUT_S = 240
+from tests.support.runs import MISSIONS, REPO, RUN_TIMEOUT_S, eamos, run_argv, run_mission
+
 pytestmark = pytest.mark.e2e
 
 LOOP_FREE = {
@@ -27,39 +26,6 @@ LOOP_FREE = {
     "relay_wait",
 }
 FLEETS = {"experiment_d": REPO / "configs" / "experiment_d_pilot.toml"}
-
-
-def eamos(*args: str, timeout: float = RUN_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "eamos.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        cwd=REPO,
-    )
-
-
-def run_mission(
-    tmp_path: Path, mission: Path, *extra: str
-) -> tuple[subprocess.CompletedProcess[str], dict]:
-    summary = tmp_path / "summary.json"
-    proc = eamos(
-        "run",
-        str(mission),
-        "--speedup",
-        "20",
-        "--plain",
-        "--no-svg",
-        "--timeout",
-        "150",
-        "--run-dir",
-        str(tmp_path / "run"),
-        "--summary",
-        str(summary),
-        *extra,
-    )
-    data = json.loads(summary.read_text()) if summary.exists() else {}
-    return proc, data
 
 
 def by_action(actions: list[dict]) -> list[dict]:
@@ -207,16 +173,7 @@ def test_ctrl_c_lands_everyone_and_leaves_no_process(tmp_path):
             sys.executable,
             "-m",
             "eamos.cli",
-            "run",
-            str(MISSIONS / "experiment_b.go"),
-            "--speedup",
-            "2",
-            "--plain",
-            "--no-svg",
-            "--run-dir",
-            str(run_dir),
-            "--summary",
-            str(summary),
+            *run_argv(MISSIONS / "experiment_b.go", tmp_path, speedup=2, timeout_s=600),
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -286,16 +243,7 @@ def test_a_drone_that_goes_silent_shows_as_link_lines_and_the_mission_finishes(t
             sys.executable,
             "-m",
             "eamos.cli",
-            "run",
-            str(MISSIONS / "experiment_b.go"),
-            "--speedup",
-            "2",
-            "--plain",
-            "--no-svg",
-            "--run-dir",
-            str(run_dir),
-            "--summary",
-            str(summary),
+            *run_argv(MISSIONS / "experiment_b.go", tmp_path, speedup=2, timeout_s=600),
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
 import pytest
+
+from tests.support.runs import run_mission
 
 REPO = Path(__file__).resolve().parents[2]
 RUN_TIMEOUT_S = 300
@@ -18,35 +18,16 @@ pytestmark = [pytest.mark.e2e, pytest.mark.timeout(RUN_TIMEOUT_S + 60)]
 def eamos_run(
     tmp_path: Path, mission: Path, fleet: Path, *extra: str
 ) -> tuple[subprocess.CompletedProcess[str], dict]:
-    summary = tmp_path / "summary.json"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "eamos.cli",
-            "run",
-            str(mission),
-            "--fleet",
-            str(fleet),
-            "--speedup",
-            "5",
-            "--plain",
-            "--no-svg",
-            "--timeout",
-            "200",
-            "--run-dir",
-            str(tmp_path / "run"),
-            "--summary",
-            str(summary),
-            *extra,
-        ],
-        capture_output=True,
-        text=True,
-        timeout=RUN_TIMEOUT_S,
-        cwd=REPO,
+    return run_mission(
+        tmp_path,
+        mission,
+        "--fleet",
+        str(fleet),
+        *extra,
+        speedup=5,
+        timeout_s=200,
+        process_timeout_s=RUN_TIMEOUT_S,
     )
-    data = json.loads(summary.read_text()) if summary.exists() else {}
-    return proc, data
 
 
 def test_experiment_c_hybrid(tmp_path):

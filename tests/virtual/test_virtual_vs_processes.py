@@ -8,18 +8,14 @@ stop, so the order of actions does not depend on timing.
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from eamos.compiler import compile_file
 from eamos.virtual import run_virtual
+from tests.support.runs import REPO, run_mission
 
-REPO = Path(__file__).resolve().parents[2]
-RUN_TIMEOUT_S = 240
 pytestmark = pytest.mark.e2e
 
 MISSIONS = {
@@ -31,32 +27,9 @@ MISSIONS = {
 
 
 def run_processes(tmp_path: Path, mission: Path) -> dict:
-    summary = tmp_path / "summary.json"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "eamos.cli",
-            "run",
-            str(mission),
-            "--speedup",
-            "20",
-            "--plain",
-            "--no-svg",
-            "--timeout",
-            "150",
-            "--run-dir",
-            str(tmp_path / "run"),
-            "--summary",
-            str(summary),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=RUN_TIMEOUT_S,
-        cwd=REPO,
-    )
+    proc, summary = run_mission(tmp_path, mission)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    return json.loads(summary.read_text())
+    return summary
 
 
 @pytest.mark.parametrize("name", sorted(MISSIONS))
