@@ -37,21 +37,33 @@ ACTIONS: dict[str, ActionSpec] = {
     for a in (
         ActionSpec("Arm", (), "Arm the motors; waits until the vehicle is armable."),
         ActionSpec("Disarm", (), "Disarm the motors; only on the ground."),
-        ActionSpec("Takeoff", ("height_m",), "Climb vertically to height_m above home."),
+        ActionSpec("Takeoff", ("height_m",), "Climb vertically to `height_m` metres above home."),
         ActionSpec("Land", (), "Descend at the current X/Y until landed."),
-        ActionSpec("FlyByX", ("distance_m",), "Fly distance_m along X (north) from here."),
-        ActionSpec("FlyByY", ("distance_m",), "Fly distance_m along Y (east) from here."),
-        ActionSpec("FlyByZ", ("distance_m",), "Climb (or descend if negative) distance_m."),
         ActionSpec(
-            "FlyToXYZ", ("x_m", "y_m", "z_m"), "Fly to the local point (x_m, y_m, z_m) from home."
+            "FlyByX",
+            ("distance_m",),
+            "Fly `distance_m` metres along X (north; negative: south) from here.",
+        ),
+        ActionSpec(
+            "FlyByY",
+            ("distance_m",),
+            "Fly `distance_m` metres along Y (east; negative: west) from here.",
+        ),
+        ActionSpec("FlyByZ", ("distance_m",), "Climb `distance_m` metres (descend if negative)."),
+        ActionSpec(
+            "FlyToXYZ",
+            ("x_m", "y_m", "z_m"),
+            "Fly to the local point (`x_m`, `y_m`, `z_m`) from home.",
         ),
         ActionSpec(
             "FlyToLLA",
             ("lat_deg", "lon_deg", "alt_m"),
-            "Fly to a WGS84 latitude/longitude (degrees) at alt_m metres above home.",
+            "Fly to a WGS84 latitude/longitude (degrees) at `alt_m` metres above home.",
         ),
         ActionSpec(
-            "PauseFor", ("duration_s",), "Hold position (or stay on the ground) duration_s."
+            "PauseFor",
+            ("duration_s",),
+            "Hold position (or stay on the ground) for `duration_s` seconds.",
         ),
         ActionSpec("TurnOn", (), "Power on the payload/companion systems.", payload=True),
         ActionSpec("PreFlightCheck", (), "Run the pre-flight checks.", payload=True),
@@ -343,3 +355,106 @@ def target_xyz(
     if isinstance(command, FlyToXYZ):
         return (command.x_m, command.y_m, command.z_m)
     return None
+
+
+# --- Descriptions for people: the language reference's tables and the editor's help ---------
+#
+# Added for the language server's hover and completion and for the generated tables of
+# docs/mission-language.md (tests/test_docs_tables.py keeps them equal).  The compiler's checks
+# (eamos/compiler/check.py, limits.py) enforce the ranges stated here.
+
+#: The flight actions every drone type of the paper offers.
+FLIGHT_ACTIONS = _FLIGHT
+
+#: Allowed values of each action parameter, as the compiler checks them.
+PARAM_RANGES: dict[str, str] = {
+    "height_m": "0 < height_m ≤ 10 000",
+    "distance_m": "-10 000 to 10 000",
+    "x_m": "-10 000 to 10 000",
+    "y_m": "-10 000 to 10 000",
+    "z_m": "-10 000 to 10 000",
+    "alt_m": "-10 000 to 10 000",
+    "lat_deg": "-90 to 90",
+    "lon_deg": "-180 to 180",
+    "duration_s": "0 to 86 400",
+}
+
+#: A parameter's unit, from the suffix of its name.
+UNIT_NAMES: dict[str, str] = {"m": "metres", "deg": "degrees", "s": "seconds", "%": "percent"}
+
+
+def param_unit(param: str) -> str:
+    """The unit of an action parameter (``height_m`` -> ``m``), from its name's suffix."""
+    return param.rsplit("_", 1)[-1] if "_" in param else ""
+
+
+@dataclass(frozen=True)
+class ControlSpec:
+    """A control structure of the paper's Table 3: how it is written and what it does.
+
+    ``params`` names the arguments in order (``cond`` a condition, ``n`` a whole number,
+    ``Body``/``Then``/``Else``/``Exit`` block names, written without ``()``); ``optional``
+    is how many trailing ones may be left out; ``on_drone`` is True when it may also be
+    written on a drone (``D1.PauseWhile(...)``), which then evaluates the condition.
+    """
+
+    name: str
+    params: tuple[str, ...]
+    doc: str
+    optional: int = 0
+    on_drone: bool = False
+
+    @property
+    def signature(self) -> str:
+        """``If(cond, Then[, Else])``: the argument shape as the reference writes it."""
+        required = self.params[: len(self.params) - self.optional]
+        text = ", ".join(required)
+        for extra in self.params[len(required) :]:
+            text += f"[, {extra}]"
+        return f"{self.name}({text})"
+
+
+CONTROL_STRUCTURES: dict[str, ControlSpec] = {
+    c.name: c
+    for c in (
+        ControlSpec(
+            "If",
+            ("cond", "Then", "Else"),
+            "Evaluate `cond` once; run `Then` if it holds, else `Else` (or nothing). "
+            "Then continue.",
+            optional=1,
+        ),
+        ControlSpec("WaitWhile", ("cond", "Body"), "Wait while `cond` holds; then run `Body`."),
+        ControlSpec("WaitUntil", ("cond", "Body"), "Wait until `cond` holds; then run `Body`."),
+        ControlSpec("PauseWhile", ("cond",), "Stop here while `cond` holds.", on_drone=True),
+        ControlSpec("PauseUntil", ("cond",), "Stop here until `cond` holds.", on_drone=True),
+        ControlSpec(
+            "RepeatWhile",
+            ("cond", "Body", "Exit"),
+            "Run `Body` again and again while `cond` holds; then `Exit`.",
+            optional=1,
+        ),
+        ControlSpec(
+            "RepeatUntil",
+            ("cond", "Body", "Exit"),
+            "Run `Body` again and again until `cond` holds; then `Exit`.",
+            optional=1,
+        ),
+        ControlSpec(
+            "RepeatFor", ("n", "Body", "Exit"), "Run `Body` `n` times; then `Exit`.", optional=1
+        ),
+        ControlSpec(
+            "DoWhile",
+            ("cond", "Body", "Exit"),
+            "Run `Body` as long as `cond` holds; interrupt it when it stops holding, "
+            "then run `Exit`.",
+            optional=1,
+        ),
+        ControlSpec(
+            "DoUntil",
+            ("cond", "Body", "Exit"),
+            "Run `Body` until `cond` holds; interrupt it when it does, then run `Exit`.",
+            optional=1,
+        ),
+    )
+}

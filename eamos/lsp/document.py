@@ -1,0 +1,256 @@
+"""One mission document, analysed: the compiler's findings and an index of names.
+
+Pure functions of the text; no server, no threads.  The findings come from
+:func:`eamos.compiler.compile_mission`, exactly as ``eamos compile`` prints them (same
+messages, hints, all at once).  The index of blocks and drones comes from the syntax
+layer (:func:`eamos.compiler.parse.parse_partial`); where the text is too broken to parse
+(half-typed), a lexical scan of ``func NAME`` / ``var NAME TYPE`` / ``NAME.`` answers instead.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Literal
+
+from ..compiler import CompilerBug, Diagnostic, MissionError, check_mission, compile_mission
+from ..compiler.parse import parse_partial
+from ..compiler.syntax import ActionCall, Binary, BlockCall, Control, Expr, Mission, Prop, Unary
+from ..program.uniform import DEFAULT_DRONE_TYPE, DRONE_TYPES, GROUND_STATION, DroneType
+from ..program.uniform import GROUND_TYPE as _GROUND_TYPE
+from .positions import LineIndex
+
+SymbolKind = Literal["block", "drone"]
+
+
+@dataclass(frozen=True, order=True)
+class Span:
+    """Text on one line: 1-based line, first column and the column after the last."""
+
+    line: int
+    col: int
+    end_col: int
+
+
+@dataclass(frozen=True)
+class Occurrence:
+    """A block or drone name where it stands in the text, defined or used."""
+
+    name: str
+    kind: SymbolKind
+    span: Span
+    definition: bool
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A compiler diagnostic placed on the text: what the editor underlines."""
+
+    severity: Literal["error", "warning"]
+    span: Span
+    message: str
+    hint: str
+
+
+_WORD = re.compile(r"[^\W\d]\w*|[-+]?\.?\d[\w.]*")
+
+
+def _extent(index: LineIndex, d: Diagnostic) -> Span:
+    """Where a diagnostic underlines: its columns, else the word at its column, else one."""
+    line, col = d.loc.line, d.loc.col
+    if d.end_col is not None and d.end_col > col:
+        return Span(line, col, d.end_col)
+    word = _WORD.match(index.line(line), max(col - 1, 0))
+    end = col + len(word.group()) if word else col + 1
+    return Span(line, col, end)
+
+
+def _placed(text: str, diagnostics: list[Diagnostic]) -> list[Finding]:
+    index = LineIndex(text)
+    return [Finding(d.severity, _extent(index, d), d.message, d.hint) for d in diagnostics]
+
+
+def _internal(exc: BaseException) -> list[Finding]:
+    # Our mistake, not the author's: say so where the editor shows it.
+    return [Finding("error", Span(1, 1, 2), f"internal compiler error: {exc!r}", "")]
+
+
+def findings(text: str) -> list[Finding]:
+    """Every error and warning ``eamos compile`` reports for ``text``, in its order.
+
+    The whole compiler runs (:func:`eamos.compiler.compile_mission`): the reference answer.
+    """
+    try:
+        compiled = compile_mission(text)
+        diagnostics = list(compiled.warnings)
+    except MissionError as exc:
+        diagnostics = list(exc.diagnostics)
+    except (CompilerBug, RecursionError, MemoryError) as exc:
+        return _internal(exc)
+    return _placed(text, diagnostics)
+
+
+def checked_findings(text: str) -> list[Finding]:
+    """The findings of the compiler's checking phases: :func:`findings` without building graphs.
+
+    :func:`eamos.compiler.check_mission` is the first phase of
+    :func:`eamos.compiler.compile_mission`; the graph phases after it are skipped (they
+    cost most of the time of a large mission and find only one rare thing more: too many
+    synchronisation arcs).  The
+    server publishes these at once and the whole compile's :func:`findings` after it;
+    tests/lsp/test_analysis.py checks both agree on every mission and on broken prefixes.
+    """
+    try:
+        diagnostics = check_mission(text)[1]
+    except MissionError as exc:
+        diagnostics = list(exc.diagnostics)
+    except (CompilerBug, RecursionError, MemoryError) as exc:
+        return _internal(exc)
+    return _placed(text, diagnostics)
+
+
+# -- the index of names ------------------------------------------------------------------
+
+
+def _props(expr: Expr | None) -> Iterator[Prop]:
+    stack = [expr]
+    while stack:  # a loop: conditions may nest deep
+        node = stack.pop()
+        if isinstance(node, Prop):
+            yield node
+        elif isinstance(node, Unary):
+            stack.append(node.operand)
+        elif isinstance(node, Binary):
+            stack.extend((node.right, node.left))
+
+
+class MissionIndex:
+    """Blocks and drones of one document: where each is defined and used."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.lines = LineIndex(text)
+        self.mission = _parse(text)
+        found: list[Occurrence] = []
+        if self.mission is not None:
+            found = list(self._from_syntax(self.mission))
+        taken = {f.span for f in found}
+        found.extend(o for o in _lexical(self.lines) if o.span not in taken)
+        self.occurrences = sorted(found, key=lambda o: o.span)
+        self.blocks = {o.name for o in self.occurrences if o.kind == "block" and o.definition}
+        self.drones = {o.name for o in self.occurrences if o.kind == "drone"}
+
+    def _occurrence(
+        self, name: str, kind: SymbolKind, line: int, col: int, definition: bool
+    ) -> Iterator[Occurrence]:
+        # Only where the text really holds the name: a location from a broken tree is skipped.
+        if self.lines.line(line)[col - 1 : col - 1 + len(name)] == name and name:
+            yield Occurrence(name, kind, Span(line, col, col + len(name)), definition)
+
+    def _from_syntax(self, mission: Mission) -> Iterator[Occurrence]:
+        for decl in mission.drones.values():
+            yield from self._occurrence(decl.name, "drone", decl.loc.line, decl.loc.col, True)
+        for block in mission.blocks.values():
+            yield from self._occurrence(block.name, "block", block.loc.line, block.loc.col, True)
+            for stmt in block.statements:
+                if isinstance(stmt, BlockCall):
+                    yield from self._occurrence(
+                        stmt.name, "block", stmt.loc.line, stmt.loc.col, False
+                    )
+                elif isinstance(stmt, ActionCall) and stmt.drone is not None:
+                    yield from self._occurrence(
+                        stmt.drone, "drone", stmt.loc.line, stmt.loc.col, False
+                    )
+                elif isinstance(stmt, Control):
+                    if stmt.drone is not None:
+                        loc = stmt.loc
+                        yield from self._occurrence(stmt.drone, "drone", loc.line, loc.col, False)
+                    for ref in (stmt.body, stmt.orelse, stmt.exit):
+                        if ref is not None:
+                            yield from self._occurrence(
+                                ref.name, "block", ref.loc.line, ref.loc.col, False
+                            )
+                    for prop in _props(stmt.cond):
+                        loc = prop.loc
+                        yield from self._occurrence(prop.drone, "drone", loc.line, loc.col, False)
+
+    # -- queries -------------------------------------------------------------------------
+
+    def at(self, line: int, col: int) -> Occurrence | None:
+        """The block or drone name under a 1-based (line, column), or None."""
+        for occ in self.occurrences:
+            if occ.span.line == line and occ.span.col <= col <= occ.span.end_col:
+                return occ
+        return None
+
+    def of(self, name: str, kind: SymbolKind) -> list[Occurrence]:
+        """Every occurrence of one block or drone, in source order."""
+        return [o for o in self.occurrences if o.name == name and o.kind == kind]
+
+    def drone_type(self, drone: str) -> DroneType:
+        """A drone's type as the compiler sees it (undeclared or unknown: the default)."""
+        if drone == GROUND_STATION:
+            return _GROUND_TYPE
+        declared = self.declared_type(drone)
+        return DRONE_TYPES.get(declared or "", DRONE_TYPES[DEFAULT_DRONE_TYPE])
+
+    def declared_type(self, drone: str) -> str | None:
+        """The type name a drone is declared with, or None."""
+        if self.mission is not None and drone in self.mission.drones:
+            return self.mission.drones[drone].type
+        for line in self.lines.lines:
+            match = _VAR.match(line)
+            if match and match.group(1) == drone:
+                return match.group(2)
+        return None
+
+
+def _parse(text: str) -> Mission | None:
+    try:
+        mission, _, _ = parse_partial(text)
+    except MissionError:
+        return None  # empty, binary or too large: nothing to index
+    return mission
+
+
+# A lexical reading for text the parser cannot follow.  Comments are blanked first so
+# that a commented-out block is not a definition.
+_COMMENT = re.compile(r"//[^\n\r]*|/\*.*?(?:\*/|\Z)", re.S)
+_FUNC = re.compile(r"^\s*func\s+([^\W\d]\w*)")
+_VAR = re.compile(r"^\s*(?:var\s+)?([^\W\d]\w*)\s+([^\W\d]\w*)\s*$")
+_VAR_KEYWORD = re.compile(r"^\s*var\s+([^\W\d]\w*)")
+_MEMBER = re.compile(r"(?<![\w.])([^\W\d]\w*)\s*\.")
+_BLOCK_NAME = re.compile(r"(?<![\w.])((?:SEQ|PAR)_\w+|INIT)\b")
+
+
+def _blank_comments(text: str) -> str:
+    return _COMMENT.sub(lambda m: re.sub(r"[^\n\r]", " ", m.group()), text)
+
+
+def _lexical(index: LineIndex) -> Iterator[Occurrence]:
+    lines = LineIndex(_blank_comments("\n".join(index.lines))).lines
+    for number, line in enumerate(lines, start=1):
+        func = _FUNC.match(line)
+        if func:
+            yield Occurrence(
+                func.group(1), "block", Span(number, func.start(1) + 1, func.end(1) + 1), True
+            )
+        var = _VAR_KEYWORD.match(line)
+        if var:
+            yield Occurrence(
+                var.group(1), "drone", Span(number, var.start(1) + 1, var.end(1) + 1), True
+            )
+        for member in _MEMBER.finditer(line):
+            yield Occurrence(
+                member.group(1),
+                "drone",
+                Span(number, member.start(1) + 1, member.end(1) + 1),
+                False,
+            )
+        for block in _BLOCK_NAME.finditer(line):
+            if func and block.start(1) == func.start(1):
+                continue
+            yield Occurrence(
+                block.group(1), "block", Span(number, block.start(1) + 1, block.end(1) + 1), False
+            )

@@ -1,0 +1,181 @@
+"""What the editor asks at a position: definition, references, rename, hover, outline.
+
+Pure functions over a :class:`~.document.MissionIndex`, in the compiler's coordinates
+(1-based lines, character columns).  Completion is in :mod:`.completion`.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from ..compiler.syntax import ActionCall, BlockCall, Control, Mission
+from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, GROUND_STATION, PROPERTIES
+from .document import MissionIndex, Occurrence, Span, _props
+from .vocabulary import action_help, control_help, property_help, type_help
+
+
+@dataclass(frozen=True)
+class Symbol:
+    """One entry of the document outline: a block (with its kind) or a drone."""
+
+    name: str
+    kind: str  # "SEQ block", "PAR block", "drone"
+    detail: str
+    span: Span
+
+
+@dataclass(frozen=True)
+class Hover:
+    """Markdown help about the name under the cursor, and the text it covers."""
+
+    markdown: str
+    span: Span
+
+
+def definition(index: MissionIndex, line: int, col: int) -> list[Span]:
+    """Where the block or drone under the cursor is defined (declared)."""
+    occ = index.at(line, col)
+    if occ is None:
+        return []
+    return [o.span for o in index.of(occ.name, occ.kind) if o.definition]
+
+
+def references(
+    index: MissionIndex, line: int, col: int, include_declaration: bool = True
+) -> list[Span]:
+    """Every place the block or drone under the cursor is named."""
+    occ = index.at(line, col)
+    if occ is None:
+        return []
+    return [o.span for o in index.of(occ.name, occ.kind) if include_declaration or not o.definition]
+
+
+_IDENTIFIER = re.compile(r"[^\W\d]\w*\Z")
+
+
+def rename(index: MissionIndex, line: int, col: int, new_name: str) -> list[Span] | None:
+    """The spans to replace by ``new_name`` to rename the block or drone under the cursor.
+
+    None when there is nothing to rename there or ``new_name`` cannot be such a name (not an
+    identifier, a name of the vocabulary, the ground station's, or already taken).
+    """
+    occ = index.at(line, col)
+    if occ is None or not _IDENTIFIER.match(new_name) or new_name == occ.name:
+        return None
+    reserved = set(ACTIONS) | set(PROPERTIES) | set(CONTROL_STRUCTURES) | set(DRONE_TYPES)
+    if new_name in reserved or new_name == GROUND_STATION or new_name in ("func", "var"):
+        return None
+    if new_name in index.blocks or new_name in index.drones:
+        return None
+    return [o.span for o in index.of(occ.name, occ.kind)]
+
+
+def symbols(index: MissionIndex) -> list[Symbol]:
+    """The document outline: drones as declared, then every block with its kind and drones."""
+    out: list[Symbol] = []
+    for occ in index.occurrences:
+        if not occ.definition:
+            continue
+        if occ.kind == "drone":
+            out.append(Symbol(occ.name, "drone", index.declared_type(occ.name) or "", occ.span))
+        else:
+            mode = "PAR" if occ.name.startswith("PAR_") else "SEQ"
+            drones = ", ".join(block_drones(index.mission, occ.name))
+            out.append(Symbol(occ.name, f"{mode} block", drones, occ.span))
+    return out
+
+
+def block_drones(mission: Mission | None, name: str) -> list[str]:
+    """The drones a block involves, itself and through the blocks it runs, in first-use order."""
+    if mission is None or name not in mission.blocks:
+        return []
+    seen: set[str] = set()
+    drones: dict[str, None] = {}
+    stack = [name]
+    while stack:
+        current = stack.pop()
+        if current in seen or current not in mission.blocks:
+            continue
+        seen.add(current)
+        callees: list[str] = []
+        for stmt in mission.blocks[current].statements:
+            if isinstance(stmt, ActionCall):
+                drones.setdefault(stmt.drone or GROUND_STATION, None)
+            elif isinstance(stmt, BlockCall):
+                callees.append(stmt.name)
+            elif isinstance(stmt, Control):
+                if stmt.drone is not None:
+                    drones.setdefault(stmt.drone, None)
+                for prop in _props(stmt.cond):
+                    drones.setdefault(prop.drone, None)
+                callees.extend(r.name for r in (stmt.body, stmt.orelse, stmt.exit) if r)
+        stack.extend(reversed(callees))
+    return list(drones)
+
+
+_AROUND = re.compile(r"[^\W\d]\w*")
+
+
+def _word_at(line_text: str, col: int) -> tuple[str, int, int] | None:
+    """The identifier covering 1-based column ``col`` (or ending just before it)."""
+    for match in _AROUND.finditer(line_text):
+        if match.start() + 1 <= col <= match.end() + 1:
+            return match.group(), match.start() + 1, match.end() + 1
+    return None
+
+
+def _block_help(index: MissionIndex, occ: Occurrence) -> str:
+    mode = "PAR" if occ.name.startswith("PAR_") else "SEQ"
+    how = "its statements run in parallel" if mode == "PAR" else "its statements run in order"
+    drones = block_drones(index.mission, occ.name)
+    where = [o.span.line for o in index.of(occ.name, "block") if o.definition]
+    text = f"**{occ.name}**: a {mode} block; {how}."
+    if not where:
+        return text + "\n\nNot defined in this file."
+    text += f"\n\nDrones: {', '.join(drones) or 'none'}.  Defined at line {where[0]}."
+    return text
+
+
+def _drone_help(index: MissionIndex, name: str) -> str:
+    if name == GROUND_STATION:
+        return f"**{GROUND_STATION}**: the ground station; it only waits and never flies."
+    declared = index.declared_type(name)
+    dtype = index.drone_type(name)
+    if declared is None:
+        head = f"**{name}**: a drone used without a declaration, so a {dtype.name}."
+    elif declared not in DRONE_TYPES:
+        head = f"**{name}**: declared with the unknown type '{declared}'."
+        return head
+    else:
+        head = f"**{name}**: a {dtype.name}."
+    return f"{head}\n\n{type_help(dtype)}"
+
+
+def hover(index: MissionIndex, line: int, col: int) -> Hover | None:
+    """Help about the name at (line, col): an action, property, control structure, block,
+    drone or drone type; None over anything else."""
+    text = index.lines.line(line)
+    found = _word_at(text, col)
+    if found is None:
+        return None
+    word, start, end = found
+    span = Span(line, start, end)
+    before = text[: start - 1].rstrip()
+    member = before.endswith(".")
+    occ = index.at(line, start)
+    if occ is not None and occ.span.col == start:
+        if occ.kind == "block":
+            return Hover(_block_help(index, occ), span)
+        return Hover(_drone_help(index, word), span)
+    if word in CONTROL_STRUCTURES:
+        return Hover(control_help(CONTROL_STRUCTURES[word]), span)
+    if word in ACTIONS and (member or word == "PauseFor"):
+        return Hover(action_help(ACTIONS[word]), span)
+    if word in PROPERTIES and member:
+        return Hover(property_help(PROPERTIES[word]), span)
+    if word in DRONE_TYPES:
+        return Hover(type_help(DRONE_TYPES[word]), span)
+    if word in ACTIONS:
+        return Hover(action_help(ACTIONS[word]), span)
+    return None
