@@ -33,6 +33,13 @@ Fleet config (TOML), for ``eamos run``::
     adapter = "sim"
     [drones.Drone3.hal]                       # per drone, merged over the defaults
     pilot = [{x_m = 0, y_m = 0, z_m = 5, hold_s = 2}]
+    [drones.Drone3]
+    home_m = [0.0, 10.0]                      # its home in the fleet frame (north, east)
+    [safety]                                  # checked by eamos check (docs/safety.md)
+    min_separation_m = 2.0
+    max_altitude_m = 30
+    geofence_m = [[-50, -50], [-50, 50], [50, 50], [50, -50]]
+    battery_reserve_pct = 20
 
 A fleet file may also say how to reach real drones for ``eamos rollout``
 (``[ground]``, ``[defaults.ssh]``, ``[drones.X.ssh]``, ``drones.X.bind``); those
@@ -44,6 +51,7 @@ Every error names the file and the field.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import tomllib
@@ -344,6 +352,69 @@ def _link_settings(w: str, net: Mapping[str, Any]) -> LinkSettings:
 
 
 @dataclass(frozen=True)
+class SafetySettings:
+    """The fleet's ``[safety]`` section, checked by ``eamos check`` (docs/safety.md).
+
+    Lengths in metres in the fleet frame (north, east, up from the ground);
+    ``None`` or an empty polygon: not checked.
+    """
+
+    min_separation_m: float = 2.0
+    max_altitude_m: float | None = None
+    geofence_m: tuple[tuple[float, float], ...] = ()
+    battery_reserve_pct: float | None = None
+
+
+def _number(where: str, value: Any, *, positive: bool = False) -> float:
+    if not isinstance(value, int | float) or isinstance(value, bool) or value != value:
+        raise ConfigError(f"{where}: must be a number, got {value!r}")
+    if positive and not value > 0:
+        raise ConfigError(f"{where}: must be greater than 0, got {value!r}")
+    return float(value)
+
+
+def _point(where: str, value: Any, size: tuple[int, ...] = (2,)) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) not in size:
+        words = " or ".join(str(n) for n in size)
+        raise ConfigError(f"{where}: must be a list of {words} numbers, got {value!r}")
+    return tuple(_number(f"{where}[{i}]", v) for i, v in enumerate(value))
+
+
+def _safety(w: str, table: Any) -> SafetySettings:
+    """Validate the ``[safety]`` table (every error names the field)."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{w}safety: must be a table")
+    _check_keys(
+        f"{w}safety.",
+        table,
+        {"min_separation_m", "max_altitude_m", "geofence_m", "battery_reserve_pct"},
+    )
+    out = SafetySettings()
+    if "min_separation_m" in table:
+        sep = _number(f"{w}safety.min_separation_m", table["min_separation_m"], positive=True)
+        out = dataclasses.replace(out, min_separation_m=sep)
+    if "max_altitude_m" in table:
+        top = _number(f"{w}safety.max_altitude_m", table["max_altitude_m"], positive=True)
+        out = dataclasses.replace(out, max_altitude_m=top)
+    if "battery_reserve_pct" in table:
+        where = f"{w}safety.battery_reserve_pct"
+        reserve = _number(where, table["battery_reserve_pct"])
+        if not 0 <= reserve <= 100:
+            raise ConfigError(f"{where}: must be between 0 and 100, got {reserve!r}")
+        out = dataclasses.replace(out, battery_reserve_pct=reserve)
+    if "geofence_m" in table:
+        where = f"{w}safety.geofence_m"
+        raw = table["geofence_m"]
+        if not isinstance(raw, list) or len(raw) < 3:
+            raise ConfigError(
+                f"{where}: must be a polygon, a list of at least 3 [north_m, east_m] points"
+            )
+        fence = tuple(_point(f"{where}[{i}]", p) for i, p in enumerate(raw))
+        out = dataclasses.replace(out, geofence_m=tuple((p[0], p[1]) for p in fence))
+    return out
+
+
+@dataclass(frozen=True)
 class FleetConfig:
     """Per-drone hardware settings for a run: defaults merged with each drone's table."""
 
@@ -355,6 +426,10 @@ class FleetConfig:
     ssh: dict[str, dict[str, Any]] = field(default_factory=dict)
     binds: dict[str, Any] = field(default_factory=dict)
     ground: dict[str, Any] = field(default_factory=dict)
+    # The fleet frame (eamos check): [safety], and each drone's home_m / home_lla.
+    safety: SafetySettings = field(default_factory=SafetySettings)
+    homes_m: dict[str, tuple[float, float]] = field(default_factory=dict)
+    homes_lla: dict[str, tuple[float, ...]] = field(default_factory=dict)
 
     def hal_for(self, drone: str) -> dict[str, Any]:
         """The merged ``[hal]`` table of one drone."""
@@ -372,7 +447,10 @@ class FleetConfig:
         """Read and validate a fleet config file."""
         doc = read_toml(path)
         w = f"{path}: "
-        _check_keys(w, doc, {"defaults", "drones", "ground"})
+        _check_keys(w, doc, {"defaults", "drones", "ground", "safety"})
+        safety = _safety(w, doc.get("safety", {}))
+        homes_m: dict[str, tuple[float, float]] = {}
+        homes_lla: dict[str, tuple[float, ...]] = {}
         defaults = doc.get("defaults", {})
         if not isinstance(defaults, dict):
             raise ConfigError(f"{w}defaults: must be a table")
@@ -383,7 +461,20 @@ class FleetConfig:
         for name, table in doc.get("drones", {}).items():
             if not isinstance(table, dict):
                 raise ConfigError(f"{w}drones.{name}: must be a table")
-            _check_keys(f"{w}drones.{name}.", table, {"hal", "ssh", "bind"})
+            _check_keys(f"{w}drones.{name}.", table, {"hal", "ssh", "bind", "home_m", "home_lla"})
+            if "home_m" in table and "home_lla" in table:
+                raise ConfigError(f"{w}drones.{name}: give home_m or home_lla, not both")
+            if "home_m" in table:
+                north, east = _point(f"{w}drones.{name}.home_m", table["home_m"])
+                homes_m[name] = (north, east)
+            if "home_lla" in table:
+                lla = _point(f"{w}drones.{name}.home_lla", table["home_lla"], (2, 3))
+                if not (-90 <= lla[0] <= 90 and -180 <= lla[1] <= 180):
+                    raise ConfigError(
+                        f"{w}drones.{name}.home_lla: latitude -90..90 and longitude "
+                        f"-180..180 degrees, got {list(lla)}"
+                    )
+                homes_lla[name] = lla
             hal = table.get("hal", {})
             if not isinstance(hal, dict):
                 raise ConfigError(f"{w}drones.{name}.hal: must be a table")
@@ -401,4 +492,15 @@ class FleetConfig:
         for key, value in (("defaults.ssh", ssh_defaults), ("ground", ground)):
             if not isinstance(value, dict):
                 raise ConfigError(f"{w}{key}: must be a table")
-        return cls(path, dict(default_hal), drones, dict(ssh_defaults), ssh, binds, dict(ground))
+        return cls(
+            path,
+            dict(default_hal),
+            drones,
+            dict(ssh_defaults),
+            ssh,
+            binds,
+            dict(ground),
+            safety,
+            homes_m,
+            homes_lla,
+        )

@@ -33,6 +33,8 @@ ALLOWED: dict[str, set[str]] = {
     "virtual": {"program", "hints", "logs", "hal", "actors"},
     "report": {"program", "logs", "ground"},
     "ops": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
+    "lsp": {"program", "hints", "compiler"},
+    "check": {"program", "hints", "logs", "hal", "actors", "virtual", "compiler", "config"},
 }
 #: Packages only command-line code may import; nothing imports the CLI.
 TOP = {"cli"}

@@ -19,10 +19,12 @@ import sys
 
 from eamos import __version__
 
+from .check import add_check_parser
 from .compile import add_compile_parser, add_graph_parser
 from .errors import dispatch
 from .fleet import add_fleet_commands
 from .keys import add_keys_parser
+from .lsp import add_lsp_parser
 from .report import add_report_parser
 from .run import add_run_parser
 
@@ -44,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_fleet_commands(sub)
     add_report_parser(sub)
     add_keys_parser(sub)
+    add_check_parser(sub)
+    add_lsp_parser(sub)
     return parser
 
 

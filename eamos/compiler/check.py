@@ -17,6 +17,7 @@ from ..program.uniform import (
     DEFAULT_DRONE_TYPE,
     DRONE_TYPES,
     GROUND_STATION,
+    MOTION_ACTIONS,
     PROPERTIES,
     DroneType,
 )
@@ -108,6 +109,7 @@ class _Checker:
             # Only a mission without cycles has a finite size to count.
             self.diags.extend(block_limit_errors(m))
         self.reachability()
+        self.par_motions()
         used = {
             s.drone
             for b in m.blocks.values()
@@ -125,6 +127,49 @@ class _Checker:
             if decl.name not in used:
                 self.warn(decl.loc, f"drone '{decl.name}' is declared but never used")
         return self.diags
+
+    # -- one motion per drone at a time ---------------------------------------
+
+    def motions(self, stmt: object, seen: frozenset[str] = frozenset()) -> dict[str, ActionCall]:
+        """The first motion action of each drone a statement (and the blocks it calls) gives.
+
+        Control structures are left out: when their blocks run depends on conditions
+        (experiment D's four loops share one Exit block, and only one runs it at a time).
+        """
+        if isinstance(stmt, ActionCall):
+            if stmt.drone is not None and stmt.action in MOTION_ACTIONS:
+                return {stmt.drone: stmt}
+            return {}
+        out: dict[str, ActionCall] = {}
+        for ref in _refs(stmt) if isinstance(stmt, BlockCall) else ():
+            block = self.mission.blocks.get(ref.name)
+            if block is None or ref.name in seen:  # undefined or recursive: reported elsewhere
+                continue
+            for inner in block.statements:
+                for drone, call in self.motions(inner, seen | {ref.name}).items():
+                    out.setdefault(drone, call)
+        return out
+
+    def par_motions(self) -> None:
+        """A drone given two motions at once in a PAR_ block: the second fails ``busy``."""
+        for name, block in self.mission.blocks.items():
+            if block.mode != "PAR":
+                continue
+            first: dict[str, ActionCall] = {}
+            for stmt in block.statements:
+                for drone, call in self.motions(stmt, frozenset({name})).items():
+                    if drone in first:
+                        other = first[drone]
+                        self.warn(
+                            call.loc,
+                            f"the same drone given two actions at once in a PAR_: {drone}."
+                            f"{call.action} runs in {name} together with {drone}.{other.action} "
+                            f"(line {other.loc.line}); a drone makes one motion at a time, "
+                            "so one of them fails 'busy'",
+                            "put them one after the other in a SEQ_ block",
+                        )
+                    else:
+                        first[drone] = call
 
     # -- statements ---------------------------------------------------------
 

@@ -3,10 +3,12 @@
 Public names: :func:`run_virtual` (and :class:`VirtualMission` for finer
 control), its result :class:`VirtualRun` / :class:`DroneOutcome` /
 :class:`Waiting`, and for vehicles :class:`Vehicle`, :data:`VehicleFactory`,
-:func:`sim_vehicles`.  Tests of control structures and the pre-flight checker
-build on it.
+:func:`sim_vehicles`; :data:`Decide` / :func:`install_decide`, the hook
+deciding conditions the simulation cannot know.  Tests of control structures
+and the pre-flight checker build on it.
 """
 
+from .decisions import Decide, install_decide
 from .driver import TIME_LIMIT_S, VirtualMission, run_virtual, telemetry_values
 from .result import DroneOutcome, VirtualRun, Waiting
 from .vehicles import STEP_S, QuietLog, Vehicle, VehicleFactory, sim_vehicles
@@ -14,6 +16,7 @@ from .vehicles import STEP_S, QuietLog, Vehicle, VehicleFactory, sim_vehicles
 __all__ = [
     "STEP_S",
     "TIME_LIMIT_S",
+    "Decide",
     "DroneOutcome",
     "QuietLog",
     "Vehicle",
@@ -21,6 +24,7 @@ __all__ = [
     "VirtualMission",
     "VirtualRun",
     "Waiting",
+    "install_decide",
     "run_virtual",
     "sim_vehicles",
     "telemetry_values",

@@ -45,6 +45,7 @@ from ..actors.state import Iteration
 from ..hal.api import ActionHandle, ActionResult, Telemetry
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION, CommandError, decode_command
+from .decisions import Decide, install_decide
 from .result import DroneOutcome, VirtualRun, Waiting
 from .vehicles import STEP_S, GroundPauses, Vehicle, VehicleFactory, sim_vehicles
 
@@ -101,12 +102,14 @@ class VirtualMission:
         vehicles: VehicleFactory | None = None,
         time_limit_s: float = TIME_LIMIT_S,
         log: Any = None,
+        decide: Decide | None = None,
     ) -> None:
         """``programs``: every participant's program (the ground station's included).
 
         ``vehicles(drone, clock)`` builds each drone's vehicle (default: the
         simulator core with default settings); ``log``, if given, receives the
-        nodes' mission-log lines (bound with ``drone`` and ``node``).
+        nodes' mission-log lines (bound with ``drone`` and ``node``); ``decide``,
+        if given, decides every condition (see :mod:`eamos.virtual.decisions`).
         """
         progs = list(programs.values()) if isinstance(programs, Mapping) else list(programs)
         if not progs:
@@ -136,6 +139,11 @@ class VirtualMission:
                 top_level=frozenset(k for k, w in wiring.items() if not w.spec.loops),
                 scope_index=scope_index,
             )
+        if decide is not None:
+            for drone, part in self.participants.items():
+                for logic in part.logic.values():
+                    if isinstance(logic, ConditionLogic):
+                        install_decide(drone, logic, decide)
         self._vehicles = [(d, p.vehicle) for d, p in sorted(self.participants.items()) if p.vehicle]
         self._apply_one: dict[type, Callable[[NodeId, Any], None]] = {
             Emit: self._emit,

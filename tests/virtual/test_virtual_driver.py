@@ -352,3 +352,27 @@ def test_nested_repeat_for_runs_the_product_of_counts(outer, inner):
     assert [a.iteration for a in run.drones["D2"].actions] == [(i,) for i in range(outer)]
     cams = [a.iteration for a in run.drones["D1"].actions if a.action == "TurnOnCamera"]
     assert cams == [(i, j) for i in range(outer) for j in range(inner)]
+
+
+def test_a_decide_hook_takes_a_condition_the_other_way():
+    source = """
+var Drone1 Quadcopter
+func SEQ_Main() {
+    Drone1.Arm()
+    If(Drone1.Battery() > 50, SEQ_Full, SEQ_Low)
+    Drone1.Disarm()
+}
+func SEQ_Full() { Drone1.TurnOnCamera() }
+func SEQ_Low() { Drone1.Calibrate() }
+"""
+    programs = compile_mission(source, "t.go").programs
+    asked: list[tuple[str, str, bool]] = []
+
+    def flip(drone, logic, act, purpose, value):
+        asked.append((drone, purpose, value))
+        return not value
+
+    run = VirtualMission(programs, decide=flip).run()
+    assert asked == [("Drone1", "if", True)]
+    assert names(run, "Drone1") == ["Arm()", "Calibrate()", "Disarm()"]
+    assert names(run_virtual(programs), "Drone1") == ["Arm()", "TurnOnCamera()", "Disarm()"]

@@ -1,0 +1,29 @@
+"""Fly it before it flies: the pre-flight check of a compiled mission (``eamos check``).
+
+Public names: :func:`check_mission` (compiled mission + fleet file -> :class:`CheckReport`),
+the report's parts :class:`Finding`, :class:`Place`, :class:`RunSummary`, and the
+tracks and separation geometry (:class:`Track`, :func:`pair_conflicts`).
+"""
+
+from .explore import CHECK_TIME_LIMIT_S, MAX_RUNS, MIN_SEPARATION_M, check_mission, default_homes
+from .findings import CheckReport, Finding, Place, RunSummary
+from .separation import Conflict, conflicts, pair_conflicts
+from .tracks import Track, TrackPoint, TrackRecorder
+
+__all__ = [
+    "CHECK_TIME_LIMIT_S",
+    "MAX_RUNS",
+    "MIN_SEPARATION_M",
+    "CheckReport",
+    "Conflict",
+    "Finding",
+    "Place",
+    "RunSummary",
+    "Track",
+    "TrackPoint",
+    "TrackRecorder",
+    "check_mission",
+    "conflicts",
+    "default_homes",
+    "pair_conflicts",
+]

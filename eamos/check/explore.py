@@ -1,0 +1,234 @@
+"""Run a compiled mission in virtual time and check every run: :func:`check_mission`.
+
+Each drone flies the simulator's kinematic model with its fleet-file settings
+(speeds, accelerations, arming delay, battery, scripted pilot), from its home in
+the fleet frame; the tracks are recorded and every rule of :mod:`eamos.check.rules`
+is applied to the run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import deque
+from collections.abc import Mapping
+from typing import Any
+
+from ..compiler import CompiledMission
+from ..config import ConfigError, FleetConfig, SafetySettings
+from ..hal.api import AdapterError
+from ..hal.kinematics import GeoFrame
+from ..hal.sim import SimCore, SimSettings
+from ..program.uniform import GROUND_STATION
+from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun
+from ..virtual.vehicles import Clock
+from .branches import Oracle
+from .findings import CheckReport, Finding, Place, RunSummary
+from .limits import battery, geofence
+from .rules import deadlock, failed_actions, node_index, separation, termination
+from .tracks import Track, TrackRecorder
+
+#: Virtual seconds after which a run that has not ended is reported (a wait never ending).
+CHECK_TIME_LIMIT_S = 1800.0
+#: Default bound on the number of explored runs.
+MAX_RUNS = 64
+#: Default minimum separation (metres, horizontal or vertical).
+MIN_SEPARATION_M = 2.0
+#: Default spacing of the fleet lined up east when no home is given (metres).
+HOME_SPACING_M = 5.0
+
+CHECKS = ("actions", "termination", "deadlock", "separation", "duration")
+
+
+def default_homes(
+    drones: list[str], spacing_m: float = HOME_SPACING_M
+) -> dict[str, tuple[float, float]]:
+    """The fleet lined up ``spacing_m`` apart east, in fleet order: (north_m, east_m)."""
+    return {d: (0.0, i * spacing_m) for i, d in enumerate(drones)}
+
+
+def fleet_homes(fleet: FleetConfig, drones: list[str]) -> dict[str, tuple[float, float]]:
+    """Each drone's home in the fleet frame: ``home_m``, else ``home_lla`` seen from the
+    first drone with a ``home_lla`` (the frame's origin), else lined up 5 m apart east."""
+    homes = default_homes(drones)
+    homes.update({d: h for d, h in fleet.homes_m.items() if d in homes})
+    lla = [d for d in drones if d in fleet.homes_lla]
+    if lla:
+        origin = fleet.homes_lla[lla[0]]
+        frame = GeoFrame(origin[0], origin[1], origin[2] if len(origin) > 2 else 0.0)
+        for d in lla:
+            here = fleet.homes_lla[d]
+            north, east, _ = frame.from_lla(here[0], here[1], 0.0)
+            homes[d] = (north, east)
+    return homes
+
+
+def sim_settings(fleet: FleetConfig, drone: str) -> tuple[SimSettings, str | None]:
+    """The kinematic model of one drone from the fleet file, and a note if approximated."""
+    hal = fleet.hal_for(drone)
+    adapter = hal.get("adapter", "sim")
+    where = f"{fleet.path}: drones.{drone}.hal" if fleet.path else f"drones.{drone}.hal"
+    if adapter == "sim":
+        try:
+            return SimSettings.from_mapping(hal), None
+        except AdapterError as exc:
+            raise ConfigError(f"{where}: {exc}") from exc
+    return SimSettings(), (
+        f"{drone} flies adapter {adapter!r}: checked with the simulator's default kinematic model"
+    )
+
+
+def _fleet_drones(compiled: CompiledMission) -> list[str]:
+    first = next(iter(compiled.programs.values()))
+    names = [d for d in first.fleet if d != GROUND_STATION and d in compiled.programs]
+    return names + sorted(d for d in compiled.programs if d not in names and d != GROUND_STATION)
+
+
+def run_once(
+    compiled: CompiledMission,
+    settings: Mapping[str, SimSettings],
+    homes: Mapping[str, tuple[float, float]],
+    time_limit_s: float,
+    decide: Decide | None = None,
+) -> tuple[VirtualRun, dict[str, Track]]:
+    """One virtual run with every drone's track recorded (fleet frame)."""
+    recorders: dict[str, TrackRecorder] = {}
+
+    def make(drone: str, clock: Clock) -> Vehicle:
+        core = SimCore(drone, settings.get(drone, SimSettings()), QuietLog(), clock)
+        rec = TrackRecorder(drone, core, clock, homes.get(drone, (0.0, 0.0)))
+        recorders[drone] = rec
+        return rec
+
+    run = VirtualMission(compiled.programs, make, time_limit_s, decide=decide).run()
+    return run, {d: r.track() for d, r in recorders.items()}
+
+
+def check_run(
+    compiled: CompiledMission,
+    run: VirtualRun,
+    tracks: Mapping[str, Track],
+    *,
+    branch: str,
+    safety: SafetySettings,
+    time_limit_s: float,
+) -> list[Finding]:
+    """Every rule applied to one run."""
+    nodes = node_index(compiled.programs)
+    return [
+        *failed_actions(run, nodes, branch),
+        *deadlock(run, nodes, time_limit_s, branch),
+        *termination(run, nodes, tracks, branch),
+        *separation(run, nodes, tracks, safety.min_separation_m, branch),
+        *geofence(run, nodes, tracks, safety, branch),
+        *battery(run, nodes, tracks, safety, branch),
+    ]
+
+
+def merge_findings(findings: list[Finding]) -> list[Finding]:
+    """One finding per (check, places, drones) over all runs: the first, with a count of others."""
+    first: dict[tuple[object, ...], Finding] = {}
+    count: dict[tuple[object, ...], int] = {}
+    for f in findings:
+        key = (f.severity, f.check, f.places, tuple(d for d, _ in f.positions))
+        first.setdefault(key, f)
+        count[key] = count.get(key, 0) + 1
+    return [
+        dataclasses.replace(f, message=f"{f.message} (and in {count[k] - 1} other run(s))")
+        if count[k] > 1
+        else f
+        for k, f in first.items()
+    ]
+
+
+def check_mission(
+    compiled: CompiledMission,
+    fleet: FleetConfig | None = None,
+    *,
+    time_limit_s: float = CHECK_TIME_LIMIT_S,
+    max_runs: int = MAX_RUNS,
+    min_separation_m: float | None = None,
+) -> CheckReport:
+    """Simulate ``compiled`` in virtual time with the fleet's models and check every run.
+
+    Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use.
+    """
+    fleet = fleet or FleetConfig.empty()
+    drones = _fleet_drones(compiled)
+    notes: list[Finding] = [
+        Finding("warning", "compile", d.message, (Place("", "", "", d.loc.line, d.loc.col),))
+        for d in compiled.warnings
+    ]
+    settings: dict[str, SimSettings] = {}
+    for drone in drones:
+        settings[drone], note = sim_settings(fleet, drone)
+        if note:
+            notes.append(Finding("warning", "model", note))
+    homes = fleet_homes(fleet, drones)
+    safety = fleet.safety
+    if min_separation_m is not None:
+        safety = dataclasses.replace(safety, min_separation_m=min_separation_m)
+    checks: tuple[str, ...] = CHECKS
+    if safety.geofence_m or safety.max_altitude_m is not None:
+        checks = (*checks, "geofence")
+    if safety.battery_reserve_pct is not None:
+        checks = (*checks, "battery")
+    piloted = {d for d, st in settings.items() if st.pilot}
+    runs: list[RunSummary] = []
+    findings: list[Finding] = []
+    pictured: list[tuple[str, Mapping[str, Track]]] = []
+    queue: deque[tuple[int, ...]] = deque([()])
+    while queue and len(runs) < max_runs:
+        prefix = queue.popleft()
+        oracle = Oracle(prefix, piloted)
+        run, tracks = run_once(compiled, settings, homes, time_limit_s, oracle)
+        choices = oracle.choices()
+        # Every choice point met beyond the prefix is another run: its other way.
+        queue.extend((*choices[:i], 1) for i in range(len(prefix), len(choices)))
+        branch = oracle.branch()
+        found = check_run(
+            compiled, run, tracks, branch=branch, safety=safety, time_limit_s=time_limit_s
+        )
+        findings.extend(found)
+        if found or not runs:
+            pictured.append((branch, tracks))
+        runs.append(
+            RunSummary(
+                branch=branch,
+                duration_s=run.duration_s,
+                timed_out=run.timed_out,
+                checked=checks,
+                errors=sum(f.severity == "error" for f in found),
+                warnings=sum(f.severity == "warning" for f in found),
+            )
+        )
+    used: dict[str, Any] = {
+        "min_separation_m": safety.min_separation_m,
+        "max_altitude_m": safety.max_altitude_m,
+        "geofence_m": [list(p) for p in safety.geofence_m],
+        "battery_reserve_pct": safety.battery_reserve_pct,
+        "time_limit_s": time_limit_s,
+        "homes_m": {d: list(h) for d, h in homes.items()},
+    }
+    return CheckReport(
+        mission=compiled.mission.name,
+        source_file=compiled.source_file,
+        runs=tuple(runs),
+        findings=tuple(notes + merge_findings(findings)),
+        max_runs=max_runs,
+        unexplored=len(queue),
+        tracks=tuple(pictured),
+        settings=used,
+    )
+
+
+__all__ = [
+    "CHECKS",
+    "CHECK_TIME_LIMIT_S",
+    "MAX_RUNS",
+    "MIN_SEPARATION_M",
+    "check_mission",
+    "default_homes",
+    "fleet_homes",
+    "run_once",
+    "sim_settings",
+]

@@ -1,0 +1,124 @@
+"""``eamos check``: fly the mission in virtual time before it flies, and report findings.
+
+Exit codes: 0 no error finding (warnings allowed), 1 error findings (the mission
+would fail), 2 bad input (a mission with errors, a bad fleet file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from .errors import command
+from .exits import EXIT_MISSION_FAILED, EXIT_OK
+from .options import add_fleet_file, add_mission, add_verbose, positive_number
+
+_HELP = """\
+Simulate every drone's program in virtual time, with the kinematic model of its
+fleet-file settings (speeds, accelerations, arming delay, battery, scripted pilot),
+from its home in the fleet frame, and check every explored run:
+
+  actions      no action fails (busy, not flying, rejected, timed out)
+  termination  every drone ends landed and disarmed
+  deadlock     no wait stays undecided for ever (reported at --time-limit)
+  separation   airborne drones keep the minimum distance horizontally or vertically,
+               exactly between samples (closest point of approach)
+  duration     the mission's time per run, min and max
+
+Findings are printed as FILE:LINE:COL: error|warning: ... with the run (branch)
+they occur in, then one line per run.
+Exit code: 0 no error finding, 1 error findings (the mission would fail), 2 bad input."""
+
+_EPILOG = """\
+examples:
+  eamos check missions/experiment_b.go
+  eamos check missions/experiment_d.go --fleet configs/experiment_d_pilot.toml --json"""
+
+
+def add_check_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Register ``eamos check`` on an ``add_subparsers()`` object; returns its parser."""
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        "check",
+        help="simulate the mission in virtual time and check separation, termination, ...",
+        description=_HELP,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_mission(p)
+    add_fleet_file(p, required=False)
+    p.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
+    p.add_argument(
+        "--min-separation",
+        type=positive_number,
+        metavar="METRES",
+        default=None,
+        help="minimum separation in metres, horizontal or vertical (default: 2.0)",
+    )
+    p.add_argument(
+        "--time-limit",
+        type=positive_number,
+        metavar="SECONDS",
+        default=None,
+        help="virtual seconds after which a run that has not ended is a deadlock (default: 1800)",
+    )
+    p.add_argument(
+        "--max-runs",
+        type=int,
+        metavar="N",
+        default=None,
+        help="explore at most N runs (default: 64)",
+    )
+    p.add_argument(
+        "--svg",
+        type=Path,
+        metavar="OUT.svg",
+        default=None,
+        help="draw the tracks from above and the altitudes over time, findings marked, "
+        "one panel per run with a finding",
+    )
+    add_verbose(p)
+    command(p, run_check)
+    return p
+
+
+def run_check(args: argparse.Namespace) -> int:
+    """``eamos check``: bad mission or fleet file reach the dispatcher (exit 2)."""
+    from eamos.check import CHECK_TIME_LIMIT_S, MAX_RUNS, check_mission
+    from eamos.compiler import compile_file
+    from eamos.config import FleetConfig
+
+    from .errors import BadInput
+
+    if args.max_runs is not None and args.max_runs < 1:
+        raise BadInput("--max-runs: must be at least 1")
+    fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
+    compiled = compile_file(Path(args.mission))
+    report = check_mission(
+        compiled,
+        fleet,
+        time_limit_s=args.time_limit or CHECK_TIME_LIMIT_S,
+        max_runs=args.max_runs or MAX_RUNS,
+        min_separation_m=args.min_separation,
+    )
+    if args.svg is not None:
+        from eamos.check.pictures import svg
+
+        try:
+            args.svg.write_text(svg(report), encoding="utf-8")
+        except OSError as exc:
+            raise BadInput(f"--svg: cannot write {args.svg}: {exc.strerror}") from exc
+    if args.json:
+        doc = report.to_json()
+        doc["file"] = str(args.mission)
+        json.dump(doc, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        for line in report.lines(str(args.mission)):
+            print(line)
+    return EXIT_OK if report.ok else EXIT_MISSION_FAILED
+
+
+__all__ = ["add_check_parser", "run_check"]
