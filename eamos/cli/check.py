@@ -121,4 +121,36 @@ def run_check(args: argparse.Namespace) -> int:
     return EXIT_OK if report.ok else EXIT_MISSION_FAILED
 
 
-__all__ = ["add_check_parser", "run_check"]
+def preflight(
+    compiled: Any, fleet: Any, mission: str, say: Any = print, report_file: Path | None = None
+) -> Any:
+    """The check ``eamos run`` and ``eamos rollout`` do before flying: print its findings.
+
+    Writes the report to ``report_file`` (``check.json`` in the run folder) when
+    given; raises :class:`~eamos.cli.errors.Refused` on an error finding.
+    """
+    from eamos.check import check_mission
+
+    from .errors import Refused
+
+    report = check_mission(compiled, fleet)
+    if report_file is not None:
+        doc = report.to_json()
+        doc["file"] = mission
+        report_file.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    for finding in report.findings:
+        say(finding.render(mission))
+    more = f" ({report.unexplored} more not explored)" if report.unexplored else ""
+    say(
+        f"pre-flight check: {len(report.runs)} run(s){more}, {len(report.errors)} error(s), "
+        f"{len(report.warnings)} warning(s)"
+    )
+    if not report.ok:
+        raise Refused(
+            f"the pre-flight check found {len(report.errors)} error(s) (above); fix the "
+            "mission or the fleet file, or fly it anyway with --no-check"
+        )
+    return report
+
+
+__all__ = ["add_check_parser", "preflight", "run_check"]

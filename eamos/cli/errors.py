@@ -13,6 +13,7 @@ failed, a drone that did not answer); everything else it raises, and here:
   is a connection failure), a ground station that cannot bind its port
   (:class:`~eamos.ops.FleetConnectError`), a :class:`ConnectionError`: :data:`EXIT_CONNECT`;
   other fleet failures (a version mismatch, a full disk): :data:`EXIT_MISSION_FAILED`;
+* a mission the pre-flight check refused (:class:`Refused`): :data:`EXIT_MISSION_FAILED`;
 * anything else is a bug of ours: one line, the traceback only with ``-v``:
   :data:`EXIT_INTERNAL`.
 
@@ -44,6 +45,10 @@ class BadInput(Exception):
     """Input the command found wrong (an argument combination, an unwritable output)."""
 
 
+class Refused(Exception):
+    """The pre-flight check found errors: the mission is not flown (``--no-check`` overrides)."""
+
+
 def _bad_input_types() -> tuple[type[BaseException], ...]:
     from eamos.config import ConfigError
     from eamos.net.keys import KeysError
@@ -61,6 +66,8 @@ def exit_code_of(exc: BaseException) -> int:
 
     if isinstance(exc, KeyboardInterrupt):
         return EXIT_INTERRUPTED
+    if isinstance(exc, Refused):
+        return EXIT_MISSION_FAILED
     if isinstance(exc, (MissionError, *_bad_input_types())):
         return EXIT_BAD_INPUT
     if isinstance(exc, ConnectionError | FleetConnectError):
@@ -133,4 +140,12 @@ def command(parser: argparse.ArgumentParser, func: object) -> None:
     parser.set_defaults(func=func, prog=parser.prog)
 
 
-__all__ = ["CONNECT_KINDS", "BadInput", "command", "dispatch", "exit_code_of", "report"]
+__all__ = [
+    "CONNECT_KINDS",
+    "BadInput",
+    "Refused",
+    "command",
+    "dispatch",
+    "exit_code_of",
+    "report",
+]

@@ -19,6 +19,7 @@ from eamos.ops.deployment import Deployment, resolve
 from .errors import BadInput, command
 from .exits import EXIT_MISSION_FAILED, EXIT_OK
 from .options import (
+    add_check,
     add_fleet_file,
     add_mission,
     add_plain,
@@ -96,6 +97,7 @@ def add_fleet_commands(sub: Any) -> None:
     add_run_dir(p)
     add_speedup(p)
     add_svg(p, default=False)
+    add_check(p)
     add_verbose(p)
     command(p, cmd_rollout)
 
@@ -174,7 +176,19 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     from eamos.ops.record import paper_table
     from eamos.ops.rollout import RolloutOptions, rollout
 
-    opts = RolloutOptions(args.mission, args.fleet, args.run_dir, args.speedup, args.svg)
+    def check_first(compiled: Any, fleet: Any, run_dir: Path) -> None:
+        from eamos.cli.check import preflight
+
+        preflight(compiled, fleet, str(args.mission), _say, run_dir / "check.json")
+
+    opts = RolloutOptions(
+        args.mission,
+        args.fleet,
+        args.run_dir,
+        args.speedup,
+        args.svg,
+        preflight=check_first if args.check else None,
+    )
     result = rollout(opts, _say)
     rows = paper_table(result.durations)
     print(

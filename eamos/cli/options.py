@@ -51,6 +51,20 @@ def add_svg(parser: argparse.ArgumentParser, *, default: bool) -> None:
     )
 
 
+def add_check(parser: argparse.ArgumentParser) -> None:
+    """``--check/--no-check``: fly the mission in virtual time first (``eamos check``).
+
+    With an error finding the mission is refused (exit 1) unless ``--no-check``.
+    """
+    parser.add_argument(
+        "--check",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="check the mission in virtual time first and refuse it on an error finding "
+        "(default: yes; --no-check flies it anyway)",
+    )
+
+
 def add_run_dir(parser: argparse.ArgumentParser) -> None:
     """``--run-dir DIR``: where a run (or roll-out) writes its folder."""
     parser.add_argument(
@@ -114,6 +128,7 @@ def add_fleet_file(parser: argparse.ArgumentParser, *, required: bool) -> None:
 
 
 __all__ = [
+    "add_check",
     "add_fleet_file",
     "add_mission",
     "add_plain",

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from eamos.cli.exits import EXIT_MISSION_FAILED, EXIT_OK
 from eamos.cli.options import (
+    add_check,
     add_fleet_file,
     add_mission,
     add_plain,
@@ -68,6 +69,7 @@ def add_run_parser(sub: Any) -> None:
     )
     add_plain(run)
     add_svg(run, default=True)
+    add_check(run)
     add_verbose(run)
     run.set_defaults(func=cmd_run)
 
@@ -85,6 +87,7 @@ class RunOptions:
     ready_timeout_s: float = 60.0
     live: bool | None = None  # None: live table when stdout is a terminal
     svg: bool = True
+    check: bool = True  # the pre-flight check first (eamos check); refuse on an error
 
 
 def default_run_dir(mission: str) -> Path:
@@ -107,6 +110,10 @@ def run_mission(
     run_dir = (opts.run_dir or default_run_dir(compiled.mission.name)).resolve()
     run_dir.mkdir(parents=True, exist_ok=True)
     write_artifacts(compiled, run_dir, svg=opts.svg)
+    if opts.check:
+        from eamos.cli.check import preflight
+
+        preflight(compiled, opts.fleet, str(opts.mission), report_file=run_dir / "check.json")
     drones = [n for n in compiled.programs if n != GROUND_STATION]
     summary = fly_local(
         LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
@@ -163,6 +170,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         ready_timeout_s=args.ready_timeout,
         live=False if args.plain else None,
         svg=args.svg,
+        check=args.check,
     )
     summary = run_mission(opts, stop)
     print("\n".join(summary_lines(summary)))

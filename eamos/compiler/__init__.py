@@ -8,7 +8,7 @@ Public surface; everything else in this package is private.
 from .artifacts import write_artifacts
 from .drawing import render_svg, to_dot, to_graphml
 from .errors import CompilerBug, Diagnostic, MissionError, SourceLocation, render_diagnostics
-from .phases import CompiledMission, check_mission, compile_file, compile_mission
+from .phases import CompiledMission, check_source, compile_file, compile_mission
 
 __all__ = [
     "CompiledMission",
@@ -16,7 +16,7 @@ __all__ = [
     "Diagnostic",
     "MissionError",
     "SourceLocation",
-    "check_mission",
+    "check_source",
     "compile_file",
     "compile_mission",
     "render_diagnostics",

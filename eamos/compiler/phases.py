@@ -77,7 +77,7 @@ def compile_mission(source: str, source_file: str = "<mission>") -> CompiledMiss
             gc.enable()
 
 
-def check_mission(source: str) -> tuple[Mission, list[Diagnostic]]:
+def check_source(source: str) -> tuple[Mission, list[Diagnostic]]:
     """The phases that find an author's mistakes: parse and check, no graph built.
 
     Returns the checked syntax and its warnings; raises :class:`MissionError`
@@ -98,7 +98,7 @@ def check_mission(source: str) -> tuple[Mission, list[Diagnostic]]:
 
 
 def _compile(source: str, source_file: str) -> CompiledMission:
-    mission, warnings = check_mission(source)
+    mission, warnings = check_source(source)
     if mission.name == "mission" and source_file not in ("", "<mission>"):
         mission = dataclasses.replace(mission, name=Path(source_file).stem)
     amt = build_mission_tree(mission)
@@ -164,7 +164,7 @@ def compile_file(path: Path) -> CompiledMission:
 __all__ = [
     "GROUND_STATION",
     "CompiledMission",
-    "check_mission",
+    "check_source",
     "compile_file",
     "compile_mission",
     "mission_identity",

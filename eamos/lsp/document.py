@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Literal
 
-from ..compiler import CompilerBug, Diagnostic, MissionError, check_mission, compile_mission
+from ..compiler import CompilerBug, Diagnostic, MissionError, check_source, compile_mission
 from ..compiler.parse import parse_partial
 from ..compiler.syntax import ActionCall, Binary, BlockCall, Control, Expr, Mission, Prop, Unary
 from ..program.uniform import DEFAULT_DRONE_TYPE, DRONE_TYPES, GROUND_STATION, DroneType
@@ -94,7 +94,7 @@ def findings(text: str) -> list[Finding]:
 def checked_findings(text: str) -> list[Finding]:
     """The findings of the compiler's checking phases: :func:`findings` without building graphs.
 
-    :func:`eamos.compiler.check_mission` is the first phase of
+    :func:`eamos.compiler.check_source` is the first phase of
     :func:`eamos.compiler.compile_mission`; the graph phases after it are skipped (they
     cost most of the time of a large mission and find only one rare thing more: too many
     synchronisation arcs).  The
@@ -102,7 +102,7 @@ def checked_findings(text: str) -> list[Finding]:
     tests/lsp/test_analysis.py checks both agree on every mission and on broken prefixes.
     """
     try:
-        diagnostics = check_mission(text)[1]
+        diagnostics = check_source(text)[1]
     except MissionError as exc:
         diagnostics = list(exc.diagnostics)
     except (CompilerBug, RecursionError, MemoryError) as exc:

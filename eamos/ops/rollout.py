@@ -46,6 +46,7 @@ The parts: :mod:`.identity` (fleet mission id, execution digests), :mod:`.probe`
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -88,6 +89,9 @@ class RolloutOptions:
     run_dir: Path | None = None
     speedup: float | None = None
     svg: bool = False
+    #: Called once the mission is compiled into the run folder, before any drone is
+    #: contacted (``eamos rollout`` passes the pre-flight check; it raises to refuse).
+    preflight: Callable[[CompiledMission, FleetConfig, Path], None] | None = None
 
 
 def _default_run_dir(mission: str) -> Path:
@@ -106,6 +110,8 @@ def _compile(
     run_dir = (opts.run_dir or _default_run_dir(compiled.mission.name)).resolve()
     run_dir.mkdir(parents=True, exist_ok=True)
     write_artifacts(compiled, run_dir, svg=opts.svg)
+    if opts.preflight is not None:
+        opts.preflight(compiled, fleet, run_dir)
     return compiled, drones, targets, run_dir
 
 
