@@ -17,7 +17,7 @@ from eamos.net.sockets import (
     CMD_SUB,
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_HWM,
-    JOIN_TIMEOUT_S,
+    BridgeThread,
     Monitor,
     connection_options,
     control_pair,
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 __all__ = ["InBridge"]
 
 
-class InBridge:
+class InBridge(BridgeThread):
     """The participant's incoming side: one SUB socket per peer it connects to.
 
     ``connect`` maps peer names to their Out-Bridge endpoints; ``subscribe``
@@ -131,48 +131,8 @@ class InBridge:
 
     # -- lifecycle ---------------------------------------------------------
 
-    def start(self) -> None:
-        """Start the receive thread."""
-        with self._lock:
-            if self._closed:
-                raise RuntimeError("InBridge is closed")
-            if self._started:
-                return
-            self._started = True
-            self._thread.start()
-
-    def close(self) -> None:
-        """Stop the receive thread and close the sockets; idempotent, any thread.
-
-        May be called from ``on_message`` itself: the thread then stops after
-        the callback returns (it is not joined, which would deadlock).
-        """
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-            if not self._started:
-                self._tx_open = False
-                self._close_sockets()
-                return
-            if self._tx_open:
-                self._ctrl_tx.send(CMD_STOP)
-        if threading.current_thread() is not self._thread:
-            self._thread.join(JOIN_TIMEOUT_S)
-            if self._thread.is_alive():
-                self._log.warning("net.in.close_timeout")
-
-    def __enter__(self) -> InBridge:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    @property
-    def closed(self) -> bool:
-        """Whether ``close()`` was called."""
-        return self._closed
+    def _close_timeout(self) -> None:
+        self._log.warning("net.in.close_timeout")
 
     # -- subscriptions -----------------------------------------------------
 

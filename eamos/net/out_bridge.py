@@ -18,7 +18,7 @@ from eamos.net.sockets import (
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_HWM,
     DEFAULT_LINGER_MS,
-    JOIN_TIMEOUT_S,
+    BridgeThread,
     Monitor,
     connection_options,
     control_pair,
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 __all__ = ["OutBridge"]
 
 
-class OutBridge:
+class OutBridge(BridgeThread):
     """The participant's outgoing side: one bound XPUB socket, fed by any thread.
 
     ``bind`` is a ZeroMQ endpoint such as ``tcp://127.0.0.1:6001``; port 0
@@ -94,55 +94,19 @@ class OutBridge:
 
     # -- lifecycle ---------------------------------------------------------
 
-    def start(self) -> None:
-        """Start the bridge thread (forwarding sends, tracking subscriptions)."""
-        with self._lock:
-            if self._closed:
-                raise RuntimeError("OutBridge is closed")
-            if self._started:
-                return
-            self._started = True
-            with self._cond:
-                self._running = True
-            self._thread.start()
+    def _on_start(self) -> None:
+        with self._cond:
+            self._running = True
 
-    def close(self) -> None:
-        """Stop the thread and close the sockets; idempotent and safe from any thread.
+    def _close_sockets(self) -> None:
+        self._ctrl_tx.close()
+        self._ctrl_rx.close()
+        if self._monitor is not None:
+            self._monitor.close()
+        self._xpub.close()
 
-        Messages sent before ``close()`` are handed to the XPUB socket first
-        (the stop command travels the same FIFO pipe behind them).
-        """
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-            if not self._started:
-                # The thread never ran, so this thread may close its sockets.
-                self._ctrl_tx.close()
-                self._tx_open = False
-                self._ctrl_rx.close()
-                if self._monitor is not None:
-                    self._monitor.close()
-                self._xpub.close()
-                return
-            if self._tx_open:
-                self._ctrl_tx.send(CMD_STOP)
-        if threading.current_thread() is not self._thread:
-            self._thread.join(JOIN_TIMEOUT_S)
-            if self._thread.is_alive():
-                self._log.warning("net.out.close_timeout", endpoint=self.endpoint)
-
-    def __enter__(self) -> OutBridge:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    @property
-    def closed(self) -> bool:
-        """Whether ``close()`` was called."""
-        return self._closed
+    def _close_timeout(self) -> None:
+        self._log.warning("net.out.close_timeout", endpoint=self.endpoint)
 
     # -- sending -----------------------------------------------------------
 

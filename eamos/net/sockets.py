@@ -6,8 +6,9 @@ Everything here runs on the thread that owns the socket (see
 
 from __future__ import annotations
 
+import threading
 import uuid
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, Self
 
 import zmq
 from zmq.utils.monitor import parse_monitor_message
@@ -28,6 +29,7 @@ __all__ = [
     "JOIN_TIMEOUT_S",
     "RECONNECT_IVL_MAX_MS",
     "RECONNECT_IVL_MS",
+    "BridgeThread",
     "Monitor",
     "connection_options",
     "control_pair",
@@ -172,3 +174,76 @@ def curve_client(sock: zmq.Socket[Any], keys: FleetKeys, server_key: bytes) -> N
     sock.setsockopt(zmq.CURVE_SERVERKEY, server_key)
     sock.setsockopt(zmq.CURVE_PUBLICKEY, keys.public)
     sock.setsockopt(zmq.CURVE_SECRETKEY, keys.secret)
+
+
+class BridgeThread:
+    """The lifecycle both bridges share: one thread owns the sockets, a command stops it.
+
+    A subclass builds its sockets, ``_ctrl_tx`` and ``_thread`` and sets
+    ``_lock``, ``_started``, ``_closed`` and ``_tx_open``; it provides
+    :meth:`_close_sockets` (for a bridge whose thread never ran) and
+    :meth:`_close_timeout` (what to log when the thread does not end).
+    """
+
+    _lock: threading.Lock
+    _started: bool
+    _closed: bool
+    _tx_open: bool
+    _ctrl_tx: zmq.Socket[Any]
+    _thread: threading.Thread
+
+    def start(self) -> None:
+        """Start the bridge thread; a no-op if running, RuntimeError once closed."""
+        with self._lock:
+            if self._closed:
+                raise RuntimeError(f"{type(self).__name__} is closed")
+            if self._started:
+                return
+            self._started = True
+            self._on_start()
+            self._thread.start()
+
+    def close(self) -> None:
+        """Stop the thread and close the sockets; idempotent and safe from any thread.
+
+        Commands queued before ``close()`` are handled first (the stop command
+        travels the same FIFO pipe behind them).  May be called from the bridge's
+        own callbacks: the thread then stops after the callback returns (it is
+        not joined, which would deadlock).
+        """
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            if not self._started:
+                # The thread never ran, so this thread may close its sockets.
+                self._tx_open = False
+                self._close_sockets()
+                return
+            if self._tx_open:
+                self._ctrl_tx.send(CMD_STOP)
+        if threading.current_thread() is not self._thread:
+            self._thread.join(JOIN_TIMEOUT_S)
+            if self._thread.is_alive():
+                self._close_timeout()
+
+    def __enter__(self) -> Self:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close()`` was called."""
+        return self._closed
+
+    def _on_start(self) -> None:
+        """Called under the lock just before the thread starts."""
+
+    def _close_sockets(self) -> None:
+        raise NotImplementedError
+
+    def _close_timeout(self) -> None:
+        raise NotImplementedError
