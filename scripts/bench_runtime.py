@@ -215,11 +215,12 @@ def _fleet_run(
     loopback drops incoming packets at random (iptables), which needs root.
     """
     from eamos.compiler import compile_mission
+    from eamos.ground import free_ports
     from tests.support.netlab import Netns, node_argv, write_fleet
 
     compiled = compile_mission(source, f"{name}.go")
     names = list(compiled.programs)
-    ports = _free_ports(len(names))
+    ports = free_ports(len(names))
     bind = {n: f"tcp://127.0.0.1:{p}" for n, p in zip(names, ports, strict=True)}
     hal = {n: {"adapter": "fake"} for n in names if n != "GCS"}
     files = write_fleet(
@@ -272,19 +273,6 @@ def _fleet_run(
     if summary is None or not summary["ok"]:
         raise RuntimeError(f"{name}: fleet run failed: {summary and summary['outcome']}")
     return summary
-
-
-def _free_ports(n: int) -> list[int]:
-    import socket
-
-    socks = [socket.socket() for _ in range(n)]
-    try:
-        for s in socks:
-            s.bind(("127.0.0.1", 0))
-        return [s.getsockname()[1] for s in socks]
-    finally:
-        for s in socks:
-            s.close()
 
 
 def _latencies(summary: dict) -> dict:

@@ -10,7 +10,6 @@ does to PUB/SUB traffic; every wait is bounded.
 from __future__ import annotations
 
 import random
-import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -20,6 +19,7 @@ from typing import Any
 
 import zmq
 
+from eamos.ground import free_ports
 from eamos.net import wire
 from eamos.net.keys import FleetKeys, create_fleet_keys
 from eamos.net.link import Link, LinkSettings
@@ -44,9 +44,7 @@ WAIT_S = 30.0
 
 
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    return free_ports(1)[0]
 
 
 class Inbox:
