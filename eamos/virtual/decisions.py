@@ -20,23 +20,8 @@ Decide = Callable[[str, ConditionLogic, Iteration, str, bool], bool]
 
 
 def install_decide(drone: str, logic: ConditionLogic, decide: Decide) -> None:
-    """Make ``logic`` (one condition node of ``drone``) ask ``decide`` for every decision.
-
-    The node's own check is replaced on this instance only: same order of
-    events (pending activation, value known, not aborted), the answer in place
-    of the simulated value.
-    """
-
-    def check(act: Iteration) -> None:
-        purpose = logic.pending.get(act)
-        if purpose is None or logic.aborted:
-            return
-        value = logic._value()
-        if value is None:
-            return  # no telemetry yet: as the node itself, wait for the next push
-        logic._decide(act, purpose, decide(drone, logic, act, purpose, value))
-
-    setattr(logic, "_check", check)  # noqa: B010 (an instance attribute on purpose)
+    """Make ``logic`` (one condition node of ``drone``) ask ``decide`` for every decision."""
+    logic.override = lambda act, purpose, value: decide(drone, logic, act, purpose, value)
 
 
 __all__ = ["Decide", "install_decide"]

@@ -11,6 +11,7 @@ and ``loop-watch``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from ...program.conditions import Unknown, evaluate, properties, to_text
@@ -20,9 +21,19 @@ from ..state import Fired, Iteration, holds, within
 from .base import NodeLogic
 from .effects import Broadcast, Effect, ReleaseBegin, Route, UnwatchTelemetry, WatchTelemetry
 
+#: ``override(activation, purpose, value) -> value to use`` (see :attr:`ConditionLogic.override`).
+Override = Callable[[Iteration, str, bool], bool]
+
 
 class ConditionLogic(NodeLogic):
-    """The watching part shared by every node with a condition."""
+    """The watching part shared by every node with a condition.
+
+    ``override``, when set, is asked for every decision with the value the
+    condition has, and its answer is used instead: the pre-flight check takes
+    both ways of a condition the simulation cannot know (a battery, a pilot).
+    """
+
+    override: Override | None = None
 
     def __init__(
         self,
@@ -87,6 +98,8 @@ class ConditionLogic(NodeLogic):
         value = self._value()
         if value is None:
             return  # a property it reads has no value yet: the next telemetry decides
+        if self.override is not None:
+            value = self.override(act, purpose, value)
         self._decide(act, purpose, value)
 
     def _decide(self, act: Iteration, purpose: str, value: bool) -> None:
