@@ -9,7 +9,7 @@ What other packages may use:
   :class:`ReportError` (:mod:`.report`): a drone's part of the run summary;
 * :class:`Dispatcher`, :class:`PooledActor` (:mod:`.dispatch`): actors on a shared pool;
 * :class:`RuntimeFailure` (:mod:`.failure`): an exception in a part of a runtime;
-* :func:`telemetry_values`, :func:`stale_values` (:mod:`.board`).
+* :func:`telemetry_values`, :func:`stale_values` (:mod:`.logic.telemetry`).
 
 The parts (:mod:`.board`, :mod:`.outbox`, :mod:`.executive`, :mod:`.inbound`,
 :mod:`.node`, :mod:`.uniform_api`) are the runtime's own.  Names load on first
@@ -23,9 +23,9 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .board import stale_values, telemetry_values
     from .dispatch import Dispatcher, PooledActor
     from .failure import RuntimeFailure
+    from .logic.telemetry import stale_values, telemetry_values
     from .report import ActionEntry, DroneReport, FinalState, ReportError
     from .runtime import FINAL_SAMPLE_WAIT_S, DroneRuntime, DroneRuntimeError, NetSettings
 
@@ -41,8 +41,8 @@ _WHERE = {
     "Dispatcher": "dispatch",
     "PooledActor": "dispatch",
     "RuntimeFailure": "failure",
-    "stale_values": "board",
-    "telemetry_values": "board",
+    "stale_values": "logic.telemetry",
+    "telemetry_values": "logic.telemetry",
 }
 
 __all__ = [

@@ -24,7 +24,7 @@ from ..hal.api import Telemetry
 from ..net import wire
 from .dispatch import Dispatcher
 from .failure import FailureSink, RuntimePart
-from .logic.telemetry import stale_values, telemetry_values
+from .logic.telemetry import telemetry_values
 from .messages import LocalTelemetry, RemoteTelemetry, TelemetryChanged, Unwatch, Watch
 
 __all__ = [
@@ -34,8 +34,6 @@ __all__ = [
     "WhenLanded",
     "ask_final_sample",
     "shows_effect",
-    "stale_values",
-    "telemetry_values",
 ]
 
 

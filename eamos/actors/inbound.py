@@ -11,9 +11,9 @@ import pykka
 
 from ..net import wire
 from ..net.link import PeerStatus, TelemetryStale
-from .board import stale_values, telemetry_values
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink
+from .logic.telemetry import stale_values, telemetry_values
 from .messages import Interrupt, RemoteTelemetry, Trigger
 
 __all__ = ["InRouter"]

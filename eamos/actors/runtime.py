@@ -35,8 +35,6 @@ from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import Link, LinkSettings
 from ..program.format import DroneProgram
 from .board import LocalSample, TelemetryBoard, WhenLanded, ask_final_sample
-from .board import stale_values as stale_values
-from .board import telemetry_values as telemetry_values
 from .dispatch import Dispatcher
 from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
 from .executive import DroneExecutive as DroneExecutive
@@ -44,6 +42,8 @@ from .executive import ask_snapshot
 from .failure import FailurePolicy, RuntimeFailure
 from .inbound import InRouter
 from .logic import program_wiring
+from .logic.telemetry import stale_values as stale_values
+from .logic.telemetry import telemetry_values as telemetry_values
 from .messages import AbortMission, Fire
 from .node import Links, MissionNode, Wire
 from .outbox import Outbox
@@ -52,6 +52,8 @@ from .uniform_api import Abort as HalAbort
 from .uniform_api import UniformAPI
 from .wiring import destinations, released_arcs, subscriptions, watched_peers
 
+# Outbox, TelemetryBoard, DroneExecutive, the telemetry-values functions and
+# PROGRESS_INTERVAL_S stay importable from here (their home before the split).
 __all__ = [
     "FINAL_SAMPLE_WAIT_S",
     "DroneExecutive",
@@ -146,11 +148,6 @@ class DroneRuntime:
         self._resolved_told = False
         self._stopped = False
         self.started_at = 0.0
-
-    @property
-    def out_actor(self) -> Outbox | None:
-        """The Out-Bridge (older name of :attr:`outbox`)."""
-        return self.outbox
 
     # -- building -------------------------------------------------------------------
 
