@@ -458,7 +458,10 @@ class FleetConfig:
         drones: dict[str, dict[str, Any]] = {}
         ssh: dict[str, dict[str, Any]] = {}
         binds: dict[str, Any] = {}
-        for name, table in doc.get("drones", {}).items():
+        drone_tables = doc.get("drones", {})
+        if not isinstance(drone_tables, dict):
+            raise ConfigError(f"{w}drones: must be a table of drones, such as [drones.Drone1]")
+        for name, table in drone_tables.items():
             if not isinstance(table, dict):
                 raise ConfigError(f"{w}drones.{name}: must be a table")
             _check_keys(f"{w}drones.{name}.", table, {"hal", "ssh", "bind", "home_m", "home_lla"})
