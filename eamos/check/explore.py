@@ -19,7 +19,7 @@ from ..hal.api import AdapterError
 from ..hal.kinematics import GeoFrame
 from ..hal.sim import SimCore, SimSettings
 from ..program.uniform import GROUND_STATION
-from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun
+from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun, collector_paused
 from ..virtual.vehicles import Clock
 from .branches import Oracle
 from .findings import CheckReport, Finding, Place, RunSummary
@@ -99,7 +99,8 @@ def run_once(
         recorders[drone] = rec
         return rec
 
-    run = VirtualMission(compiled.programs, make, time_limit_s, decide=decide).run()
+    with collector_paused():
+        run = VirtualMission(compiled.programs, make, time_limit_s, decide=decide).run()
     return run, {d: r.track() for d, r in recorders.items()}
 
 

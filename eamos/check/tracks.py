@@ -15,7 +15,7 @@ from typing import Any
 
 from ..hal.api import ActionHandle, DoneCallback, Telemetry
 from ..program.uniform import Command
-from ..virtual import Vehicle
+from ..virtual import IdleVehicle, Vehicle
 from ..virtual.vehicles import Clock, Finished
 
 #: (t_s, north_m, east_m, up_m, airborne, armed, battery_pct), as recorded.
@@ -74,6 +74,7 @@ class TrackRecorder:
         self._inner = inner
         self._clock = clock
         self._home = home
+        self._idle = inner if isinstance(inner, IdleVehicle) else None  # checked once: slow
         # Plain tuples while recording (one per step): TrackPoints only when asked.
         self._raw: list[_Raw] = []
 
@@ -104,6 +105,17 @@ class TrackRecorder:
     def state(self) -> Any:
         """As the wrapped vehicle."""
         return self._inner.state()
+
+    def idle_steps(self, limit: int) -> int:
+        """As the wrapped vehicle (0 if it cannot tell)."""
+        return self._idle.idle_steps(limit) if self._idle is not None else 0
+
+    def skip(self, steps: int) -> None:
+        """Skip idle steps of the wrapped vehicle; the track stays a point at rest."""
+        if self._idle is None:
+            raise RuntimeError(f"{self.drone}: the vehicle cannot skip steps")
+        self._idle.skip(steps)
+        self._record()
 
     def _record(self) -> None:
         st = self._inner.state()

@@ -37,14 +37,24 @@ class Limits:
     climb_speed_mps: float = 1.0
     descent_speed_mps: float = 0.7
     accel_mps2: float = 2.0
-    drain_airborne_pct_per_min: float = 1.5
+    # The battery model (see :meth:`Quadcopter.drain_pct_per_min`): hovering
+    # costs the most, speed and climbing add to it; a vehicle on the ground
+    # draws only its electronics.  Defaults: about 25 minutes of hover.
+    drain_airborne_pct_per_min: float = 4.0
+    drain_per_mps_pct_per_min: float = 0.5
+    drain_climb_per_mps_pct_per_min: float = 2.0
     drain_idle_pct_per_min: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("horizontal_speed_mps", "climb_speed_mps", "descent_speed_mps", "accel_mps2"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0")
-        for name in ("drain_airborne_pct_per_min", "drain_idle_pct_per_min"):
+        for name in (
+            "drain_airborne_pct_per_min",
+            "drain_per_mps_pct_per_min",
+            "drain_climb_per_mps_pct_per_min",
+            "drain_idle_pct_per_min",
+        ):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0")
 
@@ -217,13 +227,60 @@ class Quadcopter:
 
     # -- simulating --------------------------------------------------------
 
+    def drain_pct_per_min(self) -> float:
+        """The battery's drain now: idle on the ground; in the air hover plus load.
+
+        Load is the 3-D speed (``drain_per_mps_pct_per_min`` per m/s) and the
+        climb rate (``drain_climb_per_mps_pct_per_min`` per m/s upwards), so a
+        long, fast or climbing flight empties the battery sooner than a hover.
+        """
+        lim = self.limits
+        if self._landed:
+            return lim.drain_idle_pct_per_min
+        speed = math.sqrt(self._vx**2 + self._vy**2 + self._vz**2)
+        return (
+            lim.drain_airborne_pct_per_min
+            + lim.drain_per_mps_pct_per_min * speed
+            + lim.drain_climb_per_mps_pct_per_min * max(0.0, self._vz)
+        )
+
+    @property
+    def at_rest(self) -> bool:
+        """True when :meth:`step` can change nothing but the battery.
+
+        On the ground without a climb setpoint, or hovering exactly on the
+        setpoint with zero velocity (the model then stays put bit for bit);
+        lets a virtual-time driver skip steps in which nothing happens.
+        """
+        if self._landed:
+            target = self._target
+            return not (self._armed and target is not None and target[2] > 0.0)
+        return (
+            self._target == (self._x, self._y, self._z)
+            and self._vx == 0.0
+            and self._vy == 0.0
+            and self._vz == 0.0
+        )
+
+    def rest(self, dt_s: float, steps: int) -> None:
+        """``steps`` steps of ``dt_s`` while :attr:`at_rest`: only the battery drains.
+
+        Drains step by step, exactly as many :meth:`step` calls would.
+        """
+        if not self.at_rest:
+            raise ValueError("rest() while moving")
+        per_step = self.drain_pct_per_min() * dt_s / 60.0
+        battery = self._battery
+        for _ in range(steps):
+            battery = max(0.0, battery - per_step)
+        self._battery = battery
+
     def step(self, dt_s: float) -> None:
         """Advance the model by ``dt_s`` seconds."""
         if dt_s <= 0:
             raise ValueError("dt_s must be > 0")
         lim = self.limits
-        rate = lim.drain_idle_pct_per_min if self._landed else lim.drain_airborne_pct_per_min
-        self._battery = max(0.0, self._battery - rate * dt_s / 60.0)
+        self._battery = max(0.0, self._battery - self.drain_pct_per_min() * dt_s / 60.0)
 
         target = self._target
         if self._landed:

@@ -9,21 +9,23 @@ and the pre-flight checker build on it.
 """
 
 from .decisions import Decide, install_decide
-from .driver import TIME_LIMIT_S, VirtualMission, run_virtual, telemetry_values
+from .driver import TIME_LIMIT_S, VirtualMission, collector_paused, run_virtual, telemetry_values
 from .result import DroneOutcome, VirtualRun, Waiting
-from .vehicles import STEP_S, QuietLog, Vehicle, VehicleFactory, sim_vehicles
+from .vehicles import STEP_S, IdleVehicle, QuietLog, Vehicle, VehicleFactory, sim_vehicles
 
 __all__ = [
     "STEP_S",
     "TIME_LIMIT_S",
     "Decide",
     "DroneOutcome",
+    "IdleVehicle",
     "QuietLog",
     "Vehicle",
     "VehicleFactory",
     "VirtualMission",
     "VirtualRun",
     "Waiting",
+    "collector_paused",
     "install_decide",
     "run_virtual",
     "sim_vehicles",

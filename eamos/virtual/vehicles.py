@@ -10,7 +10,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 
 from ..hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
 from ..hal.sim import SIM_DT_S, SimCore, SimSettings
@@ -35,6 +35,87 @@ class Vehicle(Protocol):
     def step(self) -> tuple[list[Finished], list[Telemetry]]: ...
 
     def state(self) -> Any: ...
+
+
+@runtime_checkable
+class IdleVehicle(Vehicle, Protocol):
+    """A vehicle that can say when nothing happens in its next steps, and skip them.
+
+    The driver fast-forwards over steps every vehicle calls idle (a fleet
+    standing on the ground or hovering through a long pause), so virtual time
+    runs far faster than one step at a time; what the run shows is unchanged.
+    """
+
+    def idle_steps(self, limit: int) -> int: ...
+
+    def skip(self, steps: int) -> None: ...
+
+
+class LazyVehicle:
+    """An :class:`IdleVehicle` stepped only when something can happen to it.
+
+    After each real step it asks the vehicle how many coming steps are idle
+    and sleeps through them; the skipped steps are applied in one
+    :meth:`IdleVehicle.skip` when it wakes, or before anyone talks to it
+    (run, cancel, abort, state), so what it does and shows is exactly what
+    stepping it every time would give.  ``now()`` is the driver's step
+    count, ``horizon()`` the steps left before the driver's time limit.
+    """
+
+    def __init__(self, inner: IdleVehicle, now: Callable[[], int], horizon: Callable[[], int]):
+        self._inner = inner
+        self._now = now
+        self._horizon = horizon
+        self._at = 0  # the driver step the vehicle has been advanced to
+        self.wake = 1  # the next driver step that must really step it
+
+    def _sync(self) -> None:
+        lag = self._now() - self._at
+        if lag > 0:
+            self._inner.skip(lag)
+            self._at += lag
+
+    def _touch(self) -> None:
+        """Someone talks to the vehicle: bring it up to now; it steps next time."""
+        self._sync()
+        self.wake = self._at + 1
+
+    def start(self) -> Telemetry:
+        """As the wrapped vehicle."""
+        return self._inner.start()
+
+    def run(self, command: Command, done: DoneCallback) -> ActionHandle:
+        """As the wrapped vehicle."""
+        self._touch()
+        return self._inner.run(command, done)
+
+    def cancel(self, handle: ActionHandle) -> None:
+        """As the wrapped vehicle."""
+        self._touch()
+        self._inner.cancel(handle)
+
+    def abort(self) -> None:
+        """As the wrapped vehicle."""
+        self._touch()
+        self._inner.abort()
+
+    def state(self) -> Any:
+        """As the wrapped vehicle, up to now."""
+        self._sync()
+        return self._inner.state()
+
+    def step(self) -> tuple[list[Finished], list[Telemetry]]:
+        """The driver's step ``now()``: a real step if due, else nothing (still idle)."""
+        now = self._now()
+        if now < self.wake:
+            return [], []
+        lag = now - 1 - self._at
+        if lag > 0:
+            self._inner.skip(lag)
+        out = self._inner.step()
+        self._at = now
+        self.wake = now + 1 + self._inner.idle_steps(self._horizon())
+        return out
 
 
 #: ``factory(drone, clock)`` builds the vehicle of one drone; ``clock`` reads virtual seconds.

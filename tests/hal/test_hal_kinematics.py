@@ -166,7 +166,56 @@ def test_battery_drains_airborne_and_idle() -> None:
     before = q.battery_pct
     for _ in range(int(60 / DT)):
         q.step(DT)
-    assert before - q.battery_pct == pytest.approx(1.5, abs=1e-6)
+    # A hover: the hover rate alone (no speed, no climb).
+    assert before - q.battery_pct == pytest.approx(Limits().drain_airborne_pct_per_min, abs=1e-6)
+
+
+def test_battery_drains_more_with_speed_and_climb() -> None:
+    """The load model: cruising at 2 m/s and climbing cost more than hovering."""
+    lim = Limits()
+    hover = airborne(2.0)
+    cruise = airborne(2.0)
+    cruise.set_target(1000.0, 0.0, 2.0)
+    for _ in range(int(10 / DT)):  # reach cruise speed
+        cruise.step(DT)
+    h0, c0 = hover.battery_pct, cruise.battery_pct
+    for _ in range(int(60 / DT)):
+        hover.step(DT)
+        cruise.step(DT)
+    assert c0 - cruise.battery_pct == pytest.approx(
+        lim.drain_airborne_pct_per_min + 2.0 * lim.drain_per_mps_pct_per_min, abs=1e-6
+    )
+    assert h0 - hover.battery_pct < c0 - cruise.battery_pct
+    climb = airborne(2.0)
+    climb.set_target(0.0, 0.0, 500.0)
+    for _ in range(int(5 / DT)):  # at climb speed (1 m/s)
+        climb.step(DT)
+    assert climb.drain_pct_per_min() == pytest.approx(
+        lim.drain_airborne_pct_per_min
+        + 1.0 * lim.drain_per_mps_pct_per_min
+        + 1.0 * lim.drain_climb_per_mps_pct_per_min
+    )
+
+
+def test_rest_drains_exactly_as_steps_do() -> None:
+    for q, r in ((Quadcopter(), Quadcopter()), (airborne(2.0), airborne(2.0))):
+        for _ in range(100):  # settle: the airborne one reaches rest on its setpoint
+            q.step(DT)
+            r.step(DT)
+        assert q.at_rest and r.at_rest
+        for _ in range(777):
+            q.step(DT)
+        r.rest(DT, 777)
+        assert q.state == r.state  # bit for bit
+
+
+def test_rest_refuses_a_moving_vehicle() -> None:
+    q = airborne(2.0)
+    q.set_target(10.0, 0.0, 2.0)
+    q.step(DT)
+    assert not q.at_rest
+    with pytest.raises(ValueError, match="moving"):
+        q.rest(DT, 1)
 
 
 def test_battery_never_goes_negative() -> None:

@@ -106,11 +106,18 @@ class _Telemetry:
         self._last_sample_key: tuple[Any, ...] | None = None
         self._next_position_log_s = 0.0
         self._last_position_key: tuple[Any, ...] | None = None
+        # The raw state the last sample and the last position line showed
+        # (for settled(); None until the first of each).
+        self._sampled_raw: tuple[Any, ...] | None = None
+        self._sampled_battery: float | None = None
+        self._logged_raw: tuple[Any, ...] | None = None
 
     def first(self, st: VehicleState) -> Telemetry:
         """The sample sent at start; the next one is due one period later."""
         sample = self.sample(st)
         self._last_sample_key = sample.state()
+        self._sampled_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+        self._sampled_battery = sample.battery_pct
         self._next_sample_s = self._period_s
         return sample
 
@@ -131,6 +138,25 @@ class _Telemetry:
             landed=st.landed,
         )
 
+    def settled(self, raw: tuple[Any, ...], battery_pct: float) -> bool:
+        """True when the last sample and position line already show this state.
+
+        ``raw`` is ``(x_m, y_m, z_m, armed, landed)``.  Then the coming steps
+        of a vehicle at rest emit nothing until the battery's shown value
+        changes.  Compared on the raw state (exact at rest): costs no sample.
+        """
+        return (
+            raw == self._sampled_raw == self._logged_raw
+            and round(battery_pct, 1) == self._sampled_battery
+        )
+
+    def catch_up(self, t_s: float) -> None:
+        """Move the sampling schedule to ``t_s`` as the skipped steps would have."""
+        while self._next_sample_s <= t_s + _EPS_S:
+            self._next_sample_s += self._period_s
+        while t_s >= self._next_position_log_s - _EPS_S:
+            self._next_position_log_s += POSITION_LOG_PERIOD_S
+
     def observe(self, t_s: float, st: VehicleState, samples: list[Telemetry]) -> None:
         """After a step at ``t_s``: append a sample if one is due and differs."""
         if t_s >= self._next_sample_s - _EPS_S:
@@ -141,8 +167,11 @@ class _Telemetry:
             if key != self._last_sample_key:
                 self._last_sample_key = key
                 samples.append(sample)
+            self._sampled_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+            self._sampled_battery = sample.battery_pct
         if t_s >= self._next_position_log_s - _EPS_S:
             self._next_position_log_s += POSITION_LOG_PERIOD_S
+            self._logged_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
             key = (round(st.x_m, 2), round(st.y_m, 2), round(st.z_m, 2), st.armed, st.landed)
             if key != self._last_position_key:
                 self._last_position_key = key
@@ -270,6 +299,7 @@ class SimCore:
             home_lon_deg=s.home_lon_deg,
             home_alt_m=s.home_alt_m,
             battery_pct=s.battery_pct,
+            home_m=list(s.home_m),
             pilot_waypoints=len(s.pilot),
             reject_actions=list(s.reject_actions),
         )
@@ -319,6 +349,61 @@ class SimCore:
         self._update_abort()
         self._telemetry.observe(self._t, self._model.state, samples)
         return finished, samples
+
+    def idle_steps(self, limit: int) -> int:
+        """How many of the next steps (at most ``limit``) change only the clock and battery.
+
+        0 while anything may happen: a request queued, a motion, an abort or
+        the pilot flying, a sample or position line not yet showing the
+        current state.  Otherwise the steps before the first timer or arming
+        is due and before the battery's shown value (0.1 %) can change,
+        counted exactly; a virtual-time driver may :meth:`skip` them.
+        """
+        if self._requests or self._aborting or self._pilot.flying or not self._model.at_rest:
+            return 0
+        due = math.inf
+        for act in self._actions.values():
+            if act.kind == "timer":
+                due = min(due, act.until_s)
+            elif act.kind == "arm":
+                due = min(due, max(self.settings.arm_delay_s, self._t), act.deadline_s)
+            else:
+                return 0
+        model = self._model
+        battery = model.battery_pct
+        if not self._telemetry.settled((*model.position, model.armed, model.landed), battery):
+            return 0
+        per_step = model.drain_pct_per_min() * SIM_DT_S / 60.0
+        if per_step > 0.0 and battery > 0.0:
+            # round(b, 1) changes when b crosses the next x.x5 below it; the
+            # drain is summed step by step, so stop two steps short of it.
+            edge = round(battery, 1) - 0.05
+            crossing = int((battery - edge) / per_step) - 2
+            limit = min(limit, max(0, crossing))
+        if due == math.inf:
+            return max(0, limit)
+        # Timers end at the first step whose summed time reaches them: count
+        # the steps the way step() sums them, so none ends a step early or late.
+        t, steps = self._t, 0
+        while steps < limit:
+            t += SIM_DT_S
+            if t >= due - _EPS_S:
+                break
+            steps += 1
+        return steps
+
+    def skip(self, steps: int) -> None:
+        """Advance ``steps`` steps known idle (:meth:`idle_steps`): as many :meth:`step` calls."""
+        if steps <= 0:
+            return
+        if self._requests or not self._model.at_rest:
+            raise RuntimeError(f"{self.drone}: skip({steps}) over steps that are not idle")
+        self._model.rest(SIM_DT_S, steps)
+        t = self._t
+        for _ in range(steps):
+            t += SIM_DT_S  # summed like step() does, so times stay bit for bit the same
+        self._t = t
+        self._telemetry.catch_up(t)
 
     # -- observation ---------------------------------------------------------
 

@@ -51,11 +51,18 @@ class SimSettings:
     home_lon_deg: float = 14.2640
     home_alt_m: float = 0.0
     battery_pct: float = 100.0
-    drain_airborne_pct_per_min: float = 1.5
+    drain_airborne_pct_per_min: float = 4.0
+    drain_per_mps_pct_per_min: float = 0.5
+    drain_climb_per_mps_pct_per_min: float = 2.0
     drain_idle_pct_per_min: float = 0.1
     action_timeout_s: float = 120.0
     reject_actions: tuple[str, ...] = ()
     pilot: tuple[Waypoint, ...] = ()
+    # Where this drone stands in the fleet frame: metres (north, east) from the
+    # fleet's origin (home_lat_deg, home_lon_deg).  Its X/Y/Z stay relative to
+    # its own home, as on a real autopilot; its latitude and longitude show
+    # where it really is, so drones of one fleet do not all start on one spot.
+    home_m: tuple[float, float] = (0.0, 0.0)
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "hal") -> SimSettings:
@@ -81,6 +88,9 @@ class SimSettings:
                         f"{path}[{i}]", f"unknown action {name!r}{did_you_mean(name, ACTIONS)}"
                     )
         pilot = _pilot_path(mapping["pilot"], f"{prefix}.pilot") if "pilot" in mapping else ()
+        home_m = (
+            _home_m(mapping["home_m"], f"{prefix}.home_m") if "home_m" in mapping else (0.0, 0.0)
+        )
         return cls(
             speedup=num("speedup", gt=0),
             horizontal_speed_mps=num("horizontal_speed_mps", gt=0),
@@ -96,10 +106,13 @@ class SimSettings:
             home_alt_m=num("home_alt_m"),
             battery_pct=num("battery_pct", ge=0, le=100),
             drain_airborne_pct_per_min=num("drain_airborne_pct_per_min", ge=0),
+            drain_per_mps_pct_per_min=num("drain_per_mps_pct_per_min", ge=0),
+            drain_climb_per_mps_pct_per_min=num("drain_climb_per_mps_pct_per_min", ge=0),
             drain_idle_pct_per_min=num("drain_idle_pct_per_min", ge=0),
             action_timeout_s=num("action_timeout_s", gt=0),
             reject_actions=reject,
             pilot=pilot,
+            home_m=home_m,
         )
 
     @property
@@ -111,13 +124,25 @@ class SimSettings:
             descent_speed_mps=self.descent_speed_mps,
             accel_mps2=self.accel_mps2,
             drain_airborne_pct_per_min=self.drain_airborne_pct_per_min,
+            drain_per_mps_pct_per_min=self.drain_per_mps_pct_per_min,
+            drain_climb_per_mps_pct_per_min=self.drain_climb_per_mps_pct_per_min,
             drain_idle_pct_per_min=self.drain_idle_pct_per_min,
         )
 
     @property
     def frame(self) -> GeoFrame:
-        """The local/global frame around this vehicle's home."""
-        return GeoFrame(self.home_lat_deg, self.home_lon_deg, self.home_alt_m)
+        """The local/global frame around this vehicle's own home (``home_m`` from the origin)."""
+        origin = GeoFrame(self.home_lat_deg, self.home_lon_deg, self.home_alt_m)
+        if self.home_m == (0.0, 0.0):
+            return origin
+        lat, lon, _ = origin.to_lla(self.home_m[0], self.home_m[1], 0.0)
+        return GeoFrame(lat, lon, self.home_alt_m)
+
+
+def _home_m(value: Any, path: str) -> tuple[float, float]:
+    if isinstance(value, str) or not isinstance(value, list | tuple) or len(value) != 2:
+        raise field_error(path, f"expected [north_m, east_m], got {value!r}")
+    return (as_number(value[0], f"{path}[0]"), as_number(value[1], f"{path}[1]"))
 
 
 def _pilot_path(value: Any, path: str) -> tuple[Waypoint, ...]:
