@@ -165,6 +165,9 @@ def check_mission(
         if note:
             notes.append(Finding("warning", "model", note))
     homes = fleet_homes(fleet, drones)
+    # Each simulated drone stands at its home (so FlyToLLA targets, given in
+    # latitude and longitude, are where they are for every drone).
+    settings = {d: dataclasses.replace(st, home_m=homes[d]) for d, st in settings.items()}
     safety = fleet.safety
     if min_separation_m is not None:
         safety = dataclasses.replace(safety, min_separation_m=min_separation_m)

@@ -154,3 +154,41 @@ def test_point_in_polygon_on_a_concave_fence():
     u_shape = ((0, 0), (0, 10), (10, 10), (10, 7), (3, 7), (3, 3), (10, 3), (10, 0))
     assert inside(u_shape, 1, 5) and inside(u_shape, 8, 1) and not inside(u_shape, 8, 5)
     assert inside(u_shape, 0, 5)  # on an edge
+
+
+LLA_MEET = """\
+var Drone1 Quadcopter
+var Drone2 Quadcopter
+
+func SEQ_Main() {
+    PAR_Arm()
+    PAR_Up()
+    PAR_Meet()
+    PAR_Land()
+    PAR_Disarm()
+}
+func PAR_Arm() { Drone1.Arm(); Drone2.Arm() }
+func PAR_Up() { Drone1.Takeoff(3); Drone2.Takeoff(3) }
+func PAR_Meet() {
+    Drone1.FlyToLLA(46.6104, 14.2641, 3)
+    Drone2.FlyToLLA(46.6104, 14.2641, 3)
+}
+func PAR_Land() { Drone1.Land(); Drone2.Land() }
+func PAR_Disarm() { Drone1.Disarm(); Drone2.Disarm() }
+"""
+
+
+def test_flytolla_targets_are_one_place_for_every_drone_at_its_own_home(tmp_path):
+    """Two drones sent to one latitude/longitude meet there, from homes 5 m apart.
+
+    Each simulated drone stands at its home in the fleet frame, so a global
+    target is the same point for both (a separation error); were both at the
+    frame's origin, the targets would be 5 m apart and nothing found.
+    """
+    compiled = compile_mission(LLA_MEET, "meet.go")
+    report = check_mission(compiled, None)
+    separations = [f for f in report.findings if f.check == "separation"]
+    assert separations, report.lines()
+    assert {line_of(LLA_MEET, "Drone1.FlyToLLA"), line_of(LLA_MEET, "Drone2.FlyToLLA")} <= {
+        p.line for p in separations[0].places
+    }
