@@ -22,6 +22,7 @@ logs and the summary share one wall clock (see ``docs/logs.md``).
 from __future__ import annotations
 
 import base64
+import contextlib
 import html
 import io
 import json
@@ -31,7 +32,9 @@ from pathlib import Path
 from typing import Any
 
 from .ground.summary import ActionEntry, DroneReport, RunSummary
+from .hal.api import POSITION_LOG_HZ
 from .logs import LOG_NAMES, read_log
+from .program.format import ProgramError, load_program
 
 RESULT_COLOURS = {"ok": "#4c9f70", "failed": "#d1495b", "cancelled": "#edae49"}
 _DASHES = ("-", "--", ":", "-.")
@@ -54,20 +57,26 @@ class Table:
         """One dict per row (what ``pandas.DataFrame(table.records())`` takes)."""
         return [dict(zip(self.columns, row, strict=True)) for row in self.rows]
 
+    @property
+    def _headed(self) -> bool:
+        """False for a key/value table (every column title empty): no header row."""
+        return any(self.columns)
+
     def _repr_html_(self) -> str:
         head = "".join(f"<th>{html.escape(c)}</th>" for c in self.columns)
+        thead = f"<thead><tr>{head}</tr></thead>" if self._headed else ""
         body = "".join(
             "<tr>" + "".join(f"<td>{html.escape(_fmt(v))}</td>" for v in row) + "</tr>"
             for row in self.rows
         )
         caption = f"<caption>{html.escape(self.title)}</caption>" if self.title else ""
-        return (
-            f'<table class="eamos">{caption}<thead><tr>{head}</tr></thead>'
-            f"<tbody>{body}</tbody></table>"
-        )
+        return f'<table class="eamos">{caption}{thead}<tbody>{body}</tbody></table>'
 
     def __str__(self) -> str:
-        cells = [self.columns, *[[_fmt(v) for v in row] for row in self.rows]]
+        cells = [self.columns] if self._headed else []
+        cells += [[_fmt(v) for v in row] for row in self.rows]
+        if not cells:
+            return self.title
         widths = [max(len(str(r[i])) for r in cells) for i in range(len(self.columns))]
         lines = [self.title] if self.title else []
         for row in cells:
@@ -157,19 +166,58 @@ def action_bars(run: RunData) -> list[dict[str, Any]]:
 
 
 def trajectories(run: RunData) -> dict[str, dict[str, list[float]]]:
-    """Per drone, ``t`` (s since start), ``x``, ``y``, ``z`` (m) from ``adapter.position``."""
+    """Per drone, ``t`` (s since start), ``x``, ``y``, ``z`` (m) from ``adapter.position``.
+
+    The adapters log at ``POSITION_LOG_HZ`` while the vehicle moves and
+    nothing while it stands still, so a gap longer than two periods is a
+    hold: a point at the held position just before the next line keeps the
+    plots from drawing a slow drift through it.  Positions are in the
+    drone's own frame (metres from its home); :func:`home_of` moves them to
+    the fleet frame.
+    """
     out: dict[str, dict[str, list[float]]] = {}
     for drone in run.drones:
+        # A simulated drone's vehicle time runs ``speedup`` times faster than the log's.
+        period_s = 1.0 / POSITION_LOG_HZ / _speedup(run, drone)
         track: dict[str, list[float]] = {"t": [], "x": [], "y": [], "z": []}
         for event in run.logs.get(drone, {}).get("adapter", []):
             if event.get("event") != "adapter.position":
                 continue
-            track["t"].append(float(event["ts"]) - run.t0)
+            t = float(event["ts"]) - run.t0
+            if track["t"] and t - track["t"][-1] > 2.0 * period_s:
+                track["t"].append(t - period_s)
+                for axis in ("x", "y", "z"):
+                    track[axis].append(track[axis][-1])
+            track["t"].append(t)
             track["x"].append(float(event["x_m"]))
             track["y"].append(float(event["y_m"]))
             track["z"].append(float(event["z_m"]))
         out[drone] = track
     return out
+
+
+def _start_event(run: RunData, drone: str) -> dict[str, Any]:
+    """``drone``'s ``adapter.start`` line (empty when its log is not here)."""
+    for event in run.logs.get(drone, {}).get("adapter", []):
+        if event.get("event") == "adapter.start":
+            return event
+    return {}
+
+
+def _speedup(run: RunData, drone: str) -> float:
+    speedup = _start_event(run, drone).get("speedup", 1.0)
+    return float(speedup) if isinstance(speedup, int | float) and speedup > 0 else 1.0
+
+
+def home_of(run: RunData, drone: str) -> tuple[float, float]:
+    """Where ``drone``'s home is in the fleet frame (``home_m`` of its ``adapter.start``).
+
+    (0, 0) when its adapter did not say (real vehicles: their own frame).
+    """
+    home = _start_event(run, drone).get("home_m")
+    if isinstance(home, list) and len(home) == 2:
+        return float(home[0]), float(home[1])
+    return (0.0, 0.0)
 
 
 def _counted(run: RunData, drone: str, event: str) -> int | None:
@@ -183,31 +231,36 @@ def _counted(run: RunData, drone: str, event: str) -> int | None:
 def table7(run: RunData) -> Table:
     """Paper Table 7 per drone: MDG nodes, internal and external arcs, triggers on the wire.
 
-    ``received``/``sent`` come from the drones' reports (their Out-/In-Bridges);
-    ``log rcv/snd`` recounts them from ``mission.log`` when the logs are here.
-    For loop-free missions they equal the MDG's external in/out arcs.
+    ``sent``/``received`` come from the drones' reports (their Out-/In-Bridges);
+    ``log sent / received`` recounts them from ``mission.log`` when the logs
+    are here.  Every pair reads sent first, as the CLI prints it.  For a
+    loop-free mission that ran to its end, the triggers equal the MDG's
+    external out/in arcs; ``match`` says whether they do and ``why`` explains
+    a "no" (see :func:`mismatch_reason`).
     """
     rows = []
     for drone in run.drones:
         report = run.report(drone)
         mdg = report.mdg if report is not None else {}
         ext_in, ext_out = mdg.get("external_in"), mdg.get("external_out")
-        rcv, snd = (
-            (report.triggers_received, report.triggers_sent) if report is not None else (None, None)
+        snd, rcv = (
+            (report.triggers_sent, report.triggers_received) if report is not None else (None, None)
         )
         log_rcv = _counted(run, drone, "mission.inbridge.received")
         log_snd = _counted(run, drone, "mission.outbridge.sent")
         program = run.run_dir / "programs" / f"{drone}.program.json"
         size_kb = round(program.stat().st_size / 1024, 1) if program.exists() else None
+        match = rcv == ext_in and snd == ext_out
         rows.append(
             [
                 drone,
                 mdg.get("nodes"),
                 mdg.get("internal_arcs"),
-                f"{ext_in} / {ext_out}",
-                f"{rcv} / {snd}",
-                "" if log_rcv is None else f"{log_rcv} / {log_snd}",
-                rcv == ext_in and snd == ext_out,
+                f"{ext_out} / {ext_in}",
+                f"{snd} / {rcv}",
+                "" if log_rcv is None else f"{log_snd} / {log_rcv}",
+                match,
+                "" if match else mismatch_reason(run, drone),
                 size_kb,
             ]
         )
@@ -216,15 +269,38 @@ def table7(run: RunData) -> Table:
             "drone",
             "MDG nodes",
             "internal arcs",
-            "external arcs in / out",
-            "triggers rcv / snd",
-            "log rcv / snd",
+            "external arcs out / in",
+            "triggers sent / received",
+            "log sent / received",
             "match",
+            "why not",
             "program kB",
         ],
         rows,
         "Triggers against MDG arcs (paper Table 7)",
     )
+
+
+def mismatch_reason(run: RunData, drone: str) -> str:
+    """Why ``drone``'s triggers differ from its MDG's external arcs, in words."""
+    report = run.report(drone)
+    if report is None:
+        return "no report from this drone: its counts are unknown"
+    if not run.summary.ok:
+        return f"the run did not finish ({run.summary.outcome}): arcs after the stop never fired"
+    kinds: set[str] = set()
+    in_loop = any(a.iteration for a in report.actions)
+    with contextlib.suppress(ProgramError):  # no program here: no explanation from it
+        program = load_program(run.run_dir / "programs" / f"{drone}.program.json")
+        kinds = {n.kind for n in program.native_nodes()}
+        in_loop = in_loop or any(n.loops for n in program.native_nodes())
+    if in_loop:
+        return "loops: an arc inside a loop fires once per iteration"
+    if "if" in kinds:
+        return "an If: only the branch taken sends its triggers"
+    if any(a.result != "ok" for a in report.actions):
+        return "an action failed or was cancelled: what depended on it never ran"
+    return "unexplained: compare mission.log with the MDG picture"
 
 
 def durations(run: RunData) -> Table:
@@ -308,33 +384,84 @@ def _axes(ax: Any, size: tuple[float, float]) -> tuple[Any, Any]:
     return fig, fig.add_subplot()
 
 
+#: Gantt geometry, in points: label font size, a character's width, a row's height.
+_GANTT_FONT_PT = 7.0
+_GANTT_CHAR_PT = 0.6 * _GANTT_FONT_PT
+_GANTT_ROW_PT = 0.7 * 0.9 * 72
+
+
+@dataclass(frozen=True)
+class GanttLabel:
+    """Where one bar's label goes: its bar's index, the x centre, upright or turned."""
+
+    bar: int
+    x_s: float
+    rotated: bool
+
+
+def gantt_labels(bars: Sequence[dict[str, Any]], axis_width_pt: float) -> list[GanttLabel]:
+    """Labels that fit: inside their bar, else turned upright, never over one another.
+
+    ``bars`` are :func:`action_bars` rows; ``axis_width_pt`` is the plot's
+    width.  A label that fits neither way is left out (the Durations table
+    lists every action); a turned label needs its own strip of the row.
+    """
+    span = _span(bars)
+    per_pt = span / axis_width_pt  # seconds per point
+    out: list[GanttLabel] = []
+    taken: dict[str, float] = {}  # per drone: where the last turned label's strip ends
+    for i, b in enumerate(bars):
+        width = max(b["duration_s"], 1e-3)
+        centre = b["start_s"] + width / 2
+        text_s = len(b["label"]) * _GANTT_CHAR_PT * per_pt
+        if text_s <= width:
+            out.append(GanttLabel(i, centre, False))
+            continue
+        strip = _GANTT_FONT_PT * 1.2 * per_pt
+        fits_up = len(b["label"]) * _GANTT_CHAR_PT <= _GANTT_ROW_PT
+        if fits_up and centre - strip / 2 >= taken.get(b["drone"], -float("inf")):
+            out.append(GanttLabel(i, centre, True))
+            taken[b["drone"]] = centre + strip / 2
+    return out
+
+
 def plot_gantt(run: RunData, ax: Any = None) -> Any:
-    """Each drone's mission timeline: one bar per action, coloured by its result."""
+    """Each drone's mission timeline: one bar per action, coloured by its result.
+
+    Labels are placed by :func:`gantt_labels`, so they never overlap.
+    """
     fig, ax = _axes(ax, (10, 1.2 + 0.9 * max(1, len(run.drones))))
     bars = action_bars(run)
-    for row, drone in enumerate(run.drones):
-        for b in (b for b in bars if b["drone"] == drone):
-            width = max(b["duration_s"], 1e-3)
-            ax.broken_barh(
-                [(b["start_s"], width)],
-                (row - 0.35, 0.7),
-                facecolors=RESULT_COLOURS.get(b["result"], "#999999"),
-                edgecolor="white",
-                linewidth=0.5,
-            )
-            ax.text(
-                b["start_s"] + width / 2,
-                row,
-                b["label"],
-                ha="center",
-                va="center",
-                fontsize=7,
-                rotation=90 if width < 0.08 * _span(bars) else 0,
-                clip_on=True,
-            )
+    rows = {drone: row for row, drone in enumerate(run.drones)}
+    for b in bars:
+        ax.broken_barh(
+            [(b["start_s"], max(b["duration_s"], 1e-3))],
+            (rows[b["drone"]] - 0.35, 0.7),
+            facecolors=RESULT_COLOURS.get(b["result"], "#999999"),
+            edgecolor="white",
+            linewidth=0.5,
+        )
+    # The axes take about 85 % of the figure's width.
+    labels = gantt_labels(bars, fig.get_figwidth() * 72 * 0.85)
+    for label in labels:
+        b = bars[label.bar]
+        ax.text(
+            label.x_s,
+            rows[b["drone"]],
+            b["label"],
+            ha="center",
+            va="center",
+            fontsize=_GANTT_FONT_PT,
+            rotation=90 if label.rotated else 0,
+            clip_on=True,
+        )
     ax.set_yticks(range(len(run.drones)), run.drones)
     ax.invert_yaxis()
-    ax.set_xlabel("seconds since the start trigger")
+    hidden = len(bars) - len(labels)
+    ax.set_xlabel(
+        "seconds since the start trigger"
+        + (f" ({hidden} short actions unlabelled: see Durations)" if hidden else "")
+    )
     ax.set_title(f"{run.summary.mission}: actions per drone")
     from matplotlib.patches import Patch
 
@@ -357,19 +484,24 @@ def plot_xy(run: RunData, ax: Any = None) -> Any:
     """Trajectories seen from above (x, y), from each drone's ``adapter.log``."""
     fig, ax = _axes(ax, (5.5, 5))
     tracks = trajectories(run)
+    homes = {d: home_of(run, d) for d in tracks}
+    fleet_frame = any(h != (0.0, 0.0) for h in homes.values())
     for i, (drone, t) in enumerate(tracks.items()):
         if t["x"]:
+            north, east = homes[drone]
+            xs = [north + x for x in t["x"]]
+            ys = [east + y for y in t["y"]]
             # Dashes differ per drone: drones flying the same shape would hide each other.
             ax.plot(
-                t["x"],
-                t["y"],
+                ys,
+                xs,
                 marker=".",
                 markersize=3,
                 label=drone,
                 color=_colour(run, drone),
                 linestyle=_DASHES[i % len(_DASHES)],
             )
-            ax.plot(t["x"][0], t["y"][0], "o", color=_colour(run, drone), alpha=0.5)
+            ax.plot(ys[0], xs[0], "o", color=_colour(run, drone), alpha=0.5)
     if not any(t["x"] for t in tracks.values()):
         ax.text(
             0.5,
@@ -381,10 +513,12 @@ def plot_xy(run: RunData, ax: Any = None) -> Any:
         )
     else:
         ax.legend(fontsize=8)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+    # Seen from above: east to the right, north up.
+    ax.set_xlabel("y, east (m)")
+    ax.set_ylabel("x, north (m)")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title("trajectories (x, y; each drone's local frame)")
+    frame = "fleet frame" if fleet_frame else "each drone's local frame"
+    ax.set_title(f"trajectories (x, y; {frame})")
     ax.grid(alpha=0.3)
     return fig
 
@@ -473,14 +607,18 @@ def write_html(run_dir: Path | str, out: Path | str | None = None) -> Path:
 
 
 __all__ = [
+    "GanttLabel",
     "ReportError",
     "RunData",
     "Table",
     "action_bars",
     "durations",
     "figure_png",
+    "gantt_labels",
+    "home_of",
     "html_page",
     "load_run",
+    "mismatch_reason",
     "overview",
     "plot_gantt",
     "plot_xy",

@@ -47,13 +47,36 @@ EXITS = {
 }
 
 
+#: What ``eamos-node --help`` says about the config (every key: docs/operations.md).
+NODE_CONFIG_HELP = """\
+The config (TOML; `eamos run` and `eamos rollout` write one per drone):
+
+  drone = "Drone1"                        # must match the program
+  program = "programs/Drone1.program.json"  # paths relative to this file
+  log_dir = "logs/Drone1"
+  [net]
+  bind = "tcp://127.0.0.1:6001"           # this drone's out-bridge
+  keys = "keys/Drone1"                    # from `eamos keys`
+  [net.peers]                             # every other participant's out-bridge
+  GCS = "tcp://127.0.0.1:6000"
+  [hal]
+  adapter = "sim"                         # sim | mavlink | ground | fake
+
+Every key, with units and defaults: docs/operations.md, "The node config".
+
+Exit codes: 0 its part of the mission done, 1 the mission failed or was
+aborted, 2 bad config or program, 3 the vehicle or the network could not be
+used (e.g. a peer never listened), 4 internal error, 130 interrupted.
+"""
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``eamos-node`` argument parser."""
     parser = argparse.ArgumentParser(
         prog="eamos-node",
         description="Run one drone's part of an EAMOS mission (its compiled drone program).",
-        epilog="The config names the drone, its program, its out-bridge endpoint, its peers' "
-        "endpoints, the hardware adapter and the log folder; see eamos/config.py.",
+        epilog=NODE_CONFIG_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--config", required=True, type=Path, help="the drone's TOML config file")
     parser.add_argument(

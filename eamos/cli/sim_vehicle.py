@@ -62,7 +62,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--sysid 2 --reject MAV_CMD_NAV_LAND=FAILED",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--autopilot", required=True, choices=("px4", "ardupilot"))
+    parser.add_argument(
+        "--autopilot",
+        required=True,
+        choices=("px4", "ardupilot"),
+        help="which autopilot's MAVLink dialect to speak: px4 (PX4 modes, HEARTBEAT "
+        "autopilot PX4, mission uploads) or ardupilot (ArduCopter GUIDED/LAND/RTL modes "
+        "and its arming checks)",
+    )
     parser.add_argument(
         "--connection",
         required=True,

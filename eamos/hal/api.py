@@ -24,6 +24,10 @@ Contract every adapter keeps:
   finished action does nothing.
 * ``abort()`` cancels every running action and lands the vehicle.
 * ``close()`` releases threads and sockets; it is idempotent.
+
+Every adapter logs its position (``adapter.position``) at
+:data:`POSITION_LOG_HZ` of vehicle time while the position or the
+armed/landed flags change, so reports draw tracks from dense data.
 """
 
 from __future__ import annotations
@@ -36,6 +40,9 @@ from typing import Literal, Protocol
 from eamos.program.uniform import Command
 
 ActionStatus = Literal["ok", "failed", "cancelled"]
+
+#: The rate of ``adapter.position`` lines while the vehicle moves (docs/logs.md).
+POSITION_LOG_HZ = 5.0
 
 
 class AdapterError(Exception):

@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from eamos.hal import ADAPTERS, AdapterError, make_adapter
+from eamos.hal.api import POSITION_LOG_HZ
 from eamos.hal.fake import FakeAdapter
 from eamos.hal.ground import GroundAdapter
 from eamos.hal.kinematics import GeoFrame
@@ -540,6 +541,8 @@ def test_adapter_log_is_json_lines(make_sim: SimFactory, tmp_path: Path) -> None
     positions = [e for e in log if e["event"] == "adapter.position"]
     assert len(positions) >= 3
     assert max(p["z_m"] for p in positions) == pytest.approx(5.0, abs=0.1)
-    # About 1 Hz of simulated time, and only while something changes.
+    # POSITION_LOG_HZ (5 Hz) of simulated time, and only while something changes.
     t_sims = [p["t_sim"] for p in positions]
-    assert all(b - a >= 0.99 for a, b in itertools.pairwise(t_sims))
+    period = 1.0 / POSITION_LOG_HZ
+    assert all(b - a >= period - 0.01 for a, b in itertools.pairwise(t_sims))
+    assert any(b - a == pytest.approx(period, abs=0.01) for a, b in itertools.pairwise(t_sims))

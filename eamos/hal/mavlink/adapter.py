@@ -55,7 +55,7 @@ Adapter log events: ``adapter.start``, ``adapter.connected``,
 ``adapter.abort``/``.abort.done``/``.abort.failed``, ``adapter.statustext``,
 ``adapter.mode``, ``adapter.armed``, ``adapter.ack``, ``adapter.link.*``
 (``vehicle``, ``lost``, ``restored``, ``gap``, ``transport_error``),
-``adapter.position`` (once a second while it changes), ``adapter.close``.
+``adapter.position`` (at ``POSITION_LOG_HZ`` while it changes), ``adapter.close``.
 """
 
 from __future__ import annotations

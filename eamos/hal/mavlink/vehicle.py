@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from eamos.hal.api import AdapterError, Telemetry
+from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
 from eamos.hal.kinematics import EARTH_RADIUS_M, GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
 from eamos.hal.mavlink.frames import NedOrigin, Vector, ned_to_mission
@@ -67,7 +67,7 @@ GROUND_Z_M = 0.1
 #: but a lost UDP datagram must not strand the vehicle).
 TARGET_REFRESH_S = 1.0
 #: The adapter log gets the vehicle's position this often while it changes.
-POSITION_LOG_S = 1.0
+POSITION_LOG_S = 1.0 / POSITION_LOG_HZ
 
 #: What the vehicle is told to go to: ("local", NED point) or ("global", (lat, lon, rel alt)).
 GuidedTarget = tuple[str, Vector]

@@ -35,7 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from eamos.hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
+from eamos.hal.api import POSITION_LOG_HZ, ActionHandle, ActionResult, DoneCallback, Telemetry
 from eamos.hal.kinematics import GeoFrame, Quadcopter, VehicleState
 from eamos.hal.sim.settings import SimSettings, Waypoint
 from eamos.program.uniform import (
@@ -55,7 +55,7 @@ SIM_DT_S = 0.02
 #: Simulated duration of payload actions.
 PAYLOAD_DELAY_S = 0.2
 #: Simulated seconds between position log lines.
-POSITION_LOG_PERIOD_S = 1.0
+POSITION_LOG_PERIOD_S = 1.0 / POSITION_LOG_HZ
 #: Absorbs float error in summed step times when comparing simulated times.
 _EPS_S = 1e-9
 
@@ -90,8 +90,8 @@ class _Request:
 class _Telemetry:
     """Telemetry sampling: quantized samples at ``telemetry_hz``, sent only on change.
 
-    Also writes the ``adapter.position`` log line once per simulated second
-    while the position or the armed/landed flags change.
+    Also writes the ``adapter.position`` log line at ``POSITION_LOG_HZ`` of
+    simulated time while the position or the armed/landed flags change.
     """
 
     def __init__(
