@@ -33,6 +33,7 @@ not yet assigned to a drone (AMT ``seq``/``par``, MEG forks) are white.
 from __future__ import annotations
 
 import colorsys
+import itertools
 import json
 import logging
 import re
@@ -87,7 +88,9 @@ _LABELLED_ARCS = frozenset({"then", "else", "body", "exit", "loop", "begin"})
 #: renderer is used instead.
 MAX_DOT_STATEMENTS = 6000
 DOT_TIMEOUT_S = 30.0
-_LABEL_WIDTH = 30  # characters per label line before wrapping
+_LABEL_WIDTH = 26  # characters per label line before wrapping
+_CHAR_PT = 7.0  # about a 10 pt Helvetica character, for width estimates
+_GAP_PT = 30.0  # between two nodes side by side, or two ranks
 
 
 # -- GraphML --------------------------------------------------------------------
@@ -182,18 +185,77 @@ def drone_colours(drones: Iterable[str]) -> dict[str, str]:
 
 
 def _wrap(text: str, width: int = _LABEL_WIDTH) -> list[str]:
-    """Break a long label (conditions) at spaces into lines of about ``width``."""
+    """Break a long label (conditions) into lines of about ``width`` characters.
+
+    Breaks go after ``&&`` and ``||`` first, so each line holds whole
+    comparisons (``D3.X() > -30 &&``); a longer piece is broken at spaces.
+    """
+    pieces = re.split(r"(?<= &&| \|\|) ", text)
     lines: list[str] = []
     current = ""
-    for word in text.split(" "):
-        if current and len(current) + 1 + len(word) > width:
+    for piece in pieces:
+        if current and len(current) + 1 + len(piece) > width:
             lines.append(current)
-            current = word
-        else:
-            current = f"{current} {word}" if current else word
+            current = ""
+        if not current and len(piece) <= width + 8:
+            current = piece  # one comparison stays on one line, a little over width
+            continue
+        for word in piece.split(" "):
+            if current and len(current) + 1 + len(word) > width:
+                lines.append(current)
+                current = word
+            else:
+                current = f"{current} {word}" if current else word
     if current or not lines:
         lines.append(current)
     return lines
+
+
+def _label_width(attrs: dict[str, Any]) -> float:
+    lines = _wrap(str(attrs.get("label", attrs.get("kind", ""))))
+    return max(len(line) for line in lines) * _CHAR_PT + _GAP_PT
+
+
+def _narrower_on_its_side(tree: nx.DiGraph) -> bool:
+    """True when a tree drawn left to right is narrower than drawn top-down.
+
+    Top-down, its width is about its leaves side by side; on its side,
+    about its levels side by side, each as wide as its widest label.
+    """
+    roots = [n for n in tree if tree.in_degree(n) == 0]
+    if not roots:
+        return False
+    depth = nx.multi_source_dijkstra_path_length(tree, roots)
+    leaves = sum(_label_width(tree.nodes[n]) for n in tree if tree.out_degree(n) == 0)
+    levels: dict[int, float] = {}
+    for n, d in depth.items():
+        levels[d] = max(levels.get(d, 0.0), _label_width(tree.nodes[n]))
+    return sum(levels.values()) < leaves
+
+
+def _stacking_arcs(graph: nx.DiGraph) -> list[tuple[Any, Any]]:
+    """Invisible arcs that stack a graph's separate parts top to bottom, in mission order.
+
+    An MDG falls apart into one part per stretch of the mission the drone
+    takes part in; side by side they make pictures thousands of points wide.
+    Chained from the last node of one part to the first of the next, they
+    read from top to bottom like the mission.
+    """
+    parts = [
+        sorted(part, key=lambda n: _sort_key(n, graph.nodes[n]))
+        for part in nx.weakly_connected_components(graph)
+    ]
+    if len(parts) < 2:
+        return []
+    parts.sort(key=lambda part: _sort_key(part[0], graph.nodes[part[0]]))
+    arcs: list[tuple[Any, Any]] = []
+    for upper, lower in itertools.pairwise(parts):
+        bottom = [n for n in upper if not any(s in upper for s in graph.successors(n))]
+        top = [n for n in lower if not any(p in lower for p in graph.predecessors(n))]
+        # Every bottom node to every top node: pulled evenly, the parts stay
+        # centred under each other instead of drifting into a staircase.
+        arcs.extend((a, b) for a in bottom or upper[-1:] for b in top or lower[:1])
+    return arcs
 
 
 def _dot_quote(text: str) -> str:
@@ -249,9 +311,14 @@ def to_dot(
             "mdg": f"Mission Dependency Graph of {graph.graph.get('drone', '?')}",
         }[which]
         title = f"{mission}: {title}"
+    # Pictures a page wide: an AMT lies on its side when that is narrower; an
+    # MDG's parts stack (see _stacking_arcs).
+    rankdir = "LR" if which == "amt" and _narrower_on_its_side(graph) else "TB"
     lines = [
         f"digraph {_dot_quote(which)} {{",
-        f'  graph [rankdir=TB, fontname="Helvetica", labelloc=t, label={_dot_quote(title)}];',
+        f'  graph [rankdir={rankdir}, fontname="Helvetica", labelloc=t, '
+        + ("ranksep=0.3, " if rankdir == "LR" else "")
+        + f"label={_dot_quote(title)}];",
         '  node [fontname="Helvetica", fontsize=10, style=filled, fillcolor="#ffffff"];',
         '  edge [fontname="Helvetica", fontsize=9];',
     ]
@@ -260,16 +327,31 @@ def to_dot(
         drone = str(attrs.get("drone", ""))
         if which != "mdg" and kind in ("seq", "par", "fork"):
             drone = ""  # structural nodes are assigned only by slicing
-        label = f"{_node_id_text(node, attrs)} {attrs.get('label', kind)}"
-        text = "\n".join(_wrap(label) + ([drone] if drone else []))
+        label = str(attrs.get("label", kind))
+        if "cond" in attrs and " " in label:
+            # A control structure: its name on the first line, the condition below.
+            head, cond = label.split(" ", 1)
+            label_lines = [f"{_node_id_text(node, attrs)} {head}", *_wrap(cond)]
+        else:
+            label_lines = _wrap(f"{_node_id_text(node, attrs)} {label}")
+        text = "\n".join(label_lines + ([drone] if drone else []))
         shape = KIND_SHAPES.get(kind, CONTROL_SHAPE if kind else "ellipse")
+        # Arrow-like shapes eat into their box: more room, so the text stays inside.
+        margin = {CONTROL_SHAPE: ', margin="0.25,0.12"', "larrow": ', margin="0.2,0.08"'}.get(
+            shape, ""
+        )
         style = "filled"
         if which == "mdg" and not attrs.get("native", True):
             style = "filled,dashed"  # a proxy: executed by another drone
+        elif which == "mdg":
+            # One group for the drone's own nodes: Graphviz keeps arcs inside a
+            # group straight, so its own chain runs down the middle instead of
+            # drifting sideways at every proxy (a staircase pages wide).
+            margin += ', group="native"'
         fill = colours.get(drone, UNASSIGNED_COLOUR)
         lines.append(
             f"  {_node_dot_id(node)} [label={_dot_quote(text)}, shape={shape}, "
-            f"style={_dot_quote(style)}, fillcolor={_dot_quote(fill)}];"
+            f"style={_dot_quote(style)}, fillcolor={_dot_quote(fill)}{margin}];"
         )
 
     def edge_key(e: tuple[Any, Any, dict[str, Any]]) -> tuple[Any, ...]:
@@ -291,6 +373,9 @@ def to_dot(
             attrs_out.append('style="dashed"')
         suffix = f" [{', '.join(attrs_out)}]" if attrs_out else ""
         lines.append(f"  {_node_dot_id(a)} -> {_node_dot_id(b)}{suffix};")
+    if which == "mdg":
+        for a, b in _stacking_arcs(graph):
+            lines.append(f'  {_node_dot_id(a)} -> {_node_dot_id(b)} [style="invis"];')
     lines.append("}")
     return "\n".join(lines) + "\n"
 

@@ -269,10 +269,12 @@ def builtin_svg(dot_text: str) -> str:
         shape = attrs.get("shape", "ellipse")
         w = max(len(line) for line in lines) * _CHAR_W + 20
         h = len(lines) * _LINE_H + 14
+        # The text's box must fit inside the shape: a diamond (or triangle)
+        # holds it at twice its size, an ellipse at sqrt(2) times.
         if shape in ("diamond", "triangle"):
-            w, h = w * 1.5, h * 1.6
+            w, h = w * 2.0, h * 2.0
         elif shape in ("ellipse", "circle", "oval"):
-            w, h = w * 1.15, h * 1.1
+            w, h = w * 1.42, h * 1.42
         boxes[n] = _Box(w=w, h=h, lines=lines)
 
     title = g.graph.get("label", "")
@@ -309,6 +311,8 @@ def builtin_svg(dot_text: str) -> str:
             f'font-size="14">{_xml_escape(title)}</text>'
         )
     for src, dst, eattrs in g.edges:
+        if "invis" in eattrs.get("style", ""):
+            continue  # layout only (e.g. stacking an MDG's parts): not drawn
         ba, bb = boxes[src], boxes[dst]
         shape_a = g.nodes[src].get("shape", "ellipse")
         shape_b = g.nodes[dst].get("shape", "ellipse")

@@ -138,8 +138,26 @@ def _validate_one(cond: Any) -> None:
         raise ConditionError(f"unknown operator {tag!r}")
 
 
+#: Go's operator precedence (higher binds tighter); atoms and unary operators above all.
+_PRECEDENCE = {
+    "||": 1,
+    "&&": 2,
+    **dict.fromkeys(("==", "!=", "<", "<=", ">", ">="), 3),
+    **dict.fromkeys(("+", "-"), 4),
+    **dict.fromkeys(("*", "/", "%"), 5),
+    "not": 6,
+    "neg": 6,
+}
+_ATOM = 7
+
+
 def to_text(cond: Condition | None) -> str:
-    """Go-like text of a condition, for labels and logs."""
+    """Go text of a condition, for labels and logs: as a person writes it.
+
+    Parentheses only where Go's precedence needs them
+    (``D1.X() > 5 && (D2.Z() < 1 || D3.Battery() < 20)``), so the text reads
+    as the mission wrote it, less any redundant brackets.
+    """
     if cond is None:
         return ""
     tag = cond[0]
@@ -149,13 +167,14 @@ def to_text(cond: Condition | None) -> str:
         return "true" if cond[1] else "false"
     if tag == "prop":
         return f"{cond[1]}.{cond[2]}()"
-    if tag == "not":
-        return "!" + _paren(cond[1])
-    if tag == "neg":
-        return "-" + _paren(cond[1])
-    return f"{_paren(cond[1])} {tag} {_paren(cond[2])}"
+    mine = _PRECEDENCE.get(tag, _ATOM)
+    if tag in ("not", "neg"):
+        return ("!" if tag == "not" else "-") + _operand(cond[1], mine, right=True)
+    return f"{_operand(cond[1], mine, right=False)} {tag} {_operand(cond[2], mine, right=True)}"
 
 
-def _paren(cond: Condition) -> str:
+def _operand(cond: Condition, parent: int, *, right: bool) -> str:
+    """An operand's text, bracketed when it binds looser than its operator (left-assoc)."""
     text = to_text(cond)
-    return f"({text})" if cond[0] not in ("num", "bool", "prop", "not", "neg") else text
+    mine = _PRECEDENCE.get(cond[0], _ATOM) if cond[0] not in ("num", "bool", "prop") else _ATOM
+    return f"({text})" if mine < parent or (right and mine == parent) else text

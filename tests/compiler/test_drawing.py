@@ -327,3 +327,75 @@ def test_write_artifacts_without_svg_and_stale_files(tmp_path: Path) -> None:
     assert not (tmp_path / "graphs" / "mdg_Drone3.dot").exists()
     assert "svg" not in manifest["graphs"]["meg"]
     assert load_program(tmp_path / "programs" / "Drone1.program.json").mission == "experiment_a"
+
+
+# -- pictures a person reads (issue 14) -------------------------------------------------
+
+
+def test_an_mdg_in_parts_is_stacked_by_invisible_arcs_in_mission_order() -> None:
+    """Experiment C's Drone3 MDG has seven parts: chained top to bottom, not side by side."""
+    compiled = compile_file(MISSIONS / "experiment_c.go")
+    mdg = compiled.mdgs["Drone3"]
+    dot = to_dot(mdg, "mdg")
+    invisible = re.findall(r'^  "(\S+)" -> "(\S+)" \[style="invis"\];$', dot, re.M)
+    parts = list(nx.weakly_connected_components(mdg))
+    assert len(parts) == 7 and invisible
+    # Every part but the last sends invisible arcs to the next one, and only to it.
+    part_of = {f"n{n}" if isinstance(n, int) else str(n): i for i, p in enumerate(parts) for n in p}
+    order = sorted(range(len(parts)), key=lambda i: min(mdg.nodes[n]["meg"] for n in parts[i]))
+    rank = {part: r for r, part in enumerate(order)}
+    assert {(rank[part_of[a]], rank[part_of[b]]) for a, b in invisible} == {
+        (r, r + 1) for r in range(len(parts) - 1)
+    }
+    # The built-in renderer lays them out too, but does not draw them.
+    svg = builtin_svg(dot)
+    assert svg.count('class="edge"') == mdg.number_of_edges()
+
+
+def test_condition_labels_break_between_comparisons_without_extra_brackets(
+    exp_d: CompiledMission,
+) -> None:
+    dot = to_dot(exp_d.mdgs["D3"], "mdg")
+    assert "((" not in dot
+    label = re.search(r'label="(n14 RepeatWhile[^"]*)"', dot)
+    assert label is not None
+    lines = label.group(1).split("\\n")
+    assert lines[:3] == ["n14 RepeatWhile", "D3.X() > -30 &&", "D3.X() < 30 &&"]
+
+
+def test_builtin_shapes_hold_their_text() -> None:
+    """Each node's text (10 pt, 6.4 pt a character, 13 pt a line) fits inside its shape."""
+    for mission in ("experiment_d.go", "listing01_demo.go"):
+        compiled = compile_file(MISSIONS / mission)
+        for mdg in compiled.mdgs.values():
+            svg = builtin_svg(to_dot(mdg, "mdg"))
+            for node in re.findall(r'<g class="node">(.*?)</g>', svg, re.S):
+                lines = re.findall(r">([^<]*)</text>", node)
+                w = max(len(x) for x in lines) * 6.4
+                h = len(lines) * 13.0
+                if m := re.search(r'rx="([\d.]+)" ry="([\d.]+)"', node):
+                    rx, ry = float(m.group(1)), float(m.group(2))
+                    assert (w / 2 / rx) ** 2 + (h / 2 / ry) ** 2 <= 1.0, lines
+                elif "<polygon" in node and ("PAR" in lines[0] or "SEQ" in lines[0]):
+                    pts = re.search(r'points="([^"]+)"', node).group(1)  # type: ignore[union-attr]
+                    xs = [float(p.split(",")[0]) for p in pts.split()]
+                    ys = [float(p.split(",")[1]) for p in pts.split()]
+                    assert w / (max(xs) - min(xs)) + h / (max(ys) - min(ys)) <= 1.0, lines
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="Graphviz (dot) is not installed")
+@pytest.mark.parametrize("path", mission_files(), ids=lambda p: p.stem)
+def test_graphviz_pictures_fit_a_screen_width(path: Path, tmp_path: Path) -> None:
+    """No dependency or execution graph of a shipped mission is wider than a screen (1100 pt).
+
+    Abstract mission trees of the deep missions (loops in a PAR in a SEQ...)
+    stay wider: drawn on their side they are as wide as their levels; 1500 pt.
+    """
+    compiled = compile_file(path)
+    graphs = [("amt", compiled.amt), ("meg", compiled.meg)]
+    graphs += [("mdg", mdg) for mdg in compiled.mdgs.values()]
+    for which, graph in graphs:
+        svg = render_svg(to_dot(graph, which), engine="dot")  # type: ignore[arg-type]
+        width = float(re.search(r'<svg width="(\d+)pt"', svg).group(1))  # type: ignore[union-attr]
+        limit = 1500 if which == "amt" else 1100
+        assert width <= limit, (path.stem, which, graph.graph.get("drone"), width)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -142,7 +144,7 @@ def test_notebook_runs_on_a_fresh_run(local_run, monkeypatch):
 
 def test_gantt_labels_never_overlap_and_long_bars_keep_theirs():
     """Many short actions (experiment D's loops): labels fit or are left out, never overlap."""
-    bars = [
+    bars: list[dict[str, Any]] = [
         {"drone": "D1", "label": "Takeoff(2)", "start_s": 0.0, "duration_s": 60.0, "end_s": 60.0}
     ]
     t = 60.0
@@ -165,5 +167,5 @@ def test_gantt_labels_never_overlap_and_long_bars_keep_theirs():
         )
         extents.append((lab.x_s - half, lab.x_s + half))
     extents.sort()
-    assert all(a[1] <= b[0] + 1e-9 for a, b in zip(extents, extents[1:], strict=False))
+    assert all(a[1] <= b[0] + 1e-9 for a, b in itertools.pairwise(extents))
     assert 5 < len(labels) < len(bars)  # some short ones labelled, the rest left out
