@@ -31,10 +31,11 @@ ALLOWED: dict[str, set[str]] = {
     "actors": {"program", "hints", "logs", "hal", "net", "config"},
     "ground": {"program", "hints", "logs", "hal", "net", "config", "actors"},
     "virtual": {"program", "hints", "logs", "hal", "actors"},
-    "report": {"program", "logs", "ground"},
+    "report": {"program", "logs", "ground", "hal"},
     "ops": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
     "lsp": {"program", "hints", "compiler"},
     "check": {"program", "hints", "logs", "hal", "actors", "virtual", "compiler", "config"},
+    "monitor": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
 }
 #: Packages only command-line code may import; nothing imports the CLI.
 TOP = {"cli"}

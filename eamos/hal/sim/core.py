@@ -255,6 +255,39 @@ class _Pilot:
         model.set_target(wp.x_m, wp.y_m, wp.z_m)
 
 
+def refusal(
+    command: Command, settings: SimSettings, model: Quadcopter, busy: bool, aborting: bool
+) -> str | None:
+    """Why the vehicle refuses ``command`` now (its rules), or None.
+
+    ``busy``: a motion action runs (one at a time); ``aborting``: an abort
+    is landing the vehicle.
+    """
+    if command.action in settings.reject_actions:
+        return "rejected by vehicle"
+    if aborting and not isinstance(command, Payload | PauseFor):
+        return "aborting"
+    if isinstance(command, PauseFor) and command.duration_s < 0:
+        return "duration_s must be >= 0"
+    if isinstance(command, Disarm) and model.armed:
+        if not model.landed:
+            return "in the air"
+        if busy:
+            return "busy"  # e.g. a Takeoff about to lift off
+    if not command.moves:
+        return None
+    if busy:
+        return "busy"  # one motion action at a time
+    if isinstance(command, Takeoff):
+        if command.height_m <= 0:
+            return "height_m must be > 0"
+        if not model.armed:
+            return "not armed"
+    elif not isinstance(command, Land) and model.landed:
+        return "not flying"
+    return None
+
+
 class SimCore:
     """One simulated quadcopter, advanced step by step by its owner (see module doc).
 
@@ -477,7 +510,9 @@ class SimCore:
             handle=act.handle.id,
             t_sim=round(self._t, 3),
         )
-        reason = self._refusal(command)
+        reason = refusal(
+            command, self.settings, self._model, self._motion is not None, self._aborting
+        )
         if reason is not None:
             return self._finish(act, ActionResult("failed", reason), finished)
         self._actions[act.handle.id] = act
@@ -509,33 +544,6 @@ class SimCore:
                     )
                     return None
                 self._start_motion(act, finished)
-        return None
-
-    def _refusal(self, command: Command) -> str | None:
-        """Why ``command`` cannot start now (the vehicle's rules), or None."""
-        model = self._model
-        if command.action in self.settings.reject_actions:
-            return "rejected by vehicle"
-        if self._aborting and not isinstance(command, Payload | PauseFor):
-            return "aborting"
-        if isinstance(command, PauseFor) and command.duration_s < 0:
-            return "duration_s must be >= 0"
-        if isinstance(command, Disarm) and model.armed:
-            if not model.landed:
-                return "in the air"
-            if self._motion is not None:
-                return "busy"  # e.g. a Takeoff about to lift off
-        if not command.moves:
-            return None
-        if self._motion is not None:
-            return "busy"  # one motion action at a time
-        if isinstance(command, Takeoff):
-            if command.height_m <= 0:
-                return "height_m must be > 0"
-            if not model.armed:
-                return "not armed"
-        elif not isinstance(command, Land) and model.landed:
-            return "not flying"
         return None
 
     def _start_motion(self, act: _Action, finished: list[Finished]) -> None:
