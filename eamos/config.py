@@ -46,16 +46,29 @@ A fleet file may also say how to reach real drones for ``eamos rollout``
 tables are kept as written here and validated by :mod:`eamos.ops.targets`
 (see ``docs/operations.md``), so ``eamos run`` ignores them.
 
-Every error names the file and the field.
+Every error names the file and the field.  Numbers must be finite and within
+:data:`RANGES`:
+
+    ready_timeout_s    0 < value <= 86400 s      peer_timeout_s     0 < value <= 3600 s
+    land_timeout_s     0 < value <= 3600 s       telemetry_stale_s  0 < value <= 3600 s
+    mission_timeout_s  0 < value <= 604800 s     telemetry_max_hz   0.01 <= value <= 1000 Hz
+    peer_give_up_s     0 < value <= 86400 s      hal.speedup        0 < value <= 1000
+    heartbeat_s        0.01 <= value <= 60 s     (and peer_timeout_s, telemetry_stale_s
+                                                  longer than heartbeat_s)
+
+A ``[drones.X]`` table must name a drone of the mission
+(:meth:`FleetConfig.check_drones`), and ``adapter = "ground"`` is the ground
+station's, refused for a drone.  A ``log_dir`` must be a folder (or not exist yet).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,6 +76,7 @@ from typing import Any
 from .hal.settings import did_you_mean
 from .net.keys import FleetKeys, KeysError, plain_refusal
 from .net.link import LinkSettings
+from .program.uniform import GROUND_STATION
 
 
 class ConfigError(Exception):
@@ -155,18 +169,20 @@ class NodeConfig:
         link = _link_settings(w, net)
         give_up = net.get("peer_give_up_s")
         if give_up is not None:
-            give_up = _seconds(f"{w}net.peer_give_up_s", give_up)
+            give_up = in_range(f"{w}net.peer_give_up_s", give_up, "peer_give_up_s")
         hal = doc.get("hal", {"adapter": "sim"})
         if not isinstance(hal, dict):
             raise ConfigError(f"{w}hal: must be a table")
+        _check_hal(f"{w}hal.", hal, drone=drone != GROUND_STATION)
         timeouts = {}
         for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s"):
             if key in doc:
-                timeouts[key] = _seconds(f"{w}{key}", doc[key])
+                timeouts[key] = in_range(f"{w}{key}", doc[key], key)
         base = path.parent
         log_dir = doc.get("log_dir", f"logs/{drone}")
-        if not isinstance(log_dir, str):
+        if not isinstance(log_dir, str) or not log_dir:
             raise ConfigError(f"{w}log_dir: must be a path")
+        _log_folder(f"{w}log_dir", (base / log_dir).resolve())
         return cls(
             path=path,
             drone=drone,
@@ -300,10 +316,83 @@ def _toml_value(value: Any) -> str:
     raise ValueError(f"cannot write {value!r} to TOML")
 
 
-def _seconds(where: str, value: Any) -> float:
-    if not isinstance(value, int | float) or isinstance(value, bool) or not value > 0:
-        raise ConfigError(f"{where}: must be a positive number")
-    return float(value)
+@dataclass(frozen=True)
+class Range:
+    """The values a numeric field accepts: ``low < value <= high`` (``low <= ...`` if closed)."""
+
+    low: float
+    high: float
+    unit: str
+    closed_low: bool = False
+
+    def admits(self, value: float) -> bool:
+        """Whether ``value`` (finite) is in the range."""
+        above = value >= self.low if self.closed_low else value > self.low
+        return above and value <= self.high
+
+    def __str__(self) -> str:
+        low = f"{self.low:g} <=" if self.closed_low else f"{self.low:g} <"
+        return f"{low} value <= {self.high:g} {self.unit}".rstrip()
+
+
+_DAY_S = 86_400.0
+MAX_SPEEDUP = 1000.0
+"""The largest ``hal.speedup`` (and ``--speedup``): faster, a simulated step no longer fits."""
+
+RANGES: dict[str, Range] = {
+    "ready_timeout_s": Range(0, _DAY_S, "s"),
+    "land_timeout_s": Range(0, 3600, "s"),
+    "mission_timeout_s": Range(0, 7 * _DAY_S, "s"),
+    "heartbeat_s": Range(0.01, 60, "s", closed_low=True),
+    "peer_timeout_s": Range(0, 3600, "s"),
+    "telemetry_stale_s": Range(0, 3600, "s"),
+    "telemetry_max_hz": Range(0.01, 1000, "Hz", closed_low=True),
+    "peer_give_up_s": Range(0, _DAY_S, "s"),
+    "speedup": Range(0, MAX_SPEEDUP, ""),
+}
+"""Accepted values of every numeric field of a drone config (and of ``hal.speedup``)."""
+
+
+def describe_ranges() -> list[str]:
+    """One line per numeric field and its range (what ``docs/configuration.md`` shows)."""
+    return [f"{name}: {rng}" for name, rng in RANGES.items()]
+
+
+def in_range(where: str, value: Any, name: str) -> float:
+    """``value`` as a finite float within ``RANGES[name]``, or a ConfigError naming ``where``."""
+    rng = RANGES[name]
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        raise ConfigError(f"{where}: must be a number ({rng}), got {value!r}")
+    number = float(value)
+    if not math.isfinite(number) or not rng.admits(number):
+        raise ConfigError(f"{where}: must be finite, {rng}, got {value!r}")
+    return number
+
+
+def _check_hal(where: str, hal: Mapping[str, Any], *, drone: bool) -> None:
+    """What the config layer checks of a ``[hal]`` table (the adapter checks the rest).
+
+    ``speedup`` is checked here too because ``--speedup`` replaces it before the
+    adapter sees it: a wrong value in a file must not pass unnoticed.
+    """
+    if "speedup" in hal:
+        in_range(f"{where}speedup", hal["speedup"], "speedup")
+    if drone and hal.get("adapter") == "ground":
+        raise ConfigError(
+            f"{where}adapter: \"ground\" is the ground station's adapter, not a drone's "
+            '(use "sim", "fake" or "mavlink")'
+        )
+
+
+def _log_folder(where: str, folder: Path) -> None:
+    """Refuse a log folder that names a file (or lies under one)."""
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                raise ConfigError(f"{where}: {part} is a file, not a folder")
+            if not os.access(part, os.W_OK | os.X_OK):
+                raise ConfigError(f"{where}: {part} is not writable")
+            return
 
 
 def _net_security(
@@ -344,7 +433,7 @@ def _link_settings(w: str, net: Mapping[str, Any]) -> LinkSettings:
     values: dict[str, Any] = {}
     for key in _LINK_FIELDS:
         if key in net:
-            values[key] = _seconds(f"{w}net.{key}", net[key])
+            values[key] = in_range(f"{w}net.{key}", net[key], key)
     try:
         return LinkSettings(**values)
     except ValueError as exc:  # the message starts with the field's name
@@ -368,6 +457,8 @@ class SafetySettings:
 def _number(where: str, value: Any, *, positive: bool = False) -> float:
     if not isinstance(value, int | float) or isinstance(value, bool) or value != value:
         raise ConfigError(f"{where}: must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ConfigError(f"{where}: must be finite, got {value!r}")
     if positive and not value > 0:
         raise ConfigError(f"{where}: must be greater than 0, got {value!r}")
     return float(value)
@@ -438,6 +529,22 @@ class FleetConfig:
         merged.setdefault("adapter", "sim")
         return merged
 
+    def check_drones(self, drones: Iterable[str]) -> None:
+        """Refuse a ``[drones.X]`` table for a drone the mission does not have (a typo, mostly).
+
+        ``drones`` are the mission's drones; the error names the file, the table and the
+        nearest name.
+        """
+        known = set(drones)
+        tables = set(self.drones) | set(self.ssh) | set(self.binds)
+        tables |= set(self.homes_m) | set(self.homes_lla)
+        for name in sorted(tables - known):
+            listed = f"; the mission's drones: {', '.join(sorted(known)) or 'none'}"
+            raise ConfigError(
+                f"{self.path}: drones.{name}: not a drone of the mission"
+                f"{did_you_mean(name, known)}{listed}"
+            )
+
     @classmethod
     def empty(cls) -> FleetConfig:
         return cls(None, {"adapter": "sim"}, {})
@@ -481,6 +588,7 @@ class FleetConfig:
             hal = table.get("hal", {})
             if not isinstance(hal, dict):
                 raise ConfigError(f"{w}drones.{name}.hal: must be a table")
+            _check_hal(f"{w}drones.{name}.hal.", hal, drone=True)
             drones[name] = dict(hal)
             if not isinstance(table.get("ssh", {}), dict):
                 raise ConfigError(f"{w}drones.{name}.ssh: must be a table")
@@ -490,6 +598,7 @@ class FleetConfig:
         default_hal = defaults.get("hal", {})
         if not isinstance(default_hal, dict):
             raise ConfigError(f"{w}defaults.hal: must be a table")
+        _check_hal(f"{w}defaults.hal.", default_hal, drone=True)
         ssh_defaults = defaults.get("ssh", {})
         ground = doc.get("ground", {})
         for key, value in (("defaults.ssh", ssh_defaults), ("ground", ground)):

@@ -18,7 +18,14 @@ from eamos.net.link import LinkSettings
 # Text TOML can hold (no lone surrogates: UTF-8 cannot encode them).
 TEXT = st.text(st.characters(exclude_categories=["Cs"]), max_size=12)
 NAME = st.text(st.characters(exclude_categories=["Cs"]), min_size=1, max_size=10)
-SECONDS = st.floats(min_value=0.001, max_value=1e6, allow_nan=False) | st.integers(1, 10**6)
+
+
+def seconds(top: int) -> st.SearchStrategy[float | int]:
+    """Durations a config accepts for a field whose range ends at ``top`` (config.RANGES)."""
+    return st.floats(min_value=0.001, max_value=top) | st.integers(1, top)
+
+
+SECONDS = seconds(3600)
 SCALAR = st.booleans() | st.integers(-(2**63), 2**63 - 1) | st.floats(allow_nan=False) | TEXT
 VALUE = st.recursive(
     SCALAR,
@@ -54,7 +61,7 @@ def plain_configs(draw: st.DrawFn, folder: Path) -> NodeConfig:
     program = draw(st.sampled_from(["programs/X.program.json", "../p.json", "/abs/p q.json"]))
     log_dir = draw(st.sampled_from(["logs/X", "../../logs", "/var/log/eamos"]))
     peers = draw(st.dictionaries(NAME, LOCAL, max_size=4))
-    give_up = draw(st.none() | SECONDS.map(float))
+    give_up = draw(st.none() | seconds(86_400).map(float))
     return NodeConfig(
         path=path,
         drone=drone,
@@ -62,10 +69,15 @@ def plain_configs(draw: st.DrawFn, folder: Path) -> NodeConfig:
         log_dir=(path.parent / log_dir).resolve(),
         bind=draw(LOCAL),
         peers=peers,
-        hal=draw(st.dictionaries(TEXT, VALUE, max_size=4)),
-        ready_timeout_s=float(draw(SECONDS)),
+        # speedup and adapter are checked by load (tests/config/): any other key is kept as is.
+        hal=draw(
+            st.dictionaries(
+                TEXT.filter(lambda k: k not in ("speedup", "adapter")), VALUE, max_size=4
+            )
+        ),
+        ready_timeout_s=float(draw(seconds(86_400))),
         land_timeout_s=float(draw(SECONDS)),
-        mission_timeout_s=float(draw(SECONDS)),
+        mission_timeout_s=float(draw(seconds(604_800))),
         link=draw(st.none() | link_settings()) or LinkSettings(),
         peer_give_up_s=give_up,
     )

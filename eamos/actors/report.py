@@ -5,13 +5,20 @@ it to ``report.json``; the ground station, ``eamos.ops`` and ``eamos report``
 read it back with :meth:`DroneReport.from_json`.  The JSON keys are the ones
 the first version wrote; :meth:`DroneReport.to_json` keeps them exactly, in
 the same order.
+
+A long mission's report stays small enough for one wire message (1 MiB): the
+per-action list holds at most :data:`LISTED_ACTIONS_MAX_BYTES` of JSON, the
+newest actions; the oldest are folded into counts (``actions_folded``, a
+:class:`FoldedActions`, whose ``note`` says so in words).  Every action is
+still in the drone's own ``uniform.log`` (``uniform.result``, docs/logs.md).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 if TYPE_CHECKING:  # the report itself needs only the standard library
     from ..hal.api import Telemetry
@@ -19,7 +26,27 @@ if TYPE_CHECKING:  # the report itself needs only the standard library
     from .executive import ExecutiveSnapshot
     from .messages import ActionRecord
 
-__all__ = ["ActionEntry", "DroneReport", "FinalState", "ReportError"]
+__all__ = [
+    "LISTED_ACTIONS_MAX",
+    "LISTED_ACTIONS_MAX_BYTES",
+    "LISTED_BLOCKED_MAX",
+    "ActionEntry",
+    "DroneReport",
+    "FinalState",
+    "FoldedActions",
+    "ReportError",
+    "fold_actions",
+]
+
+LISTED_ACTIONS_MAX_BYTES: Final = 512 * 1024
+"""JSON bytes of per-action entries a report lists (the rest are counted): half a wire message.
+
+MessagePack (the wire) is smaller than JSON for these entries, so the list, with
+everything else a report holds, stays well under ``wire.MAX_PAYLOAD_BYTES``."""
+LISTED_ACTIONS_MAX: Final = 20_000
+"""At most this many entries are listed, whatever their size (a wire list holds 65 536)."""
+LISTED_BLOCKED_MAX: Final = 1_000
+"""At most this many blocked nodes are named; ``blocked_nodes_more`` counts the rest."""
 
 
 class ReportError(ValueError):
@@ -116,6 +143,103 @@ class ActionEntry:
 
 
 @dataclass(frozen=True)
+class FoldedActions:
+    """The oldest actions of a long mission, counted instead of listed (see the module doc)."""
+
+    count: int
+    ok: int
+    failed: int
+    cancelled: int
+    first_start: float
+    last_end: float
+
+    @classmethod
+    def of(cls, entries: Sequence[ActionEntry]) -> FoldedActions:
+        """The counts of ``entries`` (at least one)."""
+        results = [a.result for a in entries]
+        return cls(
+            count=len(entries),
+            ok=results.count("ok"),
+            failed=results.count("failed"),
+            cancelled=results.count("cancelled"),
+            first_start=min(a.start for a in entries),
+            last_end=max(a.end for a in entries),
+        )
+
+    def merged(self, other: FoldedActions | None) -> FoldedActions:
+        """These counts and ``other``'s together."""
+        if other is None:
+            return self
+        return FoldedActions(
+            self.count + other.count,
+            self.ok + other.ok,
+            self.failed + other.failed,
+            self.cancelled + other.cancelled,
+            min(self.first_start, other.first_start),
+            max(self.last_end, other.last_end),
+        )
+
+    @property
+    def note(self) -> str:
+        """What the folding means, in words (written into the JSON for whoever reads it)."""
+        return (
+            f"the {self.count} oldest actions are counted here, not listed (a report lists "
+            f"at most {LISTED_ACTIONS_MAX_BYTES // 1024} KiB of actions); every action is in "
+            "the drone's uniform.log (event uniform.result)"
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "count": self.count,
+            "ok": self.ok,
+            "failed": self.failed,
+            "cancelled": self.cancelled,
+            "first_start": self.first_start,
+            "last_end": self.last_end,
+            "note": self.note,
+        }
+
+    @classmethod
+    def from_json(cls, data: Any) -> FoldedActions:
+        where = "actions_folded"
+        if not isinstance(data, Mapping):
+            raise ReportError(f"report: {where!r} is {data!r}")
+        num = (int, float)
+        return cls(
+            count=_get(data, "count", int, where),
+            ok=_get(data, "ok", int, where),
+            failed=_get(data, "failed", int, where),
+            cancelled=_get(data, "cancelled", int, where),
+            first_start=float(_get(data, "first_start", num, where)),
+            last_end=float(_get(data, "last_end", num, where)),
+        )
+
+
+def fold_actions(
+    actions: Sequence[ActionEntry], folded: FoldedActions | None = None
+) -> tuple[list[dict[str, Any]], FoldedActions | None]:
+    """The JSON entries to list (the newest, within the limits) and the counts of the rest.
+
+    ``actions`` are in start order; ``folded`` are counts already folded earlier
+    (a report read back and written again).  Pure: tested without a drone.
+    """
+    listed: list[dict[str, Any]] = []
+    size = 0
+    keep = len(actions)
+    for index in range(len(actions) - 1, -1, -1):
+        entry = actions[index].to_json()
+        size += len(json.dumps(entry)) + 2
+        if size > LISTED_ACTIONS_MAX_BYTES or len(listed) >= LISTED_ACTIONS_MAX:
+            break
+        listed.append(entry)
+        keep = index
+    listed.reverse()
+    if keep == 0:
+        return listed, folded
+    return listed, FoldedActions.of(actions[:keep]).merged(folded)
+
+
+@dataclass(frozen=True)
 class DroneReport:
     """One drone's part of the run summary (see the module docstring for its JSON)."""
 
@@ -135,6 +259,13 @@ class DroneReport:
     retransmissions: int = 0
     duplicates_dropped: int = 0
     net: Mapping[str, Any] = field(default_factory=dict)
+    folded: FoldedActions | None = None  # the oldest actions, counted, when the list was cut
+    blocked_nodes_more: int = 0  # blocked nodes beyond those named
+
+    @property
+    def action_count(self) -> int:
+        """Every action the drone ran: those listed and those folded into counts."""
+        return len(self.actions) + (self.folded.count if self.folded else 0)
 
     @classmethod
     def build(
@@ -181,8 +312,16 @@ class DroneReport:
         return [a for a in self.actions if a.result == "failed"]
 
     def to_json(self) -> dict[str, Any]:
-        """The report as the first version's JSON object (same keys, same order)."""
-        return {
+        """The report as the first version's JSON object (same keys, same order).
+
+        A long mission's oldest actions are folded into ``actions_folded`` and
+        blocked nodes beyond :data:`LISTED_BLOCKED_MAX` into ``blocked_nodes_more``
+        (keys present only then), so the report always fits one wire message.
+        """
+        listed, folded = fold_actions(self.actions, self.folded)
+        blocked = self.blocked_nodes[:LISTED_BLOCKED_MAX]
+        more = self.blocked_nodes_more + len(self.blocked_nodes) - len(blocked)
+        out = {
             "ok": self.ok,
             "resolved": self.resolved,
             "aborted": self.aborted,
@@ -192,8 +331,8 @@ class DroneReport:
             "external_out": self.external_out,
             "external_in": self.external_in,
             "mdg": dict(self.mdg),
-            "blocked_nodes": list(self.blocked_nodes),
-            "actions": [a.to_json() for a in self.actions],
+            "blocked_nodes": list(blocked),
+            "actions": listed,
             "final": None if self.final is None else self.final.to_json(),
             "adapter_error": self.adapter_error,
             # Each trigger counts once above; what it took on the network is here.
@@ -201,6 +340,11 @@ class DroneReport:
             "duplicates_dropped": self.duplicates_dropped,
             "net": dict(self.net),
         }
+        if folded is not None:
+            out["actions_folded"] = folded.to_json()
+        if more:
+            out["blocked_nodes_more"] = more
+        return out
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> DroneReport:
@@ -230,4 +374,10 @@ class DroneReport:
             retransmissions=int(data.get("retransmissions", 0)),
             duplicates_dropped=int(data.get("duplicates_dropped", 0)),
             net=dict(data.get("net") or {}),
+            folded=(
+                None
+                if data.get("actions_folded") is None
+                else FoldedActions.from_json(data["actions_folded"])
+            ),
+            blocked_nodes_more=_get({"n": data.get("blocked_nodes_more", 0)}, "n", int, where),
         )

@@ -9,17 +9,44 @@ are in seconds, always said by the metavar ``SECONDS``.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 
 def positive_number(text: str) -> float:
-    """argparse type for a number greater than zero (seconds, speed-ups)."""
+    """argparse type for a finite number greater than zero (seconds, speed-ups)."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value > 0:  # also refuses nan
+    if not math.isfinite(value):  # nan would never time out, inf never either
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    if not value > 0:
         raise argparse.ArgumentTypeError("must be greater than 0")
+    return value
+
+
+#: The longest duration an option takes: a week (a config's ``mission_timeout_s`` at most).
+MAX_SECONDS = 7 * 86_400.0
+
+
+def seconds_number(text: str) -> float:
+    """argparse type for a duration option: a finite number of seconds, 0 < s <= a week."""
+    value = positive_number(text)
+    if value > MAX_SECONDS:
+        raise argparse.ArgumentTypeError(
+            f"must be at most {MAX_SECONDS:g} s (a week), got {text!r}"
+        )
+    return value
+
+
+def speedup_number(text: str) -> float:
+    """argparse type for ``--speedup``: as ``hal.speedup`` in a config, 0 < K <= 1000."""
+    from eamos.config import MAX_SPEEDUP
+
+    value = positive_number(text)
+    if value > MAX_SPEEDUP:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_SPEEDUP:g}, got {text!r}")
     return value
 
 
@@ -80,7 +107,7 @@ def add_speedup(parser: argparse.ArgumentParser, *, default: float | None = None
     shown = f"{default:g}" if default is not None else "1"
     parser.add_argument(
         "--speedup",
-        type=positive_number,
+        type=speedup_number,
         default=default,
         metavar="K",
         help=f"simulated drones run K times faster than real time (default {shown})",
@@ -95,11 +122,14 @@ def add_seconds(
     default: float | None = None,
     default_text: str | None = None,
 ) -> None:
-    """A duration option (``--timeout``, ``--ready-timeout``, ``--listen``) in seconds."""
+    """A duration option (``--timeout``, ``--ready-timeout``, ``--listen``) in seconds.
+
+    Finite, greater than 0 and at most :data:`MAX_SECONDS` (a week).
+    """
     shown = default_text if default_text is not None else f"{default:g}" if default else None
     parser.add_argument(
         flag,
-        type=positive_number,
+        type=seconds_number,
         default=default,
         metavar="SECONDS",
         help=f"{help_text} (seconds{f', default {shown}' if shown else ''})",
@@ -138,4 +168,6 @@ __all__ = [
     "add_svg",
     "add_verbose",
     "positive_number",
+    "seconds_number",
+    "speedup_number",
 ]

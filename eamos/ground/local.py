@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from eamos.actors.runtime import NetSettings
-from eamos.config import ConfigError, FleetConfig, NodeConfig
+from eamos.config import ConfigError, FleetConfig, NodeConfig, in_range
 from eamos.hal import AdapterError, make_adapter
 from eamos.logs import make_logger
 from eamos.net.keys import FleetKeys, create_fleet_keys
@@ -41,17 +41,142 @@ NODE_MODULE = "eamos.cli.node"
 
 
 def free_ports(n: int) -> list[int]:
-    """``n`` distinct free TCP ports on loopback."""
-    socks = []
+    """``n`` distinct free TCP ports on loopback (free now: see :class:`PortReservation`)."""
+    with PortReservation(n) as reserved:
+        return list(reserved.ports)
+
+
+class PortReservation:
+    """``n`` loopback ports held until :meth:`release`, yet bindable by ZeroMQ meanwhile.
+
+    A port found free and closed at once can be taken by anyone before the node
+    binds it (five ``eamos run`` started together did).  Each port here stays
+    bound by a socket with ``SO_REUSEADDR`` that never listens: the kernel gives
+    it to no other automatic bind, a plain ``bind`` elsewhere fails, and the one
+    ZeroMQ listener (which sets ``SO_REUSEADDR`` too) binds it as intended.
+    """
+
+    def __init__(self, n: int) -> None:
+        self._socks: list[socket.socket] = []
+        try:
+            for _ in range(n):
+                sock = socket.socket()
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                sock.bind(("127.0.0.1", 0))
+                self._socks.append(sock)
+        except OSError:
+            self.release()
+            raise
+        self.ports: tuple[int, ...] = tuple(s.getsockname()[1] for s in self._socks)
+
+    def release(self) -> None:
+        """Let the ports go (once every listener is bound, or the run is over)."""
+        for sock in self._socks:
+            sock.close()
+        self._socks = []
+
+    def __enter__(self) -> PortReservation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+#: Where ``eamos run`` puts its run folders by default, and the ``latest`` link in it.
+RUNS_ROOT = Path("runs")
+LATEST = "latest"
+_MAX_NAME = 120  # characters of the mission's name kept in a folder name (NAME_MAX is 255 bytes)
+
+
+def new_run_dir(
+    mission: str, root: Path = RUNS_ROOT, *, now: time.struct_time | None = None
+) -> Path:
+    """Create and return a fresh ``root/<mission>-<date-time>[-N]/`` folder, never a used one.
+
+    The folder is made with ``mkdir`` without ``exist_ok``, so of runs started in
+    the same second each gets its own (``-2``, ``-3``, ... on a collision): no run
+    writes into another's configs or keys.  ``eamos run`` and ``eamos rollout``
+    both name their folders here.
+    """
+    stamp = time.strftime("%Y%m%d-%H%M%S", now or time.localtime())
+    base = f"{mission[:_MAX_NAME]}-{stamp}"
+    use_run_dir(root, "the runs folder")
+    for n in range(1, 10_000):
+        folder = root / (base if n == 1 else f"{base}-{n}")
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            continue
+        return folder
+    raise ConfigError(f"{root}: no free run folder name for {base}")
+
+
+def use_run_dir(path: Path, option: str = "--run-dir") -> Path:
+    """Make the run folder ``path`` (and its parents) if needed; ConfigError if it cannot be one.
+
+    A file in the way (``--run-dir`` naming a file) or a folder we may not write is
+    bad input, said with the option and the path, not an internal error.
+    """
     try:
-        for _ in range(n):
-            s = socket.socket()
-            s.bind(("127.0.0.1", 0))
-            socks.append(s)
-        return [s.getsockname()[1] for s in socks]
-    finally:
-        for s in socks:
-            s.close()
+        path.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        blocker = next((p for p in (path, *path.parents) if p.exists() and not p.is_dir()), path)
+        raise ConfigError(f"{option} {path}: {blocker} is a file, not a folder") from None
+    except OSError as exc:
+        raise ConfigError(f"{option} {path}: cannot make the folder: {exc.strerror}") from None
+    return path
+
+
+def link_latest(run_dir: Path, root: Path = RUNS_ROOT) -> Path | None:
+    """Point ``root/latest`` at ``run_dir`` (replaced atomically); the link, or None.
+
+    A relative link, so the runs folder can be moved or copied whole.  Nothing is
+    replaced when ``root/latest`` is something other than a link (someone's folder).
+    """
+    link = root / LATEST
+    if link.exists() and not link.is_symlink():
+        return None
+    target = os.path.relpath(Path(run_dir).resolve(), Path(root).resolve())
+    temp = root / f".{LATEST}.{os.getpid()}.{threading.get_ident()}"
+    try:
+        temp.unlink(missing_ok=True)
+        temp.symlink_to(target, target_is_directory=True)
+        os.replace(temp, link)  # rename(2): readers see the old or the new link, never none
+    except OSError:
+        temp.unlink(missing_ok=True)
+        return None
+    return link
+
+
+def fresh_keys_folder(run_dir: Path) -> Path:
+    """A new, empty ``run_dir/keys`` for this run's keys; the keys of a run before moved aside.
+
+    Keys are never overwritten in place: when a run folder is used again
+    (``--run-dir``), the last run's ``keys`` folder is renamed to ``keys.old``
+    (``keys.old-2``, ...) first.  ``keys`` appearing meanwhile means another run
+    is using the same folder: refused.
+    """
+    keys = run_dir / "keys"
+    if keys.exists() or keys.is_symlink():
+        os.replace(keys, fresh_folder(run_dir / "keys.old"))  # onto an empty folder: atomic
+    try:
+        keys.mkdir()
+    except FileExistsError:
+        raise ConfigError(f"{run_dir}: another run is using this run folder") from None
+    return keys
+
+
+def fresh_folder(path: Path) -> Path:
+    """Create ``path`` (or ``path-2``, ``path-3``, ... if taken) atomically; return it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for n in range(1, 10_000):
+        folder = path if n == 1 else path.with_name(f"{path.name}-{n}")
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            continue
+        return folder
+    raise ConfigError(f"{path}: no free folder name")
 
 
 def check_hal_settings(drone: str, hal: Mapping[str, Any], fleet_path: Path | None) -> None:
@@ -149,8 +274,13 @@ def write_node_configs(
     endpoints: Mapping[str, str],
     hals: Mapping[str, dict[str, Any]],
     ready_timeout_s: float,
+    keys_dir: Path | None = None,
 ) -> dict[str, Path]:
-    """One ``configs/<Drone>.toml`` per drone of ``hals`` (paths relative to it); their paths."""
+    """One ``configs/<Drone>.toml`` per drone of ``hals`` (paths relative to it); their paths.
+
+    ``keys_dir`` holds the run's keys (default ``run_dir/keys``).
+    """
+    keys_root = keys_dir or run_dir / "keys"
     configs: dict[str, Path] = {}
     for name, hal in hals.items():
         config = NodeConfig(
@@ -162,7 +292,7 @@ def write_node_configs(
             peers={n: e for n, e in endpoints.items() if n != name},
             hal=dict(hal),
             ready_timeout_s=ready_timeout_s,
-            keys_dir=run_dir / "keys" / name,
+            keys_dir=keys_root / name,
         )
         configs[name] = config.write()
     return configs
@@ -181,15 +311,38 @@ def fly_local(
     """Fly ``mission`` with one process per drone; return the summary (also written).
 
     ``display`` defaults to a live table on a terminal, plain lines otherwise.
+    Before anything starts, a fleet table for a drone not in the mission and a
+    ready timeout a drone's config cannot hold are refused (ConfigError).
     """
     names = list(mission.programs)
     drones = [n for n in names if n != GROUND_STATION]
-    endpoints = {
-        n: f"tcp://127.0.0.1:{p}" for n, p in zip(names, free_ports(len(names)), strict=True)
-    }
+    fleet.check_drones(drones)
+    # The drones' configs must load: an option beyond a config's range is refused here.
+    in_range("--ready-timeout", limits.ready_timeout_s, "ready_timeout_s")
+    # The ports stay reserved until the run is over (see PortReservation).
+    ports = PortReservation(len(names))
+    try:
+        return _fly_local(mission, run_dir, fleet, limits, stop, ports.ports, speedup, display)
+    finally:
+        ports.release()
+
+
+def _fly_local(
+    mission: LocalMission,
+    run_dir: Path,
+    fleet: FleetConfig,
+    limits: Limits,
+    stop: threading.Event,
+    ports: tuple[int, ...],
+    speedup: float | None,
+    display: Display | None,
+) -> RunSummary:
+    names = list(mission.programs)
+    drones = [n for n in names if n != GROUND_STATION]
+    endpoints = {n: f"tcp://127.0.0.1:{p}" for n, p in zip(names, ports, strict=True)}
     # A fresh CURVE key pair per participant for every run: the links are
     # encrypted and only this run's participants can connect (docs/network.md).
-    create_fleet_keys(run_dir / "keys", names, force=True)
+    keys_dir = create_fleet_keys(fresh_keys_folder(run_dir), names)
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
     vehicles = start_sim_vehicles({n: fleet.hal_for(n) for n in drones}, run_dir / "logs", speedup)
     hals: dict[str, dict[str, Any]] = {}
@@ -203,7 +356,7 @@ def fly_local(
     except ConfigError:
         vehicles.stop()
         raise
-    configs = write_node_configs(run_dir, endpoints, hals, limits.ready_timeout_s)
+    configs = write_node_configs(run_dir, endpoints, hals, limits.ready_timeout_s, keys_dir)
     shown = display or make_display(None, drones)
     station = GroundStation(drones, mission.mission_id, on_change=shown.event)
     shown.watch(station)
@@ -216,7 +369,7 @@ def fly_local(
         NetSettings(
             endpoints[GROUND_STATION],
             {n: endpoints[n] for n in drones},
-            keys=FleetKeys.load(run_dir / "keys" / GROUND_STATION, GROUND_STATION),
+            keys=FleetKeys.load(keys_dir / GROUND_STATION, GROUND_STATION),
         ),
         run_dir / "logs" / GROUND_STATION,
         ground_hal,

@@ -95,7 +95,10 @@ class RolloutOptions:
 
 
 def _default_run_dir(mission: str) -> Path:
-    return Path("runs") / f"{mission}-{time.strftime('%Y%m%d-%H%M%S')}"
+    """A new ``runs/<mission>-<date-time>[-N]/`` folder, unique as ``eamos run``'s are."""
+    from ..ground.local import new_run_dir
+
+    return new_run_dir(mission)
 
 
 def _compile(

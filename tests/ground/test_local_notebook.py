@@ -1,0 +1,99 @@
+"""``eamos run`` keeps ``runs/latest``; the notebook as shipped finds it from any folder.
+
+Issue 14: the notebook's default ``RUN_DIR = "runs/latest"`` existed nowhere.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.support.runs import MISSIONS, REPO, RUN_TIMEOUT_S
+
+NOTEBOOK = REPO / "notebooks" / "analyse_run.ipynb"
+
+
+def _eamos_run(cwd: Path) -> Path:
+    """``eamos run`` of experiment B in ``cwd`` with the default run folder; that folder."""
+    proc = subprocess.run(
+        [
+            *(sys.executable, "-m", "eamos.cli", "run", str(MISSIONS / "experiment_b.go")),
+            *("--speedup", "20", "--plain", "--no-svg", "--no-check", "--timeout", "150"),
+        ],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=RUN_TIMEOUT_S,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    line = [ln for ln in proc.stdout.splitlines() if ln.startswith("summary: ")][-1]
+    return Path(line.removeprefix("summary: ")).parent
+
+
+def _kernel_or_skip() -> None:
+    pytest.importorskip("nbformat", reason="nbformat is not installed (pip install -e '.[test]')")
+    pytest.importorskip("nbclient", reason="nbclient is not installed (pip install -e '.[test]')")
+    from jupyter_client.kernelspec import KernelSpecManager
+
+    if "python3" not in KernelSpecManager().find_kernel_specs():
+        pytest.skip("no Jupyter kernel 'python3' (pip install ipykernel), the notebook cannot run")
+
+
+def test_latest_names_the_newest_run(tmp_path: Path) -> None:
+    first = _eamos_run(tmp_path)
+    latest = tmp_path / "runs" / "latest"
+    assert latest.is_symlink() and latest.resolve() == first.resolve()
+    second = _eamos_run(tmp_path)
+    assert second != first
+    assert latest.resolve() == second.resolve()
+    assert os.readlink(latest) == second.name  # relative: the runs folder can move whole
+    assert (latest / "summary.json").is_file()
+
+
+def test_the_notebook_as_shipped_finds_runs_latest_from_a_folder_below(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _kernel_or_skip()
+    import nbclient
+    import nbformat
+
+    run_dir = _eamos_run(tmp_path)
+    below = tmp_path / "notebooks" / "mine"  # e.g. Jupyter started in a sub-folder
+    below.mkdir(parents=True)
+    monkeypatch.delenv("EAMOS_RUN_DIR", raising=False)  # the kernel inherits the environment
+    notebook = nbformat.read(NOTEBOOK, as_version=4)
+    client = nbclient.NotebookClient(
+        notebook, timeout=180, kernel_name="python3", resources={"metadata": {"path": str(below)}}
+    )
+    client.execute()
+    outputs = [o for c in notebook.cells if c.cell_type == "code" for o in c.outputs]
+    assert not [o for o in outputs if o.output_type == "error"]
+    printed = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    assert f"run folder: {run_dir.resolve()}" in printed
+    kinds = [k for o in outputs for k in o.get("data", {})]
+    assert kinds.count("image/png") == 3  # Gantt chart, x/y and altitude
+
+
+def test_the_notebook_says_what_to_do_without_a_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _kernel_or_skip()
+    import nbclient
+    import nbformat
+
+    monkeypatch.delenv("EAMOS_RUN_DIR", raising=False)
+    notebook = nbformat.read(NOTEBOOK, as_version=4)
+    client = nbclient.NotebookClient(
+        notebook,
+        timeout=180,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(tmp_path)}},
+    )
+    with pytest.raises(
+        nbclient.exceptions.CellExecutionError, match=r"run `eamos run MISSION\.go`"
+    ):
+        client.execute()
