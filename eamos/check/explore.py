@@ -155,6 +155,7 @@ def check_mission(
     """
     fleet = fleet or FleetConfig.empty()
     drones = _fleet_drones(compiled)
+    fleet.check_drones(drones)  # a misspelt [drones.X] table is an error, not ignored
     notes: list[Finding] = [
         Finding("warning", "compile", d.message, (Place("", "", "", d.loc.line, d.loc.col),))
         for d in compiled.warnings

@@ -53,6 +53,7 @@ from pathlib import Path
 from ..compiler import CompiledMission, compile_file, write_artifacts
 from ..config import FleetConfig
 from ..ground import check_hal_settings
+from ..ground.local import new_run_dir, use_run_dir
 from ..program.uniform import GROUND_STATION
 from .identity import execution_digest, fleet_mission_id, folder_digest, restamp
 from .plan import (
@@ -96,8 +97,6 @@ class RolloutOptions:
 
 def _default_run_dir(mission: str) -> Path:
     """A new ``runs/<mission>-<date-time>[-N]/`` folder, unique as ``eamos run``'s are."""
-    from ..ground.local import new_run_dir
-
     return new_run_dir(mission)
 
 
@@ -108,10 +107,11 @@ def _compile(
     compiled = compile_file(opts.mission)
     drones = [n for n in compiled.programs if n != GROUND_STATION]
     # Fleet settings are validated before anything is written or contacted.
+    fleet.check_drones(drones)
     targets = load_targets(fleet, drones)
     compiled = restamp(compiled, fleet_mission_id(compiled.mission.name, list(compiled.programs)))
     run_dir = (opts.run_dir or _default_run_dir(compiled.mission.name)).resolve()
-    run_dir.mkdir(parents=True, exist_ok=True)
+    use_run_dir(run_dir)
     write_artifacts(compiled, run_dir, svg=opts.svg)
     if opts.preflight is not None:
         opts.preflight(compiled, fleet, run_dir)

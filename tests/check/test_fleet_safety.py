@@ -192,3 +192,11 @@ def test_flytolla_targets_are_one_place_for_every_drone_at_its_own_home(tmp_path
     assert {line_of(LLA_MEET, "Drone1.FlyToLLA"), line_of(LLA_MEET, "Drone2.FlyToLLA")} <= {
         p.line for p in separations[0].places
     }
+
+
+def test_a_misspelt_drone_table_is_refused_by_the_check(tmp_path):
+    """``[drones.Dron1]`` is a typo, not a drone: the check says so (eamos check, run, rollout)."""
+    f = fleet(tmp_path, "[drones.Dron1]\nhome_m = [0, 1]\n")
+    compiled = compile_mission(CROSSING.replace("CLIMB", "5"), "c.go")
+    with pytest.raises(ConfigError, match=r"drones\.Dron1: not a drone of the mission.*Drone1"):
+        check_mission(compiled, f)
