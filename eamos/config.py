@@ -73,10 +73,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .hal.kinematics import GeoFrame
 from .hal.settings import did_you_mean
 from .net.keys import FleetKeys, KeysError, plain_refusal
 from .net.link import LinkSettings
 from .program.uniform import GROUND_STATION
+
+#: Spacing of a fleet lined up east when the fleet file gives no homes (metres).
+HOME_SPACING_M = 5.0
+
+
+def fleet_order(programs: Mapping[str, Any]) -> list[str]:
+    """The mission's drones (not the ground station) in declaration order.
+
+    ``programs``: every participant's drone program (they all carry the
+    ``fleet`` list); drones missing from it come last, sorted.  The order of
+    the default homes (:meth:`FleetConfig.homes`).
+    """
+    if not programs:
+        return []
+    first = next(iter(programs.values()))
+    names = [d for d in first.fleet if d != GROUND_STATION and d in programs]
+    return names + sorted(d for d in programs if d not in names and d != GROUND_STATION)
 
 
 class ConfigError(Exception):
@@ -521,6 +539,28 @@ class FleetConfig:
     safety: SafetySettings = field(default_factory=SafetySettings)
     homes_m: dict[str, tuple[float, float]] = field(default_factory=dict)
     homes_lla: dict[str, tuple[float, ...]] = field(default_factory=dict)
+
+    def homes(self, drones: Iterable[str]) -> dict[str, tuple[float, float]]:
+        """Each drone's home in the fleet frame, (north_m, east_m), in ``drones``' order.
+
+        ``home_m`` as given; else ``home_lla`` seen from the first drone (in
+        ``drones``' order) with a ``home_lla`` (the frame's origin); else lined
+        up :data:`HOME_SPACING_M` apart east, the first at the origin.  Used by
+        the pre-flight check, the simulated drones of ``eamos run`` and the
+        pictures, so all three show one geometry (docs/safety.md).
+        """
+        names = list(drones)
+        homes = {d: (0.0, i * HOME_SPACING_M) for i, d in enumerate(names)}
+        homes.update({d: h for d, h in self.homes_m.items() if d in homes})
+        lla = [d for d in names if d in self.homes_lla]
+        if lla:
+            origin = self.homes_lla[lla[0]]
+            frame = GeoFrame(origin[0], origin[1], origin[2] if len(origin) > 2 else 0.0)
+            for d in lla:
+                here = self.homes_lla[d]
+                north, east, _ = frame.from_lla(here[0], here[1], 0.0)
+                homes[d] = (north, east)
+        return homes
 
     def hal_for(self, drone: str) -> dict[str, Any]:
         """The merged ``[hal]`` table of one drone."""

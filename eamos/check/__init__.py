@@ -5,7 +5,7 @@ the report's parts :class:`Finding`, :class:`Place`, :class:`RunSummary`, and th
 tracks and separation geometry (:class:`Track`, :func:`pair_conflicts`).
 """
 
-from .explore import CHECK_TIME_LIMIT_S, MAX_RUNS, MIN_SEPARATION_M, check_mission, default_homes
+from .explore import CHECK_TIME_LIMIT_S, MAX_RUNS, MIN_SEPARATION_M, check_mission
 from .findings import CheckReport, Finding, Place, RunSummary
 from .separation import Conflict, conflicts, pair_conflicts
 from .tracks import Track, TrackPoint, TrackRecorder
@@ -24,6 +24,5 @@ __all__ = [
     "TrackRecorder",
     "check_mission",
     "conflicts",
-    "default_homes",
     "pair_conflicts",
 ]

@@ -14,11 +14,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..compiler import CompiledMission
-from ..config import ConfigError, FleetConfig, SafetySettings
+from ..config import ConfigError, FleetConfig, SafetySettings, fleet_order
 from ..hal.api import AdapterError
-from ..hal.kinematics import GeoFrame
 from ..hal.sim import SimCore, SimSettings
-from ..program.uniform import GROUND_STATION
 from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun, collector_paused
 from ..virtual.vehicles import Clock
 from .branches import Oracle
@@ -33,33 +31,7 @@ CHECK_TIME_LIMIT_S = 1800.0
 MAX_RUNS = 64
 #: Default minimum separation (metres, horizontal or vertical).
 MIN_SEPARATION_M = 2.0
-#: Default spacing of the fleet lined up east when no home is given (metres).
-HOME_SPACING_M = 5.0
-
 CHECKS = ("actions", "termination", "deadlock", "separation", "duration")
-
-
-def default_homes(
-    drones: list[str], spacing_m: float = HOME_SPACING_M
-) -> dict[str, tuple[float, float]]:
-    """The fleet lined up ``spacing_m`` apart east, in fleet order: (north_m, east_m)."""
-    return {d: (0.0, i * spacing_m) for i, d in enumerate(drones)}
-
-
-def fleet_homes(fleet: FleetConfig, drones: list[str]) -> dict[str, tuple[float, float]]:
-    """Each drone's home in the fleet frame: ``home_m``, else ``home_lla`` seen from the
-    first drone with a ``home_lla`` (the frame's origin), else lined up 5 m apart east."""
-    homes = default_homes(drones)
-    homes.update({d: h for d, h in fleet.homes_m.items() if d in homes})
-    lla = [d for d in drones if d in fleet.homes_lla]
-    if lla:
-        origin = fleet.homes_lla[lla[0]]
-        frame = GeoFrame(origin[0], origin[1], origin[2] if len(origin) > 2 else 0.0)
-        for d in lla:
-            here = fleet.homes_lla[d]
-            north, east, _ = frame.from_lla(here[0], here[1], 0.0)
-            homes[d] = (north, east)
-    return homes
 
 
 def sim_settings(fleet: FleetConfig, drone: str) -> tuple[SimSettings, str | None]:
@@ -75,12 +47,6 @@ def sim_settings(fleet: FleetConfig, drone: str) -> tuple[SimSettings, str | Non
     return SimSettings(), (
         f"{drone} flies adapter {adapter!r}: checked with the simulator's default kinematic model"
     )
-
-
-def _fleet_drones(compiled: CompiledMission) -> list[str]:
-    first = next(iter(compiled.programs.values()))
-    names = [d for d in first.fleet if d != GROUND_STATION and d in compiled.programs]
-    return names + sorted(d for d in compiled.programs if d not in names and d != GROUND_STATION)
 
 
 def run_once(
@@ -154,7 +120,7 @@ def check_mission(
     Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use.
     """
     fleet = fleet or FleetConfig.empty()
-    drones = _fleet_drones(compiled)
+    drones = fleet_order(compiled.programs)
     fleet.check_drones(drones)  # a misspelt [drones.X] table is an error, not ignored
     notes: list[Finding] = [
         Finding("warning", "compile", d.message, (Place("", "", "", d.loc.line, d.loc.col),))
@@ -165,7 +131,7 @@ def check_mission(
         settings[drone], note = sim_settings(fleet, drone)
         if note:
             notes.append(Finding("warning", "model", note))
-    homes = fleet_homes(fleet, drones)
+    homes = fleet.homes(drones)
     # Each simulated drone stands at its home (so FlyToLLA targets, given in
     # latitude and longitude, are where they are for every drone).
     settings = {d: dataclasses.replace(st, home_m=homes[d]) for d, st in settings.items()}
@@ -232,8 +198,6 @@ __all__ = [
     "MAX_RUNS",
     "MIN_SEPARATION_M",
     "check_mission",
-    "default_homes",
-    "fleet_homes",
     "run_once",
     "sim_settings",
 ]

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from eamos.actors.runtime import NetSettings
-from eamos.config import ConfigError, FleetConfig, NodeConfig, in_range
+from eamos.config import ConfigError, FleetConfig, NodeConfig, fleet_order, in_range
 from eamos.hal import AdapterError, make_adapter
 from eamos.logs import make_logger
 from eamos.net.keys import FleetKeys, create_fleet_keys
@@ -346,11 +346,15 @@ def _fly_local(
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
     vehicles = start_sim_vehicles({n: fleet.hal_for(n) for n in drones}, run_dir / "logs", speedup)
     hals: dict[str, dict[str, Any]] = {}
+    # Simulated drones stand at their homes in the fleet frame, as the check saw them.
+    homes = fleet.homes(fleet_order(mission.programs))
     try:
         for name in drones:
             hal = vehicles.hal_for(name)
-            if speedup is not None and hal.get("adapter", "sim") == "sim":
-                hal["speedup"] = speedup
+            if hal.get("adapter", "sim") == "sim":
+                hal["home_m"] = list(homes[name])
+                if speedup is not None:
+                    hal["speedup"] = speedup
             check_hal_settings(name, hal, fleet.path)
             hals[name] = hal
     except ConfigError:

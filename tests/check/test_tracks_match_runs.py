@@ -7,8 +7,9 @@ import json
 
 import pytest
 
-from eamos.check.explore import default_homes, run_once
+from eamos.check.explore import run_once
 from eamos.compiler import compile_file
+from eamos.config import FleetConfig
 from eamos.hal.sim import SimSettings
 from tests.support.runs import MISSIONS, run_mission
 
@@ -21,18 +22,21 @@ def test_positions_at_each_action_end_match_eamos_run(tmp_path, mission):
     path = MISSIONS / f"{mission}.go"
     compiled = compile_file(path)
     drones = [d for d in compiled.programs if d != "GCS"]
-    homes = default_homes(drones)
+    homes = FleetConfig.empty().homes(drones)
     run, tracks = run_once(compiled, {d: SimSettings() for d in drones}, homes, 600.0)
     proc, summary = run_mission(tmp_path, path)
     assert proc.returncode == 0, proc.stderr
     assert summary["ok"]
     compared = 0
     for drone in drones:
-        ends = [
-            doc
+        log = [
+            json.loads(line)
             for line in (tmp_path / "run" / "logs" / drone / "adapter.log").read_text().splitlines()
-            if (doc := json.loads(line)).get("event") == "adapter.action.end"
         ]
+        # The simulated drone of `eamos run` stood at its home in the fleet frame, as checked.
+        (start,) = [doc for doc in log if doc["event"] == "adapter.start"]
+        assert start["home_m"] == list(homes[drone])
+        ends = [doc for doc in log if doc["event"] == "adapter.action.end"]
         predicted = run.drones[drone].actions
         assert [e["action"] for e in ends] == [a.action for a in predicted], drone
         for real, rec in zip(ends, predicted, strict=True):
