@@ -18,6 +18,8 @@ from .messages import Interrupt, RemoteTelemetry, Trigger
 
 __all__ = ["InRouter"]
 
+_CONTROL = (wire.Start, wire.Abort, wire.Complete)
+
 
 @dataclass(frozen=True)
 class InRouter:
@@ -38,6 +40,11 @@ class InRouter:
     completed: threading.Event
     failure: FailureSink
     ground_handler: Callable[[Any], None] | None = None
+    control_from: frozenset[str] = frozenset({wire.GROUND_STATION})
+    """Who may start, abort and complete the mission: the ground station (``eamos abort``
+    speaks as it, with its key).  ``sender`` is authenticated: the In-Bridge
+    accepts on each peer's socket only messages naming that peer, and with CURVE
+    the socket proved the peer's key."""
 
     def __call__(self, msg: wire.Message) -> None:
         try:
@@ -72,6 +79,15 @@ class InRouter:
             return True
         elif isinstance(msg, wire.Interrupt):
             self._interrupt(msg)
+        elif isinstance(msg, _CONTROL) and msg.sender not in self.control_from:
+            # A fleet member's key does not make it the ground station: a drone
+            # must not end, abort or start another's mission.
+            self.log.warning(
+                "mission.control.refused",
+                message=type(msg).__name__,
+                sender=msg.sender,
+                allowed=sorted(self.control_from),
+            )
         elif isinstance(msg, wire.Abort):
             self.abort(msg.reason or f"abort from {msg.sender}")
         elif isinstance(msg, wire.Complete):

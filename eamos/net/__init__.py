@@ -3,7 +3,8 @@
 * :mod:`eamos.net.wire` -- the one versioned wire format (``encode``/``decode``).
 * :mod:`eamos.net.session` -- :class:`ReliableSession`, the reliable-delivery
   protocol, pure (sequence numbers, acks, retransmission, heartbeats, peer
-  liveness, latest-value telemetry): events in, actions out, time passed in.
+  liveness, latest-value telemetry): events in, actions out, time passed in;
+  :mod:`eamos.net.incarnation` resynchronises peers with a restarted participant.
 * :mod:`eamos.net.link` -- :class:`Link`, the driver that runs a session on
   threads, the bridges and a clock (what a participant's runtime uses);
   :class:`LinkSettings` (:mod:`eamos.net.settings`) its timing.
@@ -13,6 +14,7 @@
   plain or CURVE (code in ``out_bridge``, ``in_bridge``, ``sockets``).
 * :mod:`eamos.net.keys` -- fleet key pairs (``eamos keys``), the ZAP
   authenticator, the plain-on-loopback rule.
+* :mod:`eamos.net.descriptors` -- the file-descriptor limit a node raises.
 
 See ``docs/wire-format.md`` for the message table and ``docs/network.md`` for
 delivery, security and the fault tests.

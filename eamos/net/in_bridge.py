@@ -6,6 +6,7 @@ See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -17,6 +18,8 @@ from eamos.net.sockets import (
     CMD_SUB,
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_HWM,
+    MAX_FRAME_BYTES,
+    RECONNECT_IVL_MAX_MS,
     BridgeThread,
     Monitor,
     connection_options,
@@ -24,7 +27,7 @@ from eamos.net.sockets import (
     curve_client,
     should_log,
 )
-from eamos.net.wire import MAX_PAYLOAD_BYTES, Message, WireError, decode
+from eamos.net.wire import Message, WireError, decode
 
 if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
@@ -54,6 +57,13 @@ class InBridge(BridgeThread):
     One socket per peer (rather than one for all) is what lets a CURVE client
     know each peer's public key, and lets the bridge know which peer a message
     came from.
+
+    A connection that libzmq drops for a protocol error (a frame over
+    :data:`~eamos.net.sockets.MAX_FRAME_BYTES`, a failed handshake) is not
+    reconnected by libzmq; the bridge reconnects the peer's socket itself
+    (``net.in.reconnect``), at once and then at most every
+    :data:`~eamos.net.sockets.RECONNECT_IVL_MAX_MS`, so one bad message never
+    cuts a peer off for good.
     """
 
     def __init__(
@@ -83,7 +93,12 @@ class InBridge(BridgeThread):
             if missing:
                 raise ValueError(f"no public key for peer(s) {', '.join(missing)}")
         self._subs: dict[zmq.Socket[Any], str] = {}
+        self._by_peer: dict[str, zmq.Socket[Any]] = {}
         self._monitors: list[Monitor] = []
+        # Reconnections the receive thread owes (peer -> when) and made (peer -> when).
+        self._reconnect_due: dict[str, float] = {}
+        self._reconnected_at: dict[str, float] = {}
+        self.reconnects = 0
         self._ctrl_rx, self._ctrl_tx = control_pair(context, "in")
         # Owned by the receive thread once started; before that, by the caller
         # under _lock (the thread start is the hand-over).
@@ -94,15 +109,19 @@ class InBridge(BridgeThread):
             for peer, endpoint in self.peers.items():
                 sub = context.socket(zmq.SUB)
                 self._subs[sub] = peer
+                self._by_peer[peer] = sub
                 sub.setsockopt(zmq.LINGER, 0)
                 sub.setsockopt(zmq.RCVHWM, hwm)
                 # ZeroMQ refuses (and disconnects) peers sending frames larger than
-                # any valid message, before they are buffered in full.
-                sub.setsockopt(zmq.MAXMSGSIZE, MAX_PAYLOAD_BYTES)
+                # this before buffering them: the memory bound.  Oversized messages
+                # below it are dropped by decode with the connection kept.
+                sub.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
                 connection_options(sub, heartbeat_ms)
                 if curve is not None:
                     curve_client(sub, curve, curve.fleet[peer])
-                self._monitors.append(Monitor(sub, self._log, peer))
+                self._monitors.append(
+                    Monitor(sub, self._log, peer, on_disconnect=self._disconnected(peer))
+                )
                 sub.connect(endpoint)
             for topic in topics:
                 self._subscribe(topic)
@@ -202,9 +221,10 @@ class InBridge(BridgeThread):
             poller.register(mon, zmq.POLLIN)
         try:
             while True:
-                events = dict(poller.poll())
+                events = dict(poller.poll(self._poll_timeout_ms()))
                 if self._ctrl_rx in events and not self._drain_control():
                     return
+                self._reconnect_due_peers()
                 delivered = False
                 for sock in events:
                     peer = self._subs.get(sock)
@@ -232,6 +252,49 @@ class InBridge(BridgeThread):
                 monitor.close()
             for sub in self._subs:
                 sub.close()
+
+    # -- reconnection (receive thread) -------------------------------------
+
+    def _disconnected(self, peer: str) -> Callable[[], None]:
+        def schedule() -> None:
+            # At once, unless this peer was reconnected less than the maximum
+            # reconnect interval ago (a peer failing every handshake).
+            now = time.monotonic()
+            last = self._reconnected_at.get(peer, float("-inf"))
+            self._reconnect_due.setdefault(peer, max(now, last + RECONNECT_IVL_MAX_MS / 1e3))
+
+        return schedule
+
+    def _poll_timeout_ms(self) -> int | None:
+        if not self._reconnect_due:
+            return None  # nothing owed: wait for messages only
+        wait = min(self._reconnect_due.values()) - time.monotonic()
+        return max(0, int(wait * 1e3) + 1)
+
+    def _reconnect_due_peers(self) -> None:
+        if not self._reconnect_due:
+            return
+        now = time.monotonic()
+        for peer, due in list(self._reconnect_due.items()):
+            if due > now:
+                continue
+            del self._reconnect_due[peer]
+            self._reconnected_at[peer] = now
+            endpoint = self.peers[peer]
+            sub = self._by_peer[peer]
+            # disconnect + connect: a fresh session whatever libzmq did with the
+            # old one (after a normal disconnect it would retry; after a protocol
+            # error it would not).  Subscriptions are resent on the new connection.
+            try:
+                sub.disconnect(endpoint)
+            except zmq.ZMQError:
+                pass  # already gone
+            sub.connect(endpoint)
+            self.reconnects += 1
+            if should_log(self.reconnects):
+                self._log.info(
+                    "net.in.reconnect", peer=peer, endpoint=endpoint, count=self.reconnects
+                )
 
     def _drain_control(self) -> bool:
         while True:

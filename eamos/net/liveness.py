@@ -32,10 +32,10 @@ class Liveness:
         self._serial = 0
 
     def event(self, peer: Peer, state: str, silent_s: float) -> PeerChanged:
-        """Report ``peer`` ``state`` (lost, back, left), logged as ``mission.peer.<state>``."""
+        """Report ``peer`` ``state`` (lost, back, left, restarted): ``mission.peer.<state>``."""
         self._serial += 1
         status = PeerStatus(peer.name, state, round(silent_s, 3), self._serial)
-        level = self.log.warning if state == "lost" else self.log.info
+        level = self.log.warning if state in ("lost", "restarted") else self.log.info
         level(f"mission.peer.{state}", peer=peer.name, silent_s=status.silent_s)
         return PeerChanged(status)
 

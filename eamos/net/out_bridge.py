@@ -6,12 +6,14 @@ See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
 import zmq
 
 from eamos.logs import make_logger
+from eamos.net.descriptors import connection_budget
 from eamos.net.sockets import (
     CMD_SEND,
     CMD_STOP,
@@ -29,7 +31,10 @@ from eamos.net.wire import Message, encode
 if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
 
-__all__ = ["OutBridge"]
+__all__ = ["FLOOD_PAUSE_S", "OutBridge"]
+
+FLOOD_PAUSE_S = 1.0
+"""How long the Out-Bridge stops listening when its connections reach the budget."""
 
 
 class OutBridge(BridgeThread):
@@ -38,6 +43,14 @@ class OutBridge(BridgeThread):
     ``bind`` is a ZeroMQ endpoint such as ``tcp://127.0.0.1:6001``; port 0
     (``tcp://127.0.0.1:0``, ``tcp://*:0``) picks a free port, and the actual
     endpoint is available as :attr:`endpoint`.
+
+    Connections are accepted before they authenticate, each holding a
+    descriptor.  Should the accepted connections reach ``budget`` (default
+    :func:`~eamos.net.descriptors.connection_budget`: the descriptor limit less
+    a reserve for the node's own files), the bridge stops listening for
+    :data:`FLOOD_PAUSE_S` (``net.out.flooded``): unbinding closes every
+    accepted connection and frees their descriptors; the fleet's peers
+    reconnect when it listens again, and what they missed is resent.
     """
 
     def __init__(
@@ -51,8 +64,12 @@ class OutBridge(BridgeThread):
         curve: FleetKeys | None = None,
         heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
         on_subscription: Callable[[bytes, bool], None] | None = None,
+        budget: int | None = None,
     ) -> None:
         self._log = log if log is not None else make_logger(None)
+        self._budget = connection_budget() if budget is None else budget
+        self._paused_until: float | None = None
+        self.pauses = 0
         self._on_subscription = on_subscription
         self.secure = curve is not None
         self._xpub = context.socket(zmq.XPUB)
@@ -191,11 +208,13 @@ class OutBridge(BridgeThread):
             poller.register(monitor.socket, zmq.POLLIN)
         try:
             while True:
-                events = dict(poller.poll())
+                events = dict(poller.poll(self._poll_timeout_ms()))
                 if self._xpub in events:
                     self._read_subscriptions()
                 if monitor is not None and monitor.socket in events:
                     monitor.drain()
+                if monitor is not None:
+                    self._guard(monitor)
                 if self._ctrl_rx in events and not self._drain_control():
                     return
         except zmq.ContextTerminated:
@@ -213,6 +232,41 @@ class OutBridge(BridgeThread):
             with self._cond:
                 self._running = False
                 self._cond.notify_all()
+
+    # -- descriptor guard (bridge thread) -----------------------------------
+
+    def _poll_timeout_ms(self) -> int | None:
+        if self._paused_until is None:
+            return None
+        return max(0, int((self._paused_until - time.monotonic()) * 1e3) + 1)
+
+    def _guard(self, monitor: Monitor) -> None:
+        """Stop listening while flooded with connections; listen again after a pause."""
+        now = time.monotonic()
+        if self._paused_until is None:
+            if len(monitor.accepted) < self._budget:
+                return
+            self.pauses += 1
+            self._log.warning(
+                "net.out.flooded",
+                endpoint=self.endpoint,
+                connections=len(monitor.accepted),
+                budget=self._budget,
+                pause_s=FLOOD_PAUSE_S,
+                count=self.pauses,
+            )
+            self._xpub.unbind(self.endpoint)  # closes every accepted connection
+            monitor.accepted.clear()
+            self._paused_until = now + FLOOD_PAUSE_S
+        elif now >= self._paused_until:
+            try:
+                self._xpub.bind(self.endpoint)
+            except zmq.ZMQError as exc:
+                self._log.warning("net.out.rebind_failed", endpoint=self.endpoint, error=str(exc))
+                self._paused_until = now + FLOOD_PAUSE_S
+                return
+            self._paused_until = None
+            self._log.info("net.out.listening", endpoint=self.endpoint)
 
     def _drain_control(self) -> bool:
         """Forward every queued command; False once the stop command is seen."""

@@ -35,6 +35,8 @@ class SessionCounters:
     heartbeats_sent: int = 0
     old_telemetry: int = 0
     abandoned: int = 0  # unacknowledged messages given up because their peer left
+    restarts: int = 0  # peers seen with a new incarnation (a restarted process)
+    old_incarnation: int = 0  # messages of a predecessor of a restarted peer, dropped
 
 
 @dataclass
@@ -55,14 +57,32 @@ class Sending:
     next_seq: int = 1
     pending: dict[int, _Out] = field(default_factory=dict)  # insertion order = seq order
     due: float | None = None  # when the retransmission timer fires
+    # Every message sent, for a receiver that restarts and lost them all.  A few
+    # hundred bytes per trigger, kept for the mission (as the node's records are).
+    history: dict[int, wire.Message] = field(default_factory=dict)
 
-    def number(self, msg: wire.Message, now: float) -> wire.Message:
-        """``msg`` with the next seq, kept until acknowledged."""
+    def number(self, msg: wire.Message, now: float, incarnation: int = 0) -> wire.Message:
+        """``msg`` with the next seq (and the sender's ``incarnation``), kept until acknowledged."""
         seq = self.next_seq
         self.next_seq += 1
-        numbered = dataclasses.replace(msg, seq=seq)  # type: ignore[call-arg,arg-type]
+        numbered = dataclasses.replace(msg, seq=seq, incarnation=incarnation)  # type: ignore[call-arg,arg-type]
         self.pending[seq] = _Out(numbered, now, now)
+        self.history[seq] = numbered
         return numbered
+
+    def replay(self, now: float) -> None:
+        """Everything ever sent is unacknowledged again, due now: a receiver restarted.
+
+        Replayed messages count as retransmissions (``tries`` 1): they measure no
+        round trip (Karn).
+        """
+        pending = self.pending
+        self.pending = {
+            seq: pending.get(seq) or _Out(msg, now, now, tries=1)
+            for seq, msg in self.history.items()
+        }
+        if self.pending:
+            self.due = now
 
     def acknowledge(self, upto: int, now: float | None) -> tuple[bool, float | None]:
         """Forget every seq <= ``upto``: (any forgotten, a round-trip sample or None).
@@ -149,6 +169,7 @@ class Peer:
     tx: Sending
     rto: float
     watched: bool = True  # its heartbeats are followed: it can be lost, back, left
+    incarnation: int = 0  # of the peer's process, from its messages (0: not heard yet)
     rx: Receiving = field(default_factory=Receiving)  # the link peer -> me
     brx: Receiving = field(default_factory=Receiving)  # the peer's broadcasts
     acked_b: int = 0  # my broadcasts this peer acknowledged

@@ -61,6 +61,7 @@ protocol is tested with a fake clock and messages passed in memory.
 
 from __future__ import annotations
 
+import dataclasses
 import random
 from collections.abc import Iterable
 from typing import Any, Final
@@ -76,6 +77,7 @@ from eamos.net.actions import (
     TelemetryStale,
     Wake,
 )
+from eamos.net.incarnation import admit, mine, new_incarnation
 from eamos.net.liveness import Liveness, TelemetryOut
 from eamos.net.sequence import Peer, Receiving, Sending, SessionCounters
 from eamos.net.settings import LinkSettings
@@ -115,8 +117,10 @@ class ReliableSession:
     Not thread-safe: the driver serialises the calls.  Every ``on_*`` method
     takes the current time and returns the actions to carry out, in order;
     :meth:`on_tick` also returns when it must be called next.  ``log``
-    receives the protocol's events (peer lost/back/left, retransmissions,
-    stale telemetry); ``rng`` draws the retransmission jitter.
+    receives the protocol's events (peer lost/back/left/restarted, retransmissions,
+    stale telemetry); ``rng`` draws the retransmission jitter; ``incarnation``
+    tells this process from an earlier one of the same name
+    (:mod:`eamos.net.incarnation`; default: drawn now).
     """
 
     def __init__(
@@ -127,8 +131,10 @@ class ReliableSession:
         *,
         log: Any = None,
         rng: random.Random | None = None,
+        incarnation: int | None = None,
     ) -> None:
         self.name = name
+        self.incarnation = new_incarnation() if incarnation is None else incarnation
         self.mission = mission
         self.settings = s = settings or LinkSettings()
         self.log = log if log is not None else make_logger(None)
@@ -163,12 +169,14 @@ class ReliableSession:
             self.log.warning("net.link.unknown_dest", dest=msg.dest, type=cls.__name__)  # type: ignore[union-attr]
         elif cls in wire.RELIABLE_BROADCAST and msg.seq == 0:  # type: ignore[union-attr]
             return self._send_reliable(self._btx, msg, now)
-        elif cls is wire.TelemetrySample:
+        if msg.incarnation != self.incarnation:
+            msg = dataclasses.replace(msg, incarnation=self.incarnation)
+        if cls is wire.TelemetrySample:
             return self._tel.offer(msg, now)  # type: ignore[arg-type]
         return [Send(msg)]
 
     def _send_reliable(self, tx: Sending, msg: wire.Message, now: float) -> list[Action]:
-        numbered = tx.number(msg, now)
+        numbered = tx.number(msg, now, self.incarnation)
         if tx.due is None:
             tx.due = now + tx.backoff
             return [Send(numbered), Wake(tx.due)]
@@ -182,10 +190,14 @@ class ReliableSession:
         if peer is None:  # not a configured peer: the In-Bridge only connects to peers
             return []
         actions: list[Action] = []
+        if msg.incarnation != peer.incarnation and not admit(
+            peer, msg.incarnation, self._btx, self._live, self.counters, now, actions
+        ):
+            return []  # its predecessor's, still in flight
         self._heard(peer, now, actions)
         cls = type(msg)
         if cls is wire.Ack:
-            if msg.dest == self.name:  # type: ignore[union-attr]
+            if msg.dest == self.name and mine(self.incarnation, msg.dest_incarnation):  # type: ignore[union-attr]
                 self._acked(peer, msg.upto, msg.bupto, msg.nack, now, actions)  # type: ignore[union-attr]
         elif cls is wire.Heartbeat:
             self._heartbeat(peer, msg, now, actions)  # type: ignore[arg-type]
@@ -279,7 +291,9 @@ class ReliableSession:
                 self._prune_broadcasts()  # its acknowledgements are not waited for
             return
         self._live.alive(peer)
-        if self.name in hb.acks or self.name in hb.backs:
+        if (self.name in hb.acks or self.name in hb.backs) and mine(
+            self.incarnation, hb.known.get(self.name)
+        ):
             # The acknowledgements of steady traffic ride on heartbeats.
             upto, bupto = hb.acks.get(self.name, 0), hb.backs.get(self.name, 0)
             self._acked(peer, upto, bupto, False, now, actions)
@@ -303,8 +317,8 @@ class ReliableSession:
             self.counters.nacks_sent += 1
         peer.ack_now = False
         self.counters.acks_sent += 1
-        upto, bupto = peer.rx.upto, peer.brx.upto
-        return Send(wire.Ack(self.mission, self.name, peer.name, upto, bupto, nack=nack))
+        acked, inc = (peer.rx.upto, peer.brx.upto, nack, peer.incarnation), self.incarnation
+        return Send(wire.Ack(self.mission, self.name, peer.name, *acked, incarnation=inc))
 
     def on_subscription(self, topic: bytes, now: float) -> list[Action]:
         """A peer (re)subscribed to ``topic``: what the socket dropped meanwhile goes now."""
@@ -400,11 +414,13 @@ class ReliableSession:
         return wire.Heartbeat(
             mission=self.mission,
             sender=self.name,
+            incarnation=self.incarnation,
             sent={p.name: p.tx.next_seq - 1 for p in peers if p.tx.next_seq > 1},
             bsent=self._btx.next_seq - 1,
             leaving=leaving,
             acks={p.name: p.rx.upto for p in peers if p.rx.upto},
             backs={p.name: p.brx.upto for p in peers if p.brx.upto},
+            known={p.name: p.incarnation for p in peers if p.rx.upto or p.brx.upto},
         )
 
     # -- results and shutdown --------------------------------------------------------

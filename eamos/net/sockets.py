@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import threading
 import uuid
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final, Self
 
 import zmq
@@ -26,7 +27,9 @@ __all__ = [
     "DEFAULT_HEARTBEAT_MS",
     "DEFAULT_HWM",
     "DEFAULT_LINGER_MS",
+    "HANDSHAKE_IVL_MS",
     "JOIN_TIMEOUT_S",
+    "MAX_FRAME_BYTES",
     "RECONNECT_IVL_MAX_MS",
     "RECONNECT_IVL_MS",
     "BridgeThread",
@@ -51,6 +54,18 @@ JOIN_TIMEOUT_S: Final = 5.0
 CONNECT_TIMEOUT_MS: Final = 1000
 """A TCP connect attempt is abandoned (and retried) after this long."""
 
+MAX_FRAME_BYTES: Final = 16 << 20
+"""ZeroMQ refuses frames above this (``ZMQ_MAXMSGSIZE``), before buffering them: the
+memory one message from a key holder can take.  Refusing cuts the connection (a
+protocol error, after which libzmq does not reconnect: the In-Bridge does), so it
+is set well above the wire limit (1 MiB): a message between the two arrives whole
+and is dropped by ``decode`` (``oversize``) with the connection kept."""
+
+HANDSHAKE_IVL_MS: Final = 5000
+"""A connection whose ZMTP/CURVE handshake is not done after this long is closed
+(libzmq's default is 30 s): an idle, unauthenticated client holds a descriptor
+for at most this long.  A real handshake takes a few round trips."""
+
 RECONNECT_IVL_MS: Final = 100
 RECONNECT_IVL_MAX_MS: Final = 1000
 
@@ -65,6 +80,7 @@ MONITOR_EVENTS: Final = (
     | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL
     | zmq.EVENT_HANDSHAKE_SUCCEEDED
     | zmq.EVENT_DISCONNECTED
+    | zmq.EVENT_ACCEPTED
 )
 
 # Control-pipe commands (first frame).  Never on the network.
@@ -103,6 +119,7 @@ def connection_options(sock: zmq.Socket[Any], heartbeat_ms: int) -> None:
         sock.setsockopt(zmq.HEARTBEAT_TIMEOUT, 5 * heartbeat_ms)
         sock.setsockopt(zmq.HEARTBEAT_TTL, 5 * heartbeat_ms)
     sock.setsockopt(zmq.CONNECT_TIMEOUT, CONNECT_TIMEOUT_MS)
+    sock.setsockopt(zmq.HANDSHAKE_IVL, HANDSHAKE_IVL_MS)
     sock.setsockopt(zmq.RECONNECT_IVL, RECONNECT_IVL_MS)
     sock.setsockopt(zmq.RECONNECT_IVL_MAX, RECONNECT_IVL_MAX_MS)
 
@@ -110,13 +127,22 @@ def connection_options(sock: zmq.Socket[Any], heartbeat_ms: int) -> None:
 class Monitor:
     """Reads one socket's monitor events on the bridge thread; logs handshake failures."""
 
-    def __init__(self, sock: zmq.Socket[Any], log: Any, peer: str) -> None:
+    def __init__(
+        self,
+        sock: zmq.Socket[Any],
+        log: Any,
+        peer: str,
+        on_disconnect: Callable[[], None] | None = None,
+    ) -> None:
         self.socket = sock.get_monitor_socket(MONITOR_EVENTS)
         self._owner = sock
         self._log = log
         self._peer = peer
+        self._on_disconnect = on_disconnect
         self.failures = 0
         self.connections = 0
+        # Descriptors of the connections accepted and not yet closed (a bound socket).
+        self.accepted: set[int] = set()
 
     def drain(self) -> None:
         while True:
@@ -145,8 +171,13 @@ class Monitor:
             elif kind == zmq.EVENT_HANDSHAKE_SUCCEEDED:
                 self.connections += 1
                 self._log.debug("net.connected", peer=self._peer, endpoint=endpoint)
+            elif kind == zmq.EVENT_ACCEPTED:
+                self.accepted.add(int(event["value"]))
             elif kind == zmq.EVENT_DISCONNECTED:
+                self.accepted.discard(int(event["value"]))
                 self._log.debug("net.disconnected", peer=self._peer, endpoint=endpoint)
+                if self._on_disconnect is not None:
+                    self._on_disconnect()
 
     def close(self) -> None:
         try:

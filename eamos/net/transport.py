@@ -16,6 +16,7 @@ from typing import Any, Protocol, TypeVar
 import zmq
 
 import eamos.net.wire as wire
+from eamos.net.descriptors import raise_descriptor_limit
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
@@ -128,6 +129,8 @@ class ZmqTransport:
 
     def open_out(self, on_subscription: Callable[[bytes, bool], None]) -> OutBridge:
         """Start the authenticator (with keys), then bind the Out-Bridge (not started)."""
+        # Before any connection is accepted: idle clients must not exhaust the limit.
+        raise_descriptor_limit(self.log)
         if self.keys is not None:
             self.auth = FleetAuthenticator(self.context, self.keys, self.log)
         try:

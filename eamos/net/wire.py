@@ -27,10 +27,13 @@ ZeroMQ multipart message ``[topic, payload]``:
   =====  ======  ========================================================
   key    type    meaning
   =====  ======  ========================================================
-  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 2)
+  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 3)
   ``t``  str     message type code (table below)
   ``m``  str     mission id; receivers drop messages of other missions
   ``s``  str     sender: name of the participant that sent the message
+  ``n``  int     sender's incarnation: set per process (µs start time and
+                 random bits), so a restarted participant is told apart
+                 from its predecessor; 0 = none (outside the session)
   =====  ======  ========================================================
 
   Per-type keys (all required; unknown keys are rejected):
@@ -83,6 +86,7 @@ ZeroMQ multipart message ``[topic, payload]``:
                              bupto                   ``b``     int >= 0, same for dest's
                                                                broadcasts
                              nack                    ``nk``    bool, a gap is known: resend now
+                             dest_incarnation        ``di``    int, dest's incarnation acked
   ``hb``     Heartbeat       sent                    ``hs``    map name -> int, highest seq
                                                                sent on each link
                              bsent                   ``bs``    int, highest broadcast seq sent
@@ -91,6 +95,8 @@ ZeroMQ multipart message ``[topic, payload]``:
                                                                delivered from each link
                              backs                   ``bk``    map name -> int, same for each
                                                                participant's broadcasts
+                             known                   ``ki``    map name -> int, incarnation of
+                                                               each name in ``ak``/``bk``
   =========  ==============  ======================  ========  ================================
 
   ``seq`` (key ``q``) numbers the reliable messages: Trigger, Interrupt, Ready,
@@ -118,7 +124,9 @@ Changing anything in this table means bumping :data:`WIRE_VERSION`;
 ``docs/wire-format.md`` holds the same table.
 
 Version history: 1 (first format); 2 adds ``q`` (sequence numbers), Ack and
-Heartbeat for reliable delivery and peer liveness.
+Heartbeat for reliable delivery and peer liveness; 3 adds the incarnation
+(``n`` in every message, ``di`` in Ack, ``ki`` in Heartbeat) so that peers
+resynchronise with a restarted participant.
 """
 
 from __future__ import annotations
@@ -164,7 +172,7 @@ __all__ = [
     "topic_to",
 ]
 
-WIRE_VERSION: Final = 2
+WIRE_VERSION: Final = 3
 """Version of this format, carried in every payload under key ``v``."""
 
 GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground station
@@ -188,8 +196,9 @@ _MAX_CONTAINER_LEN: Final = 1 << 16
 class WireError(ValueError):
     """A message could not be encoded or decoded (the network layer's one error type).
 
-    ``reason`` is ``"version"`` when the payload is of another wire version and
-    ``"malformed"`` for everything else; receivers log and count drops by it.
+    ``reason`` is ``"version"`` when the payload is of another wire version,
+    ``"oversize"`` for a payload over :data:`MAX_PAYLOAD_BYTES` and ``"malformed"``
+    for everything else; receivers log and count drops by it.
     """
 
     def __init__(self, message: str, reason: str = "malformed") -> None:
@@ -333,6 +342,8 @@ class _Base:
 
     mission: str = field(metadata=_m("m", _check_str))
     sender: str = field(metadata=_m("s", _check_name))
+    # Keyword-only (last in every constructor): the session stamps it on sending.
+    incarnation: int = field(default=0, kw_only=True, metadata=_m("n", _check_seq))
 
     def __post_init__(self) -> None:
         # Validate and normalise every field (e.g. list -> tuple, int -> float).
@@ -489,6 +500,7 @@ class Ack(_Base):
     broadcast of ``dest`` with ``seq <= bupto`` arrived.  ``nack`` says the
     sender of the Ack knows of a gap (it received a later message, or a
     heartbeat announcing one): ``dest`` should resend what follows at once.
+    ``dest_incarnation`` is the incarnation of ``dest`` acknowledged (0: unknown).
     """
 
     CODE: ClassVar[str] = "ack"
@@ -498,6 +510,7 @@ class Ack(_Base):
     upto: int = field(metadata=_m("a", _check_seq))
     bupto: int = field(metadata=_m("b", _check_seq))
     nack: bool = field(metadata=_m("nk", _check_bool), default=False)
+    dest_incarnation: int = field(metadata=_m("di", _check_seq), default=0)
 
 
 @dataclass(frozen=True)
@@ -510,7 +523,9 @@ class Heartbeat(_Base):
     P -> sender delivered so far, ``backs`` the same for P's broadcasts: the
     acknowledgements of steady traffic ride here, once per period, instead of
     costing a message per trigger.  ``leaving`` is set once, when the sender
-    shuts down: peers then record it as gone rather than lost.
+    shuts down: peers then record it as gone rather than lost.  ``known`` maps
+    each participant in ``acks`` or ``backs`` to its incarnation those refer to:
+    a restarted participant ignores acknowledgements meant for its predecessor.
     """
 
     CODE: ClassVar[str] = "hb"
@@ -521,6 +536,7 @@ class Heartbeat(_Base):
     leaving: bool = field(metadata=_m("end", _check_bool), default=False)
     acks: dict[str, int] = field(metadata=_m("ak", _check_seq_map), default_factory=dict)
     backs: dict[str, int] = field(metadata=_m("bk", _check_seq_map), default_factory=dict)
+    known: dict[str, int] = field(metadata=_m("ki", _check_seq_map), default_factory=dict)
 
 
 Message = (
@@ -614,7 +630,9 @@ def decode(frames: Sequence[bytes]) -> Message:
     if len(topic) > MAX_TOPIC_BYTES:
         raise WireError(f"topic of {len(topic)} bytes exceeds {MAX_TOPIC_BYTES}")
     if len(payload) > MAX_PAYLOAD_BYTES:
-        raise WireError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}")
+        raise WireError(
+            f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}", reason="oversize"
+        )
     try:
         body = msgpack.unpackb(
             payload,

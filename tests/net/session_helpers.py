@@ -66,10 +66,17 @@ class Fleet:
         for i, name in enumerate(names):
             log = (logs or {}).get(name)
             session = ReliableSession(
-                name, MISSION, settings, log=log, rng=random.Random(seed * 1000 + i)
+                name,
+                MISSION,
+                settings,
+                log=log,
+                rng=random.Random(seed * 1000 + i),
+                incarnation=i + 1,
             )
             session.add_peers(names, self.watch.get(name))
             self.sessions[name] = session
+        self.settings = settings
+        self.logs = logs or {}
         self.telemetry = telemetry
         self.wire: list[tuple[str, wire.Message]] = []  # (recipient, message) in flight
         self.got: dict[str, list[Any]] = {n: [] for n in names}
@@ -209,6 +216,30 @@ class Fleet:
         self.apply(who, self.sessions[who].close())
         self.closed.add(who)
         self.pump()
+
+    def restart(self, who: str, log: Any = None) -> ReliableSession:
+        """``who``'s process dies (nothing said) and starts again: a new session, a new incarnation.
+
+        What the old one received is kept in ``got[who]`` under ``who + "#old"``.
+        """
+        old = self.sessions[who]
+        self.got[who + "#old"] = self.got[who]
+        self.got[who] = []
+        new = ReliableSession(
+            who,
+            MISSION,
+            self.settings,
+            log=log if log is not None else self.logs.get(who),
+            rng=random.Random(old.incarnation + 7),
+            incarnation=old.incarnation + 1000,
+        )
+        new.add_peers(self.sessions, self.watch.get(who))
+        self.sessions[who] = new
+        self.deadline[who] = float("-inf")
+        self.closed.discard(who)
+        self.down.discard(who)
+        self.wire = [(to, m) for to, m in self.wire if to != who]  # its sockets are gone
+        return new
 
     def of(self, who: str, cls: type) -> list[Any]:
         return [i for i in self.got[who] if isinstance(i, cls)]

@@ -54,6 +54,7 @@ def triggers(fleet: Fleet, who: str, sender: str | None = None) -> list[int]:
 
 
 def session(name: str = "A", peers: tuple[str, ...] = ("B",), **kw: object) -> ReliableSession:
+    kw.setdefault("incarnation", 0)  # 0: messages compare equal to unstamped ones
     s = ReliableSession(name, MISSION, FAST, rng=random.Random(1), **kw)  # type: ignore[arg-type]
     s.add_peers(peers)
     return s
