@@ -354,18 +354,31 @@ for link in links.values():
 
 def bench_net_bytes(tmp: Path, n: int) -> dict:
     """Bytes per trigger, one trigger in flight at a time (as in a mission's chains)."""
-    from eamos.net.wire import Ack, Heartbeat, Trigger, encode
+    from eamos.net.incarnation import new_incarnation
+    from eamos.net.wire import WIRE_VERSION, Ack, Heartbeat, Trigger, encode
     from tests.support.netlab import Netns, lab_unavailable
 
     mission = "0123456789abcdef"  # ids are 16 hex digits
-    sample = Trigger(mission, "Drone1", "Drone2", "n12", "n34", (0,), "done", seq=12)
-    ack = Ack(mission, "Drone2", "Drone1", 12, 0)
-    beat = Heartbeat(mission, "Drone2", {"Drone1": 40, "GCS": 3}, 0, acks={"Drone1": 12})
+    # Real incarnations (per-process numbers, about 8 bytes each on the wire).
+    mine, theirs = new_incarnation(), new_incarnation()
+    sample = Trigger(
+        mission, "Drone1", "Drone2", "n12", "n34", (0,), "done", seq=12, incarnation=mine
+    )
+    ack = Ack(mission, "Drone2", "Drone1", 12, 0, dest_incarnation=mine, incarnation=theirs)
+    beat = Heartbeat(
+        mission,
+        "Drone2",
+        {"Drone1": 40, "GCS": 3},
+        0,
+        acks={"Drone1": 12},
+        known={"Drone1": mine},
+        incarnation=theirs,
+    )
     out: dict = {
         "trigger_message_bytes": sum(map(len, encode(sample))),
         "explicit_ack_message_bytes": sum(map(len, encode(ack))),
         "heartbeat_message_bytes": sum(map(len, encode(beat))),
-        "note": "message = topic + msgpack payload (wire v2).  Steady traffic is acked by the "
+        "note": f"message = topic + msgpack payload (wire v{WIRE_VERSION}).  Steady traffic is acked by the "
         "1 s heartbeats, explicit acks only for gaps, duplicates and reports.  on_wire = IP "
         "packets both ways on loopback per trigger, one trigger in flight at a time, incl. "
         "ZMTP/CURVE framing, TCP/IP headers, TCP acks and the heartbeats meanwhile",
