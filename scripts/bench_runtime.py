@@ -378,10 +378,10 @@ def bench_net_bytes(tmp: Path, n: int) -> dict:
         "trigger_message_bytes": sum(map(len, encode(sample))),
         "explicit_ack_message_bytes": sum(map(len, encode(ack))),
         "heartbeat_message_bytes": sum(map(len, encode(beat))),
-        "note": f"message = topic + msgpack payload (wire v{WIRE_VERSION}).  Steady traffic is acked by the "
-        "1 s heartbeats, explicit acks only for gaps, duplicates and reports.  on_wire = IP "
-        "packets both ways on loopback per trigger, one trigger in flight at a time, incl. "
-        "ZMTP/CURVE framing, TCP/IP headers, TCP acks and the heartbeats meanwhile",
+        "note": f"message = topic + msgpack payload (wire v{WIRE_VERSION}).  Steady traffic "
+        "is acked by the 1 s heartbeats, explicit acks only for gaps, duplicates and reports.  "
+        "on_wire = IP packets both ways on loopback per trigger, one trigger in flight at a "
+        "time, incl. ZMTP/CURVE framing, TCP/IP headers, TCP acks and the heartbeats meanwhile",
     }
     why = lab_unavailable()
     if why is not None:
