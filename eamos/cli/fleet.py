@@ -18,6 +18,7 @@ from eamos.ops.deployment import Deployment, resolve
 
 from .errors import BadInput, command
 from .exits import EXIT_MISSION_FAILED, EXIT_OK
+from .monitor import MonitorOptions, add_monitor_options, live_monitor, monitored_drones
 from .options import (
     add_check,
     add_fleet_file,
@@ -121,6 +122,7 @@ def add_fleet_commands(sub: Any) -> None:
         default_text="[ground] ready_timeout_s of the fleet file",
     )
     add_plain(p)
+    add_monitor_options(p)
     add_verbose(p)
     command(p, cmd_start)
 
@@ -219,7 +221,17 @@ def cmd_start(args: argparse.Namespace) -> int:
     opts = StartOptions(
         args.run_dir, args.timeout, args.ready_timeout, live=False if args.plain else None
     )
-    summary = fly_rollout(opts, stop)
+    monitor = MonitorOptions.of(args)
+    if monitor is None:
+        summary = fly_rollout(opts, stop)
+    else:
+        from eamos.ground import make_display
+
+        run_dir = Path(args.run_dir).resolve()
+        shown = make_display(opts.live, monitored_drones(run_dir))
+        with live_monitor(monitor, run_dir, stop, shown) as monitored:
+            summary = fly_rollout(opts, stop, display=monitored.display)
+            monitored.finish(summary)
     status = "finished" if summary.ok else f"FAILED ({summary.outcome})"
     print(f"mission {summary.mission} {status} in {summary.duration_s:.1f} s")
     for name, result in summary.drones.items():

@@ -5,6 +5,7 @@
     eamos run MISSION.go [--fleet F] [--speedup K]   fly it on simulated drones, one process each
     eamos rollout / start / status / abort / logs fetch   real drones over SSH
     eamos report RUN_DIR                             an HTML page about a run folder
+    eamos monitor RUN_DIR                            replay a run in the browser monitor
     eamos keys OUT [--fleet NAMES...]                the fleet's network keys (CURVE)
 
 Every command exits with a code of :mod:`eamos.cli.exits` (0 ok, 1 mission
@@ -25,6 +26,7 @@ from .errors import dispatch
 from .fleet import add_fleet_commands
 from .keys import add_keys_parser
 from .lsp import add_lsp_parser
+from .monitor import add_monitor_parser
 from .report import add_report_parser
 from .run import add_run_parser
 
@@ -48,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_keys_parser(sub)
     add_check_parser(sub)
     add_lsp_parser(sub)
+    add_monitor_parser(sub)
     return parser
 
 

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import argparse
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.cli.exits import EXIT_MISSION_FAILED, EXIT_OK
+from eamos.cli.monitor import MonitorOptions, add_monitor_options, live_monitor
 from eamos.cli.options import (
     add_check,
     add_fleet_file,
@@ -21,7 +21,7 @@ from eamos.cli.options import (
     add_svg,
     add_verbose,
 )
-from eamos.config import FleetConfig
+from eamos.config import FleetConfig, fleet_order
 
 if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `eamos compile`)
     from eamos.ground import Display, RunSummary
@@ -70,6 +70,7 @@ def add_run_parser(sub: Any) -> None:
     add_plain(run)
     add_svg(run, default=True)
     add_check(run)
+    add_monitor_options(run)
     add_verbose(run)
     run.set_defaults(func=cmd_run)
 
@@ -88,11 +89,21 @@ class RunOptions:
     live: bool | None = None  # None: live table when stdout is a terminal
     svg: bool = True
     check: bool = True  # the pre-flight check first (eamos check); refuse on an error
+    monitor: MonitorOptions | None = None  # serve the live browser monitor (--monitor)
 
 
 def default_run_dir(mission: str) -> Path:
-    """``runs/<mission>-<date-time>/``."""
-    return Path("runs") / f"{mission}-{time.strftime('%Y%m%d-%H%M%S')}"
+    """A new ``runs/<mission>-<date-time>[-N]/`` folder (made here), linked as ``runs/latest``.
+
+    Runs started in the same second get folders of their own (see
+    :func:`eamos.ground.local.new_run_dir`); ``runs/latest`` always names the
+    newest, for the notebook (``notebooks/analyse_run.ipynb``).
+    """
+    from eamos.ground.local import link_latest, new_run_dir
+
+    run_dir = new_run_dir(mission)
+    link_latest(run_dir)
+    return run_dir
 
 
 def run_mission(
@@ -115,15 +126,21 @@ def run_mission(
 
         preflight(compiled, opts.fleet, str(opts.mission), report_file=run_dir / "check.json")
     drones = [n for n in compiled.programs if n != GROUND_STATION]
-    summary = fly_local(
-        LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
-        run_dir,
-        opts.fleet,
-        Limits(opts.ready_timeout_s, opts.timeout_s),
-        stop or threading.Event(),
-        speedup=opts.speedup,
-        display=display or make_display(opts.live, drones),
-    )
+    stop = stop or threading.Event()
+    shown = display or make_display(opts.live, drones)
+    # The map's frame: each drone's home as the check and the simulated drones see it.
+    homes = opts.fleet.homes(fleet_order(compiled.programs))
+    with live_monitor(opts.monitor, run_dir, stop, shown, homes) as monitored:
+        summary = fly_local(
+            LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
+            run_dir,
+            opts.fleet,
+            Limits(opts.ready_timeout_s, opts.timeout_s),
+            stop,
+            speedup=opts.speedup,
+            display=monitored.display,
+        )
+        monitored.finish(summary)
     if opts.summary is not None:
         summary.write(opts.summary)
     return summary
@@ -131,7 +148,11 @@ def run_mission(
 
 def summary_lines(summary: RunSummary) -> list[str]:
     """What ``eamos run`` prints at the end: the outcome, one line per drone, the file."""
-    status = "finished" if summary.ok else f"FAILED ({summary.outcome})"
+    from eamos.monitor.state import outcome_detail, outcome_word
+
+    # One outcome word (finished, failed, aborted, timed out), as on the monitor page.
+    detail = outcome_detail(summary)
+    status = outcome_word(summary) + (f" ({detail})" if detail else "")
     lines = [f"mission {summary.mission} {status} in {summary.duration_s:.1f} s"]
     for name, result in summary.drones.items():
         report = result.report
@@ -171,6 +192,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         live=False if args.plain else None,
         svg=args.svg,
         check=args.check,
+        monitor=MonitorOptions.of(args),
     )
     summary = run_mission(opts, stop)
     print("\n".join(summary_lines(summary)))

@@ -1,0 +1,95 @@
+"""The monitor as a display of the run loop: the terminal's display, teed to the hub.
+
+:class:`TeeDisplay` is what :func:`eamos.ground.fly` gets when ``--monitor``
+is on: every event goes to the usual display (lines or the live table) and
+to the monitor's :class:`~.hub.Hub`; the hub only applies it and returns, so
+a browser never slows the ground station.  :func:`start_live_monitor` builds
+the hub and the server for a run folder and prints the address.
+"""
+
+from __future__ import annotations
+
+import threading
+import webbrowser
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from eamos.logs import make_logger
+
+from .hub import Hub
+from .server import MonitorServer
+from .setup import load_setup
+
+if TYPE_CHECKING:
+    from eamos.ground.display import Display
+    from eamos.ground.station import DroneView, GroundStation
+
+
+class TeeDisplay:
+    """A display that shows everything ``inner`` shows and feeds ``hub`` too."""
+
+    def __init__(self, inner: Display, hub: Hub) -> None:
+        self.inner = inner
+        self.hub = hub
+        self.refresh_s = inner.refresh_s
+
+    def __enter__(self) -> TeeDisplay:
+        self.inner.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.inner.__exit__(*exc)
+
+    def watch(self, station: GroundStation) -> None:
+        """The inner display watches ``station``."""
+        self.inner.watch(station)
+
+    def event(self, name: str, view: DroneView, msg: Any) -> None:
+        """To the terminal, then to the monitor (which never blocks)."""
+        self.inner.event(name, view, msg)
+        self.hub.event(name, msg)
+
+    def refresh(self) -> None:
+        """Redraw the terminal's table."""
+        self.inner.refresh()
+
+    def say(self, text: str) -> None:
+        """Tell the operator (on the terminal)."""
+        self.inner.say(text)
+
+
+def start_live_monitor(
+    run_dir: Path,
+    stop: threading.Event,
+    say: Callable[[str], None],
+    *,
+    port: int = 0,
+    host: str = "127.0.0.1",
+    open_browser: bool = False,
+    homes: Mapping[str, tuple[float, float]] | None = None,
+) -> MonitorServer:
+    """Serve the monitor of the run in ``run_dir`` (its programs and graphs already there).
+
+    An abort with the run's token sets ``stop`` (the run loop aborts: every
+    drone lands); every request, accepted or not, is logged with its origin to
+    ``run_dir/logs/monitor.log`` and told with ``say``.
+    """
+    log = make_logger(run_dir / "logs" / "monitor.log", drone="monitor")
+    hub = Hub(load_setup(run_dir, homes))
+
+    def on_abort(origin: str, accepted: bool) -> None:
+        if accepted:
+            log.warning("monitor.abort", origin=origin)
+            say(f"abort requested from the {origin}: every drone lands")
+            stop.set()
+        else:
+            log.warning("monitor.abort.refused", origin=origin, reason="not the run's token")
+            say(f"abort refused (not the run's token) from the {origin}")
+
+    server = MonitorServer(hub, host=host, port=port, on_abort=on_abort).start()
+    log.info("monitor.start", url=f"http://{host}:{server.port}/")
+    say(f"monitor: {server.url}")
+    if open_browser:
+        webbrowser.open(server.url)
+    return server

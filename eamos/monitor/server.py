@@ -1,0 +1,340 @@
+"""The monitor's web server: one page, its files, a websocket of patches, an abort endpoint.
+
+Starlette on uvicorn, in a thread of its own with its own event loop
+(:class:`MonitorServer`), so the ground station never waits for it: the
+ground station's threads only touch the :class:`~.hub.Hub` (a lock held for
+microseconds) and schedule a wake-up of the loop.  Routes:
+
+=====================  =================================================================
+``GET /``              the page (``static/index.html``); ``?token=...`` enables Abort
+``GET /static/NAME``   its script and style sheet (vendored, no CDN)
+``GET /api/setup``     the mission: participants, colours, homes, nodes
+``GET /api/graph/P``   participant ``P``'s MDG picture (the compiler's SVG)
+``GET /api/state``     the whole state now (JSON), with counters
+``WS  /ws``            ``{"type": "snapshot", "seq", "state"}`` then ``{"type":
+                       "patches", "seq", "patches"}`` as things change; in a replay
+                       the page sends ``{"type": "seek", "t"}`` and gets a snapshot
+``POST /api/abort``    ``{"token"}``: abort the run (403 without the run's token)
+=====================  =================================================================
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import secrets
+import socket
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import TYPE_CHECKING, Any, Protocol
+
+from .hub import Hub
+from .setup import MonitorError
+
+if TYPE_CHECKING:
+    from starlette.applications import Starlette
+    from starlette.requests import Request
+    from starlette.responses import Response
+    from starlette.websockets import WebSocket
+
+#: How often the coalesced drone updates are flushed (s).
+TICK_S = 0.1
+#: The page's files (package data).
+STATIC_FILES = {"monitor.js": "text/javascript", "monitor.css": "text/css"}
+
+
+def _static(name: str) -> str:
+    return resources.files("eamos.monitor").joinpath("static", name).read_text(encoding="utf-8")
+
+
+class ReplaySource(Protocol):
+    """What the server needs of a replay (:class:`~.replay.Replay`)."""
+
+    def span(self) -> dict[str, float]:
+        """The time range: ``start``, ``end``, ``started`` (wall-clock seconds)."""
+
+    def state_at(self, t: float) -> dict[str, Any]:
+        """The page's whole state at time ``t``."""
+
+
+@dataclass(eq=False)
+class _Client:
+    """One open websocket."""
+
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    seq: int = 0
+    closed: bool = False
+
+
+class MonitorServer:
+    """Serve the monitor page for ``hub`` (live) or ``replay`` on ``host:port`` in a thread.
+
+    ``on_abort(origin, accepted)`` is told of every abort request; only an
+    accepted one (with ``token``) should stop the run.
+    """
+
+    def __init__(
+        self,
+        hub: Hub,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        token: str | None = None,
+        on_abort: Callable[[str, bool], None] | None = None,
+        replay: ReplaySource | None = None,
+    ) -> None:
+        self.hub = hub
+        self.host = host
+        self.port = port
+        self.token = token or secrets.token_urlsafe(16)
+        self.on_abort = on_abort
+        self.replay = replay
+        self.bytes_sent = 0
+        self.messages_sent = 0
+        self._clients: set[_Client] = set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._wake_pending = False
+        self._started = threading.Event()
+        self._sent = threading.Condition()  # notified when a connection caught up
+        self._server: Any = None
+        self._thread: threading.Thread | None = None
+        self._socket: socket.socket | None = None
+
+    # -- life cycle -------------------------------------------------------------------------
+
+    @property
+    def url(self) -> str:
+        """The page's address, with the run's token (which allows Abort)."""
+        return f"http://{self.host}:{self.port}/?token={self.token}"
+
+    def start(self, timeout_s: float = 30.0) -> MonitorServer:
+        """Bind, start the server thread, return once it serves (MonitorError if it cannot)."""
+        import uvicorn
+
+        try:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind((self.host, self.port))
+            # Listening now: a page that connects before uvicorn serves waits in the backlog
+            # (uvicorn's startup runs the lifespan, which says "started", before it serves).
+            sock.listen(128)
+        except OSError as exc:
+            raise MonitorError(f"cannot listen on {self.host}:{self.port}: {exc}") from exc
+        self._socket = sock
+        self.port = sock.getsockname()[1]
+        config = uvicorn.Config(
+            self.app(), log_level="warning", ws="websockets-sansio", lifespan="on"
+        )
+        self._server = uvicorn.Server(config)
+        self._thread = threading.Thread(
+            target=self._server.run, kwargs={"sockets": [sock]}, name="monitor", daemon=True
+        )
+        self._thread.start()
+        if not self._started.wait(timeout_s):
+            raise MonitorError(f"the monitor's web server did not start in {timeout_s:g} s")
+        self.hub.wake = self._wake
+        return self
+
+    def stop(self, drain_s: float = 5.0) -> None:
+        """Let open pages receive everything (at most ``drain_s``), then stop the server."""
+        deadline = time.monotonic() + drain_s
+        with self._sent:
+            while any(c.seq < self.hub.seq and not c.closed for c in list(self._clients)):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._sent.wait(remaining)
+        self.hub.wake = lambda: None
+        if self._server is not None:
+            self._server.should_exit = True
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        if self._socket is not None:
+            self._socket.close()
+
+    def __enter__(self) -> MonitorServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def clients(self) -> int:
+        """How many pages are connected."""
+        return sum(1 for c in list(self._clients) if not c.closed)
+
+    def stats(self) -> dict[str, Any]:
+        """The hub's counters plus what went to the browsers."""
+        return {
+            **self.hub.stats(),
+            "clients": self.clients(),
+            "bytes_sent": self.bytes_sent,
+            "messages_sent": self.messages_sent,
+        }
+
+    # -- waking the loop from other threads ------------------------------------------------
+
+    def _wake(self) -> None:
+        """Called by the hub after new patches (any thread): wake every connection once."""
+        loop = self._loop
+        if loop is None or self._wake_pending:
+            return
+        self._wake_pending = True
+        with contextlib.suppress(RuntimeError):  # the loop closed (the server stopped)
+            loop.call_soon_threadsafe(self._notify)
+
+    def _notify(self) -> None:
+        self._wake_pending = False
+        for client in list(self._clients):
+            client.wake.set()
+
+    # -- the application --------------------------------------------------------------------
+
+    def app(self) -> Starlette:
+        """The Starlette application."""
+        from starlette.applications import Starlette
+        from starlette.routing import Route, WebSocketRoute
+
+        @contextlib.asynccontextmanager
+        async def lifespan(app: Starlette) -> Any:
+            self._loop = asyncio.get_running_loop()
+            ticker = asyncio.create_task(self._ticker())
+            self._started.set()
+            try:
+                yield
+            finally:
+                ticker.cancel()
+
+        return Starlette(
+            routes=[
+                Route("/", self._page),
+                Route("/static/{name}", self._file),
+                Route("/api/setup", self._setup),
+                Route("/api/graph/{name}", self._graph),
+                Route("/api/state", self._state),
+                Route("/api/abort", self._abort, methods=["POST"]),
+                WebSocketRoute("/ws", self._ws),
+            ],
+            lifespan=lifespan,
+        )
+
+    async def _ticker(self) -> None:
+        # A periodic timer, not a synchronisation: held drone updates are due every 0.1 s.
+        while True:
+            await asyncio.sleep(TICK_S)
+            if self.replay is None:
+                self.hub.tick()
+
+    async def _page(self, request: Request) -> Response:
+        from starlette.responses import HTMLResponse
+
+        return HTMLResponse(_static("index.html"), headers={"Cache-Control": "no-store"})
+
+    async def _file(self, request: Request) -> Response:
+        from starlette.responses import PlainTextResponse, Response
+
+        name = request.path_params["name"]
+        if name not in STATIC_FILES:
+            return PlainTextResponse("not found", status_code=404)
+        return Response(_static(name), media_type=STATIC_FILES[name])
+
+    async def _setup(self, request: Request) -> Response:
+        from starlette.responses import JSONResponse
+
+        data = self.hub.state.setup.to_json()
+        data["replay"] = None if self.replay is None else self.replay.span()
+        return JSONResponse(data)
+
+    async def _graph(self, request: Request) -> Response:
+        from starlette.responses import PlainTextResponse, Response
+
+        name = request.path_params["name"].removesuffix(".svg")
+        part = self.hub.state.setup.participant(name)
+        if part is None or not part.svg:
+            return PlainTextResponse(f"no graph for {name}", status_code=404)
+        return Response(part.svg, media_type="image/svg+xml")
+
+    async def _state(self, request: Request) -> Response:
+        from starlette.responses import JSONResponse
+
+        seq, snap = self.hub.resync()
+        return JSONResponse({"seq": seq, "state": snap, "stats": self.stats()})
+
+    async def _abort(self, request: Request) -> Response:
+        from starlette.responses import JSONResponse
+
+        try:
+            body = await request.json()
+        except ValueError:
+            body = {}
+        token = body.get("token") if isinstance(body, dict) else None
+        peer = request.client
+        agent = request.headers.get("user-agent", "?")
+        origin = f"monitor page at {peer.host}:{peer.port} ({agent[:60]})" if peer else "monitor"
+        if self.replay is not None:
+            return JSONResponse({"ok": False, "error": "a replay cannot abort"}, status_code=409)
+        accepted = isinstance(token, str) and secrets.compare_digest(token, self.token)
+        self.hub.abort_request(origin, accepted)
+        if self.on_abort is not None:
+            self.on_abort(origin, accepted)
+        if not accepted:
+            return JSONResponse({"ok": False, "error": "not the run's token"}, status_code=403)
+        return JSONResponse({"ok": True})
+
+    # -- the websocket ----------------------------------------------------------------------
+
+    async def _send(self, ws: WebSocket, client: _Client, message: dict[str, Any]) -> None:
+        text = json.dumps(message, separators=(",", ":"))
+        await ws.send_text(text)
+        self.bytes_sent += len(text)
+        self.messages_sent += 1
+        client.seq = int(message.get("seq", client.seq))
+        with self._sent:
+            self._sent.notify_all()
+
+    async def _ws(self, ws: WebSocket) -> None:
+        await ws.accept()
+        client = _Client()
+        self._clients.add(client)
+        reader = asyncio.create_task(self._read(ws, client))
+        try:
+            if self.replay is not None:
+                await reader
+                return
+            seq, snap = self.hub.resync()
+            await self._send(ws, client, {"type": "snapshot", "seq": seq, "state": snap})
+            while not client.closed:
+                await client.wake.wait()
+                client.wake.clear()
+                got = self.hub.since(client.seq)
+                if got is None:  # fell too far behind: the whole state instead
+                    seq, snap = self.hub.resync()
+                    await self._send(ws, client, {"type": "snapshot", "seq": seq, "state": snap})
+                elif got[1]:
+                    msg = {"type": "patches", "seq": got[0], "patches": got[1]}
+                    await self._send(ws, client, msg)
+        except Exception:  # the page went away mid-send
+            client.closed = True
+        finally:
+            client.closed = True
+            reader.cancel()
+            self._clients.discard(client)
+            with self._sent:
+                self._sent.notify_all()
+
+    async def _read(self, ws: WebSocket, client: _Client) -> None:
+        """Messages from the page: a replay's seeks; the end of the connection."""
+        try:
+            while True:
+                msg = json.loads(await ws.receive_text())
+                if self.replay is not None and msg.get("type") == "seek":
+                    snap = self.replay.state_at(float(msg.get("t", 0.0)))
+                    await self._send(ws, client, {"type": "snapshot", "seq": 0, "state": snap})
+        except Exception:  # closed, or not JSON: the connection is over
+            pass
+        finally:
+            client.closed = True
+            client.wake.set()
