@@ -210,26 +210,27 @@ function drawMap() {
   const w = 640, h = 440, pad = 34;
   svg.replaceChildren();
   const xs = [], ys = [];
-  for (const p of setup.participants) if (setup.drones.includes(p.name)) { xs.push(p.home[0]); ys.push(p.home[1]); }
+  // North up, east to the right: screen x is the mission's y (east), screen y its x (north).
+  for (const p of setup.participants) if (setup.drones.includes(p.name)) { xs.push(p.home[1]); ys.push(p.home[0]); }
   for (const name of setup.drones) {
     const d = state.drones[name] || {};
-    for (const t of d.trail || []) { xs.push(t[1]); ys.push(t[2]); }
-    if (d.x !== null && d.x !== undefined) { xs.push(d.x); ys.push(d.y); }
+    for (const t of d.trail || []) { xs.push(t[2]); ys.push(t[1]); }
+    if (d.x !== null && d.x !== undefined) { xs.push(d.y); ys.push(d.x); }
   }
   const f = frame(svg, xs, ys, w, h, pad, true);
-  grid(svg, f, w, h, pad, "x (m)", "y (m)");
+  grid(svg, f, w, h, pad, "y, east (m)", "x, north (m)");
   setup.drones.forEach((name, i) => {
     const part = setup.participants.find((p) => p.name === name);
     const d = state.drones[name] || {};
-    const hx = f.X(part.home[0]), hy = f.Y(part.home[1]);
+    const hx = f.X(part.home[1]), hy = f.Y(part.home[0]);
     svg.appendChild(el("rect", { x: hx - 5, y: hy - 5, width: 10, height: 10, fill: "none", stroke: part.colour, "stroke-width": 2 }));
-    const pts = (d.trail || []).map((t) => `${f.X(t[1]).toFixed(1)},${f.Y(t[2]).toFixed(1)}`).join(" ");
+    const pts = (d.trail || []).map((t) => `${f.X(t[2]).toFixed(1)},${f.Y(t[1]).toFixed(1)}`).join(" ");
     const dash = ["", "6 3", "2 3", "8 3 2 3"][i % 4];
     if (pts) svg.appendChild(el("polyline", { points: pts, class: "trail", stroke: part.colour, "stroke-dasharray": dash, filter: "brightness(0.8)" }));
     if (d.x === null || d.x === undefined) return;
-    const g = el("g", { class: "drone", "data-drone": name, transform: `translate(${f.X(d.x).toFixed(1)},${f.Y(d.y).toFixed(1)})` });
+    const g = el("g", { class: "drone", "data-drone": name, transform: `translate(${f.X(d.y).toFixed(1)},${f.Y(d.x).toFixed(1)})` });
     const heading = d.heading === null || d.heading === undefined ? 0 : d.heading;
-    g.appendChild(el("polygon", { points: "12,0 -7,7 -3,0 -7,-7", fill: part.colour, stroke: "#222", transform: `rotate(${-heading})` }));
+    g.appendChild(el("polygon", { points: "12,0 -7,7 -3,0 -7,-7", fill: part.colour, stroke: "#222", transform: `rotate(${heading - 90})` }));
     g.appendChild(el("text", { x: 9, y: -9 - 12 * (i % 4), class: "dlabel", fill: "#222" }, `${name} z ${fmt(d.z, 1)}`));
     svg.appendChild(g);
   });
