@@ -561,12 +561,7 @@ img { max-width: 100%; }
 
 def html_page(run: RunData) -> str:
     """The report as one self-contained HTML page (plots embedded as PNG)."""
-    try:
-        import matplotlib
-    except ImportError as exc:
-        raise ReportError(
-            "the report draws with matplotlib: pip install 'eamos[analysis]'"
-        ) from exc
+    import matplotlib  # a dependency of eamos: imported only when drawing (it is slow to load)
 
     matplotlib.use("Agg", force=False)  # no display needed; figures are Figure objects anyway
     images = []
