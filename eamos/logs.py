@@ -8,6 +8,7 @@ tests) write to their own files.  The schema is documented in ``docs/logs.md``.
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
 from collections.abc import MutableMapping
@@ -26,23 +27,66 @@ def _add_time(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMappin
 
 
 class _LockedFile:
-    """A line-buffered file shared by threads; one write per event keeps lines whole."""
+    """A line-buffered file shared by threads; one write per event keeps lines whole.
 
-    def __init__(self, stream: IO[str]) -> None:
+    A write error (a full disk, a vanished folder) is never raised into the
+    thread that logged: logging must not stop a flight.  The lost lines are
+    counted (:attr:`write_errors`) and the first error is told once on stderr,
+    naming the file.
+    """
+
+    def __init__(self, stream: IO[str], path: Path | None = None) -> None:
         self._stream = stream
         self._lock = threading.Lock()
+        self.path = path
+        self.write_errors = 0
+        self.first_error: OSError | None = None
 
     def msg(self, message: str) -> None:
         with self._lock:
-            if not self._stream.closed:
+            if self._stream.closed:
+                return
+            try:
                 self._stream.write(message + "\n")
                 self._stream.flush()
+            except OSError as exc:
+                self._failed(exc)
 
     log = debug = info = warn = warning = error = critical = exception = msg
 
+    def _failed(self, exc: OSError) -> None:
+        """Count a lost line; tell the first error once (lock held)."""
+        self.write_errors += 1
+        if self.first_error is not None:
+            return
+        self.first_error = exc
+        report_write_error(self.path, exc, "log lines are dropped and counted")
+
     def close(self) -> None:
         with self._lock:
-            self._stream.close()
+            try:
+                self._stream.close()
+            except OSError as exc:  # the last buffered line could not be written
+                self._failed(exc)
+
+
+def report_write_error(path: Path | None, exc: OSError, consequence: str) -> None:
+    """Tell stderr, once per caller, that ``path`` could not be written; never raises.
+
+    stderr itself may be a file on the full disk (a node's ``node.out``): then
+    there is nowhere left to tell, and the count in the report must do.
+    """
+    reason = exc.strerror or repr(exc)
+    try:
+        print(f"eamos: cannot write {path or 'a log'}: {reason} ({consequence})", file=sys.stderr)
+    except (OSError, ValueError):
+        pass
+
+
+def write_errors(logger: Any) -> int:
+    """How many lines the file behind a :func:`make_logger` logger could not write."""
+    sink = getattr(logger, "_logger", None)
+    return int(getattr(sink, "write_errors", 0))
 
 
 class _Discard:
@@ -68,7 +112,7 @@ def make_logger(
         sink = _Discard()
     else:
         path.parent.mkdir(parents=True, exist_ok=True)
-        sink = _LockedFile(path.open("a", encoding="utf-8"))
+        sink = _LockedFile(path.open("a", encoding="utf-8"), path)
     logger = structlog.wrap_logger(
         sink,
         processors=[
@@ -111,6 +155,10 @@ class DroneLogs:
     def close(self) -> None:
         for logger in (self.mission, self.uniform, self.adapter):
             close_logger(logger)
+
+    def write_errors(self) -> int:
+        """Log lines of the three logs that could not be written (a full disk)."""
+        return sum(write_errors(x) for x in (self.mission, self.uniform, self.adapter))
 
 
 def read_log(path: Path) -> list[dict[str, Any]]:

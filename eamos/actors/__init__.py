@@ -9,6 +9,8 @@ What other packages may use:
   :class:`ReportError` (:mod:`.report`): a drone's part of the run summary;
 * :class:`Dispatcher`, :class:`PooledActor` (:mod:`.dispatch`): actors on a shared pool;
 * :class:`RuntimeFailure` (:mod:`.failure`): an exception in a part of a runtime;
+* :data:`DEFAULT_PEER_WAIT_LIMIT_S`, :data:`END_POLICIES` (:mod:`.stranded`): when and how
+  a drone ends its part on its own (a lost peer, no Complete, blocked in the air);
 * :func:`telemetry_values`, :func:`stale_values` (:mod:`.logic.telemetry`).
 
 The parts (:mod:`.board`, :mod:`.outbox`, :mod:`.executive`, :mod:`.inbound`,
@@ -28,6 +30,7 @@ if TYPE_CHECKING:
     from .logic.telemetry import stale_values, telemetry_values
     from .report import ActionEntry, DroneReport, FinalState, ReportError
     from .runtime import FINAL_SAMPLE_WAIT_S, DroneRuntime, DroneRuntimeError, NetSettings
+    from .stranded import DEFAULT_PEER_WAIT_LIMIT_S, END_POLICIES
 
 _WHERE = {
     "FINAL_SAMPLE_WAIT_S": "runtime",
@@ -41,11 +44,15 @@ _WHERE = {
     "Dispatcher": "dispatch",
     "PooledActor": "dispatch",
     "RuntimeFailure": "failure",
+    "DEFAULT_PEER_WAIT_LIMIT_S": "stranded",
+    "END_POLICIES": "stranded",
     "stale_values": "logic.telemetry",
     "telemetry_values": "logic.telemetry",
 }
 
 __all__ = [
+    "DEFAULT_PEER_WAIT_LIMIT_S",
+    "END_POLICIES",
     "FINAL_SAMPLE_WAIT_S",
     "ActionEntry",
     "Dispatcher",

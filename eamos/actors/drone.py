@@ -11,18 +11,30 @@ from __future__ import annotations
 
 import enum
 import json
-import sys
 import threading
+import time
 
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
-from eamos.logs import close_logger, make_logger
+from eamos.logs import close_logger, make_logger, report_write_error
 from eamos.net import wire
 from eamos.program.format import DroneProgram, load_program
 from eamos.program.uniform import GROUND_STATION
 
+from .board import ask_final_sample
+from .executive import ask_activity, ask_snapshot
+from .failure import tell_operator
 from .runtime import DroneRuntime, NetSettings
+from .stranded import (
+    DEFAULT_PEER_WAIT_LIMIT_S,
+    EndOnOwn,
+    end_on_own,
+    silent_since,
+    trigger_sources,
+)
 
+#: How long the drone's loop waits for the executive's answer (it answers in ms).
+ASK_TIMEOUT_S = 30.0
 REPORT_ACK_TIMEOUT_S = 10.0
 """How long a drone waits for the ground station to acknowledge its final report."""
 
@@ -51,44 +63,124 @@ def net_settings(config: NodeConfig) -> NetSettings:
 
 
 def run_drone(config: NodeConfig, program: DroneProgram, stop: threading.Event) -> DroneEnd:
-    """Run one drone until the mission completes or is aborted."""
+    """Run one drone until the mission completes or is aborted, or it must end on its own.
+
+    A drone stranded by a lost peer, or left without ``Complete`` by a silent
+    ground station, ends after ``peer_wait_limit_s`` (see :mod:`.stranded`).
+    """
     config.log_dir.mkdir(parents=True, exist_ok=True)
     adapter_log = make_logger(config.log_dir / "adapter.log", drone=config.drone)
     adapter = make_adapter(config.drone, config.hal, adapter_log)
     runtime = DroneRuntime(program, adapter, net_settings(config), config.log_dir)
+    policy = end_policy(config)
     try:
         runtime.start()
         if not runtime.announce_ready(config.ready_timeout_s, stop):
             if stop.is_set():
                 return DroneEnd.FAILED
-            print(
-                f"eamos-node {config.drone}: peers never subscribed: "
-                f"{', '.join(runtime.destinations())} "
+            tell_operator(
+                config.drone,
+                f"peers never subscribed: {', '.join(runtime.destinations())} "
                 f"(waited {config.ready_timeout_s:g} s)",
-                file=sys.stderr,
             )
             return DroneEnd.UNREACHABLE
-        while not (runtime.completed.is_set() or runtime.aborted.is_set()):
-            if stop.is_set():
-                runtime.abort("stopped by signal")
-                break
-            # Bounded only so a signal (which sets `stop`) is noticed; the runtime's
-            # events are set by the in-bridge thread.
-            runtime.completed.wait(0.5)
-        if runtime.aborted.is_set():
+        ending = _execute(runtime, config, program, stop, policy)
+        held = ending is not None and ending.kind == "stranded" and policy == "hold"
+        if runtime.aborted.is_set() and not held:
             landed = runtime.wait_landed(config.land_timeout_s)
             if not landed:
                 runtime.log.error("mission.abort.not_landed", timeout_s=config.land_timeout_s)
         report = runtime.drone_report()
         data = report.to_json()
-        (config.log_dir / "report.json").write_text(json.dumps(data, indent=1) + "\n")
+        try:
+            (config.log_dir / "report.json").write_text(json.dumps(data, indent=1) + "\n")
+        except OSError as exc:  # a full disk: the ground station still gets the report
+            report_write_error(config.log_dir / "report.json", exc, "the report is still sent")
         runtime.send(wire.Report(mission=program.mission_id, sender=config.drone, report=data))
-        # The report is the last word: retransmitted until acknowledged (bounded).
-        if runtime.link is not None and not runtime.link.flush(
-            REPORT_ACK_TIMEOUT_S, peers=[GROUND_STATION]
+        # The report is the last word: retransmitted until acknowledged (bounded),
+        # unless the ground station is known to be gone.
+        gone = ending is not None and ending.kind == "no_complete"
+        if (
+            not gone
+            and runtime.link is not None
+            and not runtime.link.flush(REPORT_ACK_TIMEOUT_S, peers=[GROUND_STATION])
         ):
             runtime.log.warning("mission.report.unacknowledged", timeout_s=REPORT_ACK_TIMEOUT_S)
         return DroneEnd.DONE if report.ok else DroneEnd.FAILED
     finally:
         runtime.stop()
         close_logger(adapter_log)
+
+
+def peer_wait_limit(config: NodeConfig) -> float:
+    """``peer_wait_limit_s`` of the node config, or the default until the config has it."""
+    value = getattr(config, "peer_wait_limit_s", None)
+    return DEFAULT_PEER_WAIT_LIMIT_S if value is None else float(value)
+
+
+def end_policy(config: NodeConfig) -> str:
+    """``on_stranded`` of the node config (``land`` by default; ``return`` lands for now)."""
+    value = getattr(config, "on_stranded", None)
+    return "hold" if value == "hold" else "land"
+
+
+def _execute(
+    runtime: DroneRuntime,
+    config: NodeConfig,
+    program: DroneProgram,
+    stop: threading.Event,
+    policy: str,
+) -> EndOnOwn | None:
+    """Run until Complete, an abort, a signal, or until the drone must end on its own (how)."""
+    limit_s = peer_wait_limit(config)
+    sources = trigger_sources(program)
+    checked_airborne = False
+    while not (runtime.completed.is_set() or runtime.aborted.is_set()):
+        if stop.is_set():
+            runtime.abort("stopped by signal")
+            return None
+        # Bounded only so a signal (which sets `stop`) and a silent peer are noticed;
+        # the runtime's events are set by the in-bridge thread.
+        if runtime.completed.wait(0.5) or runtime.link is None:
+            continue
+        activity = ask_activity(runtime.executive, ASK_TIMEOUT_S)
+        if activity.resolved and not checked_airborne:
+            checked_airborne = True
+            ending = left_airborne(runtime)
+        else:
+            ending = end_on_own(
+                time.monotonic(),
+                activity,
+                silent_since(list(runtime.link.peer_events), time.time(), time.monotonic()),
+                sources,
+                limit_s,
+            )
+        if ending is None:
+            continue
+        tell_operator(config.drone, ending.reason)
+        if ending.kind != "stranded":
+            runtime.log.warning("mission.complete.missing", reason=ending.reason)
+            return ending
+        runtime.end_stranded(ending.reason, policy)
+        return ending
+    return None
+
+
+def left_airborne(runtime: DroneRuntime) -> EndOnOwn | None:
+    """The drone's part ended blocked by a failure with the vehicle in the air (None: not).
+
+    Nothing in its program will land it any more: it is stranded, and applies
+    its end policy at once rather than hover until the whole mission ends.
+    """
+    snap = ask_snapshot(runtime.executive, ASK_TIMEOUT_S)
+    failed = sum(1 for status in snap.resolved.values() if status == "failed")
+    if not failed:
+        return None
+    sample = ask_final_sample(runtime.board, None, None, 0.0, ASK_TIMEOUT_S)
+    if sample is None or sample.landed:
+        return None
+    return EndOnOwn(
+        "stranded",
+        f"stranded: its part ended with {failed} node(s) failed or blocked, "
+        f"the vehicle in the air at z = {sample.z_m:.1f} m",
+    )

@@ -17,15 +17,18 @@ from .dispatch import Dispatcher
 from .failure import FailureSink, RuntimePart
 from .messages import ActionRecord, Interrupt, NodeEvent, NodeResolved, SendInterrupt
 from .node import BroadcastInterrupt
+from .stranded import Activity
 
 __all__ = [
     "PROGRESS_INTERVAL_S",
     "STATE_ACTIONS",
+    "AskActivity",
     "DeliverInterrupt",
     "DroneExecutive",
     "ExecutiveSnapshot",
     "Snapshot",
     "TriggerReceived",
+    "ask_activity",
     "ask_snapshot",
 ]
 
@@ -47,6 +50,11 @@ class DeliverInterrupt:
     """An interrupt from another drone, for this drone's nodes in its scope."""
 
     interrupt: Interrupt
+
+
+@dataclass(frozen=True)
+class AskActivity:
+    """Ask: the executive's :class:`~.stranded.Activity` (resolved? idle since when?)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +83,17 @@ def ask_snapshot(executive: Any, timeout_s: float) -> ExecutiveSnapshot:
     except pykka.ActorDeadError:
         return ExecutiveSnapshot()
     return snap
+
+
+def ask_activity(executive: Any, timeout_s: float) -> Activity:
+    """The executive's :class:`~.stranded.Activity` (not resolved, busy, if there is none)."""
+    if executive is None:
+        return Activity(False, None)
+    try:
+        answer: Activity = executive.ask(AskActivity(), timeout=timeout_s)
+    except pykka.ActorDeadError:
+        return Activity(False, None)
+    return answer
 
 
 @dataclass(frozen=True)
@@ -117,6 +136,8 @@ class DroneExecutive(RuntimePart):
             for scope in node.scopes:
                 self.scope_index.setdefault(scope, []).append(nodes[node.key])
         self.finished_actions = 0
+        self.running: set[tuple[str, tuple[int, ...]]] = set()  # (node, iteration) running now
+        self.idle_since: float | None = time.monotonic()
         self._pending_progress: wire.Progress | None = None
         self._last_progress = float("-inf")
         self._flush_timer: threading.Timer | None = None
@@ -134,6 +155,7 @@ class DroneExecutive(RuntimePart):
         elif isinstance(message, ActionRecord):
             self._record(message)
         elif isinstance(message, NodeEvent):
+            self._track(message)
             self._progress(
                 message.state,
                 message.node,
@@ -157,6 +179,8 @@ class DroneExecutive(RuntimePart):
             self.triggers_received += 1
         elif isinstance(message, Snapshot):
             return self.snapshot()
+        elif isinstance(message, AskActivity):
+            return Activity(self.resolved_event.is_set(), self.idle_since)
         return None
 
     def on_stop(self) -> None:
@@ -182,8 +206,22 @@ class DroneExecutive(RuntimePart):
             self.log.info("mission.resolved", nodes=len(self.resolved))
             self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
+    def _track(self, event: NodeEvent) -> None:
+        """Actions running now (a stranded drone is one that waits, idle)."""
+        if event.state == "running":
+            self.running.add((event.node, tuple(event.iteration)))
+            self.idle_since = None
+        elif event.state in ("failed", "cancelled", "ok"):
+            self._finished(event.node, tuple(event.iteration))
+
+    def _finished(self, node: str, iteration: tuple[int, ...]) -> None:
+        self.running.discard((node, iteration))
+        if not self.running and self.idle_since is None:
+            self.idle_since = time.monotonic()
+
     def _record(self, record: ActionRecord) -> None:
         self.records.append(record)
+        self._finished(record.node, tuple(record.iteration))
         if record.action in STATE_ACTIONS:
             self.state_changed_s = time.monotonic()
             self.state_action = record.action

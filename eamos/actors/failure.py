@@ -12,6 +12,7 @@ with its traceback, in the mission log, and runs that reaction once.
 
 from __future__ import annotations
 
+import sys
 import threading
 import traceback
 from collections.abc import Callable
@@ -21,10 +22,22 @@ from typing import Any, ClassVar
 
 from .dispatch import PooledActor
 
-__all__ = ["FailurePolicy", "FailureSink", "RuntimeFailure", "RuntimePart"]
+__all__ = ["FailurePolicy", "FailureSink", "RuntimeFailure", "RuntimePart", "tell_operator"]
 
 #: Where a runtime part reports an exception: ``sink(part, exception)``.
 FailureSink = Callable[[str, BaseException], None]
+
+
+def tell_operator(drone: str, text: str) -> None:
+    """One line on stderr (a node's ``node.out``) for something the operator must see.
+
+    Never raises: stderr may be a file on a full disk, and a failure report
+    must not become a second failure.
+    """
+    try:
+        print(f"eamos-node {drone}: {text} (details in mission.log)", file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
 
 
 @dataclass(frozen=True)
@@ -43,8 +56,11 @@ class RuntimeFailure:
 class FailurePolicy:
     """Log each exception once; run ``react`` for the first one (thread-safe)."""
 
-    def __init__(self, log: Any, react: Callable[[RuntimeFailure], None]) -> None:
+    def __init__(
+        self, log: Any, react: Callable[[RuntimeFailure], None], drone: str = "drone"
+    ) -> None:
         self._log = log
+        self.drone = drone
         self._react = react
         self._lock = threading.Lock()
         self.failures: list[RuntimeFailure] = []
@@ -61,6 +77,7 @@ class FailurePolicy:
             "mission.failure", part=part, error=failure.error, traceback=failure.traceback
         )
         if first:
+            tell_operator(self.drone, failure.reason() + ": the drone aborts and lands")
             self._react(failure)
 
     @property

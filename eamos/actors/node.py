@@ -27,6 +27,7 @@ import pykka
 
 from ..program.format import ProgramNode
 from .dispatch import Dispatcher, PooledActor
+from .failure import tell_operator
 from .logic import (
     CONDITION_KINDS,
     DO_KINDS,
@@ -283,6 +284,7 @@ class MissionNode(PooledActor):
             error=repr(exc),
             exc_info=exc_info,
         )
+        tell_operator(self.drone, f"internal error in node {self.key}: {exc!r}: it resolves failed")
         if self.links is None:
             return
         acts = self._activations_at_crash(message)

@@ -128,7 +128,7 @@ class DroneRuntime:
         self.extra_topics = extra_topics
         self.logs = DroneLogs.open(log_dir, self.drone)
         self.log = self.logs.mission
-        self.failures = FailurePolicy(self.log, self._fail_safe)
+        self.failures = FailurePolicy(self.log, self._fail_safe, self.drone)
         self.link: Link | None = None
         self.out: OutBridge | None = None
         self.inb: InBridge | None = None
@@ -324,33 +324,54 @@ class DroneRuntime:
             if node.kind == "init":
                 self.nodes[node.key].tell(Fire())
 
-    def abort(self, reason: str) -> None:
-        """Stop the mission on this drone: no more actions; the vehicle lands."""
+    def abort(self, reason: str, land: bool = True) -> None:
+        """Stop the mission on this drone: no more actions; the vehicle lands.
+
+        Landing comes first and is always reachable: if the uniform-API actor
+        is dead, the adapter is told directly; a dead node actor is skipped.
+        ``land=False`` (the ``hold`` end policy) stops the mission only.
+        """
         with self._lock:
             if self.aborted.is_set():
                 return
             self.abort_reason = reason
             self.aborted.set()
-        self.log.warning("mission.abort", reason=reason)
+        self.log.warning("mission.abort", reason=reason, land=land)
+        if land:
+            land_now(self.hal, self.adapter, self.log)
         for ref in self.nodes.values():
-            ref.tell(AbortMission(reason))
-        if self.hal is not None:
-            self.hal.tell(HalAbort())
+            try:
+                ref.tell(AbortMission(reason))
+            except pykka.ActorDeadError:
+                continue
 
     def _fail_safe(self, failure: RuntimeFailure) -> None:
         """The failure policy's reaction to the first exception in a part of this runtime.
 
-        Nothing this drone's nodes do can be trusted any more: its out-bridge stops
-        speaking for them, the drone aborts (it lands), every outgoing arc outside
-        loops not yet triggered gets ``failed`` (the drones waiting for this one
-        are blocked and finish), and the ground station hears ``Resolved`` now.
+        Nothing this drone's nodes do can be trusted any more: see :meth:`_give_up`.
         """
+        self._give_up(failure.reason(), "mission.failure.released", land=True)
+
+    def end_stranded(self, reason: str, policy: str = "land") -> None:
+        """Apply the end policy: this drone can no longer finish its part (a peer is lost).
+
+        Nothing here is broken, but the same holds: see :meth:`_give_up`
+        (``hold``: the drone stays where it is instead of landing).
+        """
+        self.log.warning("mission.stranded", reason=reason, policy=policy)
+        self._to_ground(stranded_progress(self.program, reason, policy))
+        self._give_up(reason, "mission.stranded.released", land=policy != "hold")
+
+    def _give_up(self, reason: str, event: str, land: bool) -> None:
+        """This drone's nodes no longer speak: its out-bridge stops sending for them,
+        the drone aborts (it lands), every outgoing arc outside loops not yet
+        triggered gets ``failed`` (the drones waiting for this one are blocked and
+        finish), and the ground station hears ``Resolved`` now."""
         if self.outbox is not None:
             self.outbox.seal()
-        self.abort(failure.reason())
+        self.abort(reason, land=land)
         if self.outbox is not None:
-            released = self.outbox.release(released_arcs(self.program))
-            self.log.warning("mission.failure.released", triggers=released)
+            self.log.warning(event, triggers=self.outbox.release(released_arcs(self.program)))
         self._to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
     def wait_landed(self, timeout_s: float) -> bool:
@@ -420,6 +441,8 @@ class DroneRuntime:
                     ref.stop(block=True, timeout=30)
                 except (pykka.ActorDeadError, pykka.Timeout):
                     pass
+        if self.hal is not None and not self.hal.is_alive():
+            close_orphan(self.adapter, self.log)
         for dispatcher in (self.dispatcher, self.services):
             if dispatcher is not None:
                 dispatcher.shutdown()
@@ -428,3 +451,38 @@ class DroneRuntime:
         if self._own_context:
             self.context.term()
         self.logs.close()
+
+
+def land_now(hal: Any, adapter: Adapter, log: Any) -> None:
+    """Tell the vehicle to land: through the uniform API, or the adapter if that actor died."""
+    try:
+        if hal is not None and hal.is_alive():
+            hal.tell(HalAbort())
+            return
+    except pykka.ActorDeadError:
+        pass
+    log.error("mission.abort.direct", why="the uniform-API actor is dead")
+    try:
+        adapter.abort()
+    except Exception as exc:  # nothing else can land it: say so loudly
+        log.error("mission.abort.adapter_error", error=repr(exc))
+
+
+def close_orphan(adapter: Adapter, log: Any) -> None:
+    """Close the adapter a dead uniform-API actor left open (so its landing could finish)."""
+    try:
+        adapter.close()
+    except Exception as exc:
+        log.error("mission.adapter.close_error", error=repr(exc))
+
+
+def stranded_progress(program: DroneProgram, reason: str, policy: str) -> wire.Progress:
+    """The progress line the ground station shows when this drone applies its end policy."""
+    return wire.Progress(
+        mission=program.mission_id,
+        sender=program.drone,
+        state="stranded",
+        node="",
+        action=f"end policy: {policy}",
+        detail={"detail": reason},
+    )

@@ -31,6 +31,8 @@ import pykka
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
 from eamos.program.uniform import CommandError, decode_command
 
+from .failure import tell_operator
+
 
 @dataclass(frozen=True)
 class RunAction:
@@ -135,9 +137,20 @@ class UniformAPI(pykka.ThreadingActor):
         self._log.info("uniform.stop", drone=self.drone)
 
     def on_failure(self, exception_type: Any, exception_value: Any, traceback: Any) -> None:
-        """Close the adapter and answer running actions if a bug kills the actor."""
+        """A bug killed the actor: answer running actions ``failed``, and land the vehicle.
+
+        The adapter stays open (the runtime closes it when it stops), so the
+        landing can finish: land must be reachable whatever actor died.
+        """
         self._log.error("uniform.failure", error=repr(exception_value))
-        self._shutdown(ActionResult("failed", f"uniform API crashed: {exception_value!r}"))
+        tell_operator(self.drone, f"internal error in the uniform API: {exception_value!r}: lands")
+        result = ActionResult("failed", f"uniform API crashed: {exception_value!r}")
+        for token, running in list(self._running.items()):
+            self._reply(token, running, result)
+        try:
+            self.adapter.abort()
+        except Exception as exc:
+            self._log.exception("uniform.adapter_error", action="abort", error=repr(exc))
 
     def _shutdown(self, result: ActionResult) -> None:
         # Close first: the adapter's late done callbacks then meet a dead actor

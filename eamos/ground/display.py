@@ -23,10 +23,10 @@ from typing import Any, Protocol, TextIO
 from eamos.net import wire
 from eamos.net.link import PeerStatus
 
-from .station import DroneView, GroundStation
+from .station import DroneView, GroundStation, ParticipantFailed
 
 #: Action states worth a line (``Progress.state``).
-SHOWN_STATES = ("running", "ok", "failed", "cancelled")
+SHOWN_STATES = ("running", "ok", "failed", "cancelled", "stranded")
 
 
 def stamp(at: float) -> str:
@@ -48,6 +48,8 @@ def format_event(name: str, msg: Any, at: float) -> str | None:
         return line
     if isinstance(msg, wire.Ready | wire.Resolved):
         return f"{head} {type(msg).__name__.lower()}"
+    if isinstance(msg, ParticipantFailed):
+        return f"{head} FAILED: {msg.reason}"
     if isinstance(msg, PeerStatus):
         silent = f" (silent {msg.silent_s:.1f} s)" if msg.state in ("lost", "back") else ""
         return f"{head} link {msg.state}{silent}"
@@ -88,6 +90,7 @@ class PlainDisplay:
         self.stream = stream or sys.stdout
         self.clock = clock
         self._lock = threading.Lock()  # events come from the network threads
+        self.lost_lines = 0  # lines the stream refused (a full disk)
 
     def __enter__(self) -> PlainDisplay:
         return self
@@ -108,9 +111,16 @@ class PlainDisplay:
         """Plain lines need no redraw."""
 
     def say(self, text: str) -> None:
-        """Print ``text`` on its own line."""
+        """Print ``text`` on its own line; a stream that cannot be written loses the line only.
+
+        (``eamos-node``'s stdout is ``node.out`` in the run folder: a full disk
+        must not stop the ground station's run loop.)
+        """
         with self._lock:
-            print(text, file=self.stream, flush=True)
+            try:
+                print(text, file=self.stream, flush=True)
+            except (OSError, ValueError):
+                self.lost_lines += 1
 
 
 class LiveDisplay:
@@ -161,8 +171,8 @@ class LiveDisplay:
         return table
 
     def event(self, name: str, view: DroneView, msg: Any) -> None:
-        """Progress shows in the table; link changes print as lines above it."""
-        if isinstance(msg, PeerStatus):
+        """Progress shows in the table; link changes and failures print as lines above it."""
+        if isinstance(msg, PeerStatus | ParticipantFailed):
             line = format_event(name, msg, self.clock())
             if line is not None:
                 self.say(line)

@@ -85,9 +85,7 @@ def fly(
     t0 = clock()
     ready_s = None
     if not station.wait_ready(limits.ready_timeout_s, stop):
-        outcome = "not ready: " + (
-            ", ".join(station.failures) or "waiting for " + ", ".join(station.not_ready())
-        )
+        outcome = _not_started(station, stop)
         station.abort(outcome)
     else:
         ready_s = clock() - t0
@@ -98,7 +96,11 @@ def fly(
         station.start()
         outcome = _watch(station, display, stop, limits.timeout_s, clock)
         if outcome == "ok":
+            # Everyone still there resolved; a participant that died makes it a failure
+            # (one only silent may still report: the summary's ok decides for it).
             station.complete()
+            if station.dead:
+                outcome = "failed: " + "; ".join(station.dead)
         else:
             display.say(f"aborting: {outcome}: every drone lands")
             station.abort(outcome)
@@ -108,11 +110,32 @@ def fly(
     waiting = [n for n in running if views[n].ready]
     patience = limits.report_ok_s if outcome == "ok" else limits.report_aborted_s
     missing: list[str] = []
-    if not station.wait_reports(waiting, patience):
+    if not station.wait_reports(waiting, patience, hurry_event(stop)):
         missing = station.missing_reports(waiting)
-        display.say("some drones sent no report: " + ", ".join(missing))
+        if hurried(stop):
+            display.say("stopped waiting (second Ctrl-C); no report from: " + ", ".join(missing))
+        else:
+            display.say("some drones sent no report: " + ", ".join(missing))
     display.refresh()
     return Flight(outcome, started, ready_s, tuple(missing))
+
+
+def _not_started(station: GroundStation, stop: threading.Event) -> str:
+    """Why the start trigger was not sent, truthfully: who was ready and who was not."""
+    if stop.is_set():
+        views = station.snapshot()
+        ready = [d for d in station.drones() if views[d].ready]
+        waiting = [d for d in station.drones() if not views[d].ready]
+        return (
+            "stopped by the operator before the start (ready: "
+            + (", ".join(ready) or "none")
+            + "; not ready: "
+            + (", ".join(waiting) or "none")
+            + ")"
+        )
+    return "not ready: " + (
+        ", ".join(station.failures) or "waiting for " + ", ".join(station.not_ready())
+    )
 
 
 def _watch(
@@ -163,16 +186,44 @@ def ground_runtime(
     )
 
 
+class StopRequest(threading.Event):
+    """The operator's stop: set by the first Ctrl-C; :attr:`hurry` by the second.
+
+    A plain :class:`threading.Event` works as the stop too; this one lets the
+    second Ctrl-C stop the waiting (for reports, for landing) while the
+    summary is still written: the caller then exits with 130.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.hurry = threading.Event()
+
+
+def hurry_event(stop: threading.Event) -> threading.Event | None:
+    """The second Ctrl-C's event, if ``stop`` is a :class:`StopRequest`."""
+    return stop.hurry if isinstance(stop, StopRequest) else None
+
+
+def hurried(stop: threading.Event) -> bool:
+    """The operator pressed Ctrl-C twice."""
+    return isinstance(stop, StopRequest) and stop.hurry.is_set()
+
+
 def install_stop_handler(stop: threading.Event) -> None:
     """Ctrl-C / SIGTERM set ``stop``: the run aborts, every drone lands, then it exits.
 
-    A second Ctrl-C while landing raises ``KeyboardInterrupt``.
+    A second Ctrl-C stops waiting: with a :class:`StopRequest` it sets
+    ``stop.hurry`` (the waits end, the summary is still written); with a plain
+    event it raises ``KeyboardInterrupt``.
     """
 
     def handler(signum: int, frame: FrameType | None) -> None:
-        if stop.is_set():
+        if not stop.is_set():
+            stop.set()
+        elif isinstance(stop, StopRequest):
+            stop.hurry.set()
+        else:
             raise KeyboardInterrupt
-        stop.set()
 
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)

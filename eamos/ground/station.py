@@ -38,6 +38,14 @@ from eamos.program.uniform import GROUND_STATION
 Clock = Callable[[], float]
 
 
+@dataclass(frozen=True)
+class ParticipantFailed:
+    """Local event for the display: a participant is gone (its process died, ...), and why."""
+
+    sender: str
+    reason: str
+
+
 @dataclass
 class DroneView:
     """What the ground station knows of one drone, for display and the summary."""
@@ -80,6 +88,9 @@ class GroundStation:
         self.on_change = on_change
         self._cond = threading.Condition()
         self.failures: list[str] = []  # participants that died or never became ready
+        # Of those, the ones known dead (a process exit, a failed start): unlike a
+        # silent drone, which may fly on behind a broken link, they fail the run.
+        self.dead: list[str] = []
 
     # -- wiring -------------------------------------------------------------------------
 
@@ -150,9 +161,15 @@ class GroundStation:
         """A participant is gone (its process died, or it could not start)."""
         with self._cond:
             self.failures.append(f"{name}: {reason}")
-            if name in self.views:
-                self.views[name].state = "lost"
+            self.dead.append(f"{name}: {reason}")
+            view = self.views.get(name)
+            if view is not None:
+                view.state = "lost"
+                view.events.append({"t": time.time(), "failed": reason})
             self._cond.notify_all()
+        if self.on_change is not None and view is not None:
+            # The operator hears it at once, not at the end of the run.
+            self.on_change(name, view, ParticipantFailed(name, reason))
 
     # -- phases ---------------------------------------------------------------------------
 

@@ -15,6 +15,7 @@ One typed :class:`RunSummary` for every ground station (``eamos run``,
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.actors.report import ActionEntry, DroneReport, FinalState
+from eamos.logs import report_write_error
 
 __all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
 
@@ -136,10 +138,25 @@ class RunSummary:
             rollout=data.get("rollout"),
         )
 
-    def write(self, path: Path) -> None:
-        """Write the summary as JSON to ``path`` (its folder is created)."""
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_json(), indent=1) + "\n")
+    def write(self, path: Path) -> bool:
+        """Write the summary as JSON to ``path`` (its folder is created); False if it could not.
+
+        A full disk or an unwritable folder must not cost the summary's other
+        copies (the run folder's and ``--summary``'s are written one after the
+        other): the error is told on stderr, naming the path, and not raised.
+        A partial file is removed rather than left looking like a summary.
+        """
+        text = json.dumps(self.to_json(), indent=1) + "\n"
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                if path.is_file() and path.stat().st_size < len(text.encode()):
+                    path.unlink()
+            report_write_error(path, exc, "the summary's other copies are still written")
+            return False
+        return True
 
     @classmethod
     def read(cls, path: Path) -> RunSummary:

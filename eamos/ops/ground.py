@@ -47,10 +47,12 @@ from ..ground import (
     make_display,
     summarize,
 )
+from ..logs import report_write_error
 from ..net import wire
 from ..program.format import DroneProgram, load_program
 from ..program.uniform import GROUND_STATION
 from .deployment import Deployment, from_run_dir, resolve
+from .localrun import is_local_run, local_deployment, local_ground_pid
 from .probe import RUNNING_SH
 from .record import ROLLOUT_FILE, paper_table, read_rollout
 from .ssh import FleetConnectError, FleetError, classify
@@ -306,7 +308,10 @@ def fly_rollout(
     )
     summary.write(run_dir / "summary.json")
     doc["durations"] = durations
-    (run_dir / ROLLOUT_FILE).write_text(json.dumps(doc, indent=1) + "\n")
+    try:
+        (run_dir / ROLLOUT_FILE).write_text(json.dumps(doc, indent=1) + "\n")
+    except OSError as exc:  # a full disk: the run's result is the summary, already out
+        report_write_error(run_dir / ROLLOUT_FILE, exc, "the start's durations are not recorded")
     return summary
 
 
@@ -360,16 +365,28 @@ def abort(
     timeout_s: float,
     say: Say,
 ) -> AbortResult:
-    """Every drone of the deployment lands now."""
-    dep = resolve(source, mission)
+    """Every drone of the deployment lands now.
+
+    ``source`` is a roll-out folder, a fleet file, or an ``eamos run`` folder
+    (whose drones are local processes: see :mod:`.localrun`).
+    """
+    pid = 0
+    if source.is_dir() and not (source / ROLLOUT_FILE).exists() and is_local_run(source):
+        dep = local_deployment(source)
+        pid = local_ground_pid(source) or 0
+        which = "eamos run"
+    else:
+        dep = resolve(source, mission)
+        which = "eamos start"
     if dep.run_dir is not None:
-        pid_path = dep.run_dir / GROUND_PID_FILE
-        try:
-            pid = int(pid_path.read_text().strip())
-        except (OSError, ValueError):
-            pid = 0
+        if not pid:
+            pid_path = dep.run_dir / GROUND_PID_FILE
+            try:
+                pid = int(pid_path.read_text().strip())
+            except (OSError, ValueError):
+                pid = 0
         if pid and _is_alive_eamos(pid):
-            say(f"signalling the ground station (eamos start, pid {pid}): every drone lands")
+            say(f"signalling the ground station ({which}, pid {pid}): every drone lands")
             os.kill(pid, signal.SIGTERM)
             done = wait_pid_exit(pid, timeout_s)
             landed = _landed_from_summary(dep.run_dir) if done else {}

@@ -26,8 +26,10 @@ from pathlib import Path
 from typing import Any
 
 from ..net import wire
+from ..program.format import ProgramError, load_program
 from .deployment import Deployment
 from .ground import short
+from .localrun import local_node_pids
 from .probe import RUNNING_SH
 from .ssh import DroneError, copy_from, for_each, run_remote
 from .targets import SshTarget
@@ -128,7 +130,12 @@ def current_action(events: list[dict[str, Any]]) -> str:
 
 def parse_status(target: SshTarget, stdout: str, expected_checksum: str) -> DroneStatus:
     """One drone's row from the status script's output."""
-    row = DroneStatus(target.drone, target.label)
+    return parse_status_of(target.drone, target.label, stdout, expected_checksum)
+
+
+def parse_status_of(drone: str, host: str, stdout: str, expected_checksum: str) -> DroneStatus:
+    """One drone's row from the status script's output (or its local equivalent)."""
+    row = DroneStatus(drone, host)
     chunks = _chunks(stdout)
     if "nofolder" in chunks:
         row.error = "mission not deployed here"
@@ -230,6 +237,48 @@ def fleet_status(dep: Deployment, listen_s: float = 2.0) -> list[DroneStatus]:
             row.landed = sample.landed
         out.append(row)
     return out
+
+
+def local_status_text(run_dir: Path, drone: str, pid: int | None) -> str:
+    """What the status script prints, for a drone of an ``eamos run`` folder (no SSH)."""
+    logs = run_dir / "logs" / drone
+
+    def read(path: Path) -> str:
+        try:
+            return path.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return ""
+
+    try:
+        checksum = load_program(run_dir / "programs" / f"{drone}.program.json").checksum
+    except (OSError, ProgramError):
+        checksum = ""
+    uniform = read(logs / "uniform.log").splitlines()[-LOG_TAIL_LINES:]
+    positions = [ln for ln in read(logs / "adapter.log").splitlines() if '"adapter.position"' in ln]
+    parts = [
+        "@@pid",
+        f"alive {pid}" if pid else "",
+        "@@stamp",
+        json.dumps({"checksum": checksum}),
+        "@@uniform",
+        *uniform,
+        "@@adapter",
+        *positions[-1:],
+        "@@report",
+        read(logs / "report.json"),
+        "@@end",
+    ]
+    return "\n".join(parts) + "\n"
+
+
+def local_status(dep: Deployment) -> list[DroneStatus]:
+    """Every drone's row for an ``eamos run`` folder: its process, program and logs here."""
+    assert dep.run_dir is not None
+    pids = local_node_pids(dep.run_dir)
+    return [
+        parse_status_of(name, "local", local_status_text(dep.run_dir, name, pids.get(name)), "")
+        for name in dep.drones
+    ]
 
 
 def format_status(dep: Deployment, rows: list[DroneStatus]) -> str:

@@ -97,7 +97,7 @@ def crash_lines(path) -> list[dict]:
     return [x for x in lines if x["event"] == "mission.node.crashed"]
 
 
-def test_a_node_that_raises_resolves_failed_and_blocks_its_successors(harness):
+def test_a_node_that_raises_resolves_failed_and_blocks_its_successors(harness, capfd):
     start, peers, log_path = harness
     ref = start(FaultyFork, ProgramNode("n5", 5, "fork", "D1", True, label="fork"))
     ref.tell(Trigger("n1", "n5", (), "done"))
@@ -117,6 +117,9 @@ def test_a_node_that_raises_resolves_failed_and_blocks_its_successors(harness):
     (line,) = crash_lines(log_path)
     assert "Boom: logic bug" in line["exception"] and "Traceback" in line["exception"]
     assert ref.is_alive()
+    # ... and one line on stderr (the node's node.out): the operator sees it too.
+    err = capfd.readouterr().err
+    assert err.count("eamos-node D1: internal error in node n5: Boom('logic bug')") == 1
 
 
 def test_a_node_failing_on_its_action_result_blocks_the_rest(harness):

@@ -50,6 +50,7 @@ armed/landed flags change.  ``t_sim`` fields are simulated seconds since start.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
@@ -215,8 +216,10 @@ class SimAdapter:
             try:
                 self._tick(steps)
             except Exception as exc:  # keep the adapter's promise: done is always called
-                self._log.exception("adapter.error", error=repr(exc))
+                # Fail the running actions first: logging may itself fail (a full disk).
                 self._crash(exc)
+                with contextlib.suppress(Exception):
+                    self._log.exception("adapter.error", error=repr(exc))
                 return
 
     def _crash(self, exc: Exception) -> None:
@@ -229,13 +232,16 @@ class SimAdapter:
     def _tick(self, steps: int) -> None:
         finished: list[Finished] = []
         samples: list[Telemetry] = []
-        with self._lock:
-            for _ in range(steps):
-                done, sampled = self._core.step()
-                finished += done
-                samples += sampled
-            self._tick_cond.notify_all()
-        self._deliver(finished)
+        try:
+            with self._lock:
+                for _ in range(steps):
+                    done, sampled = self._core.step()
+                    finished += done
+                    samples += sampled
+                self._tick_cond.notify_all()
+        finally:
+            # Actions that ended in the steps before an exception still get their answer.
+            self._deliver(finished)
         self._emit(samples)
 
     def _deliver(self, finished: list[Finished]) -> None:

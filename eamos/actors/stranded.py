@@ -1,0 +1,134 @@
+"""When a drone ends its part on its own (issue 17's faults; issue 13's end policy).
+
+Two ways a drone can be left with nobody to end its mission:
+
+* **stranded**: it has not resolved, it is idle (no action running), and a
+  participant it receives triggers from (or the ground station) has been
+  silent for longer than ``peer_wait_limit_s`` while it waited.  It then applies
+  its end policy (``on_stranded``: ``land`` by default, or ``hold``), tells the
+  drones waiting for it that their triggers from it failed, and reports
+  ``Resolved``: the run ends at once instead of at the mission timeout.
+* **no Complete**: it has resolved, but the ground station has been silent for
+  longer than ``peer_wait_limit_s``: the ``Complete`` will never come, so it
+  ends as if it had (its report is kept in its own folder).
+
+Pure: :func:`end_on_own` takes the time, what the executive says
+(:class:`Activity`) and when each peer went silent (:func:`silent_since`, from
+the link's peer events); the drone's loop (:mod:`.drone`) applies the answer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from ..program.format import DroneProgram
+from ..program.uniform import GROUND_STATION
+
+__all__ = [
+    "DEFAULT_PEER_WAIT_LIMIT_S",
+    "END_POLICIES",
+    "Activity",
+    "EndOnOwn",
+    "end_on_own",
+    "silent_since",
+    "trigger_sources",
+]
+
+#: How long a drone waits, idle, for a silent peer before it applies its end policy
+#: (and, once resolved, for a silent ground station's Complete).  Used until the node
+#: config carries ``peer_wait_limit_s``.
+DEFAULT_PEER_WAIT_LIMIT_S = 20.0
+
+#: What a stranded drone does (``on_stranded``); ``return`` is not implemented yet: it lands.
+END_POLICIES = ("land", "hold", "return")
+
+#: Link states that mean "not heard from any more" (``left``: it said goodbye).
+_SILENT_STATES = ("lost", "left")
+
+
+@dataclass(frozen=True)
+class Activity:
+    """What the executive says about the drone's progress, at one moment."""
+
+    resolved: bool  # every top-level node finished
+    idle_since: float | None  # monotonic time no action has run since; None: one runs now
+
+
+@dataclass(frozen=True)
+class EndOnOwn:
+    """The drone ends its part on its own: ``stranded`` or ``no_complete``, and why."""
+
+    kind: str
+    reason: str
+
+
+def trigger_sources(program: DroneProgram) -> frozenset[str]:
+    """The participants this drone may wait for: those it receives triggers from.
+
+    The ground station is one when it hosts nodes this drone waits for (its
+    initial node, a pause); its silence alone does not strand a flying drone.
+    """
+    native = {n.key for n in program.native_nodes()}
+    drone_of = {n.key: n.drone for n in program.nodes}
+    sources = {drone_of[a.src] for a in program.arcs if a.external and a.dst in native}
+    sources.discard(program.drone)
+    return frozenset(sources)
+
+
+def silent_since(
+    events: Iterable[Mapping[str, Any]], now_wall: float, now: float
+) -> dict[str, float]:
+    """Per peer whose latest link event says it is silent: the monotonic time it went silent.
+
+    ``events`` are the link's ``peer_events`` (``peer``, ``state``, ``silent_s``
+    and ``t``, a wall-clock stamp); ``now_wall`` and ``now`` are the same
+    instant on the wall clock and the monotonic clock.
+    """
+    latest: dict[str, Mapping[str, Any]] = {}
+    for event in events:
+        latest[str(event.get("peer", ""))] = event
+    out: dict[str, float] = {}
+    for peer, event in latest.items():
+        if event.get("state") in _SILENT_STATES:
+            went_silent_wall = float(event.get("t", now_wall)) - float(event.get("silent_s", 0.0))
+            out[peer] = now - max(0.0, now_wall - went_silent_wall)
+    return out
+
+
+def end_on_own(
+    now: float,
+    activity: Activity,
+    silent: Mapping[str, float],
+    sources: Collection[str],
+    limit_s: float,
+) -> EndOnOwn | None:
+    """Whether the drone must end its part now (None: keep going).
+
+    ``silent`` maps a silent peer to the monotonic time it went silent;
+    ``sources`` are the peers the drone may be waiting for.
+    """
+    if activity.resolved:
+        since = silent.get(GROUND_STATION)
+        if since is not None and now - since > limit_s:
+            return EndOnOwn(
+                "no_complete",
+                f"no Complete: the ground station has been silent for {now - since:.0f} s "
+                f"(peer_wait_limit_s = {limit_s:g}); ending on its own",
+            )
+        return None
+    if activity.idle_since is None:
+        return None
+    for peer in sorted(sources):
+        since = silent.get(peer)
+        if since is None:
+            continue
+        waited = now - max(since, activity.idle_since)
+        if waited > limit_s:
+            return EndOnOwn(
+                "stranded",
+                f"stranded: waited {waited:.0f} s for {peer}, whose link is lost "
+                f"(peer_wait_limit_s = {limit_s:g})",
+            )
+    return None
