@@ -8,6 +8,9 @@ Drone config (TOML)::
     ready_timeout_s = 60                      # how long to wait for the peers' subscriptions
     land_timeout_s = 120                      # after an abort, how long to wait for touchdown
     mission_timeout_s = 600                   # ground station only: abort after this long
+    peer_wait_limit_s = 20                    # waiting on a lost peer (or for Complete from a
+                                              # silent ground station) at most this long, then
+    on_stranded = "land"                      # the end policy: land | hold | return (lands now)
 
     [net]
     bind = "tcp://127.0.0.1:6001"             # this drone's out-bridge
@@ -145,6 +148,10 @@ class NodeConfig:
     keys: FleetKeys | None = None  # None: plain sockets (asked for, loopback only)
     link: LinkSettings = field(default_factory=LinkSettings)
     peer_give_up_s: float | None = None
+    # Waiting on a lost peer, or for Complete from a silent ground station, at
+    # most this long; then the drone applies ``on_stranded`` (actors/stranded.py).
+    peer_wait_limit_s: float = 20.0
+    on_stranded: str = "land"
 
     @classmethod
     def load(cls, path: Path) -> NodeConfig:
@@ -162,6 +169,8 @@ class NodeConfig:
                 "ready_timeout_s",
                 "land_timeout_s",
                 "mission_timeout_s",
+                "peer_wait_limit_s",
+                "on_stranded",
                 "net",
                 "hal",
             },
@@ -193,9 +202,14 @@ class NodeConfig:
             raise ConfigError(f"{w}hal: must be a table")
         _check_hal(f"{w}hal.", hal, drone=drone != GROUND_STATION)
         timeouts = {}
-        for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s"):
+        for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s", "peer_wait_limit_s"):
             if key in doc:
                 timeouts[key] = in_range(f"{w}{key}", doc[key], key)
+        on_stranded = doc.get("on_stranded", "land")
+        if on_stranded not in END_POLICIES:
+            raise ConfigError(
+                f"{w}on_stranded: must be one of {', '.join(END_POLICIES)}, got {on_stranded!r}"
+            )
         base = path.parent
         log_dir = doc.get("log_dir", f"logs/{drone}")
         if not isinstance(log_dir, str) or not log_dir:
@@ -213,6 +227,7 @@ class NodeConfig:
             keys=keys,
             link=link,
             peer_give_up_s=give_up,
+            on_stranded=on_stranded,
             **timeouts,
         )
 
@@ -241,6 +256,8 @@ class NodeConfig:
             f"ready_timeout_s = {_toml_value(self.ready_timeout_s)}",
             f"land_timeout_s = {_toml_value(self.land_timeout_s)}",
             f"mission_timeout_s = {_toml_value(self.mission_timeout_s)}",
+            f"peer_wait_limit_s = {_toml_value(self.peer_wait_limit_s)}",
+            f"on_stranded = {_toml_value(self.on_stranded)}",
             "",
             "[net]",
             f"bind = {_toml_value(self.bind)}",
@@ -354,6 +371,8 @@ class Range:
 
 
 _DAY_S = 86_400.0
+#: What a drone does when its mission cannot go on (``on_stranded``).
+END_POLICIES = ("land", "hold", "return")
 MAX_SPEEDUP = 1000.0
 """The largest ``hal.speedup`` (and ``--speedup``): faster, a simulated step no longer fits."""
 
@@ -366,6 +385,7 @@ RANGES: dict[str, Range] = {
     "telemetry_stale_s": Range(0, 3600, "s"),
     "telemetry_max_hz": Range(0.01, 1000, "Hz", closed_low=True),
     "peer_give_up_s": Range(0, _DAY_S, "s"),
+    "peer_wait_limit_s": Range(0, _DAY_S, "s"),
     "speedup": Range(0, MAX_SPEEDUP, ""),
 }
 """Accepted values of every numeric field of a drone config (and of ``hal.speedup``)."""

@@ -354,6 +354,7 @@ def overview(run: RunData) -> Table:
     rows: list[list[Any]] = [
         ["mission", s.mission],
         ["mission id", s.mission_id],
+        ["result", s.word],
         ["outcome", s.outcome],
         ["ok", s.ok],
         ["run folder", str(run.run_dir)],
@@ -576,7 +577,11 @@ def html_page(run: RunData) -> str:
             f'<img alt="{html.escape(title)}" src="data:image/png;base64,{data}">'
         )
     s = run.summary
-    status = "finished" if s.ok else f'<span class="bad">FAILED: {html.escape(s.outcome)}</span>'
+    status = (
+        s.word
+        if s.ok
+        else f'<span class="bad">{html.escape(s.word)}: {html.escape(s.detail)}</span>'
+    )
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',

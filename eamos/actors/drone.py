@@ -26,7 +26,6 @@ from .executive import ask_activity, ask_snapshot
 from .failure import tell_operator
 from .runtime import DroneRuntime, NetSettings
 from .stranded import (
-    DEFAULT_PEER_WAIT_LIMIT_S,
     EndOnOwn,
     end_on_own,
     silent_since,
@@ -113,15 +112,13 @@ def run_drone(config: NodeConfig, program: DroneProgram, stop: threading.Event) 
 
 
 def peer_wait_limit(config: NodeConfig) -> float:
-    """``peer_wait_limit_s`` of the node config, or the default until the config has it."""
-    value = getattr(config, "peer_wait_limit_s", None)
-    return DEFAULT_PEER_WAIT_LIMIT_S if value is None else float(value)
+    """``peer_wait_limit_s`` of the node config."""
+    return config.peer_wait_limit_s
 
 
 def end_policy(config: NodeConfig) -> str:
-    """``on_stranded`` of the node config (``land`` by default; ``return`` lands for now)."""
-    value = getattr(config, "on_stranded", None)
-    return "hold" if value == "hold" else "land"
+    """``on_stranded`` of the node config (``return`` lands for now: no path home yet)."""
+    return "hold" if config.on_stranded == "hold" else "land"
 
 
 def _execute(

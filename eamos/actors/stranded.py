@@ -23,6 +23,7 @@ from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from ..config import END_POLICIES, NodeConfig
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION
 
@@ -37,12 +38,10 @@ __all__ = [
 ]
 
 #: How long a drone waits, idle, for a silent peer before it applies its end policy
-#: (and, once resolved, for a silent ground station's Complete).  Used until the node
-#: config carries ``peer_wait_limit_s``.
-DEFAULT_PEER_WAIT_LIMIT_S = 20.0
-
-#: What a stranded drone does (``on_stranded``); ``return`` is not implemented yet: it lands.
-END_POLICIES = ("land", "hold", "return")
+#: (and, once resolved, for a silent ground station's Complete): the node config's
+#: ``peer_wait_limit_s`` default.  What it does then is ``on_stranded``, one of
+#: :data:`END_POLICIES` (``return`` is not implemented yet: it lands).
+DEFAULT_PEER_WAIT_LIMIT_S: float = NodeConfig.peer_wait_limit_s
 
 #: Link states that mean "not heard from any more" (``left``: it said goodbye).
 _SILENT_STATES = ("lost", "left")

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import threading
 from pathlib import Path
 from typing import Any
 
 from eamos.ops.deployment import Deployment, resolve
 
 from .errors import BadInput, command
-from .exits import EXIT_MISSION_FAILED, EXIT_OK
+from .exits import EXIT_INTERRUPTED, EXIT_MISSION_FAILED, EXIT_OK
 from .monitor import MonitorOptions, add_monitor_options, live_monitor, monitored_drones
 from .options import (
     add_check,
@@ -138,7 +137,7 @@ def add_fleet_commands(sub: Any) -> None:
 
     p = sub.add_parser(
         "abort",
-        help="land every drone of a rolled-out mission now",
+        help="land every drone of a mission now (a roll-out's or an `eamos run` folder)",
         description=_ABORT_HELP,
         formatter_class=fmt,
     )
@@ -213,10 +212,10 @@ def print_table7(durations: dict[str, float]) -> None:
 
 def cmd_start(args: argparse.Namespace) -> int:
     """``eamos start``."""
-    from eamos.ground import install_stop_handler
+    from eamos.ground import StopRequest, install_stop_handler
     from eamos.ops.ground import StartOptions, fly_rollout
 
-    stop = threading.Event()
+    stop = StopRequest()  # Ctrl-C aborts and lands; a second one stops waiting
     install_stop_handler(stop)
     opts = StartOptions(
         args.run_dir, args.timeout, args.ready_timeout, live=False if args.plain else None
@@ -232,7 +231,7 @@ def cmd_start(args: argparse.Namespace) -> int:
         with live_monitor(monitor, run_dir, stop, shown) as monitored:
             summary = fly_rollout(opts, stop, display=monitored.display)
             monitored.finish(summary)
-    status = "finished" if summary.ok else f"FAILED ({summary.outcome})"
+    status = summary.word + (f" ({summary.detail})" if summary.detail else "")
     print(f"mission {summary.mission} {status} in {summary.duration_s:.1f} s")
     for name, result in summary.drones.items():
         report = result.report
@@ -241,12 +240,14 @@ def cmd_start(args: argparse.Namespace) -> int:
             continue
         print(
             f"  {name} ({result.host}): {'ok' if result.ok else 'not ok'}, "
-            f"{len(report.actions)} actions, triggers sent/received "
+            f"{report.action_count} actions, triggers sent/received "
             f"{report.triggers_sent}/{report.triggers_received} "
             f"(MDG external arcs out/in {report.external_out}/{report.external_in})"
         )
     print_table7((summary.rollout or {}).get("durations", {}))
     print(f"summary: {summary.run_dir}/summary.json; logs: eamos logs fetch {args.run_dir}")
+    if stop.hurry.is_set():
+        return EXIT_INTERRUPTED  # the summary is written; the operator did not wait
     return EXIT_OK if summary.ok else EXIT_MISSION_FAILED
 
 
@@ -256,10 +257,17 @@ def _deployment(args: argparse.Namespace) -> Deployment:
 
 def cmd_status(args: argparse.Namespace) -> int:
     """``eamos status``: 1 when a drone could not be asked."""
-    from eamos.ops.status import fleet_status, format_status
+    from eamos.ops.localrun import is_local_run, local_deployment
+    from eamos.ops.status import fleet_status, format_status, local_status
 
-    dep = _deployment(args)
-    rows = fleet_status(dep, args.listen)
+    src = Path(args.source)
+    if is_local_run(src) and not (src / "rollout.json").exists():
+        # An `eamos run` folder: its drones are processes on this machine.
+        dep = local_deployment(src)
+        rows = local_status(dep)
+    else:
+        dep = _deployment(args)
+        rows = fleet_status(dep, args.listen)
     print(format_status(dep, rows))
     return EXIT_MISSION_FAILED if any(r.error for r in rows) else EXIT_OK
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from eamos.cli.exits import EXIT_MISSION_FAILED, EXIT_OK
+from eamos.cli.exits import EXIT_INTERRUPTED, EXIT_MISSION_FAILED, EXIT_OK
 from eamos.cli.monitor import MonitorOptions, add_monitor_options, live_monitor
 from eamos.cli.options import (
     add_check,
@@ -114,12 +114,12 @@ def run_mission(
     ``display`` defaults to a live table on a terminal (``opts.live``), plain lines otherwise.
     """
     from eamos.compiler import compile_file, write_artifacts
-    from eamos.ground import Limits, LocalMission, fly_local, make_display
+    from eamos.ground import Limits, LocalMission, fly_local, make_display, use_run_dir
     from eamos.program.uniform import GROUND_STATION
 
     compiled = compile_file(opts.mission)
     run_dir = (opts.run_dir or default_run_dir(compiled.mission.name)).resolve()
-    run_dir.mkdir(parents=True, exist_ok=True)
+    use_run_dir(run_dir)  # --run-dir naming a file: bad input, said with the path
     write_artifacts(compiled, run_dir, svg=opts.svg)
     if opts.check:
         from eamos.cli.check import preflight
@@ -148,11 +148,9 @@ def run_mission(
 
 def summary_lines(summary: RunSummary) -> list[str]:
     """What ``eamos run`` prints at the end: the outcome, one line per drone, the file."""
-    from eamos.monitor.state import outcome_detail, outcome_word
-
     # One outcome word (finished, failed, aborted, timed out), as on the monitor page.
-    detail = outcome_detail(summary)
-    status = outcome_word(summary) + (f" ({detail})" if detail else "")
+    detail = summary.detail
+    status = summary.word + (f" ({detail})" if detail else "")
     lines = [f"mission {summary.mission} {status} in {summary.duration_s:.1f} s"]
     for name, result in summary.drones.items():
         report = result.report
@@ -166,7 +164,7 @@ def summary_lines(summary: RunSummary) -> list[str]:
             extra += f"; blocked: {len(report.blocked_nodes)} node(s)"
         lines.append(
             f"  {name}: {'ok' if result.ok else 'not ok'}, "
-            f"{len(report.actions)} actions, triggers sent/received "
+            f"{report.action_count} actions, triggers sent/received "
             f"{report.triggers_sent}/{report.triggers_received}"
             f"{extra}"
         )
@@ -177,9 +175,9 @@ def summary_lines(summary: RunSummary) -> list[str]:
 def cmd_run(args: argparse.Namespace) -> int:
     """``eamos run``; a bad mission or fleet file reaches the dispatcher (exit 2)."""
     fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
-    from eamos.ground import install_stop_handler
+    from eamos.ground import StopRequest, hurried, install_stop_handler
 
-    stop = threading.Event()
+    stop = StopRequest()  # Ctrl-C aborts and lands; a second one stops waiting
     install_stop_handler(stop)
     opts = RunOptions(
         mission=args.mission,
@@ -196,4 +194,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     )
     summary = run_mission(opts, stop)
     print("\n".join(summary_lines(summary)))
+    if hurried(stop):
+        return EXIT_INTERRUPTED  # the summary is written; the operator did not wait
     return EXIT_OK if summary.ok else EXIT_MISSION_FAILED

@@ -29,13 +29,23 @@ if TYPE_CHECKING:
         format_event,
         make_display,
     )
-    from eamos.ground.flight import Flight, Limits, fly, ground_runtime, install_stop_handler
+    from eamos.ground.flight import (
+        Flight,
+        Limits,
+        StopRequest,
+        fly,
+        ground_runtime,
+        hurried,
+        install_stop_handler,
+    )
     from eamos.ground.local import (
         LocalFleet,
         LocalMission,
         check_hal_settings,
         fly_local,
         free_ports,
+        new_run_dir,
+        use_run_dir,
     )
     from eamos.ground.node import run_ground_node
     from eamos.ground.station import DroneView, GroundStation
@@ -61,11 +71,15 @@ _WHERE = {
     "fly": "flight",
     "ground_runtime": "flight",
     "install_stop_handler": "flight",
+    "StopRequest": "flight",
+    "hurried": "flight",
     "LocalFleet": "local",
     "LocalMission": "local",
     "check_hal_settings": "local",
     "fly_local": "local",
     "free_ports": "local",
+    "new_run_dir": "local",
+    "use_run_dir": "local",
     "run_ground_node": "node",
     "DroneView": "station",
     "GroundStation": "station",
@@ -92,16 +106,20 @@ __all__ = [
     "LocalMission",
     "PlainDisplay",
     "RunSummary",
+    "StopRequest",
     "check_hal_settings",
     "fly",
     "fly_local",
     "format_event",
     "free_ports",
     "ground_runtime",
+    "hurried",
     "install_stop_handler",
     "make_display",
+    "new_run_dir",
     "run_ground_node",
     "summarize",
+    "use_run_dir",
 ]
 
 

@@ -31,7 +31,7 @@ from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
 
 from .display import Display, make_display
-from .flight import Limits, fly, ground_runtime
+from .flight import Limits, fly, ground_runtime, hurried
 from .station import GroundStation
 from .summary import RunSummary, summarize
 from .vehicles import start_sim_vehicles
@@ -402,7 +402,9 @@ def _fly_local(
             )
             outcome, started = flight.outcome, flight.started
     finally:
-        if not processes.wait(30):
+        # After a second Ctrl-C nobody waits for a graceful end: SIGTERM now (each
+        # node still lands its drone before it exits), SIGKILL what is left.
+        if not processes.wait(0.0 if hurried(stop) else 30.0):
             processes.terminate()
         vehicles.stop()
         gcs_report = runtime.drone_report() if runtime.executive is not None else None

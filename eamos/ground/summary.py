@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from eamos.actors.report import ActionEntry, DroneReport, FinalState
 from eamos.logs import report_write_error
+from eamos.program.uniform import GROUND_STATION
 
 __all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
 
@@ -100,10 +101,38 @@ class RunSummary:
             and self.ground_station.ok
         )
 
+    @property
+    def word(self) -> str:
+        """The one word for how the run ended: ``finished``, ``failed``, ``aborted``, ``timed out``.
+
+        The same word everywhere: the CLI's last line, ``summary.json``
+        (``result``), the report's title and the monitor.
+        """
+        if self.ok:
+            return "finished"
+        if self.outcome.startswith("aborted"):
+            return "aborted"
+        if self.outcome.startswith("timed out"):
+            return "timed out"
+        return "failed"
+
+    @property
+    def detail(self) -> str:
+        """Why the run did not finish ("" when it did): the outcome, or the parts not ok."""
+        if self.ok:
+            return ""
+        if self.outcome != "ok":
+            return self.outcome
+        bad = [n for n, d in self.drones.items() if not d.ok]
+        if self.ground_station is None or not self.ground_station.ok:
+            bad.append(GROUND_STATION)
+        return "not ok: " + ", ".join(bad) if bad else ""
+
     def to_json(self) -> dict[str, Any]:
         """The ``summary.json`` object."""
         out: dict[str, Any] = {
             "ok": self.ok,
+            "result": self.word,
             "mission": self.mission,
             "mission_id": self.mission_id,
             "outcome": self.outcome,

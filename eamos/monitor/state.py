@@ -70,26 +70,8 @@ RAN = frozenset({"running", "waiting", "ok", "failed", "cancelled"})
 
 
 def outcome_word(summary: RunSummary) -> str:
-    """The one word for how a run ended: ``finished``, ``failed``, ``aborted`` or ``timed out``."""
-    if summary.ok:
-        return "finished"
-    if summary.outcome.startswith("aborted"):
-        return "aborted"
-    if summary.outcome.startswith("timed out"):
-        return "timed out"
-    return "failed"
-
-
-def outcome_detail(summary: RunSummary) -> str:
-    """Why a run did not finish ("" when it did): the outcome or the failed parts."""
-    if summary.ok:
-        return ""
-    if summary.outcome != "ok":
-        return summary.outcome
-    bad = [n for n, d in summary.drones.items() if not d.ok]
-    if summary.ground_station is None or not summary.ground_station.ok:
-        bad.append(GROUND_STATION)
-    return "not ok: " + ", ".join(bad) if bad else ""
+    """The one word for how a run ended (:attr:`RunSummary.word`)."""
+    return summary.word
 
 
 def final_node_states(setup: MissionSetup, name: str, report: DroneReport | None) -> dict[str, str]:
@@ -414,7 +396,7 @@ class MonitorState:
             out += self._drone_patch(drone, now, force=True)
         out += self._mission(
             state=outcome_word(summary),
-            detail=outcome_detail(summary),
+            detail=summary.detail,
             started=summary.started,
             ended=summary.started + summary.duration_s,
         )

@@ -321,18 +321,31 @@ def test_a_display_on_a_full_disk_loses_lines_not_the_run() -> None:
     assert display.lost_lines == 2
 
 
-def test_the_wait_limit_and_end_policy_come_from_the_node_config_when_it_has_them() -> None:
-    from types import SimpleNamespace
-
+def test_the_wait_limit_and_end_policy_come_from_the_node_config(tmp_path) -> None:
     from eamos.actors.drone import end_policy, peer_wait_limit
     from eamos.actors.stranded import DEFAULT_PEER_WAIT_LIMIT_S
+    from eamos.config import ConfigError, NodeConfig
 
-    bare = SimpleNamespace()
-    assert peer_wait_limit(bare) == DEFAULT_PEER_WAIT_LIMIT_S  # type: ignore[arg-type]
-    assert end_policy(bare) == "land"  # type: ignore[arg-type]
-    set_ = SimpleNamespace(peer_wait_limit_s=5, on_stranded="hold")
-    assert peer_wait_limit(set_) == 5.0 and end_policy(set_) == "hold"  # type: ignore[arg-type]
-    assert end_policy(SimpleNamespace(on_stranded="return")) == "land"  # type: ignore[arg-type]
+    def config(extra: str) -> NodeConfig:
+        path = tmp_path / "d.toml"
+        path.write_text(
+            f'drone = "D1"\nprogram = "p.json"\n{extra}\n'
+            '[net]\nbind = "tcp://127.0.0.1:6001"\nplain = true\n'
+        )
+        return NodeConfig.load(path)
+
+    bare = config("")
+    assert peer_wait_limit(bare) == DEFAULT_PEER_WAIT_LIMIT_S == 20.0
+    assert end_policy(bare) == "land"
+    held = config('peer_wait_limit_s = 5\non_stranded = "hold"')
+    assert peer_wait_limit(held) == 5.0 and end_policy(held) == "hold"
+    held.path.write_text(held.to_toml())  # it round-trips
+    assert NodeConfig.load(held.path) == held
+    assert end_policy(config('on_stranded = "return"')) == "land"  # no path home yet
+    with pytest.raises(ConfigError, match="on_stranded: must be one of land, hold, return"):
+        config('on_stranded = "fly away"')
+    with pytest.raises(ConfigError, match="peer_wait_limit_s"):
+        config("peer_wait_limit_s = nan")
 
 
 def test_a_crashing_uniform_api_actor_lands_the_vehicle_and_says_so(
