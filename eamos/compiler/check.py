@@ -21,6 +21,8 @@ from ..program.uniform import (
     PROPERTIES,
     DroneType,
 )
+from .check_calls import CallChecks, drone_arguments, signature
+from .drone_types import Vocabulary, implemented_actions, vocabulary
 from .errors import Diagnostic, MissionError, SourceLocation, did_you_mean
 from .limits import MAX_DISTANCE_M, MAX_DURATION_S, block_limit_errors, fleet_limit_error
 from .syntax import (
@@ -32,7 +34,9 @@ from .syntax import (
     Control,
     Expr,
     Mission,
+    Name,
     Num,
+    Param,
     Prop,
     Unary,
 )
@@ -43,15 +47,29 @@ _EQUALITY = {"==", "!="}
 _LOGIC = {"&&", "||"}
 
 
-def drone_types(mission: Mission) -> dict[str, DroneType]:
-    """The type of every drone the mission commands or declares (default type if undeclared)."""
+def drone_types(mission: Mission, vocab: Vocabulary | None = None) -> dict[str, DroneType]:
+    """The type of every drone the mission commands or declares (default type if undeclared).
+
+    A block's drone parameters are not drones; the drones passed to them are.
+    """
+    known = (vocab or vocabulary(mission)[0]).types
+    default = DRONE_TYPES[DEFAULT_DRONE_TYPE]
     types: dict[str, DroneType] = {}
     for decl in mission.drones.values():
-        types[decl.name] = DRONE_TYPES.get(decl.type, DRONE_TYPES[DEFAULT_DRONE_TYPE])
+        types[decl.name] = known.get(decl.type, default)
     for block in mission.blocks.values():
+        params = {p.name for p in block.params}
         for stmt in block.statements:
-            if isinstance(stmt, ActionCall) and stmt.drone is not None and stmt.drone not in types:
-                types[stmt.drone] = DRONE_TYPES[DEFAULT_DRONE_TYPE]
+            if (
+                isinstance(stmt, ActionCall)
+                and stmt.drone is not None
+                and stmt.drone not in types
+                and stmt.drone not in params
+            ):
+                types[stmt.drone] = default
+    if any(b.params for b in mission.blocks.values()):
+        for name, _ in drone_arguments(mission):
+            types.setdefault(name.name, default)
     return types
 
 
@@ -64,258 +82,16 @@ def _refs(stmt: object) -> Iterator[BlockRef | BlockCall]:
                 yield ref
 
 
-class _Checker:
-    def __init__(self, mission: Mission) -> None:
-        self.mission = mission
-        self.diags: list[Diagnostic] = []
-        self.types = drone_types(mission)
+class _WholeMission:
+    """Checks of the block-call graph: recursion and reachability."""
+
+    mission: Mission
 
     def error(self, loc: SourceLocation, message: str, hint: str = "", width: int = 1) -> None:
-        end_col = loc.col + width if width > 1 else None
-        self.diags.append(Diagnostic("error", loc, message, hint, end_col))
+        raise NotImplementedError  # pragma: no cover - the checker defines it
 
     def warn(self, loc: SourceLocation, message: str, hint: str = "") -> None:
-        self.diags.append(Diagnostic("warning", loc, message, hint))
-
-    def run(self) -> list[Diagnostic]:
-        m = self.mission
-        for decl in m.drones.values():
-            if decl.type not in DRONE_TYPES:
-                self.error(
-                    decl.type_loc or decl.loc,
-                    f"unknown drone type '{decl.type}'",
-                    did_you_mean(decl.type, DRONE_TYPES),
-                    len(decl.type),
-                )
-            if decl.name == GROUND_STATION:
-                self.error(
-                    decl.loc,
-                    f"'{GROUND_STATION}' is the ground station's name",
-                    "name the drone differently",
-                )
-        for name, block in m.blocks.items():
-            if not block.statements and name not in self.mission.incomplete_blocks:
-                self.error(
-                    block.loc,
-                    f"block '{name}' is empty",
-                    "give it at least one statement, or remove it and its calls",
-                )
-            for stmt in block.statements:
-                self.statement(stmt)
-        too_many = fleet_limit_error(m)
-        if too_many is not None:
-            self.diags.append(too_many)
-        if self.recursion():
-            # Only a mission without cycles has a finite size to count.
-            self.diags.extend(block_limit_errors(m))
-        self.reachability()
-        self.par_motions()
-        used = {
-            s.drone
-            for b in m.blocks.values()
-            for s in b.statements
-            if isinstance(s, ActionCall) and s.drone is not None
-        }
-        used |= {
-            p.drone
-            for b in m.blocks.values()
-            for s in b.statements
-            if isinstance(s, Control)
-            for p in _props(s.cond)
-        }
-        for decl in m.drones.values():
-            if decl.name not in used:
-                self.warn(decl.loc, f"drone '{decl.name}' is declared but never used")
-        return self.diags
-
-    # -- one motion per drone at a time ---------------------------------------
-
-    def motions(self, stmt: object, seen: frozenset[str] = frozenset()) -> dict[str, ActionCall]:
-        """The first motion action of each drone a statement (and the blocks it calls) gives.
-
-        Control structures are left out: when their blocks run depends on conditions
-        (experiment D's four loops share one Exit block, and only one runs it at a time).
-        """
-        if isinstance(stmt, ActionCall):
-            if stmt.drone is not None and stmt.action in MOTION_ACTIONS:
-                return {stmt.drone: stmt}
-            return {}
-        out: dict[str, ActionCall] = {}
-        for ref in _refs(stmt) if isinstance(stmt, BlockCall) else ():
-            block = self.mission.blocks.get(ref.name)
-            if block is None or ref.name in seen:  # undefined or recursive: reported elsewhere
-                continue
-            for inner in block.statements:
-                for drone, call in self.motions(inner, seen | {ref.name}).items():
-                    out.setdefault(drone, call)
-        return out
-
-    def par_motions(self) -> None:
-        """A drone given two motions at once in a PAR_ block: the second fails ``busy``."""
-        for name, block in self.mission.blocks.items():
-            if block.mode != "PAR":
-                continue
-            first: dict[str, ActionCall] = {}
-            for stmt in block.statements:
-                for drone, call in self.motions(stmt, frozenset({name})).items():
-                    if drone in first:
-                        other = first[drone]
-                        self.warn(
-                            call.loc,
-                            f"the same drone given two actions at once in a PAR_: {drone}."
-                            f"{call.action} runs in {name} together with {drone}.{other.action} "
-                            f"(line {other.loc.line}); a drone makes one motion at a time, "
-                            "so one of them fails 'busy'",
-                            "put them one after the other in a SEQ_ block",
-                        )
-                    else:
-                        first[drone] = call
-
-    # -- statements ---------------------------------------------------------
-
-    def statement(self, stmt: object) -> None:
-        if isinstance(stmt, BlockCall):
-            self.block_ref(stmt.name, stmt.loc)
-        elif isinstance(stmt, ActionCall):
-            self.action(stmt)
-        elif isinstance(stmt, Control):
-            self.control(stmt)
-
-    def block_ref(self, name: str, loc: SourceLocation) -> None:
-        if name not in self.mission.blocks:
-            hint = did_you_mean(name, self.mission.blocks)
-            if name in ACTIONS:
-                hint = f"{name} is an action: call it on a drone, e.g. Drone1.{name}(...)"
-            self.error(loc, f"undefined block '{name}'", hint)
-
-    def action(self, call: ActionCall) -> None:
-        spec = ACTIONS.get(call.action)
-        if call.drone is None:
-            if call.action != "PauseFor":  # pragma: no cover - the parser only makes bare PauseFor
-                self.error(
-                    call.loc, f"'{call.action}' needs a drone", f"write Drone1.{call.action}(...)"
-                )
-                return
-        elif call.drone == GROUND_STATION:
-            self.error(
-                call.loc,
-                f"the ground station '{GROUND_STATION}' does not fly",
-                "call actions on drones; a bare PauseFor(s) pauses at the ground station",
-            )
-            return
-        if spec is None:
-            self.error(
-                call.action_loc or call.loc,
-                f"unknown action '{call.action}'",
-                did_you_mean(call.action, ACTIONS),
-                len(call.action),
-            )
-            return
-        if call.drone is not None:
-            dtype = self.types[call.drone]
-            if call.action not in dtype.actions:
-                self.error(
-                    call.action_loc or call.loc,
-                    f"{call.drone} ({dtype.name}) has no action '{call.action}'",
-                    did_you_mean(call.action, dtype.actions)
-                    if call.action not in ACTIONS
-                    else f"{dtype.name} offers: {', '.join(sorted(dtype.actions))}",
-                )
-                return
-        if len(call.args) != len(spec.params):
-            want = ", ".join(spec.params) or "no arguments"
-            self.error(
-                call.loc,
-                f"{call.action} takes {len(spec.params)} argument"
-                f"{'s' if len(spec.params) != 1 else ''}, got {len(call.args)}",
-                f"{call.action}({want})",
-            )
-            return
-        for value, param, loc in zip(
-            call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args), strict=False
-        ):
-            problem = _argument_problem(call.action, param, value)
-            if problem:
-                self.error(loc, problem)
-
-    def control(self, ctl: Control) -> None:
-        for ref in (ctl.body, ctl.orelse, ctl.exit):
-            if ref is not None:
-                self.block_ref(ref.name, ref.loc)
-        if ctl.drone is not None:
-            if ctl.drone == GROUND_STATION:
-                pass
-            elif ctl.drone not in self.types:
-                self.error(
-                    ctl.loc, f"unknown drone '{ctl.drone}'", did_you_mean(ctl.drone, self.types)
-                )
-        if ctl.cond is not None:
-            kind = self.expr_type(ctl.cond)
-            if kind == "number":
-                self.error(
-                    ctl.cond.loc,
-                    f"the condition of {ctl.kind} is a number, not true/false",
-                    "compare it, e.g. D1.Z() > 1.5",
-                )
-
-    def expr_type(self, expr: Expr) -> str | None:
-        """'number' or 'bool' (None after an error already reported)."""
-        if isinstance(expr, Num):
-            return "number"
-        if isinstance(expr, Bool):
-            return "bool"
-        if isinstance(expr, Prop):
-            if expr.drone not in self.types and expr.drone != GROUND_STATION:
-                self.error(
-                    expr.loc,
-                    f"unknown drone '{expr.drone}'",
-                    did_you_mean(expr.drone, self.types)
-                    or "declare it: var " + expr.drone + " Quadcopter",
-                )
-                return None
-            dtype = self.types.get(expr.drone)
-            spec = PROPERTIES.get(expr.name)
-            if spec is None or dtype is None or expr.name not in dtype.properties:
-                offered = dtype.properties if dtype is not None else frozenset()
-                self.error(
-                    expr.loc,
-                    f"{expr.drone} has no property '{expr.name}'",
-                    did_you_mean(expr.name, offered or PROPERTIES),
-                )
-                return None
-            return spec.type
-        if isinstance(expr, Unary):
-            inner = self.expr_type(expr.operand)
-            want = "bool" if expr.op == "!" else "number"
-            if inner is not None and inner != want:
-                self.error(
-                    expr.loc, f"'{expr.op}' needs a {'condition' if want == 'bool' else 'number'}"
-                )
-                return None
-            return want
-        if isinstance(expr, Binary):
-            left, right = self.expr_type(expr.left), self.expr_type(expr.right)
-            if left is None or right is None:
-                return None
-            if expr.op in _LOGIC:
-                if left != "bool" or right != "bool":
-                    self.error(
-                        expr.loc,
-                        f"'{expr.op}' joins conditions, not numbers",
-                        "compare the numbers first, e.g. D1.X() > 1 && D1.Y() < 2",
-                    )
-                    return None
-                return "bool"
-            if expr.op in _EQUALITY:
-                if left != right:
-                    self.error(expr.loc, f"'{expr.op}' compares a number with a condition")
-                    return None
-                return "bool"
-            if left != "number" or right != "number":
-                self.error(expr.loc, f"'{expr.op}' needs numbers on both sides")
-                return None
-            return "bool" if expr.op in _COMPARE else "number"
-        return None  # pragma: no cover
+        raise NotImplementedError  # pragma: no cover - the checker defines it
 
     # -- whole-mission checks -----------------------------------------------
 
@@ -372,12 +148,324 @@ class _Checker:
                         seen.add(ref.name)
                         todo.append(ref.name)
         for name, block in blocks.items():
-            if name not in seen:
+            if name not in seen and not block.loc.file:  # a library's blocks are offered
                 self.warn(
                     block.loc,
                     f"block '{name}' is never reached from {self.mission.entry}",
                     "call it from another block, or remove it",
                 )
+
+
+class _Checker(CallChecks, _WholeMission):
+    def __init__(self, mission: Mission) -> None:
+        self.mission = mission
+        self.vocab, self.diags = vocabulary(mission)
+        self.types = drone_types(mission, self.vocab)
+        self.scope: dict[str, Param] = {}
+
+    def error(self, loc: SourceLocation, message: str, hint: str = "", width: int = 1) -> None:
+        end_col = loc.col + width if width > 1 else None
+        self.diags.append(Diagnostic("error", loc, message, hint, end_col))
+
+    def warn(self, loc: SourceLocation, message: str, hint: str = "") -> None:
+        self.diags.append(Diagnostic("warning", loc, message, hint))
+
+    def run(self) -> list[Diagnostic]:
+        m = self.mission
+        for decl in m.drones.values():
+            if decl.type not in self.vocab.types:
+                self.error(
+                    decl.type_loc or decl.loc,
+                    f"unknown drone type '{decl.type}'",
+                    did_you_mean(decl.type, self.vocab.types),
+                    len(decl.type),
+                )
+            if decl.name == GROUND_STATION:
+                self.error(
+                    decl.loc,
+                    f"'{GROUND_STATION}' is the ground station's name",
+                    "name the drone differently",
+                )
+            self.unimplemented(decl.name, decl.type, decl.type_loc or decl.loc)
+        for name, block in m.blocks.items():
+            if not block.statements and name not in self.mission.incomplete_blocks:
+                self.error(
+                    block.loc,
+                    f"block '{name}' is empty",
+                    "give it at least one statement, or remove it and its calls",
+                )
+            self.enter(block)
+            for stmt in block.statements:
+                self.statement(stmt)
+        self.scope = {}
+        too_many = fleet_limit_error(m)
+        if too_many is not None:
+            self.diags.append(too_many)
+        if self.recursion():
+            # Only a mission without cycles has a finite size to count.
+            self.diags.extend(block_limit_errors(m))
+        self.reachability()
+        if not any(b.params for b in m.blocks.values()):
+            # With parameters, which drone moves is known once calls are expanded:
+            # the same check then runs on the expanded mission (instance_warnings).
+            self.par_motions()
+        used = {
+            s.drone
+            for b in m.blocks.values()
+            for s in b.statements
+            if isinstance(s, ActionCall) and s.drone is not None
+        }
+        used |= {
+            p.drone
+            for b in m.blocks.values()
+            for s in b.statements
+            if isinstance(s, Control)
+            for p in _props(s.cond)
+        }
+        used |= {name.name for name, _ in drone_arguments(m)}
+        for decl in m.drones.values():
+            if decl.name not in used:
+                self.warn(decl.loc, f"drone '{decl.name}' is declared but never used")
+        return self.diags
+
+    # -- one motion per drone at a time ---------------------------------------
+
+    def motions(self, stmt: object, seen: frozenset[str] = frozenset()) -> dict[str, ActionCall]:
+        """The first motion action of each drone a statement (and the blocks it calls) gives.
+
+        Control structures are left out: when their blocks run depends on conditions
+        (experiment D's four loops share one Exit block, and only one runs it at a time).
+        """
+        if isinstance(stmt, ActionCall):
+            if stmt.drone is not None and stmt.action in MOTION_ACTIONS:
+                return {stmt.drone: stmt}
+            return {}
+        out: dict[str, ActionCall] = {}
+        for ref in _refs(stmt) if isinstance(stmt, BlockCall) else ():
+            block = self.mission.blocks.get(ref.name)
+            if block is None or ref.name in seen:  # undefined or recursive: reported elsewhere
+                continue
+            for inner in block.statements:
+                for drone, call in self.motions(inner, seen | {ref.name}).items():
+                    out.setdefault(drone, call)
+        return out
+
+    def par_motions(self) -> None:
+        """A drone given two motions at once in a PAR_ block: the second fails ``busy``."""
+        for name, block in self.mission.blocks.items():
+            if block.mode != "PAR":
+                continue
+            first: dict[str, ActionCall] = {}
+            for stmt in block.statements:
+                for drone, call in self.motions(stmt, frozenset({name})).items():
+                    if drone in first:
+                        other = first[drone]
+                        self.warn(
+                            call.loc,
+                            f"the same drone given two actions at once in a PAR_: {drone}."
+                            f"{call.action} runs in {name} together with {drone}.{other.action} "
+                            f"(line {other.loc.line}); a drone makes one motion at a time, "
+                            "so one of them fails 'busy'",
+                            "put them one after the other in a SEQ_ block",
+                        )
+                    else:
+                        first[drone] = call
+
+    # -- statements ---------------------------------------------------------
+
+    def unimplemented(self, drone: str, type_name: str, loc: SourceLocation) -> None:
+        """Warn of a drone whose type has actions no adapter runs yet (calling one is an error)."""
+        dtype = self.vocab.types.get(type_name)
+        missing = sorted(dtype.actions - implemented_actions()) if dtype is not None else []
+        if missing:
+            self.warn(
+                loc,
+                f"{drone}'s type {type_name} has actions no adapter implements yet: "
+                + ", ".join(missing),
+                "the mission compiles, but calling one of them is an error",
+            )
+
+    def statement(self, stmt: object) -> None:
+        if isinstance(stmt, BlockCall):
+            self.block_ref(stmt.name, stmt.loc)
+            self.block_call(stmt)
+        elif isinstance(stmt, ActionCall):
+            self.action(stmt)
+        elif isinstance(stmt, Control):
+            self.control(stmt)
+
+    def block_ref(self, name: str, loc: SourceLocation) -> None:
+        if name not in self.mission.blocks:
+            hint = did_you_mean(name, self.mission.blocks)
+            if name in ACTIONS:
+                hint = f"{name} is an action: call it on a drone, e.g. Drone1.{name}(...)"
+            self.error(loc, f"undefined block '{name}'", hint)
+
+    def action(self, call: ActionCall) -> None:
+        spec = self.vocab.actions.get(call.action)
+        if call.drone is None:
+            if call.action != "PauseFor":  # pragma: no cover - the parser only makes bare PauseFor
+                self.error(
+                    call.loc, f"'{call.action}' needs a drone", f"write Drone1.{call.action}(...)"
+                )
+                return
+        elif call.drone == GROUND_STATION:
+            self.error(
+                call.loc,
+                f"the ground station '{GROUND_STATION}' does not fly",
+                "call actions on drones; a bare PauseFor(s) pauses at the ground station",
+            )
+            return
+        elif call.drone in self.scope and self.drone_param(call.drone) is None:
+            self.error(
+                call.loc,
+                f"'{call.drone}' is a number, not a drone",
+                "actions are called on drones or on drone parameters",
+                len(call.drone),
+            )
+            return
+        if spec is None:
+            self.error(
+                call.action_loc or call.loc,
+                f"unknown action '{call.action}'",
+                did_you_mean(call.action, self.vocab.actions),
+                len(call.action),
+            )
+            return
+        if call.drone is not None:
+            dtype = self.drone_param(call.drone) or self.types[call.drone]
+            if call.action not in dtype.actions:
+                self.error(
+                    call.action_loc or call.loc,
+                    f"{call.drone} ({dtype.name}) has no action '{call.action}'",
+                    did_you_mean(call.action, dtype.actions)
+                    if call.action not in self.vocab.actions
+                    else f"{dtype.name} offers: {', '.join(sorted(dtype.actions))}",
+                )
+                return
+        count = len(call.exprs or call.args)
+        if count != len(spec.params):
+            want = ", ".join(spec.params) or "no arguments"
+            self.error(
+                call.loc,
+                f"{call.action} takes {len(spec.params)} argument"
+                f"{'s' if len(spec.params) != 1 else ''}, got {count}",
+                f"{call.action}({want})",
+            )
+            return
+        if call.action not in implemented_actions():
+            self.error(
+                call.action_loc or call.loc,
+                f"no adapter implements action '{call.action}' yet",
+                f"{call.action} is declared by a drone type, but only the uniform API's "
+                "actions run on the drones today (see docs/mission-language.md)",
+                len(call.action),
+            )
+            return
+        if call.exprs:
+            for expr in call.exprs:
+                self.numbers_only(expr, f"the arguments of {call.action}")
+            return
+        for value, param, loc in zip(
+            call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args), strict=False
+        ):
+            problem = argument_problem(call.action, param, value)
+            if problem:
+                self.error(loc, problem)
+
+    def control(self, ctl: Control) -> None:
+        for ref in (ctl.body, ctl.orelse, ctl.exit):
+            if ref is not None:
+                self.block_ref(ref.name, ref.loc)
+                named = self.mission.blocks.get(ref.name)
+                if named is not None and named.params and not ref.args:
+                    self.error(
+                        ref.loc,
+                        f"{ref.name} takes parameters: name it with its arguments",
+                        f"e.g. {ctl.kind}(..., {signature(named)})",
+                        len(ref.name),
+                    )
+                elif ref.args:
+                    self.block_call(BlockCall(ref.name, ref.loc, ref.args))
+        if ctl.count_expr is not None:
+            self.numbers_only(ctl.count_expr, "RepeatFor's count")
+        if ctl.drone is not None:
+            if ctl.drone == GROUND_STATION or self.drone_param(ctl.drone) is not None:
+                pass
+            elif ctl.drone not in self.types:
+                self.error(
+                    ctl.loc, f"unknown drone '{ctl.drone}'", did_you_mean(ctl.drone, self.types)
+                )
+        if ctl.cond is not None:
+            kind = self.expr_type(ctl.cond)
+            if kind == "number":
+                self.error(
+                    ctl.cond.loc,
+                    f"the condition of {ctl.kind} is a number, not true/false",
+                    "compare it, e.g. D1.Z() > 1.5",
+                )
+
+    def expr_type(self, expr: Expr) -> str | None:
+        """'number' or 'bool' (None after an error already reported)."""
+        if isinstance(expr, Num):
+            return "number"
+        if isinstance(expr, Bool):
+            return "bool"
+        if isinstance(expr, Name):
+            return "number" if self.numbers_only(expr, "names in conditions") else None
+        if isinstance(expr, Prop):
+            param_type = self.drone_param(expr.drone)
+            if expr.drone not in self.types and expr.drone != GROUND_STATION and param_type is None:
+                self.error(
+                    expr.loc,
+                    f"unknown drone '{expr.drone}'",
+                    did_you_mean(expr.drone, self.types)
+                    or "declare it: var " + expr.drone + " Quadcopter",
+                )
+                return None
+            dtype = param_type or self.types.get(expr.drone)
+            spec = PROPERTIES.get(expr.name)
+            if spec is None or dtype is None or expr.name not in dtype.properties:
+                offered = dtype.properties if dtype is not None else frozenset()
+                self.error(
+                    expr.loc,
+                    f"{expr.drone} has no property '{expr.name}'",
+                    did_you_mean(expr.name, offered or PROPERTIES),
+                )
+                return None
+            return spec.type
+        if isinstance(expr, Unary):
+            inner = self.expr_type(expr.operand)
+            want = "bool" if expr.op == "!" else "number"
+            if inner is not None and inner != want:
+                self.error(
+                    expr.loc, f"'{expr.op}' needs a {'condition' if want == 'bool' else 'number'}"
+                )
+                return None
+            return want
+        if isinstance(expr, Binary):
+            left, right = self.expr_type(expr.left), self.expr_type(expr.right)
+            if left is None or right is None:
+                return None
+            if expr.op in _LOGIC:
+                if left != "bool" or right != "bool":
+                    self.error(
+                        expr.loc,
+                        f"'{expr.op}' joins conditions, not numbers",
+                        "compare the numbers first, e.g. D1.X() > 1 && D1.Y() < 2",
+                    )
+                    return None
+                return "bool"
+            if expr.op in _EQUALITY:
+                if left != right:
+                    self.error(expr.loc, f"'{expr.op}' compares a number with a condition")
+                    return None
+                return "bool"
+            if left != "number" or right != "number":
+                self.error(expr.loc, f"'{expr.op}' needs numbers on both sides")
+                return None
+            return "bool" if expr.op in _COMPARE else "number"
+        return None  # pragma: no cover
 
 
 def _shorten(cycle: list[str]) -> list[str]:
@@ -396,7 +484,7 @@ _RANGES: dict[str, tuple[float, float, str]] = {
 }
 
 
-def _argument_problem(action: str, param: str, value: float) -> str:
+def argument_problem(action: str, param: str, value: float) -> str:
     """What is wrong with one argument value ("" if nothing)."""
     if not math.isfinite(value):  # pragma: no cover - the parser refuses these
         return f"{action}'s {param} must be a finite number"
@@ -433,6 +521,14 @@ def props_read(expr: Expr | None) -> list[Prop]:
 def collect_diagnostics(mission: Mission) -> list[Diagnostic]:
     """Every error and warning the checks find (without raising)."""
     return _Checker(mission).run()
+
+
+def instance_warnings(mission: Mission) -> list[Diagnostic]:
+    """The checks that need every call expanded (drones known): two motions at once."""
+    checker = _Checker(mission)
+    checker.diags = []
+    checker.par_motions()
+    return checker.diags
 
 
 def check_mission(mission: Mission) -> list[Diagnostic]:

@@ -9,7 +9,7 @@ those are our mistakes, not the user's, and are reported differently.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -25,6 +25,8 @@ class SourceLocation:
 
     line: int
     col: int
+    # The library file the location is in; "" for the mission file itself.
+    file: str = field(default="", compare=False)
 
     def __str__(self) -> str:
         return f"{self.line}:{self.col}"
@@ -63,7 +65,7 @@ class Diagnostic:
 
     def render_line(self, path: str, line: str | None) -> str:
         """As :meth:`render`, given the text of the diagnostic's line (None: no excerpt)."""
-        out = [f"{path}:{self.loc}: {self.severity}: {self.message}"]
+        out = [f"{self.loc.file or path}:{self.loc}: {self.severity}: {self.message}"]
         if line is not None:
             raw, first, last = _excerpt(line, self.loc.col, self.end_col)
             text = raw.expandtabs(4)
@@ -102,20 +104,35 @@ def _line_of(lines: list[str], number: int) -> str | None:
     return lines[number - 1] if 1 <= number <= len(lines) else None
 
 
-def with_source_lines(diagnostics: list[Diagnostic], source: str) -> list[Diagnostic]:
-    """The diagnostics, each carrying the text of its line (one split of the source)."""
-    lines = split_lines(source)
-    return [
-        d if d.source_line is not None else replace(d, source_line=_line_of(lines, d.loc.line))
-        for d in diagnostics
-    ]
+def with_source_lines(
+    diagnostics: list[Diagnostic], source: str, files: Mapping[str, str] | None = None
+) -> list[Diagnostic]:
+    """The diagnostics, each carrying the text of its line (one split of each file).
+
+    ``files`` holds the text of the library files a location may be in.
+    """
+    split: dict[str, list[str]] = {"": split_lines(source)}
+    out = []
+    for d in diagnostics:
+        if d.source_line is None:
+            name = d.loc.file
+            if name not in split:
+                split[name] = split_lines((files or {}).get(name, ""))
+            d = replace(d, source_line=_line_of(split[name], d.loc.line))
+        out.append(d)
+    return out
 
 
 def render_diagnostics(diagnostics: Iterable[Diagnostic], path: str, source: str | None) -> str:
     """Every diagnostic rendered, one after another; linear in the source and their number."""
     lines = split_lines(source) if source is not None else None
     return "\n".join(
-        d.render_line(path, None if lines is None else _line_of(lines, d.loc.line))
+        d.render_line(
+            path,
+            d.source_line
+            if d.loc.file
+            else (None if lines is None else _line_of(lines, d.loc.line)),
+        )
         for d in diagnostics
     )
 
@@ -124,7 +141,8 @@ class MissionError(Exception):
     """A mission has errors; ``diagnostics`` holds every one found (and any warnings)."""
 
     def __init__(self, diagnostics: list[Diagnostic]) -> None:
-        self.diagnostics = sorted(diagnostics, key=lambda d: (d.loc, d.severity))
+        # The mission file's own problems first, then each library file's.
+        self.diagnostics = sorted(diagnostics, key=lambda d: (d.loc.file, d.loc, d.severity))
         # Set by the parser when later phases may still check what it could read.
         self.partial: object | None = None
         self.fatal = True

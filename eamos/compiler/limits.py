@@ -42,6 +42,14 @@ MAX_REPEAT = 1_000_000
 MAX_DISTANCE_M = 10_000.0
 #: Longest pause in seconds (one day).
 MAX_DURATION_S = 86_400.0
+#: Most drone types one mission declares (with its libraries).
+MAX_DRONE_TYPES = 200
+#: Most libraries one mission imports, directly or through other libraries.
+MAX_LIBRARIES = 64
+#: Most .go files in one library folder.
+MAX_LIBRARY_FILES = 100
+#: Most parameters of one block.
+MAX_PARAMS = 32
 
 # Sizes above this are only "very large": no need to carry 2^100000 around.
 _SATURATE = 10**15

@@ -8,24 +8,24 @@ control structure to use instead.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Literal
 
 from ..program.uniform import ACTIONS
 from .errors import Diagnostic, MissionError, SourceLocation
 from .limits import MAX_REPEAT, MAX_SOURCE_BYTES
-from .parse_expressions import Node, NodeReader, text
+from .parse_declarations import DeclarationReader
+from .parse_expressions import Node, text
 from .source import SourceText
 from .syntax import (
     CONTROL_KINDS,
-    ActionCall,
     Block,
-    BlockCall,
-    BlockRef,
     Control,
     DroneDecl,
     Expr,
     Mission,
     Statement,
+    TypeDecl,
 )
 
 __all__ = ["MAX_SOURCE_BYTES", "parse_mission", "parse_partial", "parse_with_warnings"]
@@ -98,11 +98,13 @@ def _go_parser() -> Any:
     return tree_sitter.Parser(tree_sitter.Language(tree_sitter_go.language()))
 
 
-class _Reader(NodeReader):
+class _Reader(DeclarationReader):
     """Walks one tree-sitter tree, collecting diagnostics instead of stopping."""
 
-    def __init__(self, source: str, source_text: SourceText) -> None:
-        super().__init__(source_text)
+    def __init__(
+        self, source: str, source_text: SourceText, file: str = "", package: str = ""
+    ) -> None:
+        super().__init__(source_text, file, package)
         self.original = source
         self.incomplete: set[str] = set()
 
@@ -113,9 +115,11 @@ class _Reader(NodeReader):
         blocks: dict[str, Block] = {}
         drones: dict[str, DroneDecl] = {}
         order: list[str] = []
+        imports = self._imports(root)
+        types: dict[str, TypeDecl] = {}
         for node in root.named_children:
             kind = node.type
-            if kind == "comment" or kind == "ERROR":
+            if kind in ("comment", "ERROR", "import_declaration"):
                 continue
             if kind == "package_clause":
                 ident = next(
@@ -148,9 +152,19 @@ class _Reader(NodeReader):
                     continue
                 blocks[block.name] = block
                 order.append(block.name)
-            elif kind == "import_declaration":
-                self.error(node, "imports are not supported in missions", "remove the import")
-            elif kind in ("type_declaration", "method_declaration", "const_declaration"):
+            elif kind == "type_declaration":
+                for tdecl in self._types(node):
+                    if tdecl.name in types:
+                        self.diags.append(
+                            Diagnostic(
+                                "error",
+                                tdecl.loc,
+                                f"drone type '{tdecl.name}' is declared twice",
+                                f"first declared at line {types[tdecl.name].loc.line}",
+                            )
+                        )
+                    types[tdecl.name] = tdecl
+            elif kind in ("method_declaration", "const_declaration"):
                 self.error(
                     node,
                     f"a Go {kind.split('_')[0]} declaration is not supported here",
@@ -162,8 +176,12 @@ class _Reader(NodeReader):
                     "unexpected top-level statement",
                     "a mission has only drone declarations (var) and func blocks",
                 )
-        entry = "INIT" if "INIT" in blocks else (order[0] if order else "")
-        if not blocks and not any(d.severity == "error" for d in self.diags):
+        # A block with parameters cannot start the mission: the first one without does.
+        plain = [name for name in order if not blocks[name].params]
+        entry = "INIT" if "INIT" in blocks else (plain or order or [""])[0]
+        if self.prefix:
+            entry = ""  # a library is not run by itself
+        elif not blocks and not any(d.severity == "error" for d in self.diags):
             self.diags.append(
                 Diagnostic(
                     "error",
@@ -179,6 +197,8 @@ class _Reader(NodeReader):
             entry=entry,
             source=self.original,
             incomplete_blocks=frozenset(self.incomplete),
+            imports=tuple(imports),
+            types=types,
         )
 
     def _var_specs(self, node: Node) -> list[DroneDecl]:
@@ -196,14 +216,26 @@ class _Reader(NodeReader):
                     "write: var Drone1 DroneType1",
                 )
                 continue
-            if type_node.type != "type_identifier":
+            if type_node.type not in ("type_identifier", "qualified_type"):
                 self.error(
                     type_node, "a drone type is a plain name", "write: var Drone1 Quadcopter"
                 )
                 continue
-            out.extend(
-                DroneDecl(text(n), text(type_node), self.loc(n), self.loc(type_node)) for n in names
+            if self.prefix:
+                self.error(
+                    spec,
+                    "a library declares no drones",
+                    "give its blocks drone parameters: func SEQ_Hop(d Quadcopter) { ... }",
+                )
+                continue
+            kind = (
+                text(type_node)
+                if type_node.type == "type_identifier"
+                else self.type_name(type_node)
             )
+            if kind is None:
+                continue
+            out.extend(DroneDecl(text(n), kind, self.loc(n), self.loc(type_node)) for n in names)
         return out
 
     def _function(self, node: Node) -> Block | None:
@@ -211,13 +243,8 @@ class _Reader(NodeReader):
         if name_node is None:
             return None
         name = text(name_node)
-        params = node.child_by_field_name("parameters")
-        if params is not None and params.named_child_count:
-            self.error(
-                params,
-                f"block '{name}' takes no parameters",
-                "missions have no variables; use literal values in the calls",
-            )
+        params = self._params(node.child_by_field_name("parameters"), name) or ()
+        self.param_names = frozenset(p.name for p in params)
         if node.child_by_field_name("result") is not None:
             self.error(
                 node.child_by_field_name("result"),
@@ -244,7 +271,14 @@ class _Reader(NodeReader):
                     statements.append(stmt)
                 else:
                     self.incomplete.add(name)
-        return Block(name=name, mode=mode, statements=tuple(statements), loc=self.loc(name_node))
+        self.param_names = frozenset()
+        return Block(
+            name=self.qualify(name),
+            mode=mode,
+            statements=tuple(statements),
+            loc=self.loc(name_node),
+            params=params,
+        )
 
     def _statement_nodes(self, body: Node) -> list[Node]:
         out: list[Node] = []
@@ -299,14 +333,7 @@ class _Reader(NodeReader):
                     f"write Drone1.{name}(...)",
                 )
                 return None
-            if args:
-                self.error(
-                    args_node,
-                    f"block '{name}' takes no arguments",
-                    "blocks are called without arguments: " + f"{name}()",
-                )
-                return None
-            return BlockCall(name, self.loc(function))
+            return self._block_call(self.qualify(name), call, args, function)
         if function.type == "selector_expression":
             operand = function.child_by_field_name("operand")
             field = function.child_by_field_name("field")
@@ -316,6 +343,8 @@ class _Reader(NodeReader):
                 )
                 return None
             drone, action = text(operand), text(field)
+            if drone in self.packages:
+                return self._block_call(f"{drone}.{action}", call, args, function)
             if action in ("PauseWhile", "PauseUntil"):
                 return self._control(action, drone, call, args)
             return self._action_call(drone, action, call, args, field)
@@ -325,29 +354,6 @@ class _Reader(NodeReader):
             "e.g. SEQ_Fly(), Drone1.Takeoff(1.5)",
         )
         return None
-
-    def _action_call(
-        self, drone: str | None, action: str, call: Node, args: list[Node], name_node: Node
-    ) -> ActionCall | None:
-        """An action with literal number arguments (every bad argument is reported)."""
-        values: list[float] = []
-        locs: list[SourceLocation] = []
-        ok = True
-        for arg in args:
-            if self.too_deep(arg, "this argument"):
-                ok = False
-                continue
-            value = self.number(arg)
-            if value is None:
-                ok = False
-                continue
-            values.append(value)
-            locs.append(self.loc(arg))
-        if not ok:
-            return None
-        return ActionCall(
-            drone, action, tuple(values), self.loc(call), tuple(locs), self.loc(name_node)
-        )
 
     def _control(
         self, kind: str, drone: str | None, call: Node, args: list[Node]
@@ -380,11 +386,16 @@ class _Reader(NodeReader):
             return None
         cond: Expr | None = None
         count: int | None = None
+        count_expr: Expr | None = None
         if self.too_deep(args[0], "this condition" if needs_cond else "this count"):
             return None
         if needs_cond:
             cond = self.expr(args[0])
             if cond is None:
+                return None
+        elif _reads_names(args[0]):
+            count_expr = self.const_expr(args[0])
+            if count_expr is None:
                 return None
         else:
             value = self.number(args[0])
@@ -398,25 +409,34 @@ class _Reader(NodeReader):
                 )
                 return None
             count = int(value)
-        refs: list[BlockRef] = []
-        for arg in args[1:]:
-            if arg.type == "identifier":
-                refs.append(BlockRef(text(arg), self.loc(arg)))
-            elif arg.type == "call_expression":
-                fn = arg.child_by_field_name("function")
-                name = text(fn) if fn is not None else "?"
-                self.error(
-                    arg, f"name the block without calling it: {name}, not {name}()", f"write {sig}"
-                )
-                return None
-            else:
-                self.error(arg, f"{kind} expects a block name here", f"write {sig}")
-                return None
+        refs = self.control_refs(kind, sig, args[1:])
+        if refs is None:
+            return None
         body = refs[0] if refs else None
         rest = refs[1] if len(refs) > 1 else None
         if kind == "If":
             return Control("If", loc, cond=cond, body=body, orelse=rest)  # type: ignore[arg-type]
-        return Control(kind, loc, cond=cond, count=count, body=body, exit=rest, drone=drone)  # type: ignore[arg-type]
+        return Control(
+            kind,  # type: ignore[arg-type]
+            loc,
+            cond=cond,
+            count=count,
+            body=body,
+            exit=rest,
+            drone=drone,
+            count_expr=count_expr,
+        )
+
+
+def _reads_names(node: Node) -> bool:
+    """True if an argument's text names something (a parameter), not only numbers."""
+    stack = [node]
+    while stack:
+        current = stack.pop()
+        if current.type == "identifier":
+            return True
+        stack.extend(current.named_children)
+    return False
 
 
 def _count(lo: int, hi: int) -> str:
@@ -434,15 +454,34 @@ def parse_mission(source: str) -> Mission:
     return mission
 
 
-def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
-    """Parse mission text; return the mission and the warnings, or raise MissionError."""
+def parse_with_warnings(
+    source: str, file: str = "", package: str = ""
+) -> tuple[Mission, list[Diagnostic]]:
+    """Parse mission text; return the mission and the warnings, or raise MissionError.
+
+    For a library file, ``file`` is its path (every location carries it) and
+    ``package`` its package name (its blocks and types are named ``package.Name``).
+    """
+    try:
+        return _parse(source, file, package)
+    except MissionError as exc:
+        if file:
+            exc.diagnostics = [
+                d if d.loc.file else replace(d, loc=replace(d.loc, file=file))
+                for d in exc.diagnostics
+            ]
+        raise
+
+
+def _parse(source: str, file: str, package: str) -> tuple[Mission, list[Diagnostic]]:
+    what = "library file" if file else "mission file"
     if not source.strip():
         raise MissionError(
             [
                 Diagnostic(
                     "error",
                     SourceLocation(1, 1),
-                    "the mission file is empty",
+                    f"the {what} is empty",
                     "write at least one block, e.g. func SEQ_Main() { Drone1.Arm() }",
                 )
             ]
@@ -453,7 +492,7 @@ def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
                 Diagnostic(
                     "error",
                     SourceLocation(1, 1),
-                    "the mission file is not text (it contains NUL bytes)",
+                    f"the {what} is not text (it contains NUL bytes)",
                     "give the path of a .go mission file",
                 )
             ]
@@ -466,13 +505,13 @@ def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
                 Diagnostic(
                     "error",
                     SourceLocation(1, 1),
-                    f"the mission file is too large ({len(encoded)} bytes)",
+                    f"the {what} is too large ({len(encoded)} bytes)",
                     f"missions are limited to {MAX_SOURCE_BYTES} bytes",
                 )
             ]
         )
     tree = _go_parser().parse(encoded)
-    reader = _Reader(source, source_text)
+    reader = _Reader(source, source_text, file, package)
     reader.syntax_errors(tree.root_node)
     reader.long_names(tree.root_node)
     syntax_broken = any(d.severity == "error" for d in reader.diags)
@@ -486,7 +525,9 @@ def parse_with_warnings(source: str) -> tuple[Mission, list[Diagnostic]]:
     return mission, [d for d in reader.diags if d.severity == "warning"]
 
 
-def parse_partial(source: str) -> tuple[Mission, list[Diagnostic], bool]:
+def parse_partial(
+    source: str, file: str = "", package: str = ""
+) -> tuple[Mission, list[Diagnostic], bool]:
     """Parse as far as possible: the mission, every diagnostic, and whether it is unusable.
 
     Unsupported Go statements are dropped with an error, but the rest of the
@@ -495,7 +536,7 @@ def parse_partial(source: str) -> tuple[Mission, list[Diagnostic], bool]:
     unusable: checking a broken tree would only add misleading errors.
     """
     try:
-        mission, warnings = parse_with_warnings(source)
+        mission, warnings = parse_with_warnings(source, file, package)
         return mission, warnings, False
     except MissionError as exc:
         if exc.partial is None:

@@ -18,7 +18,7 @@ from ..program.uniform import PROPERTIES
 from .errors import Diagnostic, SourceLocation
 from .limits import MAX_EXPRESSION_DEPTH, MAX_NAME_BYTES, MAX_NAME_CHARS, name_error
 from .source import SourceText, display_line, split_lines
-from .syntax import Binary, Bool, Expr, Num, Prop, Unary
+from .syntax import Binary, Bool, Expr, Name, Num, Prop, Unary
 
 Node = Any  # tree_sitter.Node; typed loosely so the module imports without it
 
@@ -56,15 +56,18 @@ def nesting_depth(node: Node, limit: int) -> int:
 class NodeReader:
     """Locations, diagnostics, numbers and conditions of one tree-sitter tree."""
 
-    def __init__(self, source: SourceText) -> None:
+    def __init__(self, source: SourceText, file: str = "") -> None:
         self.source = source
+        self.file = file
         self.diags: list[Diagnostic] = []
+        # The parameters of the block being read: names its conditions may use.
+        self.param_names: frozenset[str] = frozenset()
 
     # -- locations and diagnostics ------------------------------------------
 
     def loc(self, node: Node) -> SourceLocation:
         row, byte_col = node.start_point
-        return SourceLocation(row + 1, self.source.column(row, byte_col))
+        return SourceLocation(row + 1, self.source.column(row, byte_col), self.file)
 
     def end_col(self, node: Node) -> int | None:
         if node.end_point.row != node.start_point.row:
@@ -192,6 +195,54 @@ class NodeReader:
         )
         return None
 
+    def const_expr(self, node: Node) -> Expr | None:
+        """An argument: numbers and names joined by ``+ - * /``, unary minus, parentheses.
+
+        Names are block parameters (or drones, for a block's drone parameters);
+        what they stand for is checked later.  Call :meth:`too_deep` first.
+        """
+        if node is None:
+            return None
+        kind = node.type
+        if kind in ("int_literal", "float_literal"):
+            value = self.number(node)
+            return None if value is None else Num(value, self.loc(node))
+        if kind == "identifier":
+            return Name(text(node), self.loc(node))
+        if kind == "parenthesized_expression":
+            inner = [c for c in node.named_children if c.type != "comment"]
+            return self.const_expr(inner[0]) if len(inner) == 1 else None
+        if kind == "unary_expression":
+            op = text(node.child_by_field_name("operator"))
+            operand = node.child_by_field_name("operand")
+            if op in ("+", "-") and operand is not None:
+                inner_expr = self.const_expr(operand)
+                if inner_expr is None or op == "+":
+                    return inner_expr
+                return Unary("-", inner_expr, self.loc(node))
+        if kind == "binary_expression":
+            operator = node.child_by_field_name("operator")
+            op = text(operator)
+            if op in ("+", "-", "*", "/"):
+                left = self.const_expr(node.child_by_field_name("left"))
+                right = self.const_expr(node.child_by_field_name("right"))
+                if left is None or right is None:
+                    return None
+                return Binary(op, left, right, self.loc(operator))
+        what = {
+            "interpreted_string_literal": "a string",
+            "raw_string_literal": "a string",
+            "true": "a boolean",
+            "false": "a boolean",
+        }.get(kind, "an expression")
+        self.error(
+            node,
+            f"action arguments are literal numbers, not {what}",
+            "write the value itself, e.g. Drone1.Takeoff(1.5), or an expression of numbers "
+            "and the block's parameters with + - * /",
+        )
+        return None
+
     # -- conditions ---------------------------------------------------------
 
     def expr(self, node: Node | None) -> Expr | None:
@@ -216,6 +267,8 @@ class NodeReader:
             return self._property(node, loc)
         if kind == "identifier":
             name = text(node)
+            if name in self.param_names:
+                return Name(name, loc)
             hint = (
                 f"read it from a drone: Drone1.{name}()"
                 if name in PROPERTIES

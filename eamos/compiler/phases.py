@@ -20,13 +20,15 @@ import networkx as nx
 from .. import __version__
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION
-from .check import collect_diagnostics, drone_types
+from .check import collect_diagnostics, drone_types, instance_warnings
 from .dependency_graph import fleet, mdg_stats, slice_dependency_graphs
 from .errors import Diagnostic, MissionError, SourceLocation, with_source_lines
 from .execution_graph import build_execution_graph
+from .instantiate import instantiate
+from .libraries import load_libraries
 from .mission_tree import build_mission_tree
 from .parse import parse_partial
-from .syntax import Mission
+from .syntax import LibraryFile, Mission
 from .synthesis import synthesize_program
 
 
@@ -51,9 +53,12 @@ class CompiledMission:
         }
 
 
-def mission_identity(source: str) -> str:
-    """A short, stable id of a mission's text and the compiler that compiled it."""
-    digest = hashlib.sha256(f"eamos {__version__}\n{source}".encode()).hexdigest()
+def mission_identity(source: str, libraries: tuple[LibraryFile, ...] = ()) -> str:
+    """A short, stable id of a mission's text (and libraries) and the compiler that compiled it."""
+    text = f"eamos {__version__}\n{source}"
+    if libraries:  # a library's change changes the mission
+        text += "".join(f"\n{f.package} {f.sha256}" for f in libraries)
+    digest = hashlib.sha256(text.encode()).hexdigest()
     return digest[:16]
 
 
@@ -77,34 +82,54 @@ def compile_mission(source: str, source_file: str = "<mission>") -> CompiledMiss
             gc.enable()
 
 
-def check_source(source: str) -> tuple[Mission, list[Diagnostic]]:
+def _mission_dir(source_file: str) -> Path | None:
+    return None if source_file in ("", "<mission>") else Path(source_file).parent
+
+
+def check_source(source: str, source_file: str = "<mission>") -> tuple[Mission, list[Diagnostic]]:
     """The phases that find an author's mistakes: parse and check, no graph built.
 
     Returns the checked syntax and its warnings; raises :class:`MissionError`
     with every error.  :func:`compile_mission` starts with it, and the language
     server runs it alone on every edit (the graph phases cost most of the time
     of a large mission and find only one rare thing more: too many
-    synchronisation arcs).
+    synchronisation arcs).  ``source_file`` locates the libraries it imports.
     """
+    return _check(source, source_file)[1:]
+
+
+def _check(source: str, source_file: str) -> tuple[Mission, Mission, list[Diagnostic]]:
+    """The mission as expanded (no parameters left), as written, and its warnings."""
     mission, parsed, fatal = parse_partial(source)
     if fatal:
         raise MissionError(parsed)
+    loaded = load_libraries(mission, _mission_dir(source_file))
+    if any(d.severity == "error" for d in loaded.diagnostics):
+        # Checking calls into a library that did not load would only add noise.
+        raise MissionError(with_source_lines(parsed + loaded.diagnostics, source, loaded.texts))
+    mission = loaded.mission
     checked = collect_diagnostics(mission)
-    if any(d.severity == "error" for d in parsed + checked):
-        raise MissionError(parsed + checked)
+    found = with_source_lines(parsed + loaded.diagnostics + checked, source, loaded.texts)
+    if any(d.severity == "error" for d in found):
+        raise MissionError(found)
     if not mission.entry:
         raise MissionError([Diagnostic("error", SourceLocation(1, 1), "the mission has no blocks")])
-    return mission, parsed + checked
+    expanded, problems = instantiate(mission)
+    if problems:
+        raise MissionError(with_source_lines(problems, source, loaded.texts))
+    if expanded is not mission:
+        found += with_source_lines(instance_warnings(expanded), source, loaded.texts)
+    return expanded, mission, found
 
 
 def _compile(source: str, source_file: str) -> CompiledMission:
-    mission, warnings = check_source(source)
+    mission, _, warnings = _check(source, source_file)
     if mission.name == "mission" and source_file not in ("", "<mission>"):
         mission = dataclasses.replace(mission, name=Path(source_file).stem)
     amt = build_mission_tree(mission)
     meg = build_execution_graph(amt)
     mdgs = slice_dependency_graphs(meg)
-    mission_id = mission_identity(source)
+    mission_id = mission_identity(source, mission.libraries)
     participants = fleet(meg)
     types = drone_types(mission)
     programs = {
@@ -114,6 +139,7 @@ def _compile(source: str, source_file: str) -> CompiledMission:
             fleet=participants,
             drone_type=types[name].name if name in types else "",
             source_file=Path(source_file).name,
+            libraries=_libraries_used(mission, mdg),
         )
         for name, mdg in mdgs.items()
     }
@@ -127,6 +153,22 @@ def _compile(source: str, source_file: str) -> CompiledMission:
         warnings=tuple(warnings),
         source_file=source_file,
     )
+
+
+def _libraries_used(mission: Mission, mdg: nx.DiGraph) -> tuple[tuple[str, str], ...]:
+    """(path, sha256) of the library files whose blocks this drone's own nodes come from.
+
+    Per drone, so that a roll-out's partial redeploy counts a library's change as a
+    change of exactly the drones that run something of it.
+    """
+    if not mission.libraries:
+        return ()
+    files = set()
+    for _, attrs in mdg.nodes(data=True):
+        block = mission.blocks.get(attrs.get("block", "")) if attrs.get("native") else None
+        if block is not None and block.loc.file:
+            files.add(block.loc.file)
+    return tuple((f.path, f.sha256) for f in mission.libraries if f.path in files)
 
 
 def compile_file(path: Path) -> CompiledMission:

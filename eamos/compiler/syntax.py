@@ -50,7 +50,15 @@ class Binary:
     loc: SourceLocation
 
 
-Expr = Num | Bool | Prop | Unary | Binary
+@dataclass(frozen=True)
+class Name:
+    """A block parameter read by name (``dist_m``, or a drone parameter ``d``)."""
+
+    name: str
+    loc: SourceLocation
+
+
+Expr = Num | Bool | Prop | Unary | Binary | Name
 
 
 # -- statements ---------------------------------------------------------------
@@ -66,14 +74,20 @@ class ActionCall:
     loc: SourceLocation
     arg_locs: tuple[SourceLocation, ...] = ()
     action_loc: SourceLocation | None = None  # where the action's name is, for the caret
+    # Arguments that read block parameters, folded to ``args`` when the block is expanded.
+    exprs: tuple[Expr, ...] = ()
 
 
 @dataclass(frozen=True)
 class BlockCall:
-    """``SEQ_Start()``: run another block here."""
+    """``SEQ_Start()`` or ``lib.SEQ_Hop(D1, 5)``: run another block here.
+
+    ``args`` are drone names (:class:`Name`) and constant number expressions.
+    """
 
     name: str
     loc: SourceLocation
+    args: tuple[Expr, ...] = ()
 
 
 ControlKind = Literal[
@@ -105,10 +119,14 @@ CONTROL_KINDS: tuple[str, ...] = (
 
 @dataclass(frozen=True)
 class BlockRef:
-    """A block named as an argument of a control structure (Body, Then, Else, Exit)."""
+    """A block named as an argument of a control structure (Body, Then, Else, Exit).
+
+    A block with parameters is named with its arguments: ``SEQ_Leg(d, 5)``.
+    """
 
     name: str
     loc: SourceLocation
+    args: tuple[Expr, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -119,6 +137,8 @@ class Control:
     loc: SourceLocation
     cond: Expr | None = None
     count: int | None = None  # RepeatFor
+    # RepeatFor's count when it reads a block parameter (folded when the block is expanded).
+    count_expr: Expr | None = None
     body: BlockRef | None = None  # Body or Then
     orelse: BlockRef | None = None  # Else
     exit: BlockRef | None = None  # Exit
@@ -129,6 +149,16 @@ Statement = ActionCall | BlockCall | Control
 
 
 @dataclass(frozen=True)
+class Param:
+    """A block or action parameter: ``dist_m float64`` or ``d Quadcopter``."""
+
+    name: str
+    type: str
+    loc: SourceLocation
+    type_loc: SourceLocation | None = None
+
+
+@dataclass(frozen=True)
 class Block:
     """One ``func``: SEQ_ blocks run in order, PAR_ blocks in parallel."""
 
@@ -136,6 +166,43 @@ class Block:
     mode: Literal["SEQ", "PAR"]
     statements: tuple[Statement, ...]
     loc: SourceLocation
+    params: tuple[Param, ...] = ()
+
+
+@dataclass(frozen=True)
+class MethodDecl:
+    """An action a declared drone type adds: ``Gimbal(pitch_deg float64)``."""
+
+    name: str
+    params: tuple[Param, ...]
+    loc: SourceLocation
+
+
+@dataclass(frozen=True)
+class TypeDecl:
+    """``type Inspector interface { Quadcopter; TakePhoto() }``: a drone type."""
+
+    name: str
+    embeds: tuple[tuple[str, SourceLocation], ...]
+    methods: tuple[MethodDecl, ...]
+    loc: SourceLocation
+
+
+@dataclass(frozen=True)
+class Import:
+    """``import "inspection"``: a library folder, and the package name it gives."""
+
+    path: str
+    loc: SourceLocation
+
+
+@dataclass(frozen=True)
+class LibraryFile:
+    """A library file a mission was built from, and the SHA-256 of its bytes."""
+
+    path: str
+    package: str
+    sha256: str
 
 
 @dataclass(frozen=True)
@@ -159,3 +226,8 @@ class Mission:
     source: str = field(repr=False, compare=False)
     # Blocks that lost statements to parse errors: an "empty block" there is a consequence.
     incomplete_blocks: frozenset[str] = frozenset()
+    imports: tuple[Import, ...] = ()
+    # Declared drone types, by name (``lib.Name`` for a library's types).
+    types: dict[str, TypeDecl] = field(default_factory=dict, hash=False)
+    # The library files merged in (their blocks are named ``package.Block``).
+    libraries: tuple[LibraryFile, ...] = ()

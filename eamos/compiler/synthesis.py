@@ -45,7 +45,13 @@ def _node(key: str, attrs: dict[str, Any]) -> ProgramNode:
 
 
 def synthesize_program(
-    mdg: nx.DiGraph, *, mission_id: str, fleet: list[str], drone_type: str, source_file: str = ""
+    mdg: nx.DiGraph,
+    *,
+    mission_id: str,
+    fleet: list[str],
+    drone_type: str,
+    source_file: str = "",
+    libraries: tuple[tuple[str, str], ...] = (),
 ) -> DroneProgram:
     """Turn one drone's MDG into its drone mission program."""
     drone = mdg.graph["drone"]
@@ -74,4 +80,5 @@ def synthesize_program(
         telemetry_from=tuple(reads),
         source_file=source_file,
         compiler=__version__,
+        libraries=libraries,
     )

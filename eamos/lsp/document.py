@@ -68,7 +68,13 @@ def _extent(index: LineIndex, d: Diagnostic) -> Span:
 
 def _placed(text: str, diagnostics: list[Diagnostic]) -> list[Finding]:
     index = LineIndex(text)
-    return [Finding(d.severity, _extent(index, d), d.message, d.hint) for d in diagnostics]
+    return [
+        Finding(d.severity, _extent(index, d), d.message, d.hint)
+        if not d.loc.file
+        # A problem in an imported library file: shown at the top, saying where it is.
+        else Finding(d.severity, Span(1, 1, 2), f"{d.loc.file}:{d.loc}: {d.message}", d.hint)
+        for d in diagnostics
+    ]
 
 
 def _internal(exc: BaseException) -> list[Finding]:
@@ -76,13 +82,14 @@ def _internal(exc: BaseException) -> list[Finding]:
     return [Finding("error", Span(1, 1, 2), f"internal compiler error: {exc!r}", "")]
 
 
-def findings(text: str) -> list[Finding]:
+def findings(text: str, path: str = "<mission>") -> list[Finding]:
     """Every error and warning ``eamos compile`` reports for ``text``, in its order.
 
     The whole compiler runs (:func:`eamos.compiler.compile_mission`): the reference answer.
+    ``path`` is the mission file's (its folder is searched first for imported libraries).
     """
     try:
-        compiled = compile_mission(text)
+        compiled = compile_mission(text, path)
         diagnostics = list(compiled.warnings)
     except MissionError as exc:
         diagnostics = list(exc.diagnostics)
@@ -91,7 +98,7 @@ def findings(text: str) -> list[Finding]:
     return _placed(text, diagnostics)
 
 
-def checked_findings(text: str) -> list[Finding]:
+def checked_findings(text: str, path: str = "<mission>") -> list[Finding]:
     """The findings of the compiler's checking phases: :func:`findings` without building graphs.
 
     :func:`eamos.compiler.check_source` is the first phase of
@@ -102,7 +109,7 @@ def checked_findings(text: str) -> list[Finding]:
     tests/lsp/test_analysis.py checks both agree on every mission and on broken prefixes.
     """
     try:
-        diagnostics = check_source(text)[1]
+        diagnostics = check_source(text, path)[1]
     except MissionError as exc:
         diagnostics = list(exc.diagnostics)
     except (CompilerBug, RecursionError, MemoryError) as exc:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import functools
 import logging
+import urllib.parse
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
@@ -184,17 +185,26 @@ def publish(server: MissionServer, uri: str, version: int | None, found: list[Fi
     )
 
 
+def mission_path(uri: str) -> str:
+    """The file a ``file:`` URI names (its folder is where imports are looked up first)."""
+    parsed = urllib.parse.urlparse(uri)
+    if parsed.scheme != "file":
+        return "<mission>"
+    return urllib.parse.unquote(parsed.path) or "<mission>"
+
+
 async def check(server: MissionServer, uri: str, version: int | None) -> None:
     """Publish the checking phases' findings now, the whole compile's when it differs."""
     text = server.text(uri)
     generation = server.generation.get(uri, 0) + 1
     server.generation[uri] = generation
-    quick = checked_findings(text)
+    path = mission_path(uri)
+    quick = checked_findings(text, path)
     publish(server, uri, version, quick)
 
     def whole() -> list[Finding] | None:
         # Skipped when the author typed again meanwhile: a newer check is queued.
-        return findings(text) if server.generation.get(uri) == generation else None
+        return findings(text, path) if server.generation.get(uri) == generation else None
 
     full = await asyncio.get_running_loop().run_in_executor(server.compiles, whole)
     if full is not None and full != quick and server.generation.get(uri) == generation:

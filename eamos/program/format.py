@@ -20,6 +20,11 @@ Document fields (all required):
 ``source_file``   the mission file it was compiled from
 ``compiler``      the eamos version that compiled it
 
+Optional field (absent when empty, so programs without it load and check as before):
+
+``libraries``     the library files the mission was built from, as a list of
+                  ``{"path", "sha256"}`` (the SHA-256 of each file's bytes)
+
 Node object: ``key`` (``n<id>`` or ``n<id>@<drone>`` for fork replicas),
 ``meg`` (MEG id), ``kind``, ``drone`` (executing drone), ``native`` (runs
 here; otherwise a proxy of a node on another drone), ``label``, and where
@@ -116,6 +121,8 @@ class DroneProgram:
     telemetry_from: tuple[str, ...] = ()
     source_file: str = ""
     compiler: str = ""
+    # (path, sha256) of each library file the mission was built from.
+    libraries: tuple[tuple[str, str], ...] = ()
 
     def body(self) -> dict[str, Any]:
         """The JSON document without its checksum."""
@@ -131,6 +138,10 @@ class DroneProgram:
                     {"src": a.src, "dst": a.dst, "kind": a.kind, "external": a.external}
                     for a in value
                 ]
+            elif f.name == "libraries":
+                if not value:
+                    continue  # absent: the document of a mission without libraries is unchanged
+                value = [{"path": p, "sha256": h} for p, h in value]
             elif isinstance(value, tuple):
                 value = list(value)
             doc[f.name] = value
@@ -304,7 +315,21 @@ def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
         telemetry_from=tuple(doc.get("telemetry_from", ())),
         source_file=str(doc.get("source_file", "")),
         compiler=str(doc.get("compiler", "")),
+        libraries=_libraries(doc.get("libraries", []), where),
     )
+
+
+def _libraries(raw: Any, where: str) -> tuple[tuple[str, str], ...]:
+    """The optional ``libraries`` list: ``{"path", "sha256"}`` objects."""
+    if not isinstance(raw, list):
+        raise ProgramError(f"{where}: field 'libraries' has the wrong type")
+    out = []
+    for i, item in enumerate(raw):
+        at = f"{where}: libraries[{i}]"
+        if not isinstance(item, dict):
+            raise ProgramError(f"{at}: not an object")
+        out.append((_require(item, "path", str, at), _require(item, "sha256", str, at)))
+    return tuple(out)
 
 
 def load_program(path: Path) -> DroneProgram:
