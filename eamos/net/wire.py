@@ -72,7 +72,7 @@ ZeroMQ multipart message ``[topic, payload]``:
                                                                the whole mission is over
   ``prg``    Progress        dest                    ``d``     str (default ``"GCS"``)
                              state                   ``st``    str, e.g. "started", "done"
-                             node                    ``n``     str
+                             node                    ``nd``    str
                              action                  ``a``     str
                              detail                  ``dt``    map str -> plain data
   ``res``    Resolved        dest                    ``d``     str (default ``"GCS"``)
@@ -463,7 +463,7 @@ class Progress(_Base):
     KIND: ClassVar[str] = "to"
 
     state: str = field(metadata=_m("st", _check_str))
-    node: str = field(metadata=_m("n", _check_str))
+    node: str = field(metadata=_m("nd", _check_str))  # not "n": the incarnation's key
     action: str = field(metadata=_m("a", _check_str))
     detail: dict[str, Any] = field(metadata=_m("dt", _check_map), default_factory=dict)
     dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)

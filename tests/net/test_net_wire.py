@@ -337,3 +337,16 @@ def test_fuzz_mutated_good_messages(msg: Message, flips: list[tuple[int, int]]) 
     for pos, value in flips:
         mutated[pos % len(mutated)] = value
     check_decode([topic, bytes(mutated)])
+
+
+@pytest.mark.parametrize("cls", MESSAGE_TYPES, ids=lambda c: c.__name__)
+def test_no_two_fields_share_a_wire_key(cls: Any) -> None:
+    """One key per field: a shared key silently overwrote the incarnation (or the node)."""
+    keys = [f.metadata["key"] for f in fields(cls)]
+    assert len(keys) == len(set(keys)), keys
+
+
+def test_progress_keeps_its_node_and_its_sender_incarnation() -> None:
+    msg = Progress(M, "D2", "ok", "n4", "Arm", incarnation=1234567)
+    back = decode(encode(msg))
+    assert back == msg and back.node == "n4" and back.incarnation == 1234567
