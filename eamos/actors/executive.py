@@ -11,6 +11,7 @@ from typing import Any
 import pykka
 
 from ..net import wire
+from ..net.progress import ProgressEvent, progress_batch
 from ..program.format import DroneProgram
 from ..program.uniform import MOTION_ACTIONS
 from .dispatch import Dispatcher
@@ -33,6 +34,8 @@ __all__ = [
 ]
 
 PROGRESS_INTERVAL_S = 0.1
+#: A batch of progress events is sent at once when it holds this many.
+PROGRESS_BATCH_MAX = 64
 
 #: Actions after which the vehicle's reported state (position, armed) may differ.
 STATE_ACTIONS = MOTION_ACTIONS | {"Arm", "Disarm"}
@@ -138,7 +141,7 @@ class DroneExecutive(RuntimePart):
         self.finished_actions = 0
         self.running: set[tuple[str, tuple[int, ...]]] = set()  # (node, iteration) running now
         self.idle_since: float | None = time.monotonic()
-        self._pending_progress: wire.Progress | None = None
+        self._pending_progress: list[ProgressEvent] = []
         self._last_progress = float("-inf")
         self._flush_timer: threading.Timer | None = None
         self.resolved_event = threading.Event()
@@ -243,28 +246,36 @@ class DroneExecutive(RuntimePart):
         detail: str,
         urgent: bool,
     ) -> None:
-        """Tell the ground station, at most every PROGRESS_INTERVAL_S unless it matters.
+        """Tell the ground station every state change, batched: at most one message
+        every PROGRESS_INTERVAL_S unless it matters (or the batch is full).
 
-        Progress is for people watching; bursts of instant actions would otherwise
-        flood the link and slow the mission itself.  The latest state always
-        arrives: a pending update is flushed by a timer, or before Resolved.
+        Progress is for people watching; a message per change in bursts of
+        instant actions would flood the link and slow the mission itself, and
+        keeping only the latest would hide changes.  So every change is kept, in
+        order, and a batch goes out by a timer, when full, or before Resolved
+        (:mod:`eamos.net.progress`).
         """
         if state in ("ok", "failed", "cancelled"):
             self.finished_actions += 1
-        self._pending_progress = wire.Progress(
-            mission=self.program.mission_id,
-            sender=self.drone,
-            state=state,
-            node=node,
-            action=action,
-            detail={
-                "iteration": list(iteration),
-                "detail": detail,
-                "finished": self.finished_actions,
-            },
+        self._pending_progress.append(
+            (
+                state,
+                node,
+                action,
+                {
+                    "iteration": list(iteration),
+                    "detail": detail,
+                    "finished": self.finished_actions,
+                    "at": time.time(),  # when it changed, to show events of all drones in order
+                },
+            )
         )
         now = time.monotonic()
-        if urgent or now - self._last_progress >= PROGRESS_INTERVAL_S:
+        if (
+            urgent
+            or now - self._last_progress >= PROGRESS_INTERVAL_S
+            or len(self._pending_progress) >= PROGRESS_BATCH_MAX
+        ):
             self._flush_progress()
         elif self._flush_timer is None:
             delay = PROGRESS_INTERVAL_S - (now - self._last_progress)
@@ -273,9 +284,10 @@ class DroneExecutive(RuntimePart):
             self._flush_timer.start()
 
     def _flush_progress(self) -> None:
-        if self._pending_progress is not None:
-            self.to_ground(self._pending_progress)
-            self._pending_progress = None
+        if self._pending_progress:
+            batch = progress_batch(self.program.mission_id, self.drone, self._pending_progress)
+            self.to_ground(batch)
+            self._pending_progress = []
             self._last_progress = time.monotonic()
 
     def _deliver(self, interrupt: Interrupt) -> None:

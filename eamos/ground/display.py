@@ -14,6 +14,7 @@ picks one.
 
 from __future__ import annotations
 
+import heapq
 import sys
 import threading
 import time
@@ -25,8 +26,25 @@ from eamos.net.link import PeerStatus
 
 from .station import DroneView, GroundStation, ParticipantFailed
 
-#: Action states worth a line (``Progress.state``).
-SHOWN_STATES = ("running", "ok", "failed", "cancelled", "stranded")
+#: Node states worth a line (``Progress.state``): every change of an action, a
+#: wait and its condition, a branch decision, a blocked or skipped node, a
+#: stranded drone.
+SHOWN_STATES = (
+    "running",
+    "ok",
+    "failed",
+    "cancelled",
+    "waiting",
+    "decided",
+    "blocked",
+    "skipped",
+    "stranded",
+)
+#: Lines are held this long and printed in the order things happened on the
+#: drones (progress batches arrive up to PROGRESS_INTERVAL_S late).
+HOLD_S = 0.3
+#: After this long without a line, a line says what every drone is doing.
+QUIET_S = 10.0
 
 
 def stamp(at: float) -> str:
@@ -34,16 +52,25 @@ def stamp(at: float) -> str:
     return time.strftime("[%H:%M:%S]", time.localtime(at))
 
 
-def format_event(name: str, msg: Any, at: float) -> str | None:
-    """The line shown for ``msg`` from participant ``name`` received at ``at``; None: no line.
+def event_time(msg: Any, arrived: float) -> float:
+    """When ``msg``'s change happened: a progress event's ``at``, else when it arrived."""
+    if isinstance(msg, wire.Progress):
+        at = msg.detail.get("at")
+        if isinstance(at, int | float) and not isinstance(at, bool):
+            return float(at)
+    return arrived
 
-    Pure: ``at`` is the wall-clock time to print.
+
+def format_event(name: str, msg: Any, at: float) -> str | None:
+    """The line shown for ``msg`` from participant ``name`` at wall-clock ``at``; None: no line.
+
+    Pure.  A wait shows what it waits for, a decision which way it went.
     """
     head = f"{stamp(at)} {name:>8}"
     if isinstance(msg, wire.Progress) and msg.state in SHOWN_STATES:
         line = f"{head} {msg.state:<9} {msg.action}"
         reason = msg.detail.get("detail") if isinstance(msg.detail, dict) else ""
-        if reason and msg.state != "running":
+        if reason and msg.state != "running" and str(reason) not in msg.action:
             line += f"  ({reason})"
         return line
     if isinstance(msg, wire.Ready | wire.Resolved):
@@ -54,6 +81,17 @@ def format_event(name: str, msg: Any, at: float) -> str | None:
         silent = f" (silent {msg.silent_s:.1f} s)" if msg.state in ("lost", "back") else ""
         return f"{head} link {msg.state}{silent}"
     return None
+
+
+def quiet_line(views: dict[str, DroneView], now: float, quiet_s: float) -> str:
+    """What every drone is doing, after ``quiet_s`` seconds without a line (pure)."""
+    parts = []
+    for name, v in views.items():
+        since = v.events[-1].get("t") if v.events else None
+        how_long = f" for {now - since:.0f} s" if isinstance(since, int | float) else ""
+        doing = f"{v.state} {v.action}".strip() if v.action else v.state
+        parts.append(f"{name} {doing}{how_long}")
+    return f"{stamp(now)} no change for {quiet_s:.0f} s: " + "; ".join(parts)
 
 
 class Display(Protocol):
@@ -80,7 +118,13 @@ class Display(Protocol):
 
 
 class PlainDisplay:
-    """One line per event worth seeing, on ``stream`` (stdout by default)."""
+    """One line per event worth seeing, on ``stream`` (stdout by default), in order.
+
+    Inside ``with``, lines are held :data:`HOLD_S` and printed in the order
+    the changes happened on the drones (their clocks; one machine's clock for
+    ``eamos run``), not the order batches arrived; a quiet spell of
+    :data:`QUIET_S` gets a line saying what every drone is doing.
+    """
 
     refresh_s = 5.0
 
@@ -91,36 +135,91 @@ class PlainDisplay:
         self.clock = clock
         self._lock = threading.Lock()  # events come from the network threads
         self.lost_lines = 0  # lines the stream refused (a full disk)
+        self._station: GroundStation | None = None
+        self._last_line = clock()
+        # Held lines: (event time, order, due monotonic time, line); None: print at once.
+        self._held: list[tuple[float, int, float, str]] | None = None
+        self._order = 0
+        self._cond = threading.Condition(self._lock)
+        self._printer: threading.Thread | None = None
 
     def __enter__(self) -> PlainDisplay:
+        with self._cond:
+            self._held = []
+        self._printer = threading.Thread(target=self._print_held, name="plain-display", daemon=True)
+        self._printer.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        return None
+        with self._cond:
+            held, self._held = self._held, None
+            self._cond.notify_all()
+        if self._printer is not None:
+            self._printer.join()
+            self._printer = None
+        for _, _, _, line in sorted(held or []):
+            self._write(line)
 
     def watch(self, station: GroundStation) -> None:
-        """Plain lines need no views: events are enough."""
+        """Keep ``station``: its views say what each drone does in a quiet spell."""
+        self._station = station
 
     def event(self, name: str, view: DroneView, msg: Any) -> None:
-        """Print the event's line, if it has one."""
-        line = format_event(name, msg, self.clock())
+        """Show the event's line (if it has one), in the order things happened."""
+        arrived = self.clock()
+        at = event_time(msg, arrived)
+        line = format_event(name, msg, at)
         if line is not None:
-            self.say(line)
+            self._show(at, line)
+
+    def _show(self, at: float, line: str) -> None:
+        """Hold ``line`` (happened at ``at``) for ordered printing, or print it now."""
+        with self._cond:
+            if self._held is not None:
+                self._order += 1
+                heapq.heappush(self._held, (at, self._order, time.monotonic() + HOLD_S, line))
+                self._cond.notify_all()
+                return
+        self._write(line)
+
+    def _print_held(self) -> None:
+        """The printer thread: the earliest event's line once it has been held long enough."""
+        with self._cond:
+            while self._held is not None:
+                if not self._held:
+                    self._cond.wait()
+                    continue
+                wait_s = self._held[0][2] - time.monotonic()
+                if wait_s > 0:
+                    self._cond.wait(wait_s)
+                    continue
+                line = heapq.heappop(self._held)[3]
+                self._write_locked(line)
 
     def refresh(self) -> None:
-        """Plain lines need no redraw."""
+        """After :data:`QUIET_S` without a line, say what every drone is doing."""
+        now = self.clock()
+        if self._station is None or now - self._last_line < QUIET_S:
+            return
+        self.say(quiet_line(self._station.snapshot(), now, QUIET_S))
 
     def say(self, text: str) -> None:
-        """Print ``text`` on its own line; a stream that cannot be written loses the line only.
+        """Print ``text`` on its own line, in order with the events around it."""
+        self._show(self.clock(), text)
 
-        (``eamos-node``'s stdout is ``node.out`` in the run folder: a full disk
-        must not stop the ground station's run loop.)
-        """
+    def _write(self, text: str) -> None:
         with self._lock:
-            try:
-                print(text, file=self.stream, flush=True)
-            except (OSError, ValueError):
-                self.lost_lines += 1
+            self._write_locked(text)
+
+    def _write_locked(self, text: str) -> None:
+        # A stream that cannot be written loses the line only: ``eamos-node``'s
+        # stdout is ``node.out`` in the run folder, and a full disk must not
+        # stop the ground station's run loop.
+        try:
+            print(text, file=self.stream, flush=True)
+        except (OSError, ValueError):
+            self.lost_lines += 1
+        self._last_line = self.clock()
 
 
 class LiveDisplay:

@@ -33,6 +33,7 @@ from eamos.actors.report import DroneReport, ReportError
 from eamos.actors.runtime import DroneRuntime
 from eamos.net import wire
 from eamos.net.link import PeerStatus
+from eamos.net.progress import progress_events
 from eamos.program.uniform import GROUND_STATION
 
 Clock = Callable[[], float]
@@ -99,7 +100,18 @@ class GroundStation:
         self.runtime = runtime
 
     def handle(self, msg: Any) -> None:
-        """Everything addressed to the ground station arrives here (any thread)."""
+        """Everything addressed to the ground station arrives here (any thread).
+
+        A progress batch is taken apart: each state change it carries is
+        handled (and shown) on its own, in order.
+        """
+        if isinstance(msg, wire.Progress):
+            for event in progress_events(msg):
+                self._handle_one(event)
+        else:
+            self._handle_one(msg)
+
+    def _handle_one(self, msg: Any) -> None:
         with self._cond:
             view = self.views.get(getattr(msg, "sender", ""))
             if view is None:
@@ -127,7 +139,7 @@ class GroundStation:
                     view.failed_actions += 1
                 view.events.append(
                     {
-                        "t": time.time(),
+                        "t": msg.detail.get("at", time.time()),
                         "state": msg.state,
                         "node": msg.node,
                         "action": msg.action,

@@ -62,11 +62,12 @@ ACTION_TO_NODE = {"running": "running", "ok": "done", "failed": "failed", "cance
 PROGRESS_TO_NODE = {
     **ACTION_TO_NODE,
     "waiting": "running",  # a Wait/Pause holding until its condition changes
+    "decided": "done",  # an If took a branch (detail: which, and the condition)
     "skipped": "skipped",
     "blocked": "failed",  # a dependency failed: the node is blocked
 }
 #: Progress states of a node that was triggered and ran (its predecessors finished).
-RAN = frozenset({"running", "waiting", "ok", "failed", "cancelled"})
+RAN = frozenset({"running", "waiting", "decided", "ok", "failed", "cancelled"})
 
 
 def outcome_word(summary: RunSummary) -> str:

@@ -61,3 +61,107 @@ def test_plain_and_live_displays_both_print_peer_status() -> None:
     live.event("Drone2", DroneView("Drone2"), lost)
     live.event("Drone2", DroneView("Drone2"), progress("running"))  # shown in the table
     assert said == ["[12:34:56]   Drone2 link lost (silent 3.0 s)"]
+
+
+# -- every state change, in order (issue 14) ------------------------------------------------
+
+
+def event(sender: str, state: str, action: str, at: float, **detail: object) -> wire.Progress:
+    return wire.Progress(
+        mission="m", sender=sender, state=state, node="n3", action=action,
+        detail={"at": at, **detail},
+    )  # fmt: skip
+
+
+def test_a_batch_carries_every_change_in_order_and_unpacks_into_them() -> None:
+    from eamos.net.progress import progress_batch, progress_events
+
+    changes = [
+        ("running", "n3", "Arm()", {"at": AT}),
+        ("ok", "n3", "Arm()", {"at": AT + 0.01}),
+        ("running", "n4", "Takeoff(2)", {"at": AT + 0.02}),
+    ]
+    batch = progress_batch("m", "Drone1", changes)
+    back = wire.decode(wire.encode(batch))
+    assert isinstance(back, wire.Progress)
+    events = progress_events(back)
+    assert [(e.state, e.node, e.action, e.detail) for e in events] == [
+        (s, n, a, dict(d)) for s, n, a, d in changes
+    ]
+    # A peer's malformed entries are left out, the rest kept.
+    forged = wire.Progress(
+        mission="m", sender="Drone1", state="ok", node="n5", action="Land()",
+        detail={"earlier": [["ok", "n4", "Takeoff(2)", {}], "junk", [1, 2, 3, 4]]},
+    )  # fmt: skip
+    assert [e.action for e in progress_events(forged)] == ["Takeoff(2)", "Land()"]
+
+
+def test_lines_come_out_in_the_order_things_happened_not_as_they_arrived() -> None:
+    """A leader's "ok" arriving after its follower's "running" is still printed first."""
+    out = io.StringIO()
+    view = DroneView("x")
+    with PlainDisplay(out) as display:
+        display.event("Drone2", view, event("Drone2", "running", "FlyByX(1)", AT + 0.2))
+        display.event("Drone1", view, event("Drone1", "ok", "Takeoff(2)", AT + 0.1))
+        display.event("Drone1", view, event("Drone1", "running", "Arm()", AT))
+    lines = out.getvalue().splitlines()
+    assert [line.split(None, 2)[2] for line in lines] == [
+        "running   Arm()",
+        "ok        Takeoff(2)",
+        "running   FlyByX(1)",
+    ]
+
+
+def test_waits_and_decisions_say_what_they_wait_for_and_which_way() -> None:
+    wait = event("D3", "waiting", "WaitUntil", AT, detail="D1.X() > 4")
+    assert format_event("D3", wait, AT).endswith("waiting   WaitUntil  (D1.X() > 4)")  # type: ignore[union-attr]
+    decided = event(
+        "D1", "decided", "If D1.Battery() > 30", AT, detail="else: D1.Battery() > 30 is false"
+    )
+    assert format_event("D1", decided, AT).endswith(  # type: ignore[union-attr]
+        "decided   If D1.Battery() > 30  (else: D1.Battery() > 30 is false)"
+    )
+
+
+def test_a_quiet_spell_gets_a_line_saying_what_every_drone_does() -> None:
+    from eamos.ground.display import QUIET_S, quiet_line
+
+    a, b = DroneView("Drone1"), DroneView("Drone2")
+    a.state, a.action = "waiting", "WaitUntil D2.Z() > 3"
+    a.events.append({"t": AT - 42})
+    b.state, b.action = "running", "FlyByZ(5)"
+    line = quiet_line({"Drone1": a, "Drone2": b}, AT, QUIET_S)
+    assert line == (
+        "[12:34:56] no change for 10 s: Drone1 waiting WaitUntil D2.Z() > 3 for 42 s; "
+        "Drone2 running FlyByZ(5)"
+    )
+
+
+def test_the_station_hands_on_every_change_of_a_batch() -> None:
+    from eamos.ground import GroundStation
+    from eamos.net.progress import progress_batch
+
+    seen: list[tuple[str, str, str]] = []
+    station = GroundStation(
+        ["Drone1"],
+        "m",
+        on_change=lambda name, view, msg: seen.append((name, msg.state, msg.action)),
+    )
+    batch = progress_batch(
+        "m",
+        "Drone1",
+        [
+            ("running", "n3", "Arm()", {"at": AT, "finished": 0}),
+            ("ok", "n3", "Arm()", {"at": AT + 0.01, "finished": 1}),
+            ("running", "n4", "Takeoff(2)", {"at": AT + 0.02, "finished": 1}),
+        ],
+    )
+    station.handle(batch)
+    assert seen == [
+        ("Drone1", "running", "Arm()"),
+        ("Drone1", "ok", "Arm()"),
+        ("Drone1", "running", "Takeoff(2)"),
+    ]
+    view = station.snapshot()["Drone1"]
+    assert (view.state, view.action, view.done_actions) == ("running", "Takeoff(2)", 1)
+    assert [e["state"] for e in view.events] == ["running", "ok", "running"]

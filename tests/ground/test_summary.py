@@ -74,6 +74,7 @@ def test_every_key_users_rely_on_is_written() -> None:
     data = summary().to_json()
     assert set(data) == {
         "ok",
+        "result",  # the one outcome word: finished, failed, aborted, timed out
         "mission",
         "mission_id",
         "outcome",

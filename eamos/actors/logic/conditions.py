@@ -138,6 +138,8 @@ class IfLogic(ConditionLogic):
         self._drop_pending(act)
         self._decided(act, value)
         branch = "then" if value else "else"
+        # The operator sees which way it went (a "decided" progress line).
+        self._event(act, "decided", f"{branch}: {self.cond_text} is {str(value).lower()}")
         self._emit(
             act,
             lambda r: (
