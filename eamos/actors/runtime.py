@@ -39,7 +39,7 @@ from .dispatch import Dispatcher
 from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
 from .executive import DroneExecutive as DroneExecutive
 from .executive import ask_snapshot
-from .failure import FailurePolicy, RuntimeFailure
+from .failure import FailurePolicy, RuntimeFailure, tell_operator
 from .inbound import InRouter
 from .logic import program_wiring
 from .logic.telemetry import stale_values as stale_values
@@ -47,6 +47,7 @@ from .logic.telemetry import telemetry_values as telemetry_values
 from .messages import AbortMission, Fire
 from .node import Links, MissionNode, Wire
 from .outbox import Outbox
+from .readiness import wait_listening
 from .report import DroneReport
 from .uniform_api import Abort as HalAbort
 from .uniform_api import UniformAPI
@@ -290,22 +291,18 @@ class DroneRuntime:
         """Every participant this drone sends to (the ground station always)."""
         return destinations(self.program)
 
-    def wait_subscribed(self, timeout_s: float) -> bool:
-        """Block until every participant this drone sends to listens to it."""
-        assert self.out is not None
-        return self.out.wait_subscribed([wire.topic_to(d) for d in self.destinations()], timeout_s)
-
     def announce_ready(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
-        """Wait for the subscriptions, then tell the ground station this drone is ready.
+        """Wait until every participant this drone sends to listens, then tell the ground
+        station this drone is ready (:mod:`.readiness`); False if they never all did.
 
         ``stop`` (set by a signal handler) ends the wait early: a node asked to stop
         while its peers are missing must not linger for the whole timeout.
         """
-        deadline = time.monotonic() + timeout_s
-        while not self.wait_subscribed(min(0.5, max(0.0, deadline - time.monotonic()))):
-            if (stop is not None and stop.is_set()) or time.monotonic() >= deadline:
-                self.log.error("mission.not_ready", waiting_for=self.destinations())
-                return False
+        assert self.out is not None
+        missing = wait_listening(self.out, self.destinations(), timeout_s, stop, self._waiting)
+        if missing:
+            self.log.error("mission.not_ready", waiting_for=missing)
+            return False
         self._to_ground(
             wire.Ready(
                 mission=self.program.mission_id,
@@ -315,6 +312,10 @@ class DroneRuntime:
         )
         self.log.info("mission.ready")
         return True
+
+    def _waiting(self, missing: list[str], waited_s: float) -> None:
+        self.log.info("mission.waiting_for_peers", peers=missing, waited_s=round(waited_s, 1))
+        tell_operator(self.drone, f"waiting for {', '.join(missing)} to listen ({waited_s:.0f} s)")
 
     # -- running -------------------------------------------------------------------------
 

@@ -84,3 +84,18 @@ def test_a_node_with_another_fleets_keys_is_refused(tmp_path: Path) -> None:
     assert proc.returncode == 2
     assert "net.keys" in proc.stderr and "no public key for peer" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_a_node_says_whom_it_waits_for_and_exits_3(tmp_path: Path) -> None:
+    """Alone (its peers never start), Drone1 says every 5 s whom it waits for, then gives up."""
+    compiled = compile_file(REPO / "missions" / "experiment_b.go")
+    names = list(compiled.programs)
+    bind = {n: f"tcp://127.0.0.1:{free_port()}" for n in names}
+    files = write_fleet(compiled.programs, tmp_path, bind, ready_timeout_s=12.0)
+    config = files.configs["Drone1"]
+    proc = subprocess.run(node_argv(config), capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert proc.returncode == 3, proc.stderr
+    notes = [line for line in proc.stderr.splitlines() if "waiting for" in line]
+    assert notes, proc.stderr
+    assert all("Drone2" in n and "GCS" in n and "to listen" in n for n in notes), notes
+    assert "peers never subscribed: " in proc.stderr and "Traceback" not in proc.stderr
