@@ -158,6 +158,8 @@ def from_fleet(fleet_path: Path, mission: str | None) -> Deployment:
 
 def resolve(source: Path, mission: str | None = None) -> Deployment:
     """A run folder (with ``rollout.json``) or a fleet file (then ask the drones)."""
+    if not Path(source).exists():
+        raise RunFolderError(f"{source}: no such run folder or fleet file")
     if Path(source).is_dir():
         deployment = from_run_dir(source)
         if mission and mission != deployment.mission:
