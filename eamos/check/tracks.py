@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..hal.api import ActionHandle, DoneCallback, Telemetry
+from ..hal.sim import SimCore
 from ..program.uniform import Command
 from ..virtual import IdleVehicle, Vehicle
 from ..virtual.vehicles import Clock, Finished
@@ -75,6 +76,8 @@ class TrackRecorder:
         self._clock = clock
         self._home = home
         self._idle = inner if isinstance(inner, IdleVehicle) else None  # checked once: slow
+        # A simulator core tells where it is without building a whole state (every step).
+        self._where = inner.where if isinstance(inner, SimCore) else None
         # Plain tuples while recording (one per step): TrackPoints only when asked.
         self._raw: list[_Raw] = []
 
@@ -118,16 +121,14 @@ class TrackRecorder:
         self._record()
 
     def _record(self) -> None:
-        st = self._inner.state()
-        raw = (
-            self._clock(),
-            self._home[0] + st.x_m,
-            self._home[1] + st.y_m,
-            st.z_m,
-            not st.landed,
-            st.armed,
-            st.battery_pct,
-        )
+        if self._where is not None:
+            x, y, z, landed, armed, battery = self._where()
+        else:
+            st = self._inner.state()
+            x, y, z, landed, armed, battery = (
+                st.x_m, st.y_m, st.z_m, st.landed, st.armed, st.battery_pct
+            )  # fmt: skip
+        raw = (self._clock(), self._home[0] + x, self._home[1] + y, z, not landed, armed, battery)
         pts = self._raw
         if len(pts) >= 2 and _straight(pts[-2], pts[-1], raw):
             pts[-1] = raw  # the middle point adds nothing to a straight piece

@@ -162,16 +162,22 @@ class _Telemetry:
         if t_s >= self._next_sample_s - _EPS_S:
             while self._next_sample_s <= t_s + _EPS_S:
                 self._next_sample_s += self._period_s
-            sample = self.sample(st)
-            key = sample.state()
-            if key != self._last_sample_key:
-                self._last_sample_key = key
-                samples.append(sample)
-            self._sampled_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
-            self._sampled_battery = sample.battery_pct
+            raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+            # Unchanged since the last sample (a vehicle at rest): the same sample, not sent.
+            if raw != self._sampled_raw or round(st.battery_pct, 1) != self._sampled_battery:
+                sample = self.sample(st)
+                key = sample.state()
+                if key != self._last_sample_key:
+                    self._last_sample_key = key
+                    samples.append(sample)
+                self._sampled_raw = raw
+                self._sampled_battery = sample.battery_pct
         if t_s >= self._next_position_log_s - _EPS_S:
             self._next_position_log_s += POSITION_LOG_PERIOD_S
-            self._logged_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+            raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+            if raw == self._logged_raw:
+                return  # unchanged: no line
+            self._logged_raw = raw
             key = (round(st.x_m, 2), round(st.y_m, 2), round(st.z_m, 2), st.armed, st.landed)
             if key != self._last_position_key:
                 self._last_position_key = key
@@ -312,6 +318,7 @@ class SimCore:
         self._actions: dict[int, _Action] = {}
         self._motion: _Action | None = None
         self._t = 0.0
+        self._step_count = 0  # t is step_count * SIM_DT_S: no summing error, skips in O(1)
         self._started = False
         self._aborting = False
         self._pilot = _Pilot(settings.pilot, settings, log)
@@ -375,7 +382,8 @@ class SimCore:
         samples: list[Telemetry] = []
         self._handle_requests(finished)
         self._model.step(SIM_DT_S)
-        self._t += SIM_DT_S
+        self._step_count += 1
+        self._t = self._step_count * SIM_DT_S
         if self._pilot.update(self._t, self._model):
             self._pilot_handed_over(finished)
         self._update_actions(finished)
@@ -415,15 +423,14 @@ class SimCore:
             limit = min(limit, max(0, crossing))
         if due == math.inf:
             return max(0, limit)
-        # Timers end at the first step whose summed time reaches them: count
-        # the steps the way step() sums them, so none ends a step early or late.
-        t, steps = self._t, 0
-        while steps < limit:
-            t += SIM_DT_S
-            if t >= due - _EPS_S:
-                break
-            steps += 1
-        return steps
+        # A timer ends at the first step k with k * SIM_DT_S >= due (less _EPS_S):
+        # the steps before it are idle.
+        first = math.ceil((due - _EPS_S) / SIM_DT_S)
+        while first > 0 and (first - 1) * SIM_DT_S >= due - _EPS_S:
+            first -= 1  # float rounding put it one late
+        while first * SIM_DT_S < due - _EPS_S:
+            first += 1  # ... or one early
+        return max(0, min(limit, first - self._step_count - 1))
 
     def skip(self, steps: int) -> None:
         """Advance ``steps`` steps known idle (:meth:`idle_steps`): as many :meth:`step` calls."""
@@ -432,11 +439,9 @@ class SimCore:
         if self._requests or not self._model.at_rest:
             raise RuntimeError(f"{self.drone}: skip({steps}) over steps that are not idle")
         self._model.rest(SIM_DT_S, steps)
-        t = self._t
-        for _ in range(steps):
-            t += SIM_DT_S  # summed like step() does, so times stay bit for bit the same
-        self._t = t
-        self._telemetry.catch_up(t)
+        self._step_count += steps
+        self._t = self._step_count * SIM_DT_S
+        self._telemetry.catch_up(self._t)
 
     # -- observation ---------------------------------------------------------
 
@@ -448,6 +453,13 @@ class SimCore:
     def state(self) -> VehicleState:
         """A snapshot of the simulated vehicle."""
         return self._model.state
+
+    def where(self) -> tuple[float, float, float, bool, bool, float]:
+        """(x_m, y_m, z_m, landed, armed, battery_pct) now: :meth:`state` without velocities,
+        cheap enough to record every step (the pre-flight check's tracks)."""
+        m = self._model
+        x, y, z = m.position
+        return (x, y, z, m.landed, m.armed, m.battery_pct)
 
     @property
     def pilot_flying(self) -> bool:
