@@ -13,7 +13,15 @@ from pathlib import Path
 
 import pytest
 
-from tests.support.runs import MISSIONS, REPO, RUN_TIMEOUT_S, eamos, run_argv, run_mission
+from tests.support.runs import (
+    INDEPENDENT,
+    MISSIONS,
+    REPO,
+    RUN_TIMEOUT_S,
+    eamos,
+    run_argv,
+    run_mission,
+)
 
 pytestmark = pytest.mark.e2e
 
@@ -100,27 +108,6 @@ def test_experiment_d_pilot_moves_the_real_drones(tmp_path):
     assert {a["args"][0] for a in d1} == {0.2, -0.2} and {a["args"][0] for a in d2} == {0.2, -0.2}
     assert summary["drones"]["D3"]["final"]["x"] == pytest.approx(40.0, abs=0.5)  # landed outside
     assert [a["action"] for a in summary["drones"]["D3"]["actions"]][-1] == "Land"
-
-
-INDEPENDENT = """
-func PAR_Main() {
-    SEQ_One()
-    SEQ_Two()
-}
-func SEQ_One() {
-    Drone1.Arm()
-    Drone1.Takeoff(2)
-    Drone1.FlyByX(2)
-    Drone1.Land()
-}
-func SEQ_Two() {
-    Drone2.Arm()
-    Drone2.Takeoff(2)
-    Drone2.FlyByY(2)
-    Drone2.Land()
-    Drone2.Disarm()
-}
-"""
 
 
 def test_failed_action_stops_dependents_and_independent_drone_finishes(tmp_path):

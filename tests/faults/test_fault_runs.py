@@ -21,7 +21,7 @@ from eamos.actors.stranded import DEFAULT_PEER_WAIT_LIMIT_S
 from eamos.ops.localrun import local_deployment
 from eamos.ops.status import local_status
 from tests.faults.runs import LiveRun, node_pid, read_json, wait_gone
-from tests.support.runs import MISSIONS, REPO, RUN_TIMEOUT_S, eamos
+from tests.support.runs import INDEPENDENT, MISSIONS, REPO, RUN_TIMEOUT_S, eamos
 
 pytestmark = pytest.mark.e2e
 
@@ -228,27 +228,6 @@ def test_ctrl_c_twice_still_writes_the_summary_and_exits_130(tmp_path: Path) -> 
     summary = read_json(tmp_path / "summary.json")
     assert summary["outcome"] == "aborted by the operator" and not summary["ok"]
     assert (tmp_path / "run" / "summary.json").exists()
-
-
-INDEPENDENT = """
-func PAR_Main() {
-    SEQ_One()
-    SEQ_Two()
-}
-func SEQ_One() {
-    Drone1.Arm()
-    Drone1.Takeoff(2)
-    Drone1.FlyByX(2)
-    Drone1.Land()
-}
-func SEQ_Two() {
-    Drone2.Arm()
-    Drone2.Takeoff(2)
-    Drone2.FlyByY(2)
-    Drone2.Land()
-    Drone2.Disarm()
-}
-"""
 
 
 def test_a_drone_blocked_in_the_air_by_a_failure_lands_on_its_own(tmp_path: Path) -> None:

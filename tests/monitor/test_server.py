@@ -20,7 +20,7 @@ from eamos.monitor.replay import load_replay
 from eamos.monitor.setup import load_setup
 from eamos.monitor.state import FINAL_NODE_STATES, apply_patches, final_node_states, outcome_word
 from tests.monitor.live import URL, start_live_run
-from tests.support.runs import eamos
+from tests.support.runs import INDEPENDENT, eamos
 
 pytestmark = pytest.mark.e2e
 
@@ -213,26 +213,6 @@ def test_start_with_the_monitor_needs_a_run_folder(tmp_path):
     result = eamos("start", str(tmp_path), "--monitor")
     assert result.returncode == 2
     assert "no programs/*.program.json (not a run folder)" in result.stderr
-
-
-INDEPENDENT = """
-func PAR_Main() {
-    SEQ_One()
-    SEQ_Two()
-}
-func SEQ_One() {
-    Drone1.Arm()
-    Drone1.Takeoff(2)
-    Drone1.FlyByX(2)
-    Drone1.Land()
-}
-func SEQ_Two() {
-    Drone2.Arm()
-    Drone2.Takeoff(2)
-    Drone2.FlyByY(2)
-    Drone2.Land()
-}
-"""
 
 
 def watch(port: str) -> dict:

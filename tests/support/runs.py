@@ -13,6 +13,29 @@ MISSIONS = REPO / "missions"
 #: Generous for a loaded 2-core machine; a healthy run takes seconds.
 RUN_TIMEOUT_S = 240
 
+#: Two drones with nothing in common: Drone1 takes off, flies X and lands (it does
+#: not disarm); Drone2 does the same on Y and disarms.  Tests make Drone1's
+#: FlyByX fail (``reject_actions``) and check that Drone2 is not affected.
+INDEPENDENT = """
+func PAR_Main() {
+    SEQ_One()
+    SEQ_Two()
+}
+func SEQ_One() {
+    Drone1.Arm()
+    Drone1.Takeoff(2)
+    Drone1.FlyByX(2)
+    Drone1.Land()
+}
+func SEQ_Two() {
+    Drone2.Arm()
+    Drone2.Takeoff(2)
+    Drone2.FlyByY(2)
+    Drone2.Land()
+    Drone2.Disarm()
+}
+"""
+
 
 def eamos(*args: str, timeout: float = RUN_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
     """Run ``eamos ARGS...`` (``python -m eamos.cli``) in the repository; its output captured."""
