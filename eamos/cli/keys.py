@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from eamos.hal.mavlink.signing import create_signing_key
 from eamos.net.keys import create_fleet_keys, participants_of_compiled
 from eamos.program.uniform import GROUND_STATION
 
@@ -23,7 +24,12 @@ to OUT/keys.
 Layout: public/<name>.key (every public key), <name>/<name>.key_secret (the key
 pair, mode 0600) and <name>/public/ (a copy of the public keys).  Ship <name>/
 with participant <name>'s program and point its config at it: [net] keys = "...".
-Only the fleet's keys can connect; traffic is encrypted.  Exit code 2 on bad input."""
+Only the fleet's keys can connect; traffic is encrypted.
+
+Also OUT/mavlink_signing.key: the fleet's MAVLink 2 signing key (32 random bytes
+as 64 hex digits, mode 0600).  Copy it to each MAVLink drone and give
+[hal] signing_key = "<where it lands>" (docs/flying-real-drones.md, "Signing").
+Exit code 2 on bad input."""
 
 
 def add_keys_parser(sub: Any) -> None:
@@ -56,9 +62,12 @@ def cmd_keys(args: argparse.Namespace) -> int:
         names = participants_of_compiled(args.out)
         out = Path(args.out) / "keys"
     create_fleet_keys(out, names, force=args.force)
+    # A new key set (fresh, or --force): the signing key goes with it.
+    signing = create_signing_key(out, force=True)
     print(f"keys for {', '.join(names)} in {out}/")
     for name in names:
         print(f'  {name}: ship {out / name}/  ([net] keys = "<where it lands>")')
+    print(f'  MAVLink drones: ship {signing}  ([hal] signing_key = "<where it lands>")')
     return EXIT_OK
 
 

@@ -11,7 +11,8 @@ import threading
 from pathlib import Path
 from types import FrameType
 
-from eamos.cli.exits import EXIT_CONNECT, EXIT_OK
+from eamos.cli.exits import EXIT_CONNECT, EXIT_MISSION_FAILED, EXIT_OK
+from eamos.hal.mavlink.signing import read_key
 from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions, parse_reject
 
 
@@ -34,6 +35,16 @@ def _delay(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
     if value < 0:
         raise argparse.ArgumentTypeError("must be >= 0")
+    return value
+
+
+def _metres(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of metres") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError("must be a finite number >= 0")
     return value
 
 
@@ -115,6 +126,32 @@ def build_parser() -> argparse.ArgumentParser:
         help="armed on the ground without taking off, disarm after S simulated "
         "seconds (10, like COM_DISARM_PRFLT / DISARM_DELAY)",
     )
+    parser.add_argument(
+        "--wander",
+        type=_metres,
+        default=0.0,
+        metavar="M",
+        help="the position estimate wanders with this standard deviation in metres, as PX4 "
+        "SIH's does (~0.3 while hovering); 0 (default): LOCAL_POSITION_NED is the truth",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="random seed of the wandering estimate (0)"
+    )
+    parser.add_argument(
+        "--signing-key",
+        type=Path,
+        metavar="FILE",
+        help="MAVLink 2 signing: the fleet's key file (eamos keys writes mavlink_signing.key); "
+        "sign everything, ignore unsigned messages.  Without it the vehicle accepts a key "
+        "sent with SETUP_SIGNING",
+    )
+    parser.add_argument(
+        "--die-after",
+        type=_positive,
+        metavar="S",
+        help="sudden vehicle death: S simulated seconds after leaving the ground it goes "
+        "silent and the process exits with status 1 (an autopilot that crashed)",
+    )
     parser.add_argument("--log", type=Path, metavar="FILE", help="JSON-lines log of the vehicle")
     parser.add_argument(
         "--watch-stdin",
@@ -129,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        key = read_key(args.signing_key) if args.signing_key is not None else None
         options = VehicleOptions(
             autopilot=args.autopilot,
             connection=args.connection,
@@ -138,6 +176,10 @@ def main(argv: list[str] | None = None) -> int:
             home=args.home,
             reject=parse_reject(args.reject),
             disarm_after_s=args.disarm_after,
+            wander_m=args.wander,
+            seed=args.seed,
+            signing_key=key,
+            die_after_s=args.die_after,
             log=args.log,
         )
     except ValueError as exc:
@@ -159,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
             stop.set()
 
         threading.Thread(target=watch, name="watch-stdin", daemon=True).start()
-    vehicle = SimVehicle(options)
+    vehicle = SimVehicle(options, on_death=stop.set)
     try:
         vehicle.start()
     except OSError as exc:
@@ -174,7 +216,8 @@ def main(argv: list[str] | None = None) -> int:
         stop.wait()
     finally:
         vehicle.stop()
-    return EXIT_OK
+    # A simulated autopilot crash (--die-after): not a clean exit.
+    return EXIT_MISSION_FAILED if vehicle.dead.is_set() else EXIT_OK
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import tomllib
 from pathlib import Path
@@ -135,3 +136,31 @@ def test_bad_sim_vehicle_table_is_a_config_error(tmp_path):
         "hal.heartbeat_timeout: unknown setting (did you mean 'heartbeat_timeout_s'?)"
         in proc.stderr
     )
+
+
+def test_experiment_c_hybrid_real_drones_wait_armed_past_auto_disarm(tmp_path):
+    # Drone3 climbs slowly, so Drone1 (PX4) and Drone2 (ArduCopter) wait armed on the
+    # ground for more than 15 s: longer than their autopilots' 10 s pre-flight
+    # auto-disarm.  The adapter arms them again before Takeoff (issue 16, item 3).
+    fleet = tmp_path / "fleet.toml"
+    shipped = (REPO / "configs" / "experiment_c_hybrid.toml").read_text()
+    assert shipped.rstrip().endswith('[drones.Drone3.hal]\nadapter = "sim"')
+    fleet.write_text(shipped + "climb_speed_mps = 0.3\n")
+    proc, summary = eamos_run(tmp_path, REPO / "missions" / "experiment_c.go", fleet)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert summary["ok"], summary
+    run = Path(summary["run_dir"])
+    for name, disarmed in (
+        ("Drone1", "Disarmed by auto preflight disarming"),
+        ("Drone2", "Disarming motors"),
+    ):
+        events = [
+            json.loads(line)
+            for line in (run / "logs" / name / "sim-vehicle.log").read_text().splitlines()
+        ]
+        armed = [e["t_sim"] for e in events if e["event"] == "vehicle.armed" and e["armed"]]
+        up = next(e["t_sim"] for e in events if e["event"] == "vehicle.position" and e["z_m"] > 0.2)
+        assert up - armed[0] >= 15.0, (name, armed, up)
+        assert any(e.get("text") == disarmed for e in events), name
+        adapter_log = (run / "logs" / name / "adapter.log").read_text()
+        assert '"event": "adapter.rearm"' in adapter_log, name

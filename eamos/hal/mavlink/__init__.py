@@ -4,7 +4,10 @@ Modules: :mod:`.adapter` (the adapter the uniform API drives), :mod:`.flight` (o
 action at a time: arm, take off, move, land, cancel), :mod:`.vehicle` (the vehicle's
 state from telemetry), :mod:`.link` and :mod:`.state` (the MAVLink connection and the
 messages it reads), :mod:`.autopilots` (what differs between PX4 and ArduPilot),
-:mod:`.frames` (mission frame <-> NED), :mod:`.settings` (the ``hal`` section).
+:mod:`.frames` (mission frame <-> NED), :mod:`.settings` (the ``hal`` section),
+:mod:`.braking` (stop now, wait until at rest), :mod:`.params` and :mod:`.keeper`
+(the drone type's speeds set on the vehicle and restored), :mod:`.targets`
+(SET_POSITION_TARGET_* messages), :mod:`.signing` (MAVLink 2 signing keys and rules).
 Importing this package does not load pymavlink; connecting does.
 """
 

@@ -37,9 +37,16 @@ A mode change within ``heartbeat_timeout_s`` after a link gap or a
 "failsafe" STATUSTEXT is therefore tolerated for that long; any other mode
 change ends the action (a pilot took over).
 
-``cancel`` holds where the vehicle is (PX4: the setpoint becomes the current
-position; ArduPilot: so does the GUIDED position target); ``abort`` cancels
-everything and lands, then disarms.  Payload actions are acknowledged at
+``cancel`` ends the action at once and brakes the vehicle the fastest way its
+autopilot documents (PX4: a zero-velocity setpoint; ArduPilot: BRAKE mode),
+then holds where it came to rest; the next motion action waits for that
+(:func:`~eamos.hal.mavlink.flight.brake_to_rest`).  ``abort`` cancels
+everything, brakes, lands and disarms.  :meth:`MavlinkAdapter.close` never
+leaves a flying vehicle silently: it lands it first, or logs
+``adapter.stranded`` at error level.  After connecting, the drone type's
+speeds are set on the vehicle and restored at close
+(:mod:`eamos.hal.mavlink.params`); a vehicle that disarmed itself after our
+Arm is armed again before Takeoff (``adapter.rearm``).  Payload actions are acknowledged at
 once (this vehicle has no payload); ``PauseFor`` is a timer.
 
 Telemetry: x/y/z from LOCAL_POSITION_NED (mission frame), lat/lon/alt from
@@ -52,7 +59,9 @@ already sees the state it ended in.
 Adapter log events: ``adapter.start``, ``adapter.connected``,
 ``adapter.interval``, ``adapter.home``, ``adapter.action.start``/``.end``,
 ``adapter.payload``, ``adapter.cancel``, ``adapter.hold``,
-``adapter.abort``/``.abort.done``/``.abort.failed``, ``adapter.statustext``,
+``adapter.abort``/``.abort.done``/``.abort.failed``, ``adapter.brake``/``.brake.done``,
+``adapter.rearm``, ``adapter.param.*``, ``adapter.close_land``/``.done``/``.failed``,
+``adapter.stranded``, ``adapter.statustext``,
 ``adapter.mode``, ``adapter.armed``, ``adapter.ack``, ``adapter.link.*``
 (``vehicle``, ``lost``, ``restored``, ``gap``, ``transport_error``),
 ``adapter.position`` (at ``POSITION_LOG_HZ`` while it changes), ``adapter.close``.
@@ -99,6 +108,7 @@ class MavlinkAdapter:
         self._runs: dict[int, Run] = {}
         self._motion: Run | None = None
         self._aborting = False
+        self._abort_thread: threading.Thread | None = None
         # Serialized: the ticker and finishing actions both publish samples,
         # which must reach the mission in the order they were taken.
         self._emit_lock = threading.Lock()
@@ -181,7 +191,7 @@ class MavlinkAdapter:
         return handle
 
     def cancel(self, handle: ActionHandle) -> None:
-        """End ``handle`` with "cancelled"; a motion action leaves the vehicle holding."""
+        """End ``handle`` with "cancelled"; a motion action brakes, then holds where it stops."""
         with self._cond:
             run = self._runs.get(handle.id)
             if run is None:
@@ -200,21 +210,74 @@ class MavlinkAdapter:
         self._log.info("adapter.abort", running=len(runs))
         for run in runs:
             self._finish(run, ActionResult("cancelled", "aborted"))
-        threading.Thread(
+        thread = threading.Thread(
             target=self._abort, name=f"mavlink-{self.drone}-abort", daemon=True
-        ).start()
+        )
+        with self._cond:
+            self._abort_thread = thread
+        thread.start()
 
     def close(self) -> None:
-        """Stop the link's threads and close it; running actions end "cancelled"."""
+        """End running actions ("cancelled"), never leave a vehicle flying silently, put
+        back the parameters the adapter changed, then close the link.
+
+        A vehicle still in the air is braked, landed and disarmed first
+        (``land_on_close``; ``adapter.close_land.done``); when it cannot be (link
+        lost, landing failed, ``land_on_close = false``) ``adapter.stranded`` is
+        logged at error level with where it was left and why.
+        """
         with self._cond:
             if self._closed:
                 return
             self._closed = True
             runs = list(self._runs.values())
+            started = self._started
+            abort = self._abort_thread
         for run in runs:
             self._finish(run, ActionResult("cancelled", "adapter closed"))
+        if started:
+            if abort is not None:
+                abort.join(self.settings.scaled(self.settings.action_timeout_s))
+            self._land_before_close()
+            with self._cond:
+                link_ok = self.vehicle.state.link_ok
+            if link_ok:
+                self.vehicle.restore_params()
         self.vehicle.close()
         self._log.info("adapter.close")
+
+    def _land_before_close(self) -> None:
+        v = self.vehicle
+        with self._cond:
+            st = v.state
+            known = st.local is not None
+            flying = known and st.armed and not v.on_ground(st)
+            link_ok = st.link_ok
+            where = v.mission_position() if known and v.origin else None
+        if not flying:
+            return
+        why = ""
+        if not link_ok:
+            why = "link lost: no HEARTBEAT from the vehicle"
+        elif not self.settings.land_on_close:
+            why = "hal.land_on_close = false"
+        else:
+            self._log.warning("adapter.close_land", note="vehicle still flying at close: landing")
+            if self._flight.abort("close_land"):
+                return
+            why = "landing at close failed (see adapter.close_land.failed)"
+        with self._cond:
+            armed = v.state.armed
+            if v.state.local is not None and v.origin is not None:
+                where = v.mission_position()
+        self._log.error(
+            "adapter.stranded",
+            reason=why,
+            armed=armed,
+            x_m=None if where is None else round(where[0], 2),
+            y_m=None if where is None else round(where[1], 2),
+            z_m=None if where is None else round(where[2], 2),
+        )
 
     # -- observation (tests, tools) ------------------------------------------
 
@@ -271,6 +334,9 @@ class MavlinkAdapter:
         finally:
             with self._cond:
                 self._aborting = False
+            # The state it ended in (disarmed, seen in a HEARTBEAT) reaches the
+            # mission before it reports: the summary must not say "armed".
+            self._publish()
 
     def _finish(self, run: Run, result: ActionResult) -> bool:
         """Finish ``run`` once; call its done callback outside the condition."""
@@ -326,7 +392,12 @@ class MavlinkAdapter:
                 try:
                     callback(sample)
                 except Exception as exc:
-                    self._log.exception("adapter.telemetry_error", error=repr(exc))
+                    if type(exc).__name__ == "ActorDeadError":
+                        # The node is shutting down before us: no one listens any more.
+                        self._on_telemetry = None
+                        self._log.info("adapter.telemetry_closed", reason=repr(exc))
+                    else:
+                        self._log.exception("adapter.telemetry_error", error=repr(exc))
 
 
 def mavlink_adapter_from_settings(

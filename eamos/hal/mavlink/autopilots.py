@@ -128,6 +128,10 @@ class Controller(Protocol):
         """Send SET_POSITION_TARGET_LOCAL_NED (position only) and keep it refreshed."""
         ...
 
+    def stop_target(self) -> None:
+        """Stream a zero-velocity SET_POSITION_TARGET_LOCAL_NED (velocity only): stop now."""
+        ...
+
     def global_target(self, lat_deg: float, lon_deg: float, rel_alt_m: float) -> None:
         """Send SET_POSITION_TARGET_GLOBAL_INT (relative altitude) and keep it refreshed."""
         ...
@@ -151,6 +155,10 @@ class Autopilot(ABC):
     motion_mode: str
     #: The mode MAV_CMD_NAV_LAND puts the vehicle in.
     land_mode: str
+    #: Completion tolerance (m) and settle speed (m/s) unless the settings say otherwise:
+    #: PX4 SIH's estimate wanders +-0.3-0.6 m while hovering (the notes), ArduCopter's not.
+    tolerance_m: float = 0.3
+    settle_speed_mps: float = 0.3
 
     @abstractmethod
     def mode_name(self, custom_mode: int) -> str:
@@ -184,7 +192,11 @@ class Autopilot(ABC):
 
     @abstractmethod
     def hold(self, ctl: Controller, here_ned: Vector, airborne: bool) -> None:
-        """Stop where the vehicle is (cancel)."""
+        """Stay where the vehicle is (after a cancel, once it has come to rest)."""
+
+    @abstractmethod
+    def brake(self, ctl: Controller) -> bool:
+        """Start the autopilot's fastest documented stop; False if it has none in this mode."""
 
     def land(self, ctl: Controller, here_ned: Vector) -> None:
         """Descend and land at the current position (MAV_CMD_NAV_LAND)."""
@@ -200,6 +212,8 @@ class Px4(Autopilot):
     mavlink_id = MAV_AUTOPILOT_PX4
     motion_mode = "OFFBOARD"
     land_mode = "AUTO.LAND"
+    tolerance_m = 0.6
+    settle_speed_mps = 0.5
 
     #: How long the stream must run before PX4 accepts OFFBOARD (the notes: ~1 s).
     STREAM_WARMUP_S = 1.0
@@ -262,6 +276,15 @@ class Px4(Autopilot):
         if airborne and ctl.mode() != "OFFBOARD":
             self._offboard(ctl, here_ned)
 
+    def brake(self, ctl: Controller) -> bool:
+        # In OFFBOARD a zero-velocity setpoint stops at MPC_ACC_HOR_MAX (a position
+        # setpoint at "here" would overshoot and come back).  In HOLD or AUTO.* PX4
+        # already brakes by its own rules.
+        if ctl.mode() != "OFFBOARD":
+            return False
+        ctl.stop_target()
+        return True
+
     def land(self, ctl: Controller, here_ned: Vector) -> None:
         # Keep streaming "here": harmless in AUTO.LAND, and a cancel that
         # returns to OFFBOARD then holds instead of jumping to an old target.
@@ -312,6 +335,12 @@ class ArduPilot(Autopilot):
             return
         self._guided(ctl)
         ctl.position_target(here_ned)
+
+    def brake(self, ctl: Controller) -> bool:
+        # BRAKE mode stops at ArduCopter's hardest deceleration (BRAKE_MODE_DECEL_RATE,
+        # 750 cm/s/s); a GUIDED target at "here" overshot ~9.4 m at 5 m/s (the notes).
+        ctl.set_mode("BRAKE")
+        return True
 
 
 def autopilot_named(name: str, takeoff_mode: TakeoffMode = "offboard") -> Autopilot:

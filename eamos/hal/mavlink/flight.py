@@ -14,7 +14,6 @@ What differs between PX4 and ArduPilot is asked of the vehicle's
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Callable
@@ -23,6 +22,7 @@ from typing import Literal
 
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
 from eamos.hal.mavlink.autopilots import CommandRejected
+from eamos.hal.mavlink.braking import brake_to_rest
 from eamos.hal.mavlink.frames import Vector, mission_to_ned
 from eamos.hal.mavlink.link import (
     MAV_RESULT_ACCEPTED,
@@ -155,11 +155,22 @@ class RunControl:
         v = self.v
         with v.cmd_lock, v.cond:
             self.waiter.raise_if_over(self.run)
-            if target_ned is not None and v.stream_target is None:
+            if target_ned is not None and v.stream_target is None and not v.stream_stop:
                 v.stream_since = time.monotonic()
             v.stream_target = target_ned
+            v.stream_stop = False
         if target_ned is not None:
             v.send_setpoint(target_ned)  # at once, not at the next tick
+
+    def stop_target(self) -> None:
+        v = self.v
+        with v.cmd_lock, v.cond:
+            self.waiter.raise_if_over(self.run)
+            if v.stream_target is None and not v.stream_stop:
+                v.stream_since = time.monotonic()
+            v.stream_stop = True
+            v.guided_target = None
+        v.send_stop()  # at once: braking starts with this datagram
 
     def wait_stream_warm(self, seconds: float) -> None:
         with self.v.cond:
@@ -314,6 +325,8 @@ class Flight:
         self.s = vehicle.settings
         self.waiter = Waiter(vehicle)
         self._pending_hold: threading.Thread | None = None
+        #: Our Arm succeeded and no Disarm of ours followed (the mission wants it armed).
+        self.armed_by_us = False
 
     def perform(self, run: Run) -> ActionResult:
         """Run one action to its end: its result, or Failed/TimedOut/Ended/CommandRejected."""
@@ -359,7 +372,13 @@ class Flight:
         with v.cond:
             if v.state.armed:
                 return ActionResult("ok")  # already armed is success
-        deadline = run.started + s.armable_timeout_s
+        deadline = run.started + s.scaled(s.armable_timeout_s)
+        self._arm_now(run, ctl, deadline)
+        return ActionResult("ok")
+
+    def _arm_now(self, run: Run, ctl: RunControl, deadline: float) -> None:
+        """Wait until armable (until ``deadline``), prepare, arm, see the armed flag."""
+        v, s = self.v, self.s
         self.waiter.wait(
             run,
             v.armable,
@@ -395,7 +414,8 @@ class Flight:
             time.monotonic() + self.waiter.confirm_s(),
             lambda st: "vehicle acknowledged arming but its HEARTBEAT never showed it armed",
         )
-        return ActionResult("ok")
+        with v.cond:
+            self.armed_by_us = True
 
     def disarm(self, run: Run, ctl: RunControl) -> ActionResult:
         """Disarm on the ground ("in the air" otherwise); see the flag drop."""
@@ -420,16 +440,49 @@ class Flight:
         )
         with v.cond:
             v.stop_steering()
+            self.armed_by_us = False
         return ActionResult("ok")
 
     def takeoff(self, run: Run, ctl: RunControl, height: float) -> ActionResult:
-        """Climb to ``height`` above the take-off ground at the current X/Y."""
-        v, s = self.v, self.s
+        """Climb to ``height`` above the take-off ground at the current X/Y.
+
+        The mission armed this drone and may have kept it waiting: when the
+        autopilot disarmed itself meanwhile (COM_DISARM_PRFLT, DISARM_DELAY),
+        before or just as the take-off starts, it is armed again (``rearm``).
+        """
         if height <= 0:
             raise Failed("height_m must be > 0")
+        for attempt in range(2):
+            with self.v.cond:
+                st = self.v.state
+                rearm = not st.armed and self.armed_by_us and self.s.rearm
+                if not st.armed and not rearm:
+                    raise Failed("not armed")
+            if rearm:
+                self._rearm(run, ctl)
+            try:
+                return self._climb(run, ctl, height)
+            except Failed:
+                with self.v.cond:
+                    st = self.v.state
+                    again = not st.armed and self.v.on_ground(st) and self.armed_by_us
+                if attempt or not again or not self.s.rearm:
+                    raise
+        raise AssertionError("unreachable")
+
+    def _rearm(self, run: Run, ctl: RunControl) -> None:
+        v, s = self.v, self.s
         with v.cond:
-            if not v.state.armed:
-                raise Failed("not armed")
+            why = v.state.last_statustext
+            here = v.here_ned()
+        v.log.warning("adapter.rearm", reason=why or "vehicle disarmed itself")
+        # PX4 left in OFFBOARD without a stream is never armable: stream first.
+        v.autopilot.prepare_arm(ctl, here)
+        self._arm_now(run, ctl, time.monotonic() + s.scaled(s.armable_timeout_s))
+
+    def _climb(self, run: Run, ctl: RunControl, height: float) -> ActionResult:
+        v, s = self.v, self.s
+        with v.cond:
             if v.origin is None:
                 raise Failed("no LOCAL_POSITION_NED from the vehicle yet")
             x, y, _ = v.mission_position()
@@ -441,15 +494,12 @@ class Flight:
 
         def arrived(st: LinkState) -> bool:
             # Vertical only: a real take-off may drift a little sideways.
-            return (
-                abs(v.mission_position(st)[2] - height) <= s.tolerance_m
-                and v.speed(st) <= s.settle_speed_mps
-            )
+            return v.settled(st, (x, y, height), vertical=True)
 
         self.waiter.wait(
             run,
             arrived,
-            run.started + s.action_timeout_s,
+            run.started + s.scaled(s.action_timeout_s),
             self.waiter.timeout_reason("take-off height not reached"),
             guard=self.waiter.guard(modes),
         )
@@ -461,6 +511,10 @@ class Flight:
         with v.cond:
             if v.on_ground(v.state):
                 return ActionResult("ok")
+        # LAND brakes gently (ArduCopter touched down 10 m, PX4 14 m past the point
+        # where LAND was sent at full speed): come to rest first.
+        self.brake(run, ctl)
+        with v.cond:
             here = v.here_ned()
         v.autopilot.land(ctl, here)
         with v.cond:
@@ -470,7 +524,7 @@ class Flight:
         self.waiter.wait(
             run,
             v.landed,
-            run.started + self.s.action_timeout_s,
+            run.started + self.s.scaled(self.s.action_timeout_s),
             self.waiter.timeout_reason("not landed"),
             guard=self.waiter.guard(modes, need_armed=False, unless=v.landed),
         )
@@ -510,15 +564,12 @@ class Flight:
         self.waiter.confirm_modes(run, modes, done=lambda st: False)
 
         def arrived(st: LinkState) -> bool:
-            return (
-                math.dist(v.mission_position(st), target) <= s.tolerance_m
-                and v.speed(st) <= s.settle_speed_mps
-            )
+            return v.settled(st, target)
 
         self.waiter.wait(
             run,
             arrived,
-            run.started + s.action_timeout_s,
+            run.started + s.scaled(s.action_timeout_s),
             self.waiter.timeout_reason("target not reached"),
             guard=self.waiter.guard(modes),
         )
@@ -533,26 +584,33 @@ class Flight:
         """
         thread = threading.Thread(target=self._hold, name=name, daemon=True)
         with self.v.cond:
+            # Started under the condition: whoever sees it pending can join it.
             self._pending_hold = thread
-        thread.start()
+            thread.start()
 
     def _await_hold(self) -> None:
         with self.v.cond:
             hold = self._pending_hold
         if hold is not None:
-            hold.join(self.waiter.confirm_s() * 3)
+            hold.join(self.s.scaled(self.s.brake_timeout_s) + self.waiter.confirm_s() * 3)
+
+    def brake(self, run: Run, ctl: RunControl) -> None:
+        """Stop now if flying (see :func:`brake_to_rest`)."""
+        brake_to_rest(self.v, ctl, lambda until, end, why: self.waiter.wait(run, until, end, why))
 
     def _hold(self) -> None:
         v = self.v
         run = Run(None, None, "internal", time.monotonic())
+        ctl = RunControl(self, run)
         try:
+            self.brake(run, ctl)
             with v.cond:
                 if v.state.local is None:
                     return
                 here = v.here_ned()
                 airborne = not v.on_ground(v.state)
                 v.commanded = v.mission_position() if v.origin else None
-            v.autopilot.hold(RunControl(self, run), here, airborne)
+            v.autopilot.hold(ctl, here, airborne)
             v.log.info(
                 "adapter.hold",
                 north_m=round(here[0], 2),
@@ -562,8 +620,9 @@ class Flight:
         except (Failed, Ended, CommandRejected) as exc:
             v.log.warning("adapter.hold_failed", error=str(exc))
 
-    def abort(self) -> None:
-        """Land (if flying), then disarm; logs how it went (runs on the abort thread)."""
+    def abort(self, why: str = "abort") -> bool:
+        """Brake, land (if flying), then disarm and see it in a HEARTBEAT; logs how it
+        went as ``adapter.<why>.done`` / ``.failed`` (abort thread, or close)."""
         v = self.v
         run = Run(None, None, "internal", time.monotonic())
         ctl = RunControl(self, run)
@@ -572,24 +631,38 @@ class Flight:
             with v.cond:
                 known = v.state.local is not None
                 airborne = known and not v.on_ground(v.state)
-                here = v.here_ned() if known else (0.0, 0.0, 0.0)
             if airborne:
+                self.brake(run, ctl)
+                with v.cond:
+                    here = v.here_ned()
                 v.autopilot.land(ctl, here)
                 with v.cond:
                     v.guided_target = None
                 self.waiter.wait(
                     run,
                     v.landed,
-                    time.monotonic() + self.s.action_timeout_s,
+                    time.monotonic() + self.s.scaled(self.s.action_timeout_s),
                     self.waiter.timeout_reason("not landed"),
                 )
             with v.cond:
                 armed = v.state.armed
             if armed:
                 ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
-            v.log.info("adapter.abort.done")
+            # Done when a HEARTBEAT shows it, not at the acknowledgement.
+            self.waiter.wait(
+                run,
+                lambda st: not st.armed,
+                time.monotonic() + self.waiter.confirm_s(),
+                lambda st: "vehicle acknowledged disarming but its HEARTBEAT still shows armed",
+            )
+            with v.cond:
+                v.stop_steering()
+                self.armed_by_us = False
+            v.log.info(f"adapter.{why}.done")
+            return True
         except (Failed, Ended, CommandRejected) as exc:
-            v.log.error("adapter.abort.failed", error=str(exc))
+            v.log.error(f"adapter.{why}.failed", error=str(exc))
+            return False
 
 
 __all__ = ["Ended", "Failed", "Flight", "Run", "RunControl", "TimedOut", "Waiter"]

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
+from eamos.hal.mavlink.signing import radio_status_only, refresh_timestamp, signing_timestamp
 from eamos.hal.mavlink.state import (
     MAV_AUTOPILOT_INVALID,
     MAV_RESULT_NAMES,
@@ -200,6 +201,8 @@ class MavlinkLink:
         component_id: int,
         heartbeat_timeout_s: float,
         on_event: EventCallback | None = None,
+        signing_key: bytes | None = None,
+        signing_setup: bool = False,
     ) -> None:
         self.connection = connection
         self.source_system = source_system
@@ -226,6 +229,8 @@ class MavlinkLink:
         )
         self._boot = time.monotonic()
         self._transport_down = False
+        self._signing_key = signing_key
+        self._signing_setup = signing_setup and signing_key is not None
 
     # -- opening and closing -------------------------------------------------
 
@@ -256,6 +261,8 @@ class MavlinkLink:
                 if self._stop.wait(min(REDIAL_S, max(0.0, deadline - time.monotonic()))):
                     raise LinkError(f"{self.connection}: closed while connecting") from exc
         self.every(1.0, self._send_gcs_heartbeat, "gcs-heartbeat")
+        if self._signing_key is not None:
+            self._start_signing(self._signing_key)
         for target, name in ((self._read_loop, "reader"), (self._tick_loop, "ticker")):
             thread = threading.Thread(target=target, name=f"mavlink-{name}", daemon=True)
             self._threads.append(thread)
@@ -353,6 +360,71 @@ class MavlinkLink:
                     seen = self.state.ack_serial
                     deadline = time.monotonic() + timeout_s
         return None
+
+    def param_exchange(
+        self,
+        name: str,
+        write: tuple[float, int] | None,
+        *,
+        timeout_s: float,
+        retries: int,
+        abandon: Callable[[], bool] = lambda: False,
+    ) -> tuple[float, int] | None:
+        """Read a parameter (``write`` None: PARAM_REQUEST_READ) or set it (PARAM_SET with
+        ``(raw wire value, MAV_PARAM_TYPE)``); the (raw value, type) of the PARAM_VALUE
+        that answers, or None when none came after ``retries`` tries."""
+        encoded = name.encode()
+        for _ in range(retries):
+            with self.cond:
+                seen = self.state.param_serial
+            system, component = self.target
+            if write is None:
+                self.send("param_request_read", system, component, encoded, -1)
+            else:
+                self.send("param_set", system, component, encoded, write[0], write[1])
+
+            def answered(seen: int = seen) -> bool:
+                entry = self.state.params.get(name)
+                return abandon() or self.state.closed or (entry is not None and entry[2] > seen)
+
+            with self.cond:
+                self.cond.wait_for(answered, timeout=timeout_s)
+                entry = self.state.params.get(name)
+                if entry is not None and entry[2] > seen:
+                    return entry[0], entry[1]
+                if abandon() or self.state.closed:
+                    return None
+        return None
+
+    def _start_signing(self, key: bytes) -> None:
+        """Sign what we send, refuse what is not signed with ``key`` (signing.py)."""
+        conn = self._conn
+
+        def allow_unsigned(mav: Any, msg_id: int) -> bool:
+            # Provisioning: the vehicle signs only once it has the key.
+            provisioning = self._signing_setup and mav.signing.goodsig_count == 0
+            return provisioning or radio_status_only(mav, msg_id)
+
+        conn.setup_signing(key, sign_outgoing=True, allow_unsigned_callback=allow_unsigned)
+        self.every(1.0, self._signing_tick, "signing")
+
+    def _signing_tick(self) -> None:
+        conn = self._conn
+        if conn is None:
+            return
+        with self._send_lock:
+            refresh_timestamp(conn.mav)
+            pending = self._signing_setup and conn.mav.signing.goodsig_count == 0
+        if pending and self.state.system_id is not None and self._signing_key is not None:
+            system, component = self.target
+            self.send(
+                "setup_signing",
+                system,
+                component,
+                list(self._signing_key),
+                signing_timestamp(time.time()),
+            )
+            self._on_event("link.signing_setup", {"system_id": system})
 
     def _send_gcs_heartbeat(self) -> None:
         # Announces us as a ground station: autopilots track GCS presence by it.

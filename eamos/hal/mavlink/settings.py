@@ -32,10 +32,34 @@ class MavlinkSettings:
     command_retries: int = 3
     heartbeat_timeout_s: float = 3.0
     action_timeout_s: float = 120.0
-    tolerance_m: float = 0.3
-    settle_speed_mps: float = 0.3
+    #: Completion: within ``tolerance_m`` of the target and slower than
+    #: ``settle_speed_mps`` on average over ``settle_s``; None: the autopilot's own
+    #: (autopilots.Autopilot.tolerance_m, PX4's estimate wanders more).
+    tolerance_m: float | None = None
+    settle_speed_mps: float | None = None
+    settle_s: float = 0.5
     setpoint_hz: float = 20.0
     telemetry_hz: float = 10.0
+    #: The drone type's speeds, set on the vehicle (params.py) and restored at close.
+    horizontal_speed_mps: float = 2.0
+    climb_speed_mps: float = 1.0
+    descent_speed_mps: float = 0.7
+    set_speeds: bool = True
+    #: Re-arm before a take-off when the vehicle disarmed itself since our Arm.
+    rearm: bool = True
+    #: A flying vehicle is landed by close() (False: it is left, with an error logged).
+    land_on_close: bool = True
+    #: The vehicle's clock rate (a SITL at speed-up K): timeouts and waits shrink by K.
+    speedup: float = 1.0
+    #: How long a cancel may take to bring the vehicle to rest (vehicle seconds).
+    brake_timeout_s: float = 30.0
+    #: MAVLink 2 signing: the fleet's key file (signing.py); provision it with SETUP_SIGNING.
+    signing_key: str | None = None
+    signing_setup: bool = False
+
+    def scaled(self, seconds: float) -> float:
+        """``seconds`` of vehicle time in wall seconds (``speedup``)."""
+        return seconds / self.speedup
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "hal") -> MavlinkSettings:
@@ -68,6 +92,21 @@ class MavlinkSettings:
                 )
             return value
 
+        def optional(key: str) -> float | None:
+            return num(key, gt=0) if key in mapping else None
+
+        def text(key: str) -> str | None:
+            value = mapping.get(key)
+            if value is not None and not (isinstance(value, str) and value):
+                raise field_error(f"{prefix}.{key}", f"expected a file path, got {value!r}")
+            return value
+
+        def flag(key: str) -> bool:
+            value = mapping.get(key, getattr(cls, key))
+            if not isinstance(value, bool):
+                raise field_error(f"{prefix}.{key}", f"expected true or false, got {value!r}")
+            return value
+
         def choice(key: str, options: tuple[str, ...]) -> Any:
             value = mapping.get(key, getattr(cls, key))
             if value not in options:
@@ -90,8 +129,19 @@ class MavlinkSettings:
             command_retries=integer("command_retries", 1, 100, 3) or 3,
             heartbeat_timeout_s=num("heartbeat_timeout_s", gt=0),
             action_timeout_s=num("action_timeout_s", gt=0),
-            tolerance_m=num("tolerance_m", gt=0),
-            settle_speed_mps=num("settle_speed_mps", gt=0),
+            tolerance_m=optional("tolerance_m"),
+            settle_speed_mps=optional("settle_speed_mps"),
+            settle_s=num("settle_s", ge=0),
             setpoint_hz=num("setpoint_hz", gt=2, le=100),
-            telemetry_hz=num("telemetry_hz", gt=0, le=100),
+            telemetry_hz=num("telemetry_hz", ge=10, le=100),
+            horizontal_speed_mps=num("horizontal_speed_mps", gt=0),
+            climb_speed_mps=num("climb_speed_mps", gt=0),
+            descent_speed_mps=num("descent_speed_mps", gt=0),
+            set_speeds=flag("set_speeds"),
+            rearm=flag("rearm"),
+            land_on_close=flag("land_on_close"),
+            speedup=num("speedup", gt=0),
+            brake_timeout_s=num("brake_timeout_s", gt=0),
+            signing_key=text("signing_key"),
+            signing_setup=flag("signing_setup"),
         )

@@ -37,6 +37,8 @@ MAV_RESULT_NAMES = {
 GAP_S = 1.0
 #: STATUSTEXT payload size: a chunk this long is continued by the next one.
 STATUSTEXT_CHUNK = 50
+#: LOCAL_POSITION_NED samples kept for settle windows (a few seconds at 10-50 Hz).
+RECENT_SAMPLES = 200
 
 
 def result_name(result: int | None) -> str:
@@ -79,6 +81,13 @@ class LinkState:
     failsafe_at: float = -math.inf  # last STATUSTEXT mentioning a failsafe
     local: tuple[float, float, float, float, float, float] | None = None  # NED x y z vx vy vz
     local_count: int = 0
+    #: Recent LOCAL_POSITION_NED (receive time, NED x y z vx vy vz): the settle window.
+    recent: deque[tuple[float, tuple[float, ...]]] = field(
+        default_factory=lambda: deque(maxlen=RECENT_SAMPLES)
+    )
+    #: PARAM_VALUE by name: (raw wire value, MAV_PARAM_TYPE, param_serial when heard).
+    params: dict[str, tuple[float, int, int]] = field(default_factory=dict)
+    param_serial: int = 0
     global_pos: GlobalPosition | None = None
     home: tuple[float, float, float] | None = None  # HOME_POSITION lat, lon, alt AMSL
     sensors_present: int | None = None
@@ -90,6 +99,22 @@ class LinkState:
     statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
     statustext_serial: int = 0
     closed: bool = False
+
+    def window(self, now: float, span_s: float) -> tuple[tuple[float, float, float], float] | None:
+        """Mean NED position and speed of LOCAL_POSITION_NED over ``span_s`` before ``now``.
+
+        None until samples cover the whole span; ``span_s`` 0: the latest sample.
+        """
+        if self.local is None:
+            return None
+        samples: list[tuple[float, ...]] = [self.local]
+        if span_s > 0:
+            if not self.recent or self.recent[0][0] > now - span_s:
+                return None
+            samples = [x for t, x in self.recent if t >= now - span_s] or samples
+        n = len(samples)
+        m = [sum(x[i] for x in samples) / n for i in range(6)]
+        return (m[0], m[1], m[2]), math.sqrt(m[3] ** 2 + m[4] ** 2 + m[5] ** 2)
 
     @property
     def last_statustext(self) -> str:
@@ -212,6 +237,14 @@ class StateTracker:
     def _on_local_position_ned(self, msg: Any, now: float, events: Events) -> None:
         self.state.local = (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
         self.state.local_count += 1
+        self.state.recent.append((now, self.state.local))
+
+    def _on_param_value(self, msg: Any, now: float, events: Events) -> None:
+        raw = msg.param_id
+        name = (raw.decode("utf-8", "replace") if isinstance(raw, bytes) else raw).rstrip("\x00")
+        st = self.state
+        st.param_serial += 1
+        st.params[name] = (float(msg.param_value), int(msg.param_type), st.param_serial)
 
     def _on_global_position_int(self, msg: Any, now: float, events: Events) -> None:
         self.state.global_pos = GlobalPosition(

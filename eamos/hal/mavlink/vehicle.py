@@ -19,12 +19,14 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
 from eamos.hal.kinematics import EARTH_RADIUS_M, GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
 from eamos.hal.mavlink.frames import NedOrigin, Vector, ned_to_mission
+from eamos.hal.mavlink.keeper import ParamKeeper
 from eamos.hal.mavlink.link import (
     MAV_SYS_STATUS_PREARM_CHECK,
     LinkError,
@@ -32,18 +34,22 @@ from eamos.hal.mavlink.link import (
     MavlinkLink,
     result_name,
 )
+from eamos.hal.mavlink.signing import SigningKeyError, read_key
+from eamos.hal.mavlink.targets import (
+    TYPE_MASK_POSITION,
+    TYPE_MASK_VELOCITY,
+    GuidedTarget,
+    send_global,
+    send_position,
+    send_stop,
+)
 from eamos.hal.settings import field_error
 
 if TYPE_CHECKING:
     from eamos.hal.mavlink.settings import MavlinkSettings
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
-MAV_FRAME_LOCAL_NED = 1
-MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 6
 MAV_LANDED_STATE_ON_GROUND = 1
-#: SET_POSITION_TARGET_* type_mask: use the position only (ignore velocity,
-#: acceleration, yaw and yaw rate), so the vehicle keeps its heading.
-TYPE_MASK_POSITION = 0x0FF8
 #: Messages requested with MAV_CMD_SET_MESSAGE_INTERVAL, and their rate in Hz
 #: (None: ``telemetry_hz``).
 MSG_LOCAL_POSITION_NED = 32
@@ -69,8 +75,15 @@ TARGET_REFRESH_S = 1.0
 #: The adapter log gets the vehicle's position this often while it changes.
 POSITION_LOG_S = 1.0 / POSITION_LOG_HZ
 
-#: What the vehicle is told to go to: ("local", NED point) or ("global", (lat, lon, rel alt)).
-GuidedTarget = tuple[str, Vector]
+
+def _signing_key(settings: MavlinkSettings) -> bytes | None:
+    """The fleet's signing key from ``hal.signing_key`` (never logged), or None."""
+    if settings.signing_key is None:
+        return None
+    try:
+        return read_key(Path(settings.signing_key).expanduser())
+    except SigningKeyError as exc:
+        raise field_error("hal.signing_key", str(exc)) from None
 
 
 class MavlinkVehicle:
@@ -82,6 +95,8 @@ class MavlinkVehicle:
         self.log = log
         self.link = MavlinkLink(
             settings.connection,
+            signing_key=_signing_key(settings),
+            signing_setup=settings.signing_setup,
             source_system=settings.source_system,
             source_component=settings.source_component,
             system_id=settings.system_id,
@@ -101,6 +116,8 @@ class MavlinkVehicle:
         self.geo: GeoFrame | None = None  # home, in WGS84
         self.commanded: Vector | None = None  # last motion target, mission frame
         self.stream_target: Vector | None = None  # PX4 setpoint stream (NED)
+        self.stream_stop = False  # the stream carries a zero velocity instead (a brake)
+        self.keeper = ParamKeeper(self.link, settings, log)  # speeds set, to restore
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
         self._was_armed = False
@@ -157,6 +174,7 @@ class MavlinkVehicle:
             "adapter.connected", system_id=sysid, autopilot=found.name, mode=self.mode_name()
         )
         self._request_intervals(deadline)
+        self.apply_speeds()
 
     def _request_intervals(self, deadline: float) -> None:
         """Ask for the telemetry the adapter reads (best effort; each answer is logged)."""
@@ -228,18 +246,50 @@ class MavlinkVehicle:
         return not st.armed or self.on_ground(st)
 
     def base_point(self) -> Vector:
-        """Where relative moves start: the last target if we are there, else here.
+        """Where relative moves start: the previous commanded target (else here).
 
-        Using the target keeps FlyBy sequences from accumulating each leg's
-        tolerance (as the simulator does).
+        Relative moves add up exactly as in the simulator: neither a leg's
+        tolerance nor a wandering estimate (PX4 SIH: +-0.5 m) accumulates.
+        After a cancel the commanded point is where the vehicle came to rest.
         """
-        here = self.mission_position()
-        if (
-            self.commanded is not None
-            and math.dist(here, self.commanded) <= self.settings.tolerance_m
-        ):
+        if self.commanded is not None:
             return self.commanded
-        return here
+        return self.mission_position()
+
+    @property
+    def tolerance_m(self) -> float:
+        """Completion tolerance: the settings', else the autopilot's."""
+        return self.settings.tolerance_m or self.autopilot.tolerance_m
+
+    @property
+    def settle_speed_mps(self) -> float:
+        """Settle speed: the settings', else the autopilot's."""
+        return self.settings.settle_speed_mps or self.autopilot.settle_speed_mps
+
+    def window(self, st: LinkState, now: float) -> tuple[Vector, float] | None:
+        """Mean mission position and speed over the settle window ending ``now``, or None
+        until LOCAL_POSITION_NED has been heard for the whole window (a single sample of
+        a wandering estimate proves nothing)."""
+        seen = st.window(now, self.settings.scaled(self.settings.settle_s))
+        if seen is None or st.local is None:
+            return None
+        origin = self.origin or NedOrigin(st.local[0], st.local[1], st.local[2])
+        return ned_to_mission(seen[0], origin), seen[1]
+
+    def settled(self, st: LinkState, target: Vector | None = None, vertical: bool = False) -> bool:
+        """At rest over the settle window (and within tolerance of ``target``, if given;
+        ``vertical``: of its height only)."""
+        seen = self.window(st, time.monotonic())
+        if seen is None:
+            return False
+        position, speed = seen
+        if speed > self.settle_speed_mps:
+            return False
+        if target is None:
+            return True
+        if vertical:
+            return abs(position[2] - target[2]) <= self.tolerance_m
+        return math.dist(position, target) <= self.tolerance_m
 
     def capture_origin(self, ground: bool = False) -> None:
         """Record home at the first fix and, with ``ground``, the ground height before arming."""
@@ -308,59 +358,33 @@ class MavlinkVehicle:
 
     def send_setpoint(self, target: Vector) -> None:
         """SET_POSITION_TARGET_LOCAL_NED, position only, MAV_FRAME_LOCAL_NED."""
-        system, component = self.link.target
-        self.link.send(
-            "set_position_target_local_ned",
-            self.link.time_boot_ms(),
-            system,
-            component,
-            MAV_FRAME_LOCAL_NED,
-            TYPE_MASK_POSITION,
-            target[0],
-            target[1],
-            target[2],
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-        )
+        send_position(self.link, target)
 
     def send_guided_target(self, target: GuidedTarget) -> None:
         """A local or global (relative altitude) position target."""
         kind, point = target
         if kind == "local":
-            self.send_setpoint(point)
-            return
-        system, component = self.link.target
-        lat, lon, alt = point
-        self.link.send(
-            "set_position_target_global_int",
-            self.link.time_boot_ms(),
-            system,
-            component,
-            MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-            TYPE_MASK_POSITION,
-            round(lat * 1e7),
-            round(lon * 1e7),
-            alt,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-            0,
-        )
+            send_position(self.link, point)
+        else:
+            send_global(self.link, point)
+
+    def send_stop(self) -> None:
+        """A zero-velocity target (velocity only): stop now."""
+        send_stop(self.link)
 
     def stop_steering(self) -> None:
         """No more setpoints or position targets (condition held)."""
         self.stream_target = None
+        self.stream_stop = False
         self.guided_target = None
+
+    def apply_speeds(self) -> None:
+        """Set the drone type's speeds on the vehicle (keeper.py)."""
+        self.keeper.apply_speeds(self.autopilot.name)
+
+    def restore_params(self) -> None:
+        """Write back the parameters :meth:`apply_speeds` changed."""
+        self.keeper.restore()
 
     def _steer_tick(self) -> None:
         with self.cond:
@@ -368,8 +392,10 @@ class MavlinkVehicle:
                 # Disarmed (landed, auto-disarm, or by someone else): stop steering.
                 self.stop_steering()
             self._was_armed = self.state.armed
-            target = self.stream_target
-        if target is not None:
+            target, stop = self.stream_target, self.stream_stop
+        if stop:
+            self.send_stop()
+        elif target is not None:
             self.send_setpoint(target)
 
     def _refresh_tick(self) -> None:
@@ -379,29 +405,7 @@ class MavlinkVehicle:
             self.send_guided_target(target)
 
     def _position_log_tick(self) -> None:
-        with self.cond:
-            st = self.state
-            if st.local is None:
-                return
-            x, y, z = self.mission_position(st)
-            key = (round(x, 2), round(y, 2), round(z, 2), st.armed, self.on_ground(st))
-            if key == self._last_position_key:
-                return
-            self._last_position_key = key
-            fields = {
-                "speed_mps": round(self.speed(st), 2),
-                "mode": self.mode_name(st),
-                "battery_pct": st.battery_pct,
-            }
-        self.log.info(
-            "adapter.position",
-            x_m=key[0],
-            y_m=key[1],
-            z_m=key[2],
-            armed=key[3],
-            landed=key[4],
-            **fields,
-        )
+        _log_position(self)
 
     def _on_link_event(self, name: str, event: dict[str, Any]) -> None:
         """Copy what the link saw into the adapter log (reader/ticker threads)."""
@@ -423,4 +427,37 @@ class MavlinkVehicle:
             self.log.info(f"adapter.{name}", **event)
 
 
-__all__ = ["GROUND_Z_M", "TYPE_MASK_POSITION", "GuidedTarget", "MavlinkVehicle"]
+def _log_position(self: MavlinkVehicle) -> None:
+    """``adapter.position`` when the rounded position or state changed (ticker thread)."""
+    with self.cond:
+        st = self.state
+        if st.local is None:
+            return
+        x, y, z = self.mission_position(st)
+        key = (round(x, 2), round(y, 2), round(z, 2), st.armed, self.on_ground(st))
+        if key == self._last_position_key:
+            return
+        self._last_position_key = key
+        fields = {
+            "speed_mps": round(self.speed(st), 2),
+            "mode": self.mode_name(st),
+            "battery_pct": st.battery_pct,
+        }
+    self.log.info(
+        "adapter.position",
+        x_m=key[0],
+        y_m=key[1],
+        z_m=key[2],
+        armed=key[3],
+        landed=key[4],
+        **fields,
+    )
+
+
+__all__ = [
+    "GROUND_Z_M",
+    "TYPE_MASK_POSITION",
+    "TYPE_MASK_VELOCITY",
+    "GuidedTarget",
+    "MavlinkVehicle",
+]

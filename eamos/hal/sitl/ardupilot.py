@@ -9,6 +9,10 @@
   metres above home) works only in GUIDED, armed and on the ground, else FAILED.
   MAV_CMD_DO_REPOSITION switches to GUIDED only when its flag asks for it.
 * Refused commands answer FAILED; LOCAL_POSITION_NED z is 0 on the ground.
+* Speeds are its own unless told: WPNAV_SPEED 500 cm/s (the notes: GUIDED targets fly
+  at ~5 m/s), WPNAV_SPEED_UP/DN, WPNAV_ACCEL 250 cm/s/s.  A position target at the
+  current spot while fast overshoots by v^2 / (2 WPNAV_ACCEL) and comes back; BRAKE
+  stops at BRAKE_DECEL_MPS2; LAND brakes gently.  DISARM_DELAY disarms an idle vehicle.
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from eamos.hal.sitl.wire import (
     param_int,
 )
 
+#: BRAKE mode's deceleration (ArduCopter's BRAKE_MODE_DECEL_RATE, 750 cm/s/s).
+BRAKE_DECEL_MPS2 = 7.5
 #: Modes a GCS may not switch to here.
 _REFUSED_MODES = frozenset({"AUTO", "ACRO", "THROW", "GUIDED_NOGPS"})
 _BY_NUMBER = {value: name for name, value in ARDUCOPTER_MODES.items()}
@@ -42,6 +48,7 @@ class ArduPilotPersonality(Personality):
     capabilities = 0x2000 | 0x8 | 0x2 | 0x4 | 0x80 | 0x100 | 0x20000
     version = 4 << 24 | 7 << 16
     initial_mode = "STABILIZE"
+    target_mode = "GUIDED"
     modes = ARDUCOPTER_MODES
     default_ground_offset_m = 0.0
     default_rates = {MSG_SYS_STATUS: 1.0}  # ArduPilot waits to be asked
@@ -65,16 +72,37 @@ class ArduPilotPersonality(Personality):
         return ARDUCOPTER_MODES[mode]
 
     def initial_params(self, options: VehicleOptions) -> Params:
-        limits = options.limits
         return {
             "SYSID_THISMAV": (float(options.sysid), PARAM_REAL32),
             "DISARM_DELAY": (options.disarm_after_s, PARAM_REAL32),
             "PILOT_TKOFF_ALT": (0.0, PARAM_REAL32),
-            "WPNAV_SPEED": (limits.horizontal_speed_mps * 100, PARAM_REAL32),
-            "WPNAV_SPEED_UP": (limits.climb_speed_mps * 100, PARAM_REAL32),
-            "WPNAV_SPEED_DN": (limits.descent_speed_mps * 100, PARAM_REAL32),
+            # ArduCopter's defaults (cm/s, cm/s/s), not the drone type's.
+            "WPNAV_SPEED": (500.0, PARAM_REAL32),
+            "WPNAV_SPEED_UP": (250.0, PARAM_REAL32),
+            "WPNAV_SPEED_DN": (150.0, PARAM_REAL32),
+            "WPNAV_ACCEL": (250.0, PARAM_REAL32),
             "FS_GCS_ENABLE": (0.0, PARAM_REAL32),
         }
+
+    def speeds(self, v: VehicleCore) -> tuple[float, float, float]:
+        value = v.params.value
+        return (
+            value("WPNAV_SPEED") / 100.0,
+            value("WPNAV_SPEED_UP") / 100.0,
+            value("WPNAV_SPEED_DN") / 100.0,
+        )
+
+    def accel(self, v: VehicleCore) -> float:
+        return max(v.params.value("WPNAV_ACCEL"), 50.0) / 100.0
+
+    def preflight_disarm_s(self, v: VehicleCore) -> float:
+        return v.params.value("DISARM_DELAY")
+
+    def mode_entered(self, v: VehicleCore, mode: str) -> bool:
+        if mode == "BRAKE":
+            v.stop_at(BRAKE_DECEL_MPS2)  # the fastest stop ArduCopter has
+            return True
+        return False
 
     def boot(self, v: VehicleCore) -> None:
         if not self._ready_announced and v.t >= ARDUPILOT_READY_S:
@@ -104,7 +132,7 @@ class ArduPilotPersonality(Personality):
         if not math.isfinite(height) or height <= 0:
             return FAILED
         x, y, _ = model.position
-        model.set_target(x, y, height)
+        v.steer(x, y, height)
         v.flew = True  # taking off counts: no preflight auto-disarm
         return ACCEPTED
 
@@ -118,7 +146,7 @@ class ArduPilotPersonality(Personality):
     def position_target(self, v: VehicleCore, target: tuple[float, float, float]) -> None:
         if v.mode == "GUIDED" and v.armed and not v.model.landed:
             # ArduCopter ignores position targets until it has taken off.
-            v.model.set_target(*target)
+            v.steer(*target)
 
 
 __all__ = ["ArduPilotPersonality"]

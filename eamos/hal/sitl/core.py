@@ -20,11 +20,14 @@ wall seconds).
 
 from __future__ import annotations
 
+import math
+import random
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from typing import Any
 
-from eamos.hal.kinematics import GeoFrame, Quadcopter
+from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter
 from eamos.hal.sim.core import SIM_DT_S
 from eamos.hal.sitl.streams import Identity, Send, Status, Streams
 from eamos.hal.sitl.wire import (
@@ -44,6 +47,22 @@ Params = dict[str, Param]
 #: Modes in which the vehicle lands, and returns to launch (either autopilot's names).
 LAND_MODES = frozenset({"AUTO.LAND", "LAND"})
 RTL_MODES = frozenset({"AUTO.RTL", "RTL"})
+#: LAND while moving brakes gently: ArduCopter touched down ~10 m past the point at
+#: 5 m/s, PX4 ~14 m at 6 m/s (the notes); this deceleration gives 10 and 14.4 m.
+LAND_DECEL_MPS2 = 1.25
+#: Descent speed in LAND (ArduCopter LAND_SPEED 50 cm/s, PX4 MPC_LAND_SPEED 0.7 m/s).
+LAND_SPEED_MPS = 0.7
+#: The wandering estimate's correlation time (seconds): slow, like an EKF's drift.
+WANDER_TAU_S = 2.0
+
+
+def stopping_point(
+    position: tuple[float, float, float], velocity: tuple[float, float, float], accel: float
+) -> tuple[float, float, float]:
+    """Where a vehicle braking at ``accel`` from ``velocity`` comes to rest (pure)."""
+    return tuple(  # type: ignore[return-value]
+        p + v * abs(v) / (2.0 * accel) for p, v in zip(position, velocity, strict=True)
+    )
 
 
 class Personality:
@@ -87,6 +106,36 @@ class Personality:
     def custom_mode(self, mode: str) -> int:
         """HEARTBEAT.custom_mode of ``mode``."""
         raise NotImplementedError
+
+    def speeds(self, v: VehicleCore) -> tuple[float, float, float]:
+        """Horizontal, climb and descent speed limits now (from its parameters)."""
+        raise NotImplementedError
+
+    def accel(self, v: VehicleCore) -> float:
+        """The horizontal acceleration its position controller uses (from its parameters)."""
+        raise NotImplementedError
+
+    def stop_accel(self, v: VehicleCore) -> float:
+        """The deceleration of a zero-velocity target (its fastest documented stop)."""
+        return self.accel(v)
+
+    def preflight_disarm_s(self, v: VehicleCore) -> float:
+        """Armed on the ground without a take-off, disarm after this (<= 0: never)."""
+        raise NotImplementedError
+
+    #: The mode in which it follows a companion's position and velocity targets.
+    target_mode: str
+
+    def velocity_target(self, v: VehicleCore, velocity: tuple[float, float, float]) -> None:
+        """A velocity target (model frame).  Only "stop" (all zero) is simulated: the vehicle
+        brakes at :meth:`stop_accel` to where that stops it; other velocities are ignored."""
+        if (
+            v.armed
+            and not v.model.landed
+            and v.mode == self.target_mode
+            and max(abs(c) for c in velocity) < 0.05
+        ):
+            v.stop_at(self.stop_accel(v))
 
     def initial_params(self, options: VehicleOptions) -> Params:
         """The parameters it answers PARAM_REQUEST_LIST with."""
@@ -216,6 +265,10 @@ class VehicleCore:
         self.wall = wall
         self.frame = GeoFrame(*o.home)
         self.model = Quadcopter(o.limits)
+        # Set by a brake (BRAKE mode, a zero-velocity target) until the next target.
+        self.braking_accel: float | None = None
+        self._rng = random.Random(o.seed)
+        self.wander: list[float] = [0.0] * 6  # estimate error: x y z (m), vx vy vz (m/s)
         self.offset_m = (
             o.ground_offset_m
             if o.ground_offset_m is not None
@@ -266,6 +319,7 @@ class VehicleCore:
             self.p.custom_mode(self.mode),
             self.armed,
             self.armable(),
+            (tuple(self.wander) if self.options.wander_m > 0 else None),  # type: ignore[arg-type]
         )
 
     def send_due(self) -> None:
@@ -276,7 +330,7 @@ class VehicleCore:
 
     def step(self) -> None:
         """Advance one SIM_DT_S step: boot, pre-arm narration, personality, auto-disarm, model."""
-        o, p, model = self.options, self.p, self.model
+        p, model = self.p, self.model
         self.t += SIM_DT_S
         t = self.t
         p.boot(self)
@@ -287,9 +341,12 @@ class VehicleCore:
             self._next_prearm_text = t + PREARM_TEXT_PERIOD_S
             self.text(self.prearm_reason(), SEV_CRITICAL)
         p.on_step(self)
-        if self.armed and model.landed and not self.flew and t - self.armed_at >= o.disarm_after_s:
+        delay = p.preflight_disarm_s(self)
+        if self.armed and model.landed and not self.flew and 0 < delay <= t - self.armed_at:
             self.disarm(p.text_preflight_disarm)
+        model.limits = self.flight_limits()
         model.step(SIM_DT_S)
+        self._wander()
         if not model.landed:
             self.flew = True
         if model.landed and not self._was_landed:
@@ -306,6 +363,47 @@ class VehicleCore:
         ):
             self.disarm(p.text_land_disarm)
         self._log_position()
+
+    def flight_limits(self) -> Limits:
+        """The model's limits now: the autopilot's speed parameters, the mode's deceleration."""
+        horizontal, climb, descent = self.p.speeds(self)
+        accel = self.braking_accel or self.p.accel(self)
+        if self.mode in LAND_MODES:
+            accel, descent = LAND_DECEL_MPS2, LAND_SPEED_MPS
+        return replace(
+            self.options.limits,
+            horizontal_speed_mps=max(horizontal, 0.05),
+            climb_speed_mps=max(climb, 0.05),
+            descent_speed_mps=max(descent, 0.05),
+            accel_mps2=accel,
+        )
+
+    def stop_at(self, accel: float, ground: bool = False) -> None:
+        """Brake at ``accel`` to where that stops the vehicle (``ground``: then descend)."""
+        st = self.model.state
+        if self.model.landed:
+            return
+        x, y, z = stopping_point((st.x_m, st.y_m, st.z_m), (st.vx_mps, st.vy_mps, st.vz_mps), accel)
+        self.model.set_target(x, y, 0.0 if ground else z)
+        self.braking_accel = accel
+
+    def steer(self, x: float, y: float, z: float) -> None:
+        """A new position target: the autopilot's own acceleration applies again."""
+        self.braking_accel = None
+        self.model.set_target(x, y, z)
+
+    def _wander(self) -> None:
+        """Advance the estimate's error: an Ornstein-Uhlenbeck walk of ``wander_m`` spread."""
+        sigma = self.options.wander_m
+        if sigma <= 0:
+            return
+        k = SIM_DT_S / WANDER_TAU_S
+        scale = math.sqrt(2.0 * k)
+        for i in range(6):
+            spread = sigma if i < 3 else sigma * 0.6
+            if i in (2, 5):
+                spread *= 0.3  # the height wanders less than the horizontal position
+            self.wander[i] += -self.wander[i] * k + spread * scale * self._rng.gauss(0.0, 1.0)
 
     def armable(self) -> bool:
         """Pre-arm checks pass: booted, past the pre-arm delay, the personality agrees."""
@@ -351,8 +449,10 @@ class VehicleCore:
         model = self.model
         if self.p.mode_entered(self, mode):
             return
+        self.braking_accel = None
         if mode in LAND_MODES:
-            model.land()
+            # LAND brakes gently from wherever the vehicle flies, descending meanwhile.
+            self.stop_at(LAND_DECEL_MPS2, ground=True)
             if model.landed and self.armed:
                 self.touchdown_at = self.t  # already down: disarm soon
         elif mode in RTL_MODES:
@@ -384,6 +484,7 @@ class VehicleCore:
 
 
 __all__ = [
+    "LAND_DECEL_MPS2",
     "LAND_MODES",
     "RTL_MODES",
     "Param",
@@ -391,4 +492,5 @@ __all__ = [
     "Params",
     "Personality",
     "VehicleCore",
+    "stopping_point",
 ]

@@ -33,6 +33,7 @@ from eamos.hal.sitl.wire import (
     FRAME_GLOBAL_RELATIVE_ALT_INT,
     FRAME_LOCAL_NED,
     IGNORE_POSITION,
+    IGNORE_VELOCITY,
     MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
     MSG_AUTOPILOT_VERSION,
     MSG_HOME_POSITION,
@@ -183,7 +184,7 @@ class Inbox:
         refused = self.v.p.reposition_mode(self.v, p)
         if refused is not None:
             return refused
-        model.set_target(tx, ty, max(tz, 0.5))
+        self.v.steer(tx, ty, max(tz, 0.5))
         return ACCEPTED
 
     def _cmd_request_message(self, p: tuple[float, ...], frame: int | None) -> int:
@@ -200,8 +201,13 @@ class Inbox:
         if not self._for_us(msg):
             return
         self.v.p.setpoint(self.v)
-        if msg.type_mask & IGNORE_POSITION or msg.coordinate_frame != FRAME_LOCAL_NED:
-            return  # velocity/acceleration setpoints only keep the stream alive here
+        if msg.coordinate_frame != FRAME_LOCAL_NED:
+            return
+        if msg.type_mask & IGNORE_POSITION:
+            if not msg.type_mask & IGNORE_VELOCITY:
+                # NED velocity -> model frame (z up); only a stop is simulated.
+                self.v.p.velocity_target(self.v, (msg.vx, msg.vy, -msg.vz))
+            return  # acceleration setpoints only keep the stream alive here
         self.v.p.position_target(self.v, (msg.x, msg.y, -(msg.z - self.v.offset_m)))
 
     def _on_set_position_target_global_int(self, msg: Any) -> None:

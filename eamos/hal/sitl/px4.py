@@ -14,6 +14,10 @@
   landing (or any disarm in AUTO.LAND/AUTO.TAKEOFF) it returns to HOLD.
 * LOCAL_POSITION_NED z is offset on the ground (1.5 m), as PX4 SIH's is.
 * Integer parameters travel byte-wise inside PARAM_VALUE's float.
+* Speeds are its own unless told: OFFBOARD position targets fly at ~6 m/s (the notes)
+  under MPC_XY_VEL_MAX (12), other modes at MPC_XY_CRUISE; MPC_Z_VEL_MAX_UP/DN;
+  MPC_ACC_HOR 3 m/s/s (a position target at the current spot while fast overshoots by
+  v^2 / 6 and comes back); a zero-velocity setpoint stops at MPC_ACC_HOR_MAX (5 m/s/s).
 """
 
 from __future__ import annotations
@@ -39,6 +43,9 @@ from eamos.hal.sitl.wire import (
     param_int,
 )
 
+#: The speed OFFBOARD position targets were seen to fly at (PX4 main, SIH), below
+#: MPC_XY_VEL_MAX's default of 12 m/s.
+OFFBOARD_CRUISE_MPS = 6.0
 #: Modes a GCS cannot switch to without an RC transmitter.
 _RC_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"})
 _BY_NUMBERS = {pair: name for name, pair in PX4_MODES.items()}
@@ -53,6 +60,7 @@ class Px4Personality(Personality):
     capabilities = 0x2000 | 0x8 | 0x2 | 0x4 | 0x80 | 0x100 | 0x10
     version = 1 << 24 | 15 << 16 | 0 << 8 | 255
     initial_mode = "HOLD"
+    target_mode = "OFFBOARD"
     modes = PX4_MODES
     default_ground_offset_m = 1.5
     default_rates = DEFAULT_STREAM_RATES  # PX4's onboard link streams a lot by default
@@ -81,7 +89,6 @@ class Px4Personality(Personality):
         return px4_custom_mode(*PX4_MODES[mode])
 
     def initial_params(self, options: VehicleOptions) -> Params:
-        limits = options.limits
         return {
             "MAV_SYS_ID": (float(options.sysid), PARAM_INT32),
             "MIS_TAKEOFF_ALT": (2.5, PARAM_REAL32),
@@ -89,10 +96,35 @@ class Px4Personality(Personality):
             "COM_DISARM_LAND": (LAND_DISARM_S, PARAM_REAL32),
             "COM_OF_LOSS_T": (OFFBOARD_LOSS_S, PARAM_REAL32),
             "COM_OBL_RC_ACT": (5.0, PARAM_INT32),
-            "MPC_XY_CRUISE": (limits.horizontal_speed_mps, PARAM_REAL32),
-            "MPC_Z_VEL_MAX_UP": (limits.climb_speed_mps, PARAM_REAL32),
-            "MPC_Z_VEL_MAX_DN": (limits.descent_speed_mps, PARAM_REAL32),
+            # PX4's defaults, not the drone type's.
+            "MPC_XY_CRUISE": (5.0, PARAM_REAL32),
+            "MPC_XY_VEL_MAX": (12.0, PARAM_REAL32),
+            "MPC_Z_VEL_MAX_UP": (3.0, PARAM_REAL32),
+            "MPC_Z_VEL_MAX_DN": (1.5, PARAM_REAL32),
+            "MPC_ACC_HOR": (3.0, PARAM_REAL32),
+            "MPC_ACC_HOR_MAX": (5.0, PARAM_REAL32),
         }
+
+    def speeds(self, v: VehicleCore) -> tuple[float, float, float]:
+        value = v.params.value
+        limit = value("MPC_XY_VEL_MAX")
+        cruise = OFFBOARD_CRUISE_MPS if v.mode == "OFFBOARD" else value("MPC_XY_CRUISE")
+        return (min(cruise, limit), value("MPC_Z_VEL_MAX_UP"), value("MPC_Z_VEL_MAX_DN"))
+
+    def accel(self, v: VehicleCore) -> float:
+        return max(v.params.value("MPC_ACC_HOR"), 0.5)
+
+    def stop_accel(self, v: VehicleCore) -> float:
+        return max(v.params.value("MPC_ACC_HOR_MAX"), 0.5)
+
+    def preflight_disarm_s(self, v: VehicleCore) -> float:
+        return v.params.value("COM_DISARM_PRFLT")
+
+    def velocity_target(self, v: VehicleCore, velocity: tuple[float, float, float]) -> None:
+        super().velocity_target(v, velocity)
+        if v.mode == "OFFBOARD" and v.braking_accel is not None:
+            # Re-entering OFFBOARD (after a failsafe) keeps the stop, not an old target.
+            self._offboard_target = v.model.target
 
     def param_to_wire(self, value: float, ptype: int) -> float:
         if ptype == PARAM_INT32:
@@ -134,7 +166,7 @@ class Px4Personality(Personality):
         if v.mode == "AUTO.TAKEOFF" and v.armed and self._takeoff_z is not None:
             x, y, z = model.position
             if model.target is None or model.landed:
-                model.set_target(x, y, self._takeoff_z)
+                v.steer(x, y, self._takeoff_z)
             if abs(z - self._takeoff_z) < 0.1 and model.state.speed_mps < 0.2:
                 self._takeoff_z = None
                 v.enter_mode("HOLD", "takeoff complete")
@@ -179,10 +211,10 @@ class Px4Personality(Personality):
         if not v.armed:
             return
         if v.mode == "OFFBOARD" and self._offboard_target is not None:
-            v.model.set_target(*self._offboard_target)
+            v.steer(*self._offboard_target)
         elif v.mode == "AUTO.TAKEOFF" and self._takeoff_z is not None:
             x, y, _ = v.model.position
-            v.model.set_target(x, y, self._takeoff_z)
+            v.steer(x, y, self._takeoff_z)
 
     # -- commands and targets -----------------------------------------------------------
 
@@ -216,7 +248,7 @@ class Px4Personality(Personality):
             v.enter_mode("OFFBOARD", "setpoints resumed")
             v.text("Failsafe deactivated: offboard signal regained", SEV_NOTICE)
         elif v.mode == "OFFBOARD" and v.armed:
-            v.model.set_target(*target)
+            v.steer(*target)
 
 
 __all__ = ["Px4Personality"]

@@ -66,6 +66,8 @@ class Status:
     custom_mode: int
     armed: bool
     armable: bool
+    #: The position estimate's error (x y z m, vx vy vz m/s, mission frame), or None.
+    wander: tuple[float, float, float, float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -168,18 +170,19 @@ class Streams:
         """Send one message (a stream's, or one asked for with MAV_CMD_REQUEST_MESSAGE)."""
         st, t = status.state, status.t_s
         ms = int(t * 1000) & 0xFFFFFFFF
+        w = status.wander or (0.0,) * 6
         lat, lon, _ = self._frame.to_lla(st.x_m, st.y_m, st.z_m)
         amsl = self._options.home[2] + st.z_m
         encoders: dict[int, Callable[[], tuple[Any, ...]]] = {
             MSG_LOCAL_POSITION_NED: lambda: (
                 "local_position_ned",
                 ms,
-                st.x_m,
-                st.y_m,
-                self._offset_m - st.z_m,
-                st.vx_mps,
-                st.vy_mps,
-                -st.vz_mps,
+                st.x_m + w[0],
+                st.y_m + w[1],
+                self._offset_m - st.z_m - w[2],
+                st.vx_mps + w[3],
+                st.vy_mps + w[4],
+                -st.vz_mps - w[5],
             ),
             MSG_GLOBAL_POSITION_INT: lambda: (
                 "global_position_int",

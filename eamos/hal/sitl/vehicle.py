@@ -71,6 +71,7 @@ from collections.abc import Callable
 from typing import Any
 
 from eamos.hal.mavlink.link import load_mavutil
+from eamos.hal.mavlink.signing import radio_status_only, refresh_timestamp
 from eamos.hal.sim.adapter import paced_ticks
 from eamos.hal.sitl.ardupilot import ArduPilotPersonality
 from eamos.hal.sitl.core import Params, Personality, VehicleCore
@@ -101,8 +102,12 @@ PERSONALITIES: dict[str, Callable[[], Personality]] = {
 class SimVehicle:
     """A simulated MAVLink quadcopter (see module docstring): ``start()``, ``stop()``."""
 
-    def __init__(self, options: VehicleOptions) -> None:
+    def __init__(self, options: VehicleOptions, on_death: Callable[[], None] | None = None) -> None:
         self.options = options
+        self._on_death = on_death
+        self._airborne_since: float | None = None
+        #: Set when the vehicle died (``die_after_s``).
+        self.dead = threading.Event()
         o = options
         self.autopilot: AutopilotName = o.autopilot
         # Reentrant, so wait_until predicates may read the public properties.
@@ -131,6 +136,8 @@ class SimVehicle:
             self._conn = mavutil.mavlink_connection(
                 o.connection, source_system=o.sysid, source_component=1
             )
+        if o.signing_key is not None:
+            self._sign(o.signing_key)
         self._log.info(
             "vehicle.start",
             autopilot=o.autopilot,
@@ -141,6 +148,9 @@ class SimVehicle:
             home=list(o.home),
             reject={str(k): v for k, v in o.reject.items()},
             disarm_after_s=o.disarm_after_s,
+            wander_m=o.wander_m,
+            seed=o.seed,
+            signing=o.signing_key is not None,
         )
         self._thread = threading.Thread(
             target=self._loop, name=f"sim-vehicle-{o.sysid}", daemon=True
@@ -215,6 +225,12 @@ class SimVehicle:
             return self._core.model.position
 
     @property
+    def target(self) -> tuple[float, float, float] | None:
+        """The model's current setpoint (x north, y east, z up), or None."""
+        with self._lock:
+            return self._core.model.target
+
+    @property
     def sim_time_s(self) -> float:
         """Simulated seconds since start."""
         with self._lock:
@@ -248,19 +264,72 @@ class SimVehicle:
                 and not self._stop.is_set()
             )
 
+    @property
+    def signing(self) -> bool:
+        """True once the vehicle signs its messages and refuses unsigned ones."""
+        with self._lock:
+            conn = self._conn
+            return conn is not None and conn.mav.signing.secret_key is not None
+
+    @property
+    def refused(self) -> int:
+        """Messages dropped as unsigned or wrongly signed (signing on)."""
+        with self._lock:
+            conn = self._conn
+            return 0 if conn is None else int(conn.mav.signing.reject_count)
+
+    def _sign(self, key: bytes, timestamp: int | None = None) -> None:
+        # The key is never logged.
+        self._conn.setup_signing(
+            key,
+            sign_outgoing=True,
+            allow_unsigned_callback=radio_status_only,
+            initial_timestamp=timestamp,
+        )
+        self._log.info("vehicle.signing", enabled=True, t_sim=round(self._core.t, 3))
+
     # -- the simulation thread ----------------------------------------------------------
 
     def _loop(self) -> None:
         for steps in paced_ticks(self._stop, self.options.speedup):
             try:
                 with self._cond:
+                    if self._conn is not None and self._conn.mav.signing.secret_key is not None:
+                        refresh_timestamp(self._conn.mav)  # >= 1 Hz, from the clock
                     self._receive()
                     for _ in range(steps):
                         self._core.step()
+                    if self._dies():
+                        return
                     self._core.send_due()
                     self._cond.notify_all()
             except Exception as exc:  # keep the process alive and tell why
                 self._log.exception("vehicle.error", error=repr(exc))
+
+    def _dies(self) -> bool:
+        """Sudden death (``die_after_s`` after leaving the ground): go silent for good."""
+        limit = self.options.die_after_s
+        core = self._core
+        if limit is None:
+            return False
+        if self._airborne_since is None:
+            if not core.model.landed:
+                self._airborne_since = core.t
+            return False
+        if core.t - self._airborne_since < limit:
+            return False
+        self._log.warning("vehicle.death", t_sim=round(core.t, 3), position=list(self.position))
+        conn, self._conn = self._conn, None
+        if conn is not None:
+            try:
+                conn.close()
+            except OSError:
+                pass
+        self.dead.set()
+        self._cond.notify_all()
+        if self._on_death is not None:
+            self._on_death()
+        return True
 
     def _receive(self) -> None:
         conn = self._conn
@@ -277,6 +346,9 @@ class SimVehicle:
                 continue  # lost on the way
             kind = msg.get_type()
             self.received[kind] = self.received.get(kind, 0) + 1
+            if kind == "SETUP_SIGNING" and msg.target_system in (0, self.options.sysid):
+                self._sign(bytes(msg.secret_key), msg.initial_timestamp or None)
+                continue
             try:
                 self._inbox.handle(msg)
             except Exception as exc:  # one odd message must not stop the vehicle

@@ -84,8 +84,9 @@ DATA_STREAMS: dict[int, tuple[int, ...]] = {
 
 FRAME_GLOBAL, FRAME_LOCAL_NED, FRAME_GLOBAL_RELATIVE_ALT = 0, 1, 3
 FRAME_GLOBAL_INT, FRAME_GLOBAL_RELATIVE_ALT_INT = 5, 6
-#: SET_POSITION_TARGET type_mask bits meaning "ignore x, y, z".
+#: SET_POSITION_TARGET type_mask bits meaning "ignore x, y, z" and "ignore vx, vy, vz".
 IGNORE_POSITION = 0x7
+IGNORE_VELOCITY = 0x38
 
 PARAM_INT32, PARAM_REAL32 = 6, 9
 #: MAV_SYS_STATUS sensors every simulated vehicle has and reports healthy.
@@ -140,6 +141,16 @@ class VehicleOptions:
     report_prearm: bool = True  # False: SYS_STATUS without the PREARM_CHECK bit (older firmware)
     limits: Limits = field(default_factory=Limits)
     log: Path | None = None
+    #: Standard deviation (m) of a wandering position estimate (PX4 SIH hovers at ~0.28 m);
+    #: 0: LOCAL_POSITION_NED is the truth.  ``seed`` makes the wander repeatable.
+    wander_m: float = 0.0
+    seed: int = 0
+    #: MAVLink 2 signing key (32 bytes): sign everything, refuse unsigned (but RADIO_STATUS).
+    #: None: unsigned until a SETUP_SIGNING provisions a key.
+    signing_key: bytes | None = field(default=None, repr=False)
+    #: Sudden death: this many simulated seconds after leaving the ground the vehicle
+    #: stops dead (no message, no goodbye), like a crashed autopilot process.
+    die_after_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.autopilot not in ("px4", "ardupilot"):
@@ -154,6 +165,8 @@ class VehicleOptions:
             raise ValueError("speedup must be > 0")
         if not self.prearm_delay_s >= 0 or not self.disarm_after_s > 0:
             raise ValueError("prearm delay must be >= 0 and disarm-after > 0")
+        if not self.wander_m >= 0:
+            raise ValueError("wander must be >= 0")
 
 
 def parse_reject(specs: Iterable[str]) -> dict[int, int]:

@@ -1,0 +1,96 @@
+"""Setting the drone type's speeds on a vehicle, and putting the old values back.
+
+:class:`ParamKeeper` carries out :func:`eamos.hal.mavlink.params.speed_plan`
+over a :class:`~eamos.hal.mavlink.link.MavlinkLink` (PARAM_REQUEST_READ, then
+PARAM_SET confirmed by the PARAM_VALUE echo), remembers what it found and
+writes it back at :meth:`ParamKeeper.restore`.  Every step is logged; the
+values are speeds, never secrets.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from eamos.hal.mavlink.params import (
+    MAV_PARAM_TYPE_REAL32,
+    ParamChange,
+    from_wire,
+    speed_plan,
+    to_wire,
+)
+
+if TYPE_CHECKING:
+    from eamos.hal.mavlink.link import MavlinkLink
+    from eamos.hal.mavlink.settings import MavlinkSettings
+
+
+class ParamKeeper:
+    """The parameters the adapter changed on one vehicle (see module docstring)."""
+
+    def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: Any) -> None:
+        self.link = link
+        self.settings = settings
+        self.log = log
+        self.changes: list[ParamChange] = []
+        self._bytewise = False  # PX4 carries integers byte-wise in the float
+
+    def _exchange(
+        self, name: str, value: float | None, param_type: int = MAV_PARAM_TYPE_REAL32
+    ) -> ParamChange | None:
+        """Read ``name`` (``value`` None) or set it; what the vehicle answers, or None."""
+        s = self.settings
+        write = None if value is None else (to_wire(value, param_type, self._bytewise), param_type)
+        answer = self.link.param_exchange(
+            name,
+            write,
+            timeout_s=s.command_timeout_s,
+            retries=s.command_retries,
+            abandon=lambda: not self.link.state.link_ok,
+        )
+        if answer is None:
+            return None
+        got = from_wire(answer[0], answer[1], self._bytewise)
+        return ParamChange(name, got, got, answer[1])
+
+    def apply_speeds(self, autopilot: str) -> None:
+        """Set the drone type's speeds, remembering the old values.
+
+        A parameter the vehicle does not answer for is logged and skipped: the
+        vehicle then flies at its own speed for that axis.
+        """
+        s = self.settings
+        self._bytewise = autopilot == "px4"
+        if not s.set_speeds:
+            self.log.info("adapter.param.speeds", applied=False, reason="hal.set_speeds = false")
+            return
+        plan = speed_plan(autopilot, s.horizontal_speed_mps, s.climb_speed_mps, s.descent_speed_mps)
+        for name, value in plan:
+            before = self._exchange(name, None)
+            if before is None:
+                self.log.warning(
+                    "adapter.param.missing",
+                    name=name,
+                    note="no PARAM_VALUE: the vehicle keeps its own speed for this",
+                )
+                continue
+            after = self._exchange(name, value, before.param_type)
+            if after is None or not math.isclose(after.before, value, rel_tol=1e-3, abs_tol=1e-3):
+                self.log.warning("adapter.param.refused", name=name, value=value)
+                continue
+            self.changes.append(ParamChange(name, before.before, value, before.param_type))
+            self.log.info("adapter.param.set", name=name, before=before.before, value=value)
+
+    def restore(self) -> None:
+        """Write back what :meth:`apply_speeds` found (in reverse order); log each."""
+        changes, self.changes = self.changes, []
+        for change in reversed(changes):
+            if self._exchange(change.name, change.before, change.param_type) is None:
+                self.log.error(
+                    "adapter.param.restore_failed", name=change.name, value=change.before
+                )
+            else:
+                self.log.info("adapter.param.restore", name=change.name, value=change.before)
+
+
+__all__ = ["ParamKeeper"]
