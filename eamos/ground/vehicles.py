@@ -33,7 +33,19 @@ from eamos.hal.api import AdapterError
 from eamos.hal.mavlink.settings import MavlinkSettings
 
 SIM_VEHICLE_KEYS = frozenset(
-    {"autopilot", "speedup", "prearm_delay_s", "disarm_after_s", "sysid", "home", "reject"}
+    {
+        "autopilot",
+        "speedup",
+        "prearm_delay_s",
+        "disarm_after_s",
+        "sysid",
+        "home",
+        "reject",
+        "wander_m",  # a wandering position estimate (PX4 SIH-like), with its seed
+        "seed",
+        "die_after_s",  # sudden vehicle death after this long in the air
+        "signing_key",  # MAVLink 2 signing: the fleet's key file
+    }
 )
 
 
@@ -102,11 +114,26 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
     run_speedup = number("speedup", 1e-9) or speedup
     if run_speedup:
         args += ["--speedup", repr(float(run_speedup))]
-    for key, option in (("prearm_delay_s", "--prearm-delay"), ("disarm_after_s", "--disarm-after")):
+    for key, option in (
+        ("prearm_delay_s", "--prearm-delay"),
+        ("disarm_after_s", "--disarm-after"),
+        ("wander_m", "--wander"),
+        ("die_after_s", "--die-after"),
+    ):
         # prearm_delay_s = inf: a vehicle that never passes its pre-arm checks (tests).
         value = number(key, 0.0, infinite=key == "prearm_delay_s")
         if value is not None:
             args += [option, repr(value)]
+    if "seed" in spec:
+        seed = spec["seed"]
+        if isinstance(seed, bool) or not isinstance(seed, int):
+            raise ConfigError(f"{where}.seed: must be an integer, got {seed!r}")
+        args += ["--seed", str(seed)]
+    if "signing_key" in spec:
+        key_file = spec["signing_key"]
+        if not isinstance(key_file, str) or not key_file:
+            raise ConfigError(f"{where}.signing_key: must be the path of a key file")
+        args += ["--signing-key", key_file]
     if "sysid" in spec:
         sysid = spec["sysid"]
         if isinstance(sysid, bool) or not isinstance(sysid, int) or not 1 <= sysid <= 255:
@@ -159,6 +186,9 @@ def start_sim_vehicles(
                 "(eamos run picks a free port)"
             )
         args = _vehicle_args(drone, hal["sim_vehicle"], speedup)
+        if "--speedup" in args:
+            # The vehicle's clock runs this much faster: the adapter scales its timeouts.
+            node_hal.setdefault("speedup", float(args[args.index("--speedup") + 1]))
         if args[1] == "px4":
             # PX4 SITL style: the vehicle sends UDP to the companion's port.
             port = free_port(socket.SOCK_DGRAM)

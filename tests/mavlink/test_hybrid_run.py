@@ -89,7 +89,7 @@ REFUSING_FLEET = """\
 [drones.Drone1.hal]
 adapter = "mavlink"
 sim_vehicle = { autopilot = "px4", prearm_delay_s = inf }
-armable_timeout_s = 3
+armable_timeout_s = 15  # vehicle seconds (the adapter runs on the vehicle's clock, speed-up 5)
 
 [drones.Drone2.hal]
 adapter = "mavlink"
@@ -108,7 +108,7 @@ def test_vehicle_refusing_to_arm_does_not_stop_an_independent_drone(tmp_path):
     assert [(a["action"], a["result"]) for a in d1["actions"]] == [("Arm", "failed")]
     assert (
         d1["actions"][0]["reason"]
-        == "vehicle never became armable within 3 s: Preflight Fail: ekf2 missing data"
+        == "vehicle never became armable within 15 s: Preflight Fail: ekf2 missing data"
     )
     assert not d1["ok"] and d1["blocked_nodes"]
     d2 = summary["drones"]["Drone2"]
