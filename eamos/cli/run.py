@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -120,7 +121,10 @@ def run_mission(
     compiled = compile_file(opts.mission)
     run_dir = (opts.run_dir or default_run_dir(compiled.mission.name)).resolve()
     use_run_dir(run_dir)  # --run-dir naming a file: bad input, said with the path
-    write_artifacts(compiled, run_dir, svg=opts.svg)
+    notes: list[str] = []
+    write_artifacts(compiled, run_dir, svg=opts.svg, warnings=notes)
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
     if opts.check:
         from eamos.cli.check import preflight
 

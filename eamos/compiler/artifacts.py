@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -127,6 +128,12 @@ def write_artifacts(
         manifest["graphs"][stem] = entry
         dots.append((stem, dot_text))
 
+    if svg and render is render_svg and shutil.which("dot") is None:
+        # Said once, not per picture: the pictures are still drawn.
+        notes.append(
+            "Graphviz 'dot' is not installed: pictures drawn by the built-in renderer "
+            "(install graphviz for its layouts)"
+        )
     if svg:
         # Graphviz runs as a subprocess, so a few threads draw in parallel.
         def draw(item: tuple[str, str]) -> tuple[str, str, list[str]]:

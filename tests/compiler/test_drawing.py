@@ -239,6 +239,21 @@ def test_missing_graphviz_falls_back_to_the_builtin_renderer(
     assert warnings and "not installed" in warnings[0]
 
 
+def test_missing_graphviz_is_said_once_for_all_pictures(
+    demo: CompiledMission, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """`eamos compile` and `eamos run` print one line, then draw every picture anyway."""
+    monkeypatch.setattr("eamos.compiler.artifacts.shutil.which", lambda name: None)
+    monkeypatch.setattr("eamos.compiler.drawing.shutil.which", lambda name: None)
+    notes: list[str] = []
+    manifest = write_artifacts(demo, tmp_path / "out", warnings=notes)
+    assert [n for n in notes if "Graphviz" in n] == [
+        "Graphviz 'dot' is not installed: pictures drawn by the built-in renderer "
+        "(install graphviz for its layouts)"
+    ]
+    assert all("svg" in entry for entry in manifest["graphs"].values())
+
+
 def _fake_dot(folder: Path, script: str, monkeypatch: pytest.MonkeyPatch) -> None:
     exe = folder / "dot"
     exe.write_text("#!/bin/sh\n" + script + "\n")
