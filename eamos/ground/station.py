@@ -159,8 +159,8 @@ class GroundStation:
                     view.silent_since = self.clock() - msg.silent_s
                 else:
                     view.silent_since = None
-                    if view.given_up and msg.state == "back":
-                        # It came back before the end: wait for it again.
+                    if view.given_up and msg.state in ("back", "restarted"):
+                        # It came back (or its node restarted) before the end: wait for it again.
                         view.given_up = False
                         view.state = "back"
                         gone = f"{view.name}: silent"

@@ -234,3 +234,19 @@ def test_an_unreadable_report_counts_as_a_failure_and_is_not_waited_for() -> Non
     assert station.snapshot()["Drone1"].report is None
     assert station.failures == ["Drone1: unreadable report (report: no 'actions')"]
     assert station.wait_reports(["Drone1"], 0)
+
+
+def test_a_given_up_drone_whose_node_restarted_is_waited_for_again() -> None:
+    """A restarted node (a new incarnation, net.peer.restarted) is back, like a returned link."""
+    now = [0.0]
+    station, _, _ = station_and_fleet({}, give_up_s=5.0, clock=lambda: now[0])
+    ready(station, *DRONES)
+    station.handle(PeerStatus("Drone2", "lost", 3.0, 1))
+    now[0] = 10.0  # silent past give_up_s
+    station.wait_resolved(0.01)
+    assert station.snapshot()["Drone2"].given_up
+    assert station.failures == ["Drone2: silent for more than 5 s"]
+    station.handle(PeerStatus("Drone2", "restarted", 0.0, 2))
+    view = station.snapshot()["Drone2"]
+    assert not view.given_up and view.link == "restarted" and view.silent_since is None
+    assert station.failures == []
