@@ -34,6 +34,11 @@ if TYPE_CHECKING:
 
 __all__ = ["InBridge"]
 
+#: After a disconnect, how long the bridge leaves libzmq to start its own
+#: reconnect (it retries within RECONNECT_IVL_MS after a normal disconnect)
+#: before it reconnects the socket itself.
+RECONNECT_GRACE_S = 0.5
+
 
 class InBridge(BridgeThread):
     """The participant's incoming side: one SUB socket per peer it connects to.
@@ -61,7 +66,8 @@ class InBridge(BridgeThread):
     A connection that libzmq drops for a protocol error (a frame over
     :data:`~eamos.net.sockets.MAX_FRAME_BYTES`, a failed handshake) is not
     reconnected by libzmq; the bridge reconnects the peer's socket itself
-    (``net.in.reconnect``), at once and then at most every
+    (``net.in.reconnect``) when libzmq has not started its own retry within
+    :data:`RECONNECT_GRACE_S`, and then at most every
     :data:`~eamos.net.sockets.RECONNECT_IVL_MAX_MS`, so one bad message never
     cuts a peer off for good.
     """
@@ -120,7 +126,13 @@ class InBridge(BridgeThread):
                 if curve is not None:
                     curve_client(sub, curve, curve.fleet[peer])
                 self._monitors.append(
-                    Monitor(sub, self._log, peer, on_disconnect=self._disconnected(peer))
+                    Monitor(
+                        sub,
+                        self._log,
+                        peer,
+                        on_disconnect=self._disconnected(peer),
+                        on_retry=self._retrying(peer),
+                    )
                 )
                 sub.connect(endpoint)
             for topic in topics:
@@ -257,13 +269,24 @@ class InBridge(BridgeThread):
 
     def _disconnected(self, peer: str) -> Callable[[], None]:
         def schedule() -> None:
-            # At once, unless this peer was reconnected less than the maximum
-            # reconnect interval ago (a peer failing every handshake).
+            # After a normal disconnect libzmq reconnects by itself (it reports
+            # CONNECT_RETRIED, which cancels this); after a protocol error (an
+            # oversized frame) it never does.  So wait a little longer than
+            # libzmq would before its retry, and reconnect only if it did not;
+            # and not again within the maximum reconnect interval.  Cutting a
+            # connection libzmq is still using races its receive path.
             now = time.monotonic()
             last = self._reconnected_at.get(peer, float("-inf"))
-            self._reconnect_due.setdefault(peer, max(now, last + RECONNECT_IVL_MAX_MS / 1e3))
+            due = max(now + RECONNECT_GRACE_S, last + RECONNECT_IVL_MAX_MS / 1e3)
+            self._reconnect_due.setdefault(peer, due)
 
         return schedule
+
+    def _retrying(self, peer: str) -> Callable[[], None]:
+        def cancel() -> None:
+            self._reconnect_due.pop(peer, None)  # libzmq is on it
+
+        return cancel
 
     def _poll_timeout_ms(self) -> int | None:
         if not self._reconnect_due:

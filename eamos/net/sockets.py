@@ -81,6 +81,7 @@ MONITOR_EVENTS: Final = (
     | zmq.EVENT_HANDSHAKE_SUCCEEDED
     | zmq.EVENT_DISCONNECTED
     | zmq.EVENT_ACCEPTED
+    | zmq.EVENT_CONNECT_RETRIED
 )
 
 # Control-pipe commands (first frame).  Never on the network.
@@ -133,12 +134,14 @@ class Monitor:
         log: Any,
         peer: str,
         on_disconnect: Callable[[], None] | None = None,
+        on_retry: Callable[[], None] | None = None,
     ) -> None:
         self.socket = sock.get_monitor_socket(MONITOR_EVENTS)
         self._owner = sock
         self._log = log
         self._peer = peer
         self._on_disconnect = on_disconnect
+        self._on_retry = on_retry  # libzmq reconnects by itself (or already did)
         self.failures = 0
         self.connections = 0
         # Descriptors of the connections accepted and not yet closed (a bound socket).
@@ -171,6 +174,11 @@ class Monitor:
             elif kind == zmq.EVENT_HANDSHAKE_SUCCEEDED:
                 self.connections += 1
                 self._log.debug("net.connected", peer=self._peer, endpoint=endpoint)
+                if self._on_retry is not None:
+                    self._on_retry()
+            elif kind == zmq.EVENT_CONNECT_RETRIED:
+                if self._on_retry is not None:
+                    self._on_retry()
             elif kind == zmq.EVENT_ACCEPTED:
                 self.accepted.add(int(event["value"]))
             elif kind == zmq.EVENT_DISCONNECTED:

@@ -115,7 +115,16 @@ def test_eamos_keys_command(tmp_path: Path) -> None:
 
     proc = eamos(str(tmp_path / "fleet"), "--fleet", "Drone1", "Drone2")
     assert proc.returncode == 0, proc.stderr
-    assert {p.name for p in (tmp_path / "fleet").iterdir()} == {"public", "GCS", "Drone1", "Drone2"}
+    assert {p.name for p in (tmp_path / "fleet").iterdir()} == {
+        "public",
+        "GCS",
+        "Drone1",
+        "Drone2",
+        "mavlink_signing.key",  # MAVLink 2 signing: 32 bytes as hex, for the owner only
+    }
+    signing = tmp_path / "fleet" / "mavlink_signing.key"
+    assert signing.stat().st_mode & 0o777 == 0o600
+    assert len(bytes.fromhex(signing.read_text().strip())) == 32
     assert eamos(str(tmp_path / "fleet"), "--fleet", "Drone1").returncode == 2
     # From a compiled mission: the participants are its programs.
     compiled = compile_mission("func SEQ_M() {\n D1.Arm()\n D2.Arm()\n}\n", "m.go")
@@ -124,7 +133,13 @@ def test_eamos_keys_command(tmp_path: Path) -> None:
         program.save(tmp_path / "out" / "programs" / f"{name}.program.json")
     proc = eamos(str(tmp_path / "out"))
     assert proc.returncode == 0, proc.stderr
-    assert {p.name for p in (tmp_path / "out" / "keys").iterdir()} == {"public", "GCS", "D1", "D2"}
+    assert {p.name for p in (tmp_path / "out" / "keys").iterdir()} == {
+        "public",
+        "GCS",
+        "D1",
+        "D2",
+        "mavlink_signing.key",
+    }
     proc = eamos(str(tmp_path / "empty"))
     assert proc.returncode == 2 and "compile the mission first" in proc.stderr
     assert "Traceback" not in proc.stderr
