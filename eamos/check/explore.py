@@ -118,7 +118,21 @@ def check_mission(
     """Simulate ``compiled`` in virtual time with the fleet's models and check every run.
 
     Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use.
+    The cyclic garbage collector is paused throughout (see
+    :func:`~eamos.virtual.collector_paused`): the runs and their rules allocate
+    much and free it all by reference counting.
     """
+    with collector_paused():
+        return _check_mission(compiled, fleet, time_limit_s, max_runs, min_separation_m)
+
+
+def _check_mission(
+    compiled: CompiledMission,
+    fleet: FleetConfig | None,
+    time_limit_s: float,
+    max_runs: int,
+    min_separation_m: float | None,
+) -> CheckReport:
     fleet = fleet or FleetConfig.empty()
     drones = fleet_order(compiled.programs)
     fleet.check_drones(drones)  # a misspelt [drones.X] table is an error, not ignored

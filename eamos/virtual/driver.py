@@ -155,6 +155,11 @@ class VirtualMission:
                 top_level=frozenset(k for k, w in wiring.items() if not w.spec.loops),
                 scope_index=scope_index,
             )
+        if log is None:
+            # Nobody reads notes or progress in this run: the logic need not make them.
+            for part in self.participants.values():
+                for logic in part.logic.values():
+                    logic.quiet = True
         if decide is not None:
             for drone, part in self.participants.items():
                 for logic in part.logic.values():

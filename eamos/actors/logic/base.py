@@ -56,6 +56,9 @@ class NodeLogic:
         self.interrupts: set[tuple[int, Iteration]] = set()
         self.aborted = False
         self._fx: list[Effect] = []
+        # True when nobody reads the node's log notes and progress events (a
+        # virtual run without a log): they are then not made at all.
+        self.quiet = False
 
     # -- inputs ------------------------------------------------------------------
 
@@ -193,10 +196,12 @@ class NodeLogic:
         self._fx.append(Resolve(act, status, not self.spec.loops and act == ()))
 
     def _event(self, act: Iteration, state: str, detail: str = "") -> None:
-        self._fx.append(Progress(NodeEvent(self.key, state, self.spec.label, act, detail)))
+        if not self.quiet:
+            self._fx.append(Progress(NodeEvent(self.key, state, self.spec.label, act, detail)))
 
     def _note(self, level: str, event: str, **fields: Any) -> None:
-        self._fx.append(Note(level, event, fields))
+        if not self.quiet:
+            self._fx.append(Note(level, event, fields))
 
 
 class PassThrough(NodeLogic):

@@ -138,16 +138,17 @@ class _Telemetry:
             landed=st.landed,
         )
 
-    def settled(self, raw: tuple[Any, ...], battery_pct: float) -> bool:
+    def settled(self, raw: tuple[Any, ...], shown_battery_pct: float) -> bool:
         """True when the last sample and position line already show this state.
 
-        ``raw`` is ``(x_m, y_m, z_m, armed, landed)``.  Then the coming steps
-        of a vehicle at rest emit nothing until the battery's shown value
-        changes.  Compared on the raw state (exact at rest): costs no sample.
+        ``raw`` is ``(x_m, y_m, z_m, armed, landed)``, ``shown_battery_pct`` the
+        battery as a sample shows it (0.1 %).  Then the coming steps of a vehicle
+        at rest emit nothing until that changes.  Compared on the raw state
+        (exact at rest): costs no sample.
         """
         return (
-            raw == self._sampled_raw == self._logged_raw
-            and round(battery_pct, 1) == self._sampled_battery
+            shown_battery_pct == self._sampled_battery
+            and raw == self._sampled_raw == self._logged_raw
         )
 
     def catch_up(self, t_s: float) -> None:
@@ -412,13 +413,14 @@ class SimCore:
                 return 0
         model = self._model
         battery = model.battery_pct
-        if not self._telemetry.settled((*model.position, model.armed, model.landed), battery):
+        shown = round(battery, 1)
+        if not self._telemetry.settled((*model.position, model.armed, model.landed), shown):
             return 0
         per_step = model.drain_pct_per_min() * SIM_DT_S / 60.0
         if per_step > 0.0 and battery > 0.0:
             # round(b, 1) changes when b crosses the next x.x5 below it; the
             # drain is summed step by step, so stop two steps short of it.
-            edge = round(battery, 1) - 0.05
+            edge = shown - 0.05
             crossing = int((battery - edge) / per_step) - 2
             limit = min(limit, max(0, crossing))
         if due == math.inf:
