@@ -432,6 +432,12 @@ class Flight:
                 if not v.state.armed:  # it disarmed by itself meanwhile
                     return ActionResult("ok")
             raise
+        self._confirm_disarmed(run)
+        return ActionResult("ok")
+
+    def _confirm_disarmed(self, run: Run) -> None:
+        """Wait until a HEARTBEAT shows the vehicle disarmed (not the acknowledgement alone)."""
+        v = self.v
         self.waiter.wait(
             run,
             lambda st: not st.armed,
@@ -441,7 +447,6 @@ class Flight:
         with v.cond:
             v.stop_steering()
             self.armed_by_us = False
-        return ActionResult("ok")
 
     def takeoff(self, run: Run, ctl: RunControl, height: float) -> ActionResult:
         """Climb to ``height`` above the take-off ground at the current X/Y.
@@ -648,16 +653,7 @@ class Flight:
                 armed = v.state.armed
             if armed:
                 ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
-            # Done when a HEARTBEAT shows it, not at the acknowledgement.
-            self.waiter.wait(
-                run,
-                lambda st: not st.armed,
-                time.monotonic() + self.waiter.confirm_s(),
-                lambda st: "vehicle acknowledged disarming but its HEARTBEAT still shows armed",
-            )
-            with v.cond:
-                v.stop_steering()
-                self.armed_by_us = False
+            self._confirm_disarmed(run)
             v.log.info(f"adapter.{why}.done")
             return True
         except (Failed, Ended, CommandRejected) as exc:
