@@ -318,8 +318,7 @@ class SimCore:
         self._requests: deque[_Request] = deque()
         self._actions: dict[int, _Action] = {}
         self._motion: _Action | None = None
-        self._t = 0.0
-        self._step_count = 0  # t is step_count * SIM_DT_S: no summing error, skips in O(1)
+        self._step_count = 0  # time is step_count * SIM_DT_S: no summing error, skips in O(1)
         self._started = False
         self._aborting = False
         self._pilot = _Pilot(settings.pilot, settings, log)
@@ -384,12 +383,11 @@ class SimCore:
         self._handle_requests(finished)
         self._model.step(SIM_DT_S)
         self._step_count += 1
-        self._t = self._step_count * SIM_DT_S
-        if self._pilot.update(self._t, self._model):
+        if self._pilot.update(self.t_s, self._model):
             self._pilot_handed_over(finished)
         self._update_actions(finished)
         self._update_abort()
-        self._telemetry.observe(self._t, self._model.state, samples)
+        self._telemetry.observe(self.t_s, self._model.state, samples)
         return finished, samples
 
     def idle_steps(self, limit: int) -> int:
@@ -408,7 +406,7 @@ class SimCore:
             if act.kind == "timer":
                 due = min(due, act.until_s)
             elif act.kind == "arm":
-                due = min(due, max(self.settings.arm_delay_s, self._t), act.deadline_s)
+                due = min(due, max(self.settings.arm_delay_s, self.t_s), act.deadline_s)
             else:
                 return 0
         model = self._model
@@ -442,15 +440,14 @@ class SimCore:
             raise RuntimeError(f"{self.drone}: skip({steps}) over steps that are not idle")
         self._model.rest(SIM_DT_S, steps)
         self._step_count += steps
-        self._t = self._step_count * SIM_DT_S
-        self._telemetry.catch_up(self._t)
+        self._telemetry.catch_up(self.t_s)
 
     # -- observation ---------------------------------------------------------
 
     @property
     def t_s(self) -> float:
-        """Simulated seconds since :meth:`start`."""
-        return self._t
+        """Simulated seconds since :meth:`start` (from the step count, never summed)."""
+        return self._step_count * SIM_DT_S
 
     def state(self) -> VehicleState:
         """A snapshot of the simulated vehicle."""
@@ -482,8 +479,8 @@ class SimCore:
             handle=act.handle.id,
             status=result.status,
             reason=result.reason,
-            t_sim=round(self._t, 3),
-            duration_sim_s=round(self._t - act.started_s, 3),
+            t_sim=round(self.t_s, 3),
+            duration_sim_s=round(self.t_s - act.started_s, 3),
             x_m=round(x, 3),
             y_m=round(y, 3),
             z_m=round(z, 3),
@@ -507,7 +504,7 @@ class SimCore:
                 self._abort(finished)
 
     def _abort(self, finished: list[Finished]) -> None:
-        self._log.info("adapter.abort", t_sim=round(self._t, 3), pilot=self._pilot.state)
+        self._log.info("adapter.abort", t_sim=round(self.t_s, 3), pilot=self._pilot.state)
         for act in list(self._actions.values()):
             self._finish(act, ActionResult("cancelled", "aborted"), finished)
         self._pilot.abort()
@@ -516,13 +513,13 @@ class SimCore:
 
     def _begin(self, act: _Action, finished: list[Finished]) -> None:
         command = act.command
-        act.started_s = self._t
+        act.started_s = self.t_s
         self._log.info(
             "adapter.action.start",
             action=act.handle.action,
             args=list(act.handle.args),
             handle=act.handle.id,
-            t_sim=round(self._t, 3),
+            t_sim=round(self.t_s, 3),
         )
         reason = refusal(
             command, self.settings, self._model, self._motion is not None, self._aborting
@@ -533,14 +530,14 @@ class SimCore:
         model = self._model
         match command:
             case Payload():
-                act.until_s = self._t + PAYLOAD_DELAY_S
+                act.until_s = self.t_s + PAYLOAD_DELAY_S
             case PauseFor(duration_s=duration):
-                act.until_s = self._t + duration
+                act.until_s = self.t_s + duration
             case Arm():
                 if model.armed:
                     return self._finish(act, ActionResult("ok"), finished)
                 act.kind = "arm"
-                act.deadline_s = self._t + self.settings.action_timeout_s
+                act.deadline_s = self.t_s + self.settings.action_timeout_s
             case Disarm():
                 if model.armed:
                     model.disarm()
@@ -564,7 +561,7 @@ class SimCore:
         """Command the model for a motion action (now, or when the pilot hands over)."""
         command, model = act.command, self._model
         act.deferred = False
-        act.deadline_s = self._t + self.settings.action_timeout_s
+        act.deadline_s = self.t_s + self.settings.action_timeout_s
         if isinstance(command, Land):
             if model.landed:
                 return self._finish(act, ActionResult("ok"), finished)
@@ -602,11 +599,11 @@ class SimCore:
             if act.deferred:
                 continue
             if act.kind == "timer":
-                if self._t >= act.until_s - _EPS_S:
+                if self.t_s >= act.until_s - _EPS_S:
                     self._finish(act, ActionResult("ok"), finished)
                 continue
             if act.kind == "arm":
-                if self._t >= s.arm_delay_s:
+                if self.t_s >= s.arm_delay_s:
                     model.arm()
                 if model.armed:
                     self._finish(act, ActionResult("ok"), finished)
@@ -624,7 +621,7 @@ class SimCore:
                 if isinstance(act.command, Takeoff):
                     self._pilot.take_off(model)
                 continue
-            if self._t >= act.deadline_s:
+            if self.t_s >= act.deadline_s:
                 if act.kind != "arm":
                     model.hold()
                 what = "vehicle not armable" if act.kind == "arm" else "target not reached"
@@ -644,7 +641,7 @@ class SimCore:
             if self._model.armed:
                 self._model.disarm()
             self._aborting = False
-            self._log.info("adapter.abort.done", t_sim=round(self._t, 3))
+            self._log.info("adapter.abort.done", t_sim=round(self.t_s, 3))
 
 
 __all__ = ["PAYLOAD_DELAY_S", "SIM_DT_S", "Finished", "SimCore"]
