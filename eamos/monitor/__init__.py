@@ -3,7 +3,7 @@
 * :class:`MissionSetup`, :func:`load_setup` (``setup.py``): the mission's participants,
   colours, homes and MDG pictures, read from a run folder.
 * :class:`MonitorState` (``state.py``): the page's state from the ground station's events,
-  pure; :func:`outcome_word`: the one word for how a run ended.
+  pure (the one word for how a run ended is :attr:`RunSummary.word`).
 * :class:`Hub` (``hub.py``): the state behind a lock and a bounded log of patches.
 * :class:`~.server.MonitorServer` (``server.py``): Starlette on uvicorn in its own thread,
   the page (``static/``), a websocket of patches, the abort endpoint.
@@ -19,6 +19,6 @@ from __future__ import annotations
 
 from .hub import Hub
 from .setup import MissionSetup, MonitorError, load_setup
-from .state import MonitorState, outcome_word
+from .state import MonitorState
 
-__all__ = ["Hub", "MissionSetup", "MonitorError", "MonitorState", "load_setup", "outcome_word"]
+__all__ = ["Hub", "MissionSetup", "MonitorError", "MonitorState", "load_setup"]

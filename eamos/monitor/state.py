@@ -70,11 +70,6 @@ PROGRESS_TO_NODE = {
 RAN = frozenset({"running", "waiting", "decided", "ok", "failed", "cancelled"})
 
 
-def outcome_word(summary: RunSummary) -> str:
-    """The one word for how a run ended (:attr:`RunSummary.word`)."""
-    return summary.word
-
-
 def final_node_states(setup: MissionSetup, name: str, report: DroneReport | None) -> dict[str, str]:
     """Every native node of ``name``'s final state as its report tells it ({} without one).
 
@@ -396,7 +391,7 @@ class MonitorState:
         for drone in self.drones.values():
             out += self._drone_patch(drone, now, force=True)
         out += self._mission(
-            state=outcome_word(summary),
+            state=summary.word,
             detail=summary.detail,
             started=summary.started,
             ended=summary.started + summary.duration_s,

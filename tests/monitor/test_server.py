@@ -18,7 +18,7 @@ from websockets.sync.client import connect
 from eamos.ground.summary import RunSummary
 from eamos.monitor.replay import load_replay
 from eamos.monitor.setup import load_setup
-from eamos.monitor.state import FINAL_NODE_STATES, apply_patches, final_node_states, outcome_word
+from eamos.monitor.state import FINAL_NODE_STATES, apply_patches, final_node_states
 from tests.monitor.live import URL, start_live_run
 from tests.support.runs import INDEPENDENT, eamos
 
@@ -124,7 +124,7 @@ def test_websocket_messages_of_experiment_b_are_in_order_complete_and_end_as_the
     for node, seen in states.items():
         for a, b in zip(["waiting", *seen], seen, strict=False):
             assert b in MOVES.get(a, set()), f"{node}: {a} -> {b} ({seen})"
-    assert page["mission"]["state"] == outcome_word(summary) == "finished"
+    assert page["mission"]["state"] == summary.word == "finished"
     # The drones' live positions went where their reports say they ended.
     homes = {p["name"]: p["home"] for p in page["setup"]["participants"]}
     assert homes["Drone1"] != homes["Drone2"]  # side by side, as the check sees them
@@ -249,7 +249,7 @@ def test_a_failed_action_shows_failed_and_one_outcome_word(tmp_path):
     assert page["nodes"][flyby]["state"] == "failed"
     for node in report.blocked_nodes:
         assert page["nodes"][node]["state"] == "failed", node
-    assert page["mission"]["state"] == outcome_word(summary) == "failed"
+    assert page["mission"]["state"] == summary.word == "failed"
     assert page["mission"]["detail"] == "not ok: Drone1"
     # The terminal says the same word, and never "FAILED (ok)".
     assert any(line.startswith("mission independent failed (not ok: Drone1)") for line in run.lines)

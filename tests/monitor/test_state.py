@@ -15,7 +15,6 @@ from eamos.monitor.state import (
     MonitorState,
     apply_patches,
     final_node_states,
-    outcome_word,
 )
 from eamos.net import wire
 from eamos.net.link import PeerStatus
@@ -179,7 +178,7 @@ def test_finish_applies_the_summary_and_one_outcome_word():
     ],
 )
 def test_outcome_word(outcome, ok, word):
-    assert outcome_word(summary(outcome, ok)) == word
+    assert summary(outcome, ok).word == word
 
 
 def test_snapshot_plus_patches_equals_the_state():
