@@ -24,7 +24,15 @@ from ..program.uniform import (
 from .check_calls import CallChecks, drone_arguments, signature
 from .drone_types import Vocabulary, implemented_actions, vocabulary
 from .errors import Diagnostic, MissionError, SourceLocation, did_you_mean
-from .limits import MAX_DISTANCE_M, MAX_DURATION_S, block_limit_errors, fleet_limit_error
+from .limits import (
+    MAX_DISTANCE_M,
+    MAX_DURATION_S,
+    MAX_ORBIT_RADIUS_M,
+    MAX_ORBIT_TURNS,
+    MAX_SPEED_M_S,
+    block_limit_errors,
+    fleet_limit_error,
+)
 from .syntax import (
     ActionCall,
     Binary,
@@ -481,14 +489,21 @@ _RANGES: dict[str, tuple[float, float, str]] = {
     "z_m": (-MAX_DISTANCE_M, MAX_DISTANCE_M, "m"),
     "alt_m": (-MAX_DISTANCE_M, MAX_DISTANCE_M, "m"),
     "duration_s": (0.0, MAX_DURATION_S, "s"),
+    "heading_deg": (0.0, 360.0, "deg"),
+    "speed_m_s": (0.0, MAX_SPEED_M_S, "m/s"),
+    "radius_m": (0.0, MAX_ORBIT_RADIUS_M, "m"),
+    "turns": (0.0, MAX_ORBIT_TURNS, ""),
 }
+
+# Parameters that must be strictly positive (a zero climb, speed, radius or turn does nothing).
+_POSITIVE = frozenset({"height_m", "speed_m_s", "radius_m", "turns"})
 
 
 def argument_problem(action: str, param: str, value: float) -> str:
     """What is wrong with one argument value ("" if nothing)."""
     if not math.isfinite(value):  # pragma: no cover - the parser refuses these
         return f"{action}'s {param} must be a finite number"
-    if (param in ("height_m", "duration_s") and value < 0) or (param == "height_m" and value == 0):
+    if (param == "duration_s" and value < 0) or (param in _POSITIVE and value <= 0):
         return f"{action}'s {param} must be positive, got {value:g}"
     if param == "lat_deg" and not -90 <= value <= 90:
         return f"latitude must be within -90..90 degrees, got {value:g}"
@@ -497,7 +512,8 @@ def argument_problem(action: str, param: str, value: float) -> str:
     bounds = _RANGES.get(param)
     if bounds is not None and not bounds[0] <= value <= bounds[1]:
         low, high, unit = bounds
-        return f"{action}'s {param} must be within {low:g}..{high:g} {unit}, got {value:g}"
+        within = f"{low:g}..{high:g} {unit}".rstrip()
+        return f"{action}'s {param} must be within {within}, got {value:g}"
     return ""
 
 

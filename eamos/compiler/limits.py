@@ -42,6 +42,11 @@ MAX_REPEAT = 1_000_000
 MAX_DISTANCE_M = 10_000.0
 #: Longest pause in seconds (one day).
 MAX_DURATION_S = 86_400.0
+#: Fastest speed SetSpeed may ask for, in metres per second.
+MAX_SPEED_M_S = 30.0
+#: Largest Orbit radius in metres, and most turns of one Orbit.
+MAX_ORBIT_RADIUS_M = 1_000.0
+MAX_ORBIT_TURNS = 100.0
 #: Most drone types one mission declares (with its libraries).
 MAX_DRONE_TYPES = 200
 #: Most libraries one mission imports, directly or through other libraries.

@@ -65,6 +65,32 @@ ACTIONS: dict[str, ActionSpec] = {
             ("duration_s",),
             "Hold position (or stay on the ground) for `duration_s` seconds.",
         ),
+        ActionSpec(
+            "ReturnHome",
+            (),
+            "Fly back above home at the current height, then land there (like RTL).",
+        ),
+        ActionSpec(
+            "Hold",
+            ("duration_s",),
+            "Hover where the drone is, in the autopilot's hold mode, for `duration_s` seconds.",
+        ),
+        ActionSpec(
+            "Yaw",
+            ("heading_deg",),
+            "Turn on the spot to the compass heading `heading_deg` (0 north, 90 east).",
+        ),
+        ActionSpec(
+            "SetSpeed",
+            ("speed_m_s",),
+            "Fly later horizontal moves at `speed_m_s` metres per second.",
+        ),
+        ActionSpec(
+            "Orbit",
+            ("radius_m", "turns"),
+            "Circle clockwise `turns` times around the point `radius_m` metres ahead "
+            "(along the heading), at the current height; end where it started.",
+        ),
         ActionSpec("TurnOn", (), "Power on the payload/companion systems.", payload=True),
         ActionSpec("PreFlightCheck", (), "Run the pre-flight checks.", payload=True),
         ActionSpec("Calibrate", (), "Calibrate the sensors.", payload=True),
@@ -89,7 +115,18 @@ PROPERTIES: dict[str, PropertySpec] = {
 
 #: The actions that move the vehicle (one at a time; cancelling one holds position).
 MOTION_ACTIONS = frozenset(
-    {"Takeoff", "Land", "FlyByX", "FlyByY", "FlyByZ", "FlyToXYZ", "FlyToLLA"}
+    {
+        "Takeoff",
+        "Land",
+        "FlyByX",
+        "FlyByY",
+        "FlyByZ",
+        "FlyToXYZ",
+        "FlyToLLA",
+        "ReturnHome",
+        "Yaw",
+        "Orbit",
+    }
 )
 
 #: Telemetry field carrying each property (see :class:`eamos.hal.api.Telemetry`).
@@ -292,6 +329,56 @@ class PauseFor(Command):
 
 
 @dataclass(frozen=True)
+class ReturnHome(Command):
+    """Fly back above home at the current height, then land (RTL)."""
+
+
+@dataclass(frozen=True)
+class Hold(Command):
+    """Hover in the autopilot's hold mode for ``duration_s``."""
+
+    duration_s: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.duration_s,)
+
+
+@dataclass(frozen=True)
+class Yaw(Command):
+    """Turn on the spot to the compass heading ``heading_deg`` (0 north, 90 east)."""
+
+    heading_deg: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.heading_deg,)
+
+
+@dataclass(frozen=True)
+class SetSpeed(Command):
+    """Fly later horizontal moves at ``speed_m_s``."""
+
+    speed_m_s: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.speed_m_s,)
+
+
+@dataclass(frozen=True)
+class Orbit(Command):
+    """Circle ``turns`` times (clockwise) around the point ``radius_m`` ahead."""
+
+    radius_m: float
+    turns: float
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return (self.radius_m, self.turns)
+
+
+@dataclass(frozen=True)
 class Payload(Command):
     """A payload action (no motion): ``TurnOn``, ``Calibrate``, ``TurnOnCamera``, ..."""
 
@@ -333,7 +420,21 @@ def decode_command(action: str, args: tuple[float, ...] | list[float]) -> Comman
 
 
 _COMMAND_CLASSES: dict[str, type[Command]] = {
-    c.__name__: c for c in (Arm, Disarm, Takeoff, Land, FlyToXYZ, FlyToLLA, PauseFor)
+    c.__name__: c
+    for c in (
+        Arm,
+        Disarm,
+        Takeoff,
+        Land,
+        FlyToXYZ,
+        FlyToLLA,
+        PauseFor,
+        ReturnHome,
+        Hold,
+        Yaw,
+        SetSpeed,
+        Orbit,
+    )
 }
 
 
@@ -377,14 +478,29 @@ PARAM_RANGES: dict[str, str] = {
     "lat_deg": "-90 to 90",
     "lon_deg": "-180 to 180",
     "duration_s": "0 to 86 400",
+    "heading_deg": "0 to 360",
+    "speed_m_s": "0 < speed_m_s ≤ 30",
+    "radius_m": "0 < radius_m ≤ 1 000",
+    "turns": "0 < turns ≤ 100",
 }
 
 #: A parameter's unit, from the suffix of its name.
-UNIT_NAMES: dict[str, str] = {"m": "metres", "deg": "degrees", "s": "seconds", "%": "percent"}
+UNIT_NAMES: dict[str, str] = {
+    "m": "metres",
+    "deg": "degrees",
+    "s": "seconds",
+    "m/s": "metres per second",
+    "%": "percent",
+    "turns": "turns (a count; fractions allowed)",
+}
 
 
 def param_unit(param: str) -> str:
     """The unit of an action parameter (``height_m`` -> ``m``), from its name's suffix."""
+    if param.endswith("_m_s"):
+        return "m/s"
+    if param == "turns":  # a count: the name is its own unit
+        return "turns"
     return param.rsplit("_", 1)[-1] if "_" in param else ""
 
 
