@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from typing import Literal
 
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, PROPERTIES
-from .document import MissionIndex
+from .document import MissionIndex, blank_comments
+from .libraries import available_libraries
 from .vocabulary import (
     action_help,
     action_snippet,
@@ -22,7 +23,7 @@ from .vocabulary import (
     type_help,
 )
 
-ItemKind = Literal["action", "property", "control", "block", "drone", "type", "keyword"]
+ItemKind = Literal["action", "property", "control", "block", "drone", "type", "keyword", "library"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,10 @@ _GROUP_TYPE = re.compile(r"^\s*[^\W\d]\w*\s+(\w*)$")  # a line of ``var ( ... )`
 _VAR_GROUP = re.compile(r"\bvar\s*\(([^()]*)$")
 _CONTROL_ARG = re.compile(r"(\w+)\s*\(([^()]*(?:\([^()]*\)[^()]*)*)$")
 _WORD = re.compile(r"(\w*)$")
+_IMPORT_QUOTE = re.compile(r'^\s*import\s*"[\w/]*$')  # import "sha|
+_IMPORT_BARE = re.compile(r"^\s*import\s+$")  # import |
+_IN_IMPORT_GROUP = re.compile(r"\bimport\s*\(([^()]*)$")  # import ( ... |
+_GROUP_QUOTE = re.compile(r'^\s*"[\w/]*$')
 _COMMENT_OR_STRING = re.compile(r"//|/\*.*?\*/|\"(?:[^\"\\\n]|\\.)*\"?|`[^`]*`?", re.S)
 
 
@@ -72,11 +77,12 @@ def _actions(index: MissionIndex, drone: str) -> list[Item]:
         for name, spec in ACTIONS.items()
         if name in dtype.actions
     ]
-    for name in ("PauseWhile", "PauseUntil"):
-        spec = CONTROL_STRUCTURES[name]
-        items.append(
-            Item(name, "control", spec.signature, control_help(spec), control_snippet(spec))
-        )
+    # The control structures that may also be written on a drone (``D1.PauseWhile(...)``).
+    items += [
+        Item(name, "control", spec.signature, control_help(spec), control_snippet(spec))
+        for name, spec in CONTROL_STRUCTURES.items()
+        if spec.on_drone
+    ]
     return items
 
 
@@ -128,6 +134,57 @@ def _controls() -> list[Item]:
     return items
 
 
+def _libraries(index: MissionIndex, quoted: bool) -> list[Item]:
+    """Every library ``import`` would find (the compiler's search path), quoted if asked."""
+    return [
+        Item(
+            lib.name,
+            "library",
+            f"library ({lib.origin})",
+            f"`{lib.folder}`",
+            f'"{lib.name}"' if quoted else None,
+        )
+        for lib in available_libraries(index.path)
+    ]
+
+
+def _library_blocks(index: MissionIndex, package: str) -> list[Item]:
+    return [
+        Item(b.name, "block", b.signature, b.help(), b.snippet)
+        for b in index.library_blocks.get(package, ())
+    ]
+
+
+def _packages(index: MissionIndex) -> list[Item]:
+    return [Item(p, "library", "imported library") for p in sorted(index.packages)]
+
+
+def _import_context(index: MissionIndex, line: int, prefix: str) -> list[Item] | None:
+    """Library names after ``import "`` (or in an ``import ( ... )`` group); None elsewhere."""
+    if _IMPORT_QUOTE.match(prefix):
+        return _libraries(index, quoted=False)
+    if _IMPORT_BARE.match(prefix):
+        return _libraries(index, quoted=True)
+    if _GROUP_QUOTE.match(prefix) or not prefix.strip():
+        before = blank_comments("\n".join([*index.lines.lines[: max(line - 1, 0)], prefix]))
+        if _IN_IMPORT_GROUP.search(before):
+            return _libraries(index, quoted=not prefix.strip())
+    return None
+
+
+def _argument(spec_params: tuple[str, ...], args: str) -> str | None:
+    """The parameter of a control structure the cursor is at (``args``: the text after ``(``)."""
+    depth = commas = 0
+    for ch in args:
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            commas += 1
+    return spec_params[commas] if commas < len(spec_params) else None
+
+
 def _types() -> list[Item]:
     return [Item(name, "type", "drone type", type_help(t)) for name, t in DRONE_TYPES.items()]
 
@@ -136,9 +193,14 @@ def completions(index: MissionIndex, line: int, col: int) -> list[Item]:
     """What may be written at 1-based (line, col) of the indexed text."""
     text = index.lines.line(line)
     prefix = text[: max(col - 1, 0)]
+    imports = _import_context(index, line, prefix)
+    if imports is not None:
+        return imports
     member = _MEMBER.search(prefix)
     if member:
         drone = member.group(1)
+        if drone in index.packages:
+            return _library_blocks(index, drone)
         if _open_parens(prefix[: member.start()]) > 0:
             return _properties(index, drone)  # inside a condition
         return _actions(index, drone)
@@ -152,12 +214,16 @@ def completions(index: MissionIndex, line: int, col: int) -> list[Item]:
         return [
             Item("func", "keyword", "a block", snippet="func ${1:SEQ_Name}() {\n\t$0\n}"),
             Item("var", "keyword", "a drone", snippet="var ${1:Drone1} ${2:Quadcopter}"),
+            Item("import", "keyword", "a library", snippet='import "${1:shapes}"'),
         ]
     args = _CONTROL_ARG.search(prefix)
     if args and _open_parens(prefix) > 0:
-        name = args.group(1)
-        if name in CONTROL_STRUCTURES and "," in args.group(2):
-            return _blocks(index, call=False)  # Body, Then, Else, Exit
+        spec = CONTROL_STRUCTURES.get(args.group(1))
+        param = _argument(spec.params, args.group(2)) if spec else "cond"
+        if param == "n":
+            return []  # a whole number
+        if param is not None and param != "cond":
+            return _blocks(index, call=False)  # Body, Then, Else, Exit, OnFailure, ...
         return _drones(index)  # a condition reads drone properties
     # The start of a statement inside a block.
-    return _drones(index) + _blocks(index, call=True) + _controls()
+    return _drones(index) + _packages(index) + _blocks(index, call=True) + _controls()

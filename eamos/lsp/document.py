@@ -12,13 +12,26 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 from ..compiler import CompilerBug, Diagnostic, MissionError, check_source, compile_mission
+from ..compiler.errors import SourceLocation
 from ..compiler.parse import parse_partial
-from ..compiler.syntax import ActionCall, Binary, BlockCall, Control, Expr, Mission, Prop, Unary
+from ..compiler.syntax import (
+    ActionCall,
+    Binary,
+    BlockCall,
+    Control,
+    Expr,
+    Import,
+    Mission,
+    Prop,
+    Unary,
+)
 from ..program.uniform import DEFAULT_DRONE_TYPE, DRONE_TYPES, GROUND_STATION, DroneType
 from ..program.uniform import GROUND_TYPE as _GROUND_TYPE
+from .libraries import LibraryBlock, imported_blocks
 from .positions import LineIndex
 
 SymbolKind = Literal["block", "drone"]
@@ -133,17 +146,27 @@ def _props(expr: Expr | None) -> Iterator[Prop]:
 
 
 class MissionIndex:
-    """Blocks and drones of one document: where each is defined and used."""
+    """Blocks and drones of one document: where each is defined and used.
 
-    def __init__(self, text: str) -> None:
+    ``path`` is the mission file's (``"<mission>"`` for an unsaved text): its folder
+    is where imported libraries are looked up first, as the compiler does.
+    """
+
+    def __init__(self, text: str, path: str = "<mission>") -> None:
         self.text = text
+        self.path = path
         self.lines = LineIndex(text)
         self.mission = _parse(text)
+        self.imports = self.mission.imports if self.mission is not None else _imports(text)
+        #: Package names the mission imports: ``shapes`` in ``shapes.SEQ_Square(D1, 5)``.
+        self.packages = {imp.path.rsplit("/", 1)[-1] for imp in self.imports}
         found: list[Occurrence] = []
         if self.mission is not None:
             found = list(self._from_syntax(self.mission))
         taken = {f.span for f in found}
         found.extend(o for o in _lexical(self.lines) if o.span not in taken)
+        # ``shapes.`` reads like a drone's member to the lexical scan: a package is not one.
+        found = [o for o in found if not (o.kind == "drone" and o.name in self.packages)]
         self.occurrences = sorted(found, key=lambda o: o.span)
         self.blocks = {o.name for o in self.occurrences if o.kind == "block" and o.definition}
         self.drones = {o.name for o in self.occurrences if o.kind == "drone"}
@@ -181,6 +204,22 @@ class MissionIndex:
                     for prop in _props(stmt.cond):
                         loc = prop.loc
                         yield from self._occurrence(prop.drone, "drone", loc.line, loc.col, False)
+
+    @cached_property
+    def library_blocks(self) -> dict[str, tuple[LibraryBlock, ...]]:
+        """The blocks of each library the document imports, by package (read on first use)."""
+        if not self.imports:
+            return {}
+        mission = self.mission or Mission("mission", {}, {}, "", self.text, imports=self.imports)
+        return imported_blocks(mission, self.path)
+
+    def library_block(self, qualified: str) -> LibraryBlock | None:
+        """``shapes.SEQ_Square`` as a block of an imported library, or None."""
+        package, _, name = qualified.partition(".")
+        for block in self.library_blocks.get(package, ()) if name else ():
+            if block.name == name:
+                return block
+        return None
 
     # -- queries -------------------------------------------------------------------------
 
@@ -221,6 +260,28 @@ def _parse(text: str) -> Mission | None:
     return mission
 
 
+_IMPORT = re.compile(r'\bimport\s*(?:"([^"\n]*)"|\(([^)]*)\)?)')
+_QUOTED = re.compile(r'"([^"\n]*)"')
+
+
+def _imports(text: str) -> tuple[Import, ...]:
+    """The imports of a text the parser cannot read, found lexically (comments skipped)."""
+    blanked = blank_comments(text)
+    out: list[Import] = []
+    for match in _IMPORT.finditer(blanked):
+        if match.group(1) is not None:
+            spots = [(match.group(1), match.start(1))]
+        else:
+            group = match.group(2) or ""
+            spots = [(q.group(1), match.start(2) + q.start(1)) for q in _QUOTED.finditer(group)]
+        for name, at in spots:
+            if name:
+                line = blanked.count("\n", 0, at) + 1
+                col = at - (blanked.rfind("\n", 0, at) + 1)
+                out.append(Import(name, SourceLocation(line, col + 1)))
+    return tuple(out)
+
+
 # A lexical reading for text the parser cannot follow.  Comments are blanked first so
 # that a commented-out block is not a definition.
 _COMMENT = re.compile(r"//[^\n\r]*|/\*.*?(?:\*/|\Z)", re.S)
@@ -231,12 +292,12 @@ _MEMBER = re.compile(r"(?<![\w.])([^\W\d]\w*)\s*\.")
 _BLOCK_NAME = re.compile(r"(?<![\w.])((?:SEQ|PAR)_\w+|INIT)\b")
 
 
-def _blank_comments(text: str) -> str:
+def blank_comments(text: str) -> str:
     return _COMMENT.sub(lambda m: re.sub(r"[^\n\r]", " ", m.group()), text)
 
 
 def _lexical(index: LineIndex) -> Iterator[Occurrence]:
-    lines = LineIndex(_blank_comments("\n".join(index.lines))).lines
+    lines = LineIndex(blank_comments("\n".join(index.lines))).lines
     for number, line in enumerate(lines, start=1):
         func = _FUNC.match(line)
         if func:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from ..compiler.syntax import ActionCall, BlockCall, Control, Mission
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, GROUND_STATION, PROPERTIES
 from .document import MissionIndex, Occurrence, Span, _props
+from .libraries import LibraryBlock
 from .vocabulary import action_help, control_help, property_help, type_help
 
 
@@ -31,6 +32,20 @@ class Hover:
 
     markdown: str
     span: Span
+
+
+_QUALIFIED = re.compile(r"([^\W\d]\w*)\s*\.\s*([^\W\d]\w*)")
+
+
+def library_block_at(index: MissionIndex, line: int, col: int) -> tuple[LibraryBlock, Span] | None:
+    """The imported library's block named at (line, col) (``shapes.SEQ_Square``), and its span."""
+    text = index.lines.line(line)
+    for match in _QUALIFIED.finditer(text):
+        if match.group(1) in index.packages and match.start() + 1 <= col <= match.end() + 1:
+            block = index.library_block(f"{match.group(1)}.{match.group(2)}")
+            if block is not None:
+                return block, Span(line, match.start() + 1, match.end() + 1)
+    return None
 
 
 def definition(index: MissionIndex, line: int, col: int) -> list[Span]:
@@ -63,6 +78,8 @@ def rename(index: MissionIndex, line: int, col: int, new_name: str) -> list[Span
     occ = index.at(line, col)
     if occ is None or not _IDENTIFIER.match(new_name) or new_name == occ.name:
         return None
+    if "." in occ.name:
+        return None  # a library's block is renamed in its library, not here
     reserved = set(ACTIONS) | set(PROPERTIES) | set(CONTROL_STRUCTURES) | set(DRONE_TYPES)
     if new_name in reserved or new_name == GROUND_STATION or new_name in ("func", "var"):
         return None
@@ -160,6 +177,9 @@ def hover(index: MissionIndex, line: int, col: int) -> Hover | None:
     if found is None:
         return None
     word, start, end = found
+    library = library_block_at(index, line, col)
+    if library is not None:
+        return Hover(library[0].help(), library[1])
     span = Span(line, start, end)
     before = text[: start - 1].rstrip()
     member = before.endswith(".")

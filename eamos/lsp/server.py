@@ -19,6 +19,7 @@ import logging
 import urllib.parse
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any, TypeVar
 
 from lsprotocol import types as lsp
@@ -27,7 +28,8 @@ from pygls.lsp.server import LanguageServer
 from .. import __version__
 from .completion import Item, completions
 from .document import Finding, MissionIndex, Span, checked_findings, findings
-from .features import definition, hover, references, rename, symbols
+from .features import definition, hover, library_block_at, references, rename, symbols
+from .libraries import LibraryBlock
 from .positions import Encoding, LineIndex, Point
 
 log = logging.getLogger("eamos.lsp")
@@ -42,6 +44,7 @@ _KINDS = {
     "drone": lsp.CompletionItemKind.Variable,
     "type": lsp.CompletionItemKind.Class,
     "keyword": lsp.CompletionItemKind.Keyword,
+    "library": lsp.CompletionItemKind.Module,
 }
 
 
@@ -67,7 +70,7 @@ class MissionServer(LanguageServer):
         text = self.text(uri)
         cached = self._indexes.get(uri)
         if cached is None or cached.text != text:
-            cached = MissionIndex(text)
+            cached = MissionIndex(text, mission_path(uri))
             self._indexes[uri] = cached
         return cached
 
@@ -211,6 +214,14 @@ async def check(server: MissionServer, uri: str, version: int | None) -> None:
         publish(server, uri, version, full)
 
 
+def library_location(server: MissionServer, block: LibraryBlock) -> lsp.Location:
+    """Where a library's block is defined: its name in the library file."""
+    path = Path(block.file)
+    lines = server.lines(path.read_text(encoding="utf-8"))
+    span = Span(block.line, block.col, block.col + len(block.name))
+    return lsp.Location(path.resolve().as_uri(), to_range(lines, span))
+
+
 def build_server() -> MissionServer:
     """A server with every feature registered (not started)."""
     server = MissionServer()
@@ -259,7 +270,11 @@ def build_server() -> MissionServer:
     def on_definition(ls: MissionServer, params: lsp.DefinitionParams) -> list[lsp.Location]:
         uri = params.text_document.uri
         index, lines, line, col = _where(ls, uri, params.position)
-        return [lsp.Location(uri, to_range(lines, s)) for s in definition(index, line, col)]
+        found = [lsp.Location(uri, to_range(lines, s)) for s in definition(index, line, col)]
+        library = library_block_at(index, line, col) if not found else None
+        if library is not None:
+            found = [library_location(ls, library[0])]
+        return found
 
     @server.feature(lsp.TEXT_DOCUMENT_REFERENCES)
     @_safe(list)

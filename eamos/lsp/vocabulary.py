@@ -58,13 +58,24 @@ def property_help(spec: PropertySpec) -> str:
     )
 
 
+def _arguments_help(spec: ControlSpec) -> str:
+    """What each kind of argument of ``spec`` is, from its parameters' names."""
+    parts = []
+    if "cond" in spec.params:
+        parts.append("`cond` is a condition")
+    if "n" in spec.params:
+        parts.append("`n` is a whole number")
+    blocks = [f"`{p}`" for p in spec.params if p not in ("cond", "n")]
+    if blocks:
+        are = "is a block name" if len(blocks) == 1 else "are block names"
+        parts.append(f"{', '.join(blocks)} {are} written without `()`")
+    return "; ".join(parts) + "." if parts else "It takes no arguments."
+
+
 def control_help(spec: ControlSpec) -> str:
     """Markdown help of a control structure: its argument shape and meaning."""
     forms = f"{spec.signature}" + (f"\nD.{spec.signature}" if spec.on_drone else "")
-    return (
-        f"```go\n{forms}\n```\n\n{spec.doc}\n\n`cond` is a condition; `n` a whole number; "
-        "`Body`, `Then`, `Else`, `Exit` are block names written without `()`."
-    )
+    return f"```go\n{forms}\n```\n\n{spec.doc}\n\n{_arguments_help(spec)}"
 
 
 def _ordered(names: frozenset[str] | set[str], order: Mapping[str, object]) -> list[str]:

@@ -175,7 +175,7 @@ def test_completion_of_types_statements_and_top_level() -> None:
     assert set(_labels(group, "D2 ", 3)) >= {"Quadcopter", "DroneType3"}
     statement = _labels(text, "\t\n", 1)
     assert {"D1", "SEQ_A", "If", "RepeatFor", "DoWhile", "PauseFor"} <= statement
-    assert _labels(text, "func", 0) == {"func", "var"}
+    assert _labels(text, "func", 0) == {"func", "var", "import"}
     snippets = {i.label: i.snippet for i in completions(MissionIndex(text), 3, 2)}
     assert snippets["If"] == "If(${1:cond}, ${2:Then})"
     assert snippets["SEQ_A"] == "SEQ_A()"

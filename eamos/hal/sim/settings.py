@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
+from types import MappingProxyType
 from typing import Any
 
 from eamos.hal.kinematics import GeoFrame, Limits
@@ -21,7 +22,47 @@ from eamos.hal.settings import (
     require_mapping,
     string_list,
 )
-from eamos.program.uniform import ACTIONS
+from eamos.program.uniform import ACTIONS, DRONE_TYPES
+
+
+@dataclass(frozen=True)
+class BatteryModel:
+    """How a simulated drone's battery drains (percent per minute), and its charge at start.
+
+    On the ground it drains ``drain_idle_pct_per_min``; in the air
+    ``drain_airborne_pct_per_min`` (hovering) plus ``drain_per_mps_pct_per_min``
+    per m/s of speed plus ``drain_climb_per_mps_pct_per_min`` per m/s of climb
+    (:meth:`eamos.hal.kinematics.Quadcopter.drain_pct_per_min`).  Each field is a
+    ``[hal]`` setting of the simulated adapter of the same name (docs/safety.md).
+    """
+
+    battery_pct: float = 100.0
+    drain_airborne_pct_per_min: float = 4.0
+    drain_per_mps_pct_per_min: float = 0.5
+    drain_climb_per_mps_pct_per_min: float = 2.0
+    drain_idle_pct_per_min: float = 0.1
+
+    def settings(self) -> dict[str, float]:
+        """The fields that differ from the simulator's default model, as ``[hal]`` settings.
+
+        Only those are written into a drone's merged ``[hal]`` table, so a drone
+        whose type has the default model gets exactly the table it had before
+        types had models.
+        """
+        default = BatteryModel()
+        return {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if getattr(self, f.name) != getattr(default, f.name)
+        }
+
+
+#: The built-in battery model of each built-in drone type (docs/safety.md, "Per drone type").
+#: The paper gives no battery figures for its DroneType1..3, so they fly the
+#: Quadcopter's model; a fleet file's ``[types.NAME.hal]`` changes any of them.
+BATTERY_MODELS: Mapping[str, BatteryModel] = MappingProxyType(
+    {name: BatteryModel() for name in DRONE_TYPES}
+)
 
 
 @dataclass(frozen=True)
@@ -50,11 +91,12 @@ class SimSettings:
     home_lat_deg: float = 46.6103
     home_lon_deg: float = 14.2640
     home_alt_m: float = 0.0
-    battery_pct: float = 100.0
-    drain_airborne_pct_per_min: float = 4.0
-    drain_per_mps_pct_per_min: float = 0.5
-    drain_climb_per_mps_pct_per_min: float = 2.0
-    drain_idle_pct_per_min: float = 0.1
+    # The battery model: BatteryModel's fields (one default, kept in one place).
+    battery_pct: float = BatteryModel.battery_pct
+    drain_airborne_pct_per_min: float = BatteryModel.drain_airborne_pct_per_min
+    drain_per_mps_pct_per_min: float = BatteryModel.drain_per_mps_pct_per_min
+    drain_climb_per_mps_pct_per_min: float = BatteryModel.drain_climb_per_mps_pct_per_min
+    drain_idle_pct_per_min: float = BatteryModel.drain_idle_pct_per_min
     action_timeout_s: float = 120.0
     reject_actions: tuple[str, ...] = ()
     pilot: tuple[Waypoint, ...] = ()
@@ -168,4 +210,4 @@ def _pilot_path(value: Any, path: str) -> tuple[Waypoint, ...]:
     return tuple(points)
 
 
-__all__ = ["SimSettings", "Waypoint"]
+__all__ = ["BATTERY_MODELS", "BatteryModel", "SimSettings", "Waypoint"]

@@ -1,0 +1,282 @@
+"""A drone's config file (``eamos-node --config``): :class:`NodeConfig`.
+
+Drone config (TOML)::
+
+    drone = "Drone1"                          # must match the program
+    program = "programs/Drone1.program.json"  # relative to this file
+    log_dir = "logs/Drone1"                   # relative to this file (default: logs/<drone>)
+    ready_timeout_s = 60                      # how long to wait for the peers' subscriptions
+    land_timeout_s = 120                      # after an abort, how long to wait for touchdown
+    mission_timeout_s = 600                   # ground station only: abort after this long
+    peer_wait_limit_s = 20                    # waiting on a lost peer (or for Complete from a
+                                              # silent ground station) at most this long, then
+    on_stranded = "land"                      # the end policy: land | hold | return (lands now)
+
+    [net]
+    bind = "tcp://127.0.0.1:6001"             # this drone's out-bridge
+    keys = "keys/Drone1"                      # from `eamos keys` (relative to this file)
+    # plain = true                            # instead of keys: no security, loopback only
+    heartbeat_s = 1                           # heartbeat period (and telemetry refresh)
+    peer_timeout_s = 3                        # a peer silent this long is reported lost
+    telemetry_stale_s = 2.5                   # older telemetry is not used by conditions
+    telemetry_max_hz = 20                     # outgoing telemetry cap (latest always sent)
+    peer_give_up_s = 30                       # ground station only: stop waiting for a
+                                              # drone silent this long (default: never)
+    [net.peers]                               # every other participant's out-bridge
+    GCS = "tcp://127.0.0.1:6000"
+    Drone2 = "tcp://127.0.0.1:6002"
+
+    [hal]
+    adapter = "sim"                           # sim | ground | fake | mavlink
+    speedup = 10                              # the adapter's own settings follow
+
+Every error names the file and the field.  Numbers must be finite and within
+their range:
+
+    ready_timeout_s    0 < value <= 86400 s      peer_timeout_s     0 < value <= 3600 s
+    land_timeout_s     0 < value <= 3600 s       telemetry_stale_s  0 < value <= 3600 s
+    mission_timeout_s  0 < value <= 604800 s     telemetry_max_hz   0.01 <= value <= 1000 Hz
+    peer_give_up_s     0 < value <= 86400 s      hal.speedup        0 < value <= 1000
+    heartbeat_s        0.01 <= value <= 60 s     (and peer_timeout_s, telemetry_stale_s
+                                                  longer than heartbeat_s)
+
+``adapter = "ground"`` is the ground station's, refused for a drone.  A
+``log_dir`` must be a folder (or not exist yet).  The ranges are
+:data:`eamos.config.validation.RANGES`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..net.keys import FleetKeys, KeysError, plain_refusal
+from ..net.link import LinkSettings
+from ..program.uniform import GROUND_STATION
+from .toml_text import relative, toml_key, toml_value
+from .validation import (
+    END_POLICIES,
+    ConfigError,
+    check_hal,
+    check_keys,
+    endpoint,
+    in_range,
+    log_folder,
+    read_toml,
+)
+
+
+@dataclass(frozen=True)
+class NodeConfig:
+    """Everything ``eamos-node`` needs to run one drone."""
+
+    path: Path
+    drone: str
+    program: Path
+    log_dir: Path
+    bind: str
+    peers: dict[str, str]
+    hal: dict[str, Any] = field(default_factory=dict)
+    ready_timeout_s: float = 60.0
+    land_timeout_s: float = 120.0
+    mission_timeout_s: float = 600.0
+    keys_dir: Path | None = None
+    keys: FleetKeys | None = None  # None: plain sockets (asked for, loopback only)
+    link: LinkSettings = field(default_factory=LinkSettings)
+    peer_give_up_s: float | None = None
+    # Waiting on a lost peer, or for Complete from a silent ground station, at
+    # most this long; then the drone applies ``on_stranded`` (actors/stranded.py).
+    peer_wait_limit_s: float = 20.0
+    on_stranded: str = "land"
+
+    @classmethod
+    def load(cls, path: Path) -> NodeConfig:
+        """Read and validate a drone config file."""
+        path = Path(path)
+        doc = read_toml(path)
+        w = f"{path}: "
+        check_keys(
+            w,
+            doc,
+            {
+                "drone",
+                "program",
+                "log_dir",
+                "ready_timeout_s",
+                "land_timeout_s",
+                "mission_timeout_s",
+                "peer_wait_limit_s",
+                "on_stranded",
+                "net",
+                "hal",
+            },
+        )
+        drone = doc.get("drone")
+        if not isinstance(drone, str) or not drone:
+            raise ConfigError(
+                f'{w}drone: required, the drone\'s name as in the mission (e.g. "Drone1")'
+            )
+        program = doc.get("program")
+        if not isinstance(program, str) or not program:
+            raise ConfigError(f"{w}program: required, the path of the drone's .program.json")
+        net = doc.get("net")
+        if not isinstance(net, dict):
+            raise ConfigError(f"{w}net: required table with 'bind' and 'peers'")
+        check_keys(f"{w}net.", net, NET_FIELDS)
+        bind = endpoint(f"{w}net.bind", net.get("bind"))
+        peers = net.get("peers", {})
+        if not isinstance(peers, dict):
+            raise ConfigError(f"{w}net.peers: must be a table of name = endpoint")
+        peers = {str(k): endpoint(f"{w}net.peers.{k}", v) for k, v in peers.items()}
+        keys_dir, keys = _net_security(w, net, path.parent, drone, bind, peers)
+        link = _link_settings(w, net)
+        give_up = net.get("peer_give_up_s")
+        if give_up is not None:
+            give_up = in_range(f"{w}net.peer_give_up_s", give_up, "peer_give_up_s")
+        hal = doc.get("hal", {"adapter": "sim"})
+        if not isinstance(hal, dict):
+            raise ConfigError(f"{w}hal: must be a table")
+        check_hal(f"{w}hal.", hal, drone=drone != GROUND_STATION)
+        timeouts = {}
+        for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s", "peer_wait_limit_s"):
+            if key in doc:
+                timeouts[key] = in_range(f"{w}{key}", doc[key], key)
+        on_stranded = doc.get("on_stranded", "land")
+        if on_stranded not in END_POLICIES:
+            raise ConfigError(
+                f"{w}on_stranded: must be one of {', '.join(END_POLICIES)}, got {on_stranded!r}"
+            )
+        base = path.parent
+        log_dir = doc.get("log_dir", f"logs/{drone}")
+        if not isinstance(log_dir, str) or not log_dir:
+            raise ConfigError(f"{w}log_dir: must be a path")
+        log_folder(f"{w}log_dir", (base / log_dir).resolve())
+        return cls(
+            path=path,
+            drone=drone,
+            program=(base / program).resolve(),
+            log_dir=(base / log_dir).resolve(),
+            bind=bind,
+            peers=peers,
+            hal=dict(hal),
+            keys_dir=keys_dir,
+            keys=keys,
+            link=link,
+            peer_give_up_s=give_up,
+            on_stranded=on_stranded,
+            **timeouts,
+        )
+
+    def to_toml(self) -> str:
+        """This config as the TOML text :meth:`load` reads back: ``load(to_toml()) == self``.
+
+        Paths (program, log folder, keys) are written relative to the folder of
+        :attr:`path`, so a config and the files it names can move together (the
+        roll-out writes a drone's config on the operator's machine for a folder on
+        the drone).  The loaded :attr:`keys` are not written: they are read again
+        from :attr:`keys_dir`; no ``keys_dir`` means ``plain = true``.  Raises
+        ``ValueError`` for what a config file cannot say (link settings beyond
+        the ``[net]`` fields, values TOML cannot hold).
+        """
+        link = {key: getattr(self.link, key) for key in _LINK_FIELDS}
+        if LinkSettings(**link) != self.link:
+            raise ValueError(
+                f"{self.drone}: link settings beyond {', '.join(_LINK_FIELDS)} "
+                "cannot be written to a config file"
+            )
+        base = Path(self.path).parent
+        lines = [
+            f"drone = {toml_value(self.drone)}",
+            f"program = {toml_value(relative(self.program, base))}",
+            f"log_dir = {toml_value(relative(self.log_dir, base))}",
+            f"ready_timeout_s = {toml_value(self.ready_timeout_s)}",
+            f"land_timeout_s = {toml_value(self.land_timeout_s)}",
+            f"mission_timeout_s = {toml_value(self.mission_timeout_s)}",
+            f"peer_wait_limit_s = {toml_value(self.peer_wait_limit_s)}",
+            f"on_stranded = {toml_value(self.on_stranded)}",
+            "",
+            "[net]",
+            f"bind = {toml_value(self.bind)}",
+        ]
+        if self.keys_dir is not None:
+            lines.append(f"keys = {toml_value(relative(self.keys_dir, base))}")
+        else:
+            lines.append("plain = true")
+        lines += [f"{key} = {toml_value(value)}" for key, value in link.items()]
+        if self.peer_give_up_s is not None:
+            lines.append(f"peer_give_up_s = {toml_value(self.peer_give_up_s)}")
+        lines += ["", "[net.peers]"]
+        lines += [f"{toml_key(k)} = {toml_value(v)}" for k, v in self.peers.items()]
+        lines += ["", "[hal]"]
+        lines += [f"{toml_key(k)} = {toml_value(v)}" for k, v in self.hal.items()]
+        return "\n".join(lines) + "\n"
+
+    def write(self) -> Path:
+        """Write :meth:`to_toml` to :attr:`path` (its folder is made); return the path."""
+        path = Path(self.path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(self.to_toml(), encoding="utf-8")
+        return path
+
+
+NET_FIELDS = {
+    "bind",
+    "peers",
+    "keys",
+    "plain",
+    "heartbeat_s",
+    "peer_timeout_s",
+    "telemetry_stale_s",
+    "telemetry_max_hz",
+    "peer_give_up_s",
+}
+"""Fields of a drone config's ``[net]`` table."""
+
+_LINK_FIELDS = ("heartbeat_s", "peer_timeout_s", "telemetry_stale_s", "telemetry_max_hz")
+
+
+def _net_security(
+    w: str, net: Mapping[str, Any], base: Path, drone: str, bind: str, peers: Mapping[str, str]
+) -> tuple[Path | None, FleetKeys | None]:
+    """``[net] keys`` (loaded and checked) or ``plain = true`` (loopback only): exactly one."""
+    plain = net.get("plain", False)
+    if not isinstance(plain, bool):
+        raise ConfigError(f"{w}net.plain: must be true or false")
+    if "keys" in net and plain:
+        raise ConfigError(f"{w}net.plain: cannot be combined with net.keys (choose one)")
+    if plain:
+        refusal = plain_refusal([bind, *peers.values()])
+        if refusal:
+            raise ConfigError(f"{w}net.plain: {refusal}")
+        return None, None
+    if "keys" not in net:
+        raise ConfigError(
+            f"{w}net.keys: required: the folder `eamos keys` made for {drone} "
+            "(or plain = true, for development on loopback only)"
+        )
+    if not isinstance(net["keys"], str) or not net["keys"]:
+        raise ConfigError(f"{w}net.keys: must be the path of a key folder")
+    folder = (base / net["keys"]).resolve()
+    try:
+        keys = FleetKeys.load(folder, drone)
+    except KeysError as exc:
+        raise ConfigError(f"{w}net.keys: {exc}") from exc
+    missing = keys.missing(p for p in peers if p != drone)
+    if missing:
+        raise ConfigError(
+            f"{w}net.keys: {folder} has no public key for peer(s) {', '.join(missing)}"
+        )
+    return folder, keys
+
+
+def _link_settings(w: str, net: Mapping[str, Any]) -> LinkSettings:
+    values: dict[str, Any] = {}
+    for key in _LINK_FIELDS:
+        if key in net:
+            values[key] = in_range(f"{w}net.{key}", net[key], key)
+    try:
+        return LinkSettings(**values)
+    except ValueError as exc:  # the message starts with the field's name
+        raise ConfigError(f"{w}net.{exc}") from exc
