@@ -102,9 +102,14 @@ def _default_run_dir(mission: str) -> Path:
 
 def _compile(
     opts: RolloutOptions, fleet: FleetConfig
-) -> tuple[CompiledMission, list[str], FleetTargets, Path]:
-    """Step 1: compile into the run folder; the fleet settings are checked first."""
+) -> tuple[CompiledMission, FleetConfig, list[str], FleetTargets, Path]:
+    """Step 1: compile into the run folder; the fleet settings are checked first.
+
+    Returns the fleet bound to the mission (each drone knows its type, so
+    ``[types.NAME.hal]`` tables apply).
+    """
     compiled = compile_file(opts.mission)
+    fleet = fleet.for_mission(compiled.programs, compiled.mission.types)
     drones = [n for n in compiled.programs if n != GROUND_STATION]
     # Fleet settings are validated before anything is written or contacted.
     fleet.check_drones(drones)
@@ -115,7 +120,7 @@ def _compile(
     write_artifacts(compiled, run_dir, svg=opts.svg)
     if opts.preflight is not None:
         opts.preflight(compiled, fleet, run_dir)
-    return compiled, drones, targets, run_dir
+    return compiled, fleet, drones, targets, run_dir
 
 
 def _plans(
@@ -271,7 +276,7 @@ def rollout(opts: RolloutOptions, say: Say) -> Rollout:
     t_all = time.monotonic()
     fleet = FleetConfig.load(opts.fleet)
     with steps.step("compile"):
-        compiled, drones, targets, run_dir = _compile(opts, fleet)
+        compiled, fleet, drones, targets, run_dir = _compile(opts, fleet)
     mission = compiled.mission.name
     say(
         f"roll-out of {mission} (fleet mission id {compiled.mission_id}) to "
