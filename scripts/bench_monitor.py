@@ -2,7 +2,8 @@
 """Benchmark of the browser monitor; prints JSON.
 
 * ``hub_load``: a synthetic fleet (20 drones, 20 Hz telemetry each, and an action
-  progress per drone every second) fed through the monitor's hub and served by
+  progress per drone every second, whose node waits for the same node of the
+  drone before it: the live link counts work too) fed through the monitor's hub and served by
   its web server to one websocket client, for ``--seconds``: what one event
   costs the ground station's thread (p50/p99 µs in ``Hub.event``), the process's
   CPU (the feeder's own share measured without a server and subtracted), the
@@ -39,20 +40,31 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from eamos.monitor.hub import Hub  # noqa: E402
+from eamos.monitor.links import LinkArc, LinkGraph  # noqa: E402
 from eamos.monitor.server import MonitorServer  # noqa: E402
 from eamos.monitor.setup import MissionSetup, NodeInfo, ParticipantSetup  # noqa: E402
 from eamos.net import wire  # noqa: E402
 
 
 def synthetic_setup(drones: int, nodes: int) -> MissionSetup:
+    """Each drone a chain of actions; node i of each drone also waits for node i of the
+    drone before it (a cross-drone arc), so the live link counts do their work."""
     parts = []
+    owner, kinds, arcs = {}, {}, []
     for d in range(1, drones + 1):
         name = f"D{d}"
         infos = tuple(
             NodeInfo(f"n{d}_{i}", "action", f"FlyByX({i})", name, "FlyByX") for i in range(nodes)
         )
         parts.append(ParticipantSetup(name, "#ffe066", (float(d), 0.0), infos, ""))
-    return MissionSetup("bench", "m", tuple(parts))
+        for i in range(nodes):
+            owner[f"n{d}_{i}"], kinds[f"n{d}_{i}"] = name, "action"
+            if i:
+                arcs.append(LinkArc(f"n{d}_{i - 1}", f"n{d}_{i}", "seq", False))
+            if d > 1:
+                arcs.append(LinkArc(f"n{d - 1}_{i}", f"n{d}_{i}", "seq", True))
+    graph = LinkGraph(owner, kinds, {k: () for k in owner}, tuple(arcs))
+    return MissionSetup("bench", "m", tuple(parts), links=graph)
 
 
 def _feed(hub: Hub | None, drones: int, hz: float, seconds: float) -> list[float]:

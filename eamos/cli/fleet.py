@@ -210,6 +210,26 @@ def print_table7(durations: dict[str, float]) -> None:
         print(f"  {row:<20} {value:8.2f} s")
 
 
+def _rollout_homes(run_dir: Path, drones: list[str]) -> dict[str, tuple[float, float]] | None:
+    """The drones' homes on the monitor's map: the roll-out's fleet file's, as ``eamos run``.
+
+    None (every drone at the origin) when the fleet file is gone or no longer reads:
+    the map is then wrong, but the mission must not stop for a picture.
+    """
+    import json
+
+    from eamos.config import ConfigError, FleetConfig
+
+    try:
+        doc = json.loads((run_dir / "rollout.json").read_text(encoding="utf-8"))
+        fleet_file = doc.get("fleet_file") if isinstance(doc, dict) else None
+        if not isinstance(fleet_file, str):
+            return None
+        return FleetConfig.load(Path(fleet_file)).homes(drones)
+    except (OSError, ValueError, ConfigError):
+        return None
+
+
 def cmd_start(args: argparse.Namespace) -> int:
     """``eamos start``."""
     from eamos.ground import StopRequest, install_stop_handler
@@ -227,8 +247,10 @@ def cmd_start(args: argparse.Namespace) -> int:
         from eamos.ground import make_display
 
         run_dir = Path(args.run_dir).resolve()
-        shown = make_display(opts.live, monitored_drones(run_dir))
-        with live_monitor(monitor, run_dir, stop, shown) as monitored:
+        drones = monitored_drones(run_dir)
+        shown = make_display(opts.live, drones)
+        homes = _rollout_homes(run_dir, drones)
+        with live_monitor(monitor, run_dir, stop, shown, homes) as monitored:
             summary = fly_rollout(opts, stop, display=monitored.display)
             monitored.finish(summary)
     status = summary.word + (f" ({summary.detail})" if summary.detail else "")

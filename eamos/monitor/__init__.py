@@ -4,6 +4,8 @@
   colours, homes and MDG pictures, read from a run folder.
 * :class:`MonitorState` (``state.py``): the page's state from the ground station's events,
   pure (the one word for how a run ended is :attr:`RunSummary.word`).
+* :class:`LinkCounts` (``links.py``): the triggers sent and received per link
+  (drone A -> drone B), derived live from node states and the MDG's arcs, pure.
 * :class:`Hub` (``hub.py``): the state behind a lock and a bounded log of patches.
 * :class:`~.server.MonitorServer` (``server.py``): Starlette on uvicorn in its own thread,
   the page (``static/``), a websocket of patches, the abort endpoint.
@@ -18,7 +20,17 @@ See docs/monitor.md.
 from __future__ import annotations
 
 from .hub import Hub
+from .links import LinkCount, LinkCounts, LinkGraph
 from .setup import MissionSetup, MonitorError, load_setup
 from .state import MonitorState
 
-__all__ = ["Hub", "MissionSetup", "MonitorError", "MonitorState", "load_setup"]
+__all__ = [
+    "Hub",
+    "LinkCount",
+    "LinkCounts",
+    "LinkGraph",
+    "MissionSetup",
+    "MonitorError",
+    "MonitorState",
+    "load_setup",
+]

@@ -97,6 +97,7 @@ class MonitorServer:
         self.messages_sent = 0
         self._clients: set[_Client] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._closing: asyncio.Event | None = None  # set when the server closes (its loop's)
         self._wake_pending = False
         self._started = threading.Event()
         self._sent = threading.Condition()  # notified when a connection caught up
@@ -149,6 +150,7 @@ class MonitorServer:
                     break
                 self._sent.wait(remaining)
         self.hub.wake = lambda: None
+        self._close_ticker()
         if self._server is not None:
             self._server.should_exit = True
         if self._thread is not None:
@@ -177,6 +179,13 @@ class MonitorServer:
 
     # -- waking the loop from other threads ------------------------------------------------
 
+    def _close_ticker(self) -> None:
+        """End the flush timer now (from any thread): nothing more is due."""
+        loop, closing = self._loop, self._closing
+        if loop is not None and closing is not None:
+            with contextlib.suppress(RuntimeError):  # the loop closed already
+                loop.call_soon_threadsafe(closing.set)
+
     def _wake(self) -> None:
         """Called by the hub after new patches (any thread): wake every connection once."""
         loop = self._loop
@@ -201,12 +210,14 @@ class MonitorServer:
         @contextlib.asynccontextmanager
         async def lifespan(app: Starlette) -> Any:
             self._loop = asyncio.get_running_loop()
+            self._closing = asyncio.Event()
             ticker = asyncio.create_task(self._ticker())
             self._started.set()
             try:
                 yield
             finally:
-                ticker.cancel()
+                self._closing.set()
+                await ticker
 
         return Starlette(
             routes=[
@@ -222,10 +233,17 @@ class MonitorServer:
         )
 
     async def _ticker(self) -> None:
-        # A periodic timer, not a synchronisation: held drone updates are due every 0.1 s.
-        while True:
-            await asyncio.sleep(TICK_S)
-            if self.replay is None:
+        """Flush the held drone updates every :data:`TICK_S` until the server closes.
+
+        It waits on the closing event with a timeout (not a sleep), so :meth:`stop`
+        ends it at once instead of after the current period.
+        """
+        closing = self._closing
+        assert closing is not None
+        while not closing.is_set():
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(closing.wait(), TICK_S)
+            if self.replay is None and not closing.is_set():
                 self.hub.tick()
 
     async def _page(self, request: Request) -> Response:

@@ -19,6 +19,8 @@ from typing import Any
 from eamos.program.format import DroneProgram, ProgramError, load_program
 from eamos.program.uniform import GROUND_STATION
 
+from .links import LinkGraph
+
 
 class MonitorError(ValueError):
     """A run folder the monitor cannot show (no programs, unreadable logs, a bad port)."""
@@ -78,6 +80,8 @@ class MissionSetup:
     participants: tuple[ParticipantSetup, ...]  # drones first (natural order), the GCS last
     #: Each node's predecessors in the MDGs (loop arcs aside): what had to finish before it.
     preds: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    #: The whole MDG's arcs for the live trigger counts per link (None: not counted).
+    links: LinkGraph | None = None
 
     @property
     def drones(self) -> list[str]:
@@ -95,6 +99,10 @@ class MissionSetup:
             "mission_id": self.mission_id,
             "participants": [p.to_json() for p in self.participants],
             "drones": self.drones,
+            "links": [
+                {"src": s, "dst": d, "arcs": n}
+                for (s, d), n in (self.links.links() if self.links is not None else {}).items()
+            ],
         }
 
 
@@ -144,7 +152,8 @@ def build_setup(
             if arc.dst in native and arc.kind != "loop":
                 preds.setdefault(arc.dst, []).append(arc.src)
     frozen = {k: tuple(dict.fromkeys(v)) for k, v in preds.items()}
-    return MissionSetup(first.mission, first.mission_id, tuple(parts), frozen)
+    links = LinkGraph.from_programs(programs.values())
+    return MissionSetup(first.mission, first.mission_id, tuple(parts), frozen, links)
 
 
 def _svg_of(graphs: Path, name: str) -> str:

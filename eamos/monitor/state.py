@@ -18,6 +18,9 @@ Patch kinds (``k``):
   ``skipped``, ``failed``, ``cancelled``) or activation (loop counters).
   Never coalesced: every state change, in order.
 * ``bar``: a timeline bar opened or closed (one per action run).
+* ``link``: one link's (drone A -> drone B) external arcs in the MDG and the
+  triggers sent and received on it so far, derived live from node states
+  (:mod:`.links`); sent whenever a count changes.
 * ``mission``: the mission's state (``waiting for drones``, ``running``,
   ``aborting``, then the outcome word: ``finished``, ``failed``, ``aborted``,
   ``timed out``), its start and end times.
@@ -42,6 +45,7 @@ from eamos.net import wire
 from eamos.net.link import PeerStatus
 from eamos.program.uniform import GROUND_STATION
 
+from .links import LinkCount, LinkCounts
 from .setup import MissionSetup
 
 #: Minimum time between two ``drone`` patches of one drone (10 updates per second).
@@ -167,6 +171,7 @@ class MonitorState:
             "detail": "",
             "created": now,
         }
+        self.links = LinkCounts(setup.links) if setup.links is not None else None
         self._last_emit: dict[str, float] = {}
         self._dirty: set[str] = set()
         self.coalesced = 0  # drone updates merged into a later patch
@@ -190,6 +195,8 @@ class MonitorState:
                 drone.ready, drone.mode = True, "ready"
                 if all(d.ready for d in self.drones.values()):
                     out += self._mission(state="running", started=now)
+                    if self.links is not None:
+                        out += _link_patches(self.links.started())
                     # The start trigger follows at once: it is the initial node firing.
                     for part in self.setup.participants:
                         for node in part.nodes:
@@ -198,6 +205,8 @@ class MonitorState:
         elif isinstance(msg, wire.Resolved):
             if drone is not None:
                 drone.resolved = True
+            if self.links is not None:
+                out += _link_patches(self.links.resolved(name))
         elif isinstance(msg, wire.Report):
             out += self._report(name, msg.report)
         elif isinstance(msg, PeerStatus) and drone is not None:
@@ -243,6 +252,8 @@ class MonitorState:
         if state is None:
             return out
         out += self._node(msg.node, state, list(iteration), now)
+        if self.links is not None:
+            out += _link_patches(self.links.progress(msg.node, msg.state, tuple(iteration)))
         if msg.state in RAN:
             out += self._ran_before(msg.node, list(iteration), now)
         if self._kinds.get(msg.node) != "action" or msg.state not in ACTION_TO_NODE:
@@ -304,10 +315,14 @@ class MonitorState:
     ) -> list[dict[str, Any]]:
         """A node's state from a drone's own log (a replay); ``value``: a condition's truth."""
         out = self._node(key, state, iteration, now)
+        if self.links is not None:
+            # A log's node states: "running" when triggered, else it resolved.
+            event = "running" if state == "running" else "ok"
+            out += _link_patches(self.links.progress(key, event, tuple(iteration)))
         node = self.nodes.get(key)
         if value is not None and node is not None and node.get("value") != value:
             node["value"] = value
-            out = [{"k": "node", "node": key, **node}]
+            out = [p for p in out if p.get("node") != key] + [{"k": "node", "node": key, **node}]
         return out
 
     def _report(self, name: str, data: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -431,11 +446,24 @@ class MonitorState:
             "drones": {n: {**d.fields(), "trail": list(d.trail)} for n, d in self.drones.items()},
             "nodes": {k: dict(v) for k, v in self.nodes.items()},
             "bars": [dict(b) for b in self.bars],
+            "links": {
+                link_key(c.src, c.dst): c.to_json()
+                for c in (self.links.counts() if self.links is not None else [])
+            },
         }
 
     def node_states(self) -> dict[str, str]:
         """Every node's current state, by key."""
         return {k: v["state"] for k, v in self.nodes.items()}
+
+
+def link_key(src: str, dst: str) -> str:
+    """A link's key in the page's state (``"Drone1>Drone2"``)."""
+    return f"{src}>{dst}"
+
+
+def _link_patches(counts: list[LinkCount]) -> list[dict[str, Any]]:
+    return [{"k": "link", **c.to_json()} for c in counts]
 
 
 def apply_patches(snapshot: dict[str, Any], patches: Iterable[dict[str, Any]]) -> None:
@@ -456,3 +484,5 @@ def apply_patches(snapshot: dict[str, Any], patches: Iterable[dict[str, Any]]) -
             bars[index] = body
         elif kind == "mission":
             snapshot["mission"] = body
+        elif kind == "link":
+            snapshot.setdefault("links", {})[link_key(body["src"], body["dst"])] = body

@@ -96,6 +96,16 @@ def positions(driver: Any) -> dict[str, tuple[float, ...]]:
     return out
 
 
+def links(driver: Any) -> dict[str, tuple[int, ...]]:
+    """Each row of the links table: external arcs, triggers sent, received."""
+    return {
+        str(row.get_attribute("data-link")): tuple(
+            int(str(row.get_attribute(f"data-{c}"))) for c in ("arcs", "sent", "received")
+        )
+        for row in driver.find_elements(By.CSS_SELECTOR, "#links tr[data-link]")
+    }
+
+
 @dataclass
 class SeenC:
     """What the page showed at the end of a live run of experiment C."""
@@ -106,6 +116,7 @@ class SeenC:
     graphs: dict[str, list[str]]
     positions: dict[str, tuple[float, ...]]
     bars: int
+    links: dict[str, tuple[int, ...]]
 
 
 @pytest.fixture(scope="module")
@@ -134,6 +145,7 @@ def seen_c(tmp_path_factory: pytest.TempPathFactory, browser: Any) -> SeenC:
         node_states(browser),
         positions(browser),
         len(browser.find_elements(By.CSS_SELECTOR, "#gantt g.bar")),
+        links(browser),
     )
 
 
@@ -149,6 +161,13 @@ def assert_the_end_of_c(seen: SeenC) -> None:
         assert seen.positions[name] == pytest.approx((final.x, final.y, final.z), abs=1e-6)
     reports = [r.report for r in seen.summary.drones.values() if r.report is not None]
     assert seen.bars == sum(len(r.actions) for r in reports)
+    # The links table: each external arc carried one trigger, as every report counts.
+    assert seen.links and all(a == s == r for a, s, r in seen.links.values()), seen.links
+    for name, result in seen.summary.drones.items():
+        assert result.report is not None
+        sent = sum(v[1] for k, v in seen.links.items() if k.split(">")[0] == name)
+        received = sum(v[2] for k, v in seen.links.items() if k.split(">")[1] == name)
+        assert (sent, received) == (result.report.triggers_sent, result.report.triggers_received)
 
 
 def test_the_page_follows_experiment_c_to_the_end(seen_c: SeenC) -> None:
@@ -178,9 +197,11 @@ def test_the_replay_ends_on_the_same_page_and_its_slider_goes_back(
             node_states(browser),
             positions(browser),
             len(browser.find_elements(By.CSS_SELECTOR, "#gantt g.bar")),
+            links(browser),
         )
         assert_the_end_of_c(replayed)
         assert replayed.graphs == seen_c.graphs and replayed.positions == seen_c.positions
+        assert replayed.links == seen_c.links
         # Back to the start: nothing ran yet.
         browser.execute_script(
             "const s = document.getElementById('slider'); s.value = 0;"

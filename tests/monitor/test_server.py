@@ -19,6 +19,7 @@ from eamos.ground.summary import RunSummary
 from eamos.monitor.replay import load_replay
 from eamos.monitor.setup import load_setup
 from eamos.monitor.state import FINAL_NODE_STATES, apply_patches, final_node_states
+from eamos.report import load_run, table7
 from tests.monitor.live import URL, start_live_run
 from tests.support.runs import INDEPENDENT, eamos
 
@@ -138,6 +139,13 @@ def test_websocket_messages_of_experiment_b_are_in_order_complete_and_end_as_the
     # The timeline holds every action of the reports, with their times.
     assert sorted((b["drone"], b["node"], b["start"]) for b in page["bars"]) == actions_of(summary)
     assert any("abort refused" in line for line in live_b.lines), "\n".join(live_b.lines)
+    # The live trigger counts per link end as the reports' (Table 7): each arc once.
+    table = {row["drone"]: row for row in table7(load_run(live_b.run_dir)).records()}
+    for name in summary.drones:
+        sent = sum(v["sent"] for v in page["links"].values() if v["src"] == name)
+        received = sum(v["received"] for v in page["links"].values() if v["dst"] == name)
+        assert f"{sent} / {received}" == table[name]["triggers sent / received"]
+    assert all(v["sent"] == v["received"] == v["arcs"] for v in page["links"].values())
     log = (live_b.run_dir / "logs" / "monitor.log").read_text()
     assert "monitor.abort.refused" in log and "127.0.0.1" in log
 
@@ -151,6 +159,7 @@ def final_view(state: dict) -> dict:
         "drones": {
             n: (*(round(d[a], 6) for a in "xyz"), d["armed"]) for n, d in state["drones"].items()
         },
+        "links": state["links"],
     }
 
 

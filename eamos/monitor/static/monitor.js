@@ -60,6 +60,8 @@ function applyPatches(patches) {
       state.bars[i] = body;
     } else if (k === "mission") {
       state.mission = body;
+    } else if (k === "link") {
+      (state.links || (state.links = {}))[`${body.src}>${body.dst}`] = body;
     }
   }
 }
@@ -121,6 +123,7 @@ function draw() {
   if (st) $("stats").textContent = `updates coalesced ${st.coalesced}, frames dropped ${st.dropped}`;
   $("abort").disabled = !token || !!replay || FINAL.has(m.state) || ws.readyState !== 1;
   drawDrones();
+  drawLinks();
   drawMap();
   drawAltitude();
   drawGantt();
@@ -158,10 +161,43 @@ function drawDrones() {
     const pos = cell("pos");
     pos.textContent = d.x === null || d.x === undefined ? "" : `${fmt(d.x, 2)}, ${fmt(d.y, 2)}, ${fmt(d.z, 2)}`;
     for (const a of ["x", "y", "z"]) pos.dataset[a] = d[a] === null || d[a] === undefined ? "" : d[a];
-    const sent = d.triggers_sent === null || d.triggers_sent === undefined ? "?" : d.triggers_sent;
-    const recv = d.triggers_received === null || d.triggers_received === undefined ? "?" : d.triggers_received;
+    // The report's counts once it arrived; until then the live counts of the links table.
+    const live = liveTotals(name);
+    const sent = d.triggers_sent === null || d.triggers_sent === undefined ? live[0] : d.triggers_sent;
+    const recv = d.triggers_received === null || d.triggers_received === undefined ? live[1] : d.triggers_received;
     cell("trig").textContent = `${sent} / ${recv} of ${part.external_out} / ${part.external_in}`;
     body.querySelector(`tr[data-line="${name}"] td`).textContent = d.line || "";
+  }
+}
+
+function liveTotals(name) {
+  let sent = 0, recv = 0;
+  for (const l of Object.values(state.links || {})) {
+    if (l.src === name) sent += l.sent;
+    if (l.dst === name) recv += l.received;
+  }
+  return [sent, recv];
+}
+
+function drawLinks() {
+  const body = $("links").tBodies[0];
+  for (const l of Object.values(state.links || {})) {
+    const key = `${l.src}>${l.dst}`;
+    let row = body.querySelector(`tr[data-link="${key}"]`);
+    if (!row) {
+      row = document.createElement("tr");
+      row.dataset.link = key;
+      row.innerHTML = `<td><span class="swatch" style="background:${colourOf(l.src)}"></span>${l.src} → ` +
+        `<span class="swatch" style="background:${colourOf(l.dst)}"></span>${l.dst}</td>` +
+        "<td class='arcs'></td><td class='sent'></td><td class='received'></td>";
+      body.appendChild(row);
+    }
+    for (const c of ["arcs", "sent", "received"]) {
+      row.querySelector(`.${c}`).textContent = l[c];
+      row.dataset[c] = l[c];
+    }
+    // More than the arcs: a loop sends its arcs once per iteration (not an error).
+    row.classList.toggle("over", l.sent > l.arcs);
   }
 }
 
