@@ -36,7 +36,7 @@ from .hal.api import POSITION_LOG_HZ
 from .logs import LOG_NAMES, read_log
 from .program.format import ProgramError, load_program
 
-RESULT_COLOURS = {"ok": "#4c9f70", "failed": "#d1495b", "cancelled": "#edae49"}
+RESULT_COLOURS = {"ok": "#4c9f70", "failed": "#d1495b", "caught": "#8d6a9f", "cancelled": "#edae49"}
 _DASHES = ("-", "--", ":", "-.")
 DRONE_COLOURS = ("#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 

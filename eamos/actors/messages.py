@@ -33,7 +33,7 @@ class Interrupt:
 
     scope: int
     iteration: Iteration
-    mode: str  # "all" or "waits"
+    mode: str  # "all", "waits", or a Whenever's "suspend"/"resume"
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,17 @@ class Release:
     """A Do's end node tells its begin node that Body is over: stop watching."""
 
     iteration: Iteration
+
+
+@dataclass(frozen=True)
+class PeerLost:
+    """The drone hosting the nodes ``sources`` (keys) is lost for good (its link is gone).
+
+    Nodes inside a Try's Body then count its arcs as ``failed``: the Try catches it
+    (:meth:`eamos.actors.logic.NodeLogic.peer_lost`); other nodes ignore it.
+    """
+
+    sources: frozenset[str]
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,7 @@ from .messages import (
     Interrupt,
     NodeEvent,
     NodeResolved,
+    PeerLost,
     Release,
     SendTrigger,
     TelemetryChanged,
@@ -190,6 +191,8 @@ class MissionNode(PooledActor):
             return logic.interrupt(message)
         if isinstance(message, Release):
             return logic.release(message.iteration)
+        if isinstance(message, PeerLost):
+            return logic.peer_lost(message.sources)
         if isinstance(message, Fire):
             return logic.fire()
         if isinstance(message, Wire):

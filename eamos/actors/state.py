@@ -111,6 +111,10 @@ class Preconditions:
         self._fired.add(key)
         return Fired("entry", (), {})
 
+    def has_fired(self, group: Group, activation: Iteration) -> bool:
+        """Whether this group already fired for ``activation``."""
+        return (group, activation) in self._fired
+
     def waiting(self) -> dict[tuple[Group, Iteration], frozenset[str]]:
         """Per partially triggered activation, the arcs still missing (for status views)."""
         out = {}

@@ -8,7 +8,10 @@ failure or the actor stopping.
 
 Each action is decoded once, here, into a typed
 :class:`~eamos.program.uniform.Command` (:func:`~eamos.program.uniform.decode_command`);
-a call that does not decode fails without reaching the adapter.  Failure
+a plugin action (docs/plugins.md) is decoded with the parameter list of the plugin the
+adapter's ``plugins`` registry provides, into a
+:class:`~eamos.program.uniform.PluginAction`.  A call that does not decode fails without
+reaching the adapter.  Failure
 policy: an exception raised by the adapter's ``run`` or ``cancel`` ends that
 action ``failed`` ("internal error in the adapter: ..."), logged once with its
 traceback in the uniform log, and the actor keeps serving.
@@ -29,6 +32,7 @@ from typing import Any
 import pykka
 
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
+from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import CommandError, decode_command
 
 from .failure import tell_operator
@@ -113,6 +117,10 @@ class UniformAPI(pykka.ThreadingActor):
         self._on_start_error = on_start_error
         self._running: dict[Hashable, _Running] = {}
         self._serials = itertools.count(1)
+        # The plugin actions this adapter knows, with their parameter lists (an
+        # adapter without ``plugins`` knows none; docs/plugins.md).
+        plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
+        self._plugin_specs = plugins.specs()
 
     # -- lifecycle -----------------------------------------------------------
 
@@ -187,7 +195,7 @@ class UniformAPI(pykka.ThreadingActor):
             return
         try:
             # Decoded once, here: adapters dispatch on the command's class.
-            command = decode_command(req.action, req.args)
+            command = decode_command(req.action, req.args, self._plugin_specs)
         except CommandError as exc:
             self._reply_now(req, start_s, ActionResult("failed", str(exc)))
             return

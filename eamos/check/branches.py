@@ -9,8 +9,13 @@ a loop, for an iteration), is a choice point with two options:
 * 0, as simulated: the value the virtual run computed;
 * 1, the other way: an ``If`` takes the other branch; a ``Wait``/``Pause`` ends
   at once ("early"; "late" is the simulated end); a ``Repeat`` stops before
-  this iteration; a ``Do`` skips its Body.  A decision that already ends the
-  wait, loop or Do has no other way.
+  this iteration; a ``Do`` skips its Body; a ``Whenever`` whose condition is
+  false at its first decision fires its Handler at once.  A decision that
+  already ends the wait, loop or Do has no other way.
+
+Each ``Try`` (per activation) has a choice point too, whatever its Body reads:
+0 as simulated, 1 the first action of Body to start fails
+(:meth:`Oracle.fail`), so OnFailure is checked as well.
 
 :class:`Oracle` answers the virtual driver's ``decide`` hook from a list of
 choices (the *prefix*; beyond it, as simulated) and records every choice point
@@ -22,7 +27,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass
 
-from ..actors.logic import ConditionLogic, LoopLogic
+from ..actors.logic import ActionLogic, ConditionLogic, LoopLogic
 from ..actors.state import Iteration, holds
 from ..program.conditions import properties
 
@@ -39,9 +44,11 @@ _NAMES = {
     "repeat_until": "RepeatUntil",
     "do_while": "DoWhile",
     "do_until": "DoUntil",
+    "try": "Try",
+    "whenever": "Whenever",
 }
 #: The purposes a choice point is made of (watching a running Body is left as simulated).
-_PURPOSES = frozenset({"if", "wait", "loop", "do"})
+_PURPOSES = frozenset({"if", "wait", "loop", "do", "whenever"})
 
 
 @dataclass(frozen=True)
@@ -69,6 +76,10 @@ class ChoicePoint:
             return f"{where}: wait ends at once"
         if self.purpose == "loop":
             return f"{where}: loop stops before iteration {self.count + 1}"
+        if self.purpose == "whenever":
+            return f"{where}: Handler fires at once"
+        if self.purpose == "try":
+            return f"{where}: Body fails at its first action ({self.drone})"
         return f"{where}: Do body skipped"
 
 
@@ -85,6 +96,8 @@ def other_way(kind: str, purpose: str, value: bool) -> bool | None:
         return not value
     if purpose in ("wait", "loop", "do") and holds(kind, value):
         return not value  # it would wait / iterate / run Body: end it now instead
+    if purpose == "whenever" and not value:
+        return True  # its Handler fires at once (a real battery may already be low)
     return None
 
 
@@ -97,6 +110,7 @@ class Oracle:
         self.points: list[ChoicePoint] = []
         self._seen: set[tuple[str, str, Iteration, str, int]] = set()
         self._unknowable: dict[tuple[str, str], bool] = {}
+        self._tries: set[tuple[int, Iteration]] = set()
 
     def __call__(
         self, drone: str, logic: ConditionLogic, act: Iteration, purpose: str, value: bool
@@ -129,6 +143,26 @@ class Oracle:
             )
         )
         return used
+
+    def fail(self, drone: str, logic: ActionLogic, act: Iteration) -> bool:
+        """Whether this action of a Try's Body fails: a choice point at each Try's first action.
+
+        0: as simulated; 1: it fails (so the check also runs OnFailure).  Any
+        action can fail in flight (a vehicle rejects it, a link drops), so every
+        Try has this branch.
+        """
+        spec = logic.spec
+        assert spec.catch is not None
+        key = (spec.catch, act[: spec.catch_loops])
+        if key in self._tries:
+            return False
+        self._tries.add(key)
+        i = len(self.points)
+        choice = self.prefix[i] if i < len(self.prefix) else 0
+        self.points.append(
+            ChoicePoint(drone, spec.key, "try", spec.catch_line, 0, "try", 0, choice, bool(choice))
+        )
+        return bool(choice)
 
     def choices(self) -> tuple[int, ...]:
         """The choices this run made, in order."""

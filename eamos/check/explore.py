@@ -14,10 +14,13 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..compiler import CompiledMission
+from ..compiler.drone_types import installed_plugins
 from ..config import ConfigError, FleetConfig, SafetySettings, fleet_order
 from ..hal.api import AdapterError
 from ..hal.sim import SimCore, SimSettings
+from ..program.plugins import EMPTY_PLUGINS, PluginRegistry
 from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun, collector_paused
+from ..virtual.decisions import FailHook
 from ..virtual.vehicles import Clock
 from .branches import Oracle
 from .findings import CheckReport, Finding, Place, RunSummary
@@ -55,18 +58,26 @@ def run_once(
     homes: Mapping[str, tuple[float, float]],
     time_limit_s: float,
     decide: Decide | None = None,
+    fail: FailHook | None = None,
+    plugins: PluginRegistry = EMPTY_PLUGINS,
 ) -> tuple[VirtualRun, dict[str, Track]]:
-    """One virtual run with every drone's track recorded (fleet frame)."""
+    """One virtual run with every drone's track recorded (fleet frame).
+
+    ``plugins``: the action plugins the simulated drones run (their "sim"
+    implementations); a check passes the installed ones, found once.
+    """
     recorders: dict[str, TrackRecorder] = {}
 
     def make(drone: str, clock: Clock) -> Vehicle:
-        core = SimCore(drone, settings.get(drone, SimSettings()), QuietLog(), clock)
+        core = SimCore(
+            drone, settings.get(drone, SimSettings()), QuietLog(), clock, plugins=plugins
+        )
         rec = TrackRecorder(drone, core, clock, homes.get(drone, (0.0, 0.0)))
         recorders[drone] = rec
         return rec
 
     with collector_paused():
-        run = VirtualMission(compiled.programs, make, time_limit_s, decide=decide).run()
+        run = VirtualMission(compiled.programs, make, time_limit_s, decide=decide, fail=fail).run()
     return run, {d: r.track() for d, r in recorders.items()}
 
 
@@ -133,7 +144,9 @@ def _check_mission(
     max_runs: int,
     min_separation_m: float | None,
 ) -> CheckReport:
-    fleet = fleet or FleetConfig.empty()
+    # Bound to the mission, each drone's type selects its [types.NAME.hal] settings.
+    fleet = (fleet or FleetConfig.empty()).for_mission(compiled.programs, compiled.mission.types)
+    plugins = installed_plugins()
     drones = fleet_order(compiled.programs)
     fleet.check_drones(drones)  # a misspelt [drones.X] table is an error, not ignored
     notes: list[Finding] = [
@@ -165,7 +178,9 @@ def _check_mission(
     while queue and len(runs) < max_runs:
         prefix = queue.popleft()
         oracle = Oracle(prefix, piloted)
-        run, tracks = run_once(compiled, settings, homes, time_limit_s, oracle)
+        run, tracks = run_once(
+            compiled, settings, homes, time_limit_s, oracle, oracle.fail, plugins=plugins
+        )
         choices = oracle.choices()
         # Every choice point met beyond the prefix is another run: its other way.
         queue.extend((*choices[:i], 1) for i in range(len(prefix), len(choices)))

@@ -15,6 +15,7 @@ from typing import Any
 
 from ..hal.api import ActionHandle, DoneCallback, Telemetry
 from ..hal.sim import SimCore
+from ..program.plugins import EMPTY_PLUGINS, PluginRegistry
 from ..program.uniform import Command
 from ..virtual import IdleVehicle, Vehicle
 from ..virtual.vehicles import Clock, Finished
@@ -80,6 +81,12 @@ class TrackRecorder:
         self._where = inner.where if isinstance(inner, SimCore) else None
         # Plain tuples while recording (one per step): TrackPoints only when asked.
         self._raw: list[_Raw] = []
+
+    @property
+    def plugins(self) -> PluginRegistry:
+        """The plugin actions the wrapped vehicle runs (none if it does not say)."""
+        plugins: PluginRegistry = getattr(self._inner, "plugins", EMPTY_PLUGINS)
+        return plugins
 
     def start(self) -> Telemetry:
         """Start the vehicle and record where it stands."""

@@ -1,7 +1,8 @@
 """``eamos check``: fly the mission in virtual time before it flies, and report findings.
 
 Exit codes: 0 no error finding (warnings allowed), 1 error findings (the mission
-would fail), 2 bad input (a mission with errors, a bad fleet file).
+would fail), 2 bad input (a mission with errors, a bad fleet file, an action a drone's
+adapter does not implement: each call located, see docs/plugins.md).
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ from its home in the fleet frame, and check every explored run:
 
 Findings are printed as FILE:LINE:COL: error|warning: ... with the run (branch)
 they occur in, then one line per run.
-Exit code: 0 no error finding, 1 error findings (the mission would fail), 2 bad input."""
+Exit code: 0 no error finding, 1 error findings (the mission would fail), 2 bad input
+(also: a drone's adapter, sim/px4/ardupilot per the fleet file, lacks an action it calls)."""
 
 _EPILOG = """\
 examples:
@@ -90,12 +92,14 @@ def run_check(args: argparse.Namespace) -> int:
     from eamos.compiler import compile_file
     from eamos.config import FleetConfig
 
+    from .adapter_actions import refuse_adapter_gaps
     from .errors import BadInput
 
     if args.max_runs is not None and args.max_runs < 1:
         raise BadInput("--max-runs: must be at least 1")
     fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
     compiled = compile_file(Path(args.mission))
+    refuse_adapter_gaps(compiled, fleet)  # an action a drone's adapter lacks: exit 2
     report = check_mission(
         compiled,
         fleet,
@@ -131,8 +135,10 @@ def preflight(
     """
     from eamos.check import check_mission
 
+    from .adapter_actions import refuse_adapter_gaps
     from .errors import Refused
 
+    refuse_adapter_gaps(compiled, fleet)  # bad input for this fleet (exit 2), before the check
     report = check_mission(compiled, fleet)
     if report_file is not None:
         doc = report.to_json()

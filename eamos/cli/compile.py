@@ -24,7 +24,7 @@ from eamos.compiler.drawing import GraphKind, graphml_ready, render_svg, to_dot,
 
 from .errors import BadInput, command, source_text
 from .exits import EXIT_OK
-from .options import add_mission, add_svg, add_verbose
+from .options import add_fleet_file, add_mission, add_svg, add_verbose
 
 _COMPILE_HELP = """\
 Compile a mission file into one drone program per participant.
@@ -35,8 +35,12 @@ Writes, under OUT (default: out/<mission name>/):
   stats.json, manifest.json       graph sizes (paper Table 7) and checksums of every file
 
 Errors are reported as FILE:LINE:COL with a hint; all errors of the file at once.
-Exit code: 0 compiled, 2 the mission has errors (or the output cannot be written),
-4 internal error."""
+With --fleet, each drone's adapter (sim, px4, ardupilot) must implement every action the
+mission calls on that drone (the uniform API's and installed action plugins'); each call it
+lacks is an error.
+
+Exit code: 0 compiled, 2 the mission has errors (or the output cannot be written, or a
+drone's adapter lacks an action it calls), 4 internal error."""
 
 _COMPILE_EPILOG = """\
 examples:
@@ -82,6 +86,7 @@ def add_compile_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="print only the graph sizes as JSON on stdout (files are still written)",
     )
     add_svg(p, default=True)
+    add_fleet_file(p, required=False)
     add_verbose(p, "more detail, and the traceback of internal errors")
     command(p, run_compile)
     return p
@@ -161,6 +166,13 @@ def run_compile(
     path = str(args.mission)
     verbose = bool(getattr(args, "verbose", False))
     compiled: CompiledMission = compile_file(Path(path))
+    if getattr(args, "fleet", None) is not None:
+        from eamos.config import FleetConfig
+
+        from .adapter_actions import refuse_adapter_gaps
+
+        # Every call of an action the drone's adapter lacks is a located error (exit 2).
+        refuse_adapter_gaps(compiled, FleetConfig.load(args.fleet))
     source = source_text(path)
     _print_warnings(compiled.warnings, path, source, err)
     out_dir = Path(args.out) if getattr(args, "out", None) else default_out_dir(path)

@@ -14,6 +14,7 @@ from collections.abc import Iterator
 
 from ..program.uniform import (
     ACTIONS,
+    CONTROL_STRUCTURES,
     DEFAULT_DRONE_TYPE,
     DRONE_TYPES,
     GROUND_STATION,
@@ -22,7 +23,8 @@ from ..program.uniform import (
     DroneType,
 )
 from .check_calls import CallChecks, drone_arguments, signature
-from .drone_types import Vocabulary, implemented_actions, vocabulary
+from .check_handlers import handler_errors
+from .drone_types import Vocabulary, implemented_actions, plugin_argument_problem, vocabulary
 from .errors import Diagnostic, MissionError, SourceLocation, did_you_mean
 from .limits import (
     MAX_DISTANCE_M,
@@ -206,6 +208,7 @@ class _Checker(CallChecks, _WholeMission):
             for stmt in block.statements:
                 self.statement(stmt)
         self.scope = {}
+        self.diags.extend(handler_errors(m))
         too_many = fleet_limit_error(m)
         if too_many is not None:
             self.diags.append(too_many)
@@ -284,7 +287,9 @@ class _Checker(CallChecks, _WholeMission):
     def unimplemented(self, drone: str, type_name: str, loc: SourceLocation) -> None:
         """Warn of a drone whose type has actions no adapter runs yet (calling one is an error)."""
         dtype = self.vocab.types.get(type_name)
-        missing = sorted(dtype.actions - implemented_actions()) if dtype is not None else []
+        missing = (
+            sorted(dtype.actions - implemented_actions(self.vocab)) if dtype is not None else []
+        )
         if missing:
             self.warn(
                 loc,
@@ -305,6 +310,11 @@ class _Checker(CallChecks, _WholeMission):
     def block_ref(self, name: str, loc: SourceLocation) -> None:
         if name not in self.mission.blocks:
             hint = did_you_mean(name, self.mission.blocks)
+            if not name.startswith(("SEQ_", "PAR_")) and "." not in name:
+                # ``Tyr(SEQ_A, SEQ_B)``: a misspelt control structure, not a block.
+                control = did_you_mean(name, CONTROL_STRUCTURES)
+                if control.startswith("did you mean"):
+                    hint = control
             if name in ACTIONS:
                 hint = f"{name} is an action: call it on a drone, e.g. Drone1.{name}(...)"
             self.error(loc, f"undefined block '{name}'", hint)
@@ -361,12 +371,12 @@ class _Checker(CallChecks, _WholeMission):
                 f"{call.action}({want})",
             )
             return
-        if call.action not in implemented_actions():
+        if call.action not in implemented_actions(self.vocab):
             self.error(
                 call.action_loc or call.loc,
                 f"no adapter implements action '{call.action}' yet",
-                f"{call.action} is declared by a drone type, but only the uniform API's "
-                "actions run on the drones today (see docs/mission-language.md)",
+                f"{call.action} is declared by a drone type, but no installed action plugin "
+                "provides it (see docs/plugins.md)",
                 len(call.action),
             )
             return
@@ -377,7 +387,9 @@ class _Checker(CallChecks, _WholeMission):
         for value, param, loc in zip(
             call.args, spec.params, call.arg_locs or (call.loc,) * len(call.args), strict=False
         ):
-            problem = argument_problem(call.action, param, value)
+            problem = argument_problem(call.action, param, value) or plugin_argument_problem(
+                self.vocab, call.action, param, value
+            )
             if problem:
                 self.error(loc, problem)
 

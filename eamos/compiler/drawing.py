@@ -62,6 +62,7 @@ KIND_SHAPES: dict[str, str] = {
     "fork": "diamond",
     "action": "ellipse",
     "end": "larrow",
+    "abandon": "octagon",  # Abandon(): a stop sign
 }
 CONTROL_SHAPE = "cds"
 
@@ -82,7 +83,7 @@ PALETTE: tuple[str, ...] = (
 )
 
 #: Arc kinds (MEG/MDG) and roles (AMT) written next to their arcs.
-_LABELLED_ARCS = frozenset({"then", "else", "body", "exit", "loop", "begin"})
+_LABELLED_ARCS = frozenset({"then", "else", "body", "exit", "loop", "begin", "handler"})
 
 #: Above about this many nodes plus arcs Graphviz may run for minutes; the built-in
 #: renderer is used instead.

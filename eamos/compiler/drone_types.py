@@ -9,14 +9,23 @@ plus the actions it lists (numbers only, with unit-named parameters).  A type
 *satisfies* another if it offers all of its actions and properties (Go's
 structural rule): a block parameter ``d Flyer`` accepts any drone whose type
 has every action of ``Flyer``.
+
+An action that is not the uniform API's runs only if an installed action plugin
+provides it (entry points ``eamos.actions``, :mod:`eamos.program.plugins`): a declared
+action with the name of a plugin must have the plugin's parameters (a located error
+otherwise), and calling a declared action no plugin provides is an error (in
+:mod:`eamos.compiler.check`).  The compiler reads the plugins' declarations only; it
+never imports an adapter.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
+from ..program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from ..program.uniform import ACTIONS, DRONE_TYPES, ActionSpec, DroneType
-from .errors import Diagnostic, did_you_mean
+from .errors import Diagnostic, SourceLocation, did_you_mean
 from .limits import MAX_DRONE_TYPES
 from .syntax import Mission, TypeDecl
 
@@ -24,21 +33,47 @@ from .syntax import Mission, TypeDecl
 NUMBER = "float64"
 
 
-def implemented_actions() -> frozenset[str]:
-    """The actions some adapter runs today: the uniform API's.
+@functools.cache
+def installed_plugins() -> PluginRegistry:
+    """The action plugins installed in this Python environment, read once per process.
+
+    Like importlib's own path cache: a plugin installed while a long-running
+    process (the language server) runs is seen after its restart.  Callers that
+    hold a registry pass it instead (:func:`vocabulary`).
+    """
+    return discover_plugins()
+
+
+def implemented_actions(vocab: Vocabulary | None = None) -> frozenset[str]:
+    """The actions some adapter runs: the uniform API's and the plugins' (``vocab``'s).
 
     A declared action outside this set compiles in a type but is refused where
-    a mission calls it (no drone could run it yet).
+    a mission calls it (no drone could run it).
     """
-    return frozenset(ACTIONS)
+    plugins = vocab.plugins if vocab is not None else installed_plugins()
+    return frozenset(ACTIONS) | frozenset(plugins.plugins)
+
+
+def plugin_argument_problem(vocab: Vocabulary, action: str, param: str, value: float) -> str:
+    """What is wrong with one literal argument of a plugin action ("" if nothing).
+
+    Checks the plugin's own ``ranges`` (inclusive); uniform actions are checked
+    elsewhere (:func:`eamos.compiler.check.argument_problem`).
+    """
+    plugin = vocab.plugins.get(action)
+    bounds = plugin.ranges.get(param) if plugin is not None else None
+    if bounds is None or bounds[0] <= value <= bounds[1]:
+        return ""
+    return f"{action}'s {param} must be within {bounds[0]:g}..{bounds[1]:g}, got {value:g}"
 
 
 @dataclass(frozen=True)
 class Vocabulary:
-    """Every drone type and action a mission may name, by name."""
+    """Every drone type and action a mission may name, by name; the plugins it was checked with."""
 
     types: dict[str, DroneType] = field(default_factory=lambda: dict(DRONE_TYPES))
     actions: dict[str, ActionSpec] = field(default_factory=lambda: dict(ACTIONS))
+    plugins: PluginRegistry = EMPTY_PLUGINS
 
     def missing(self, have: DroneType, want: DroneType) -> list[str]:
         """What ``have`` lacks to satisfy ``want``: its missing actions and properties."""
@@ -48,10 +83,10 @@ class Vocabulary:
 
 
 class _Resolver:
-    def __init__(self, mission: Mission) -> None:
+    def __init__(self, mission: Mission, plugins: PluginRegistry) -> None:
         self.decls = mission.types
         self.diags: list[Diagnostic] = []
-        self.vocab = Vocabulary()
+        self.vocab = Vocabulary(plugins=plugins)
         self.state: dict[str, int] = {}  # 1 = being resolved, 2 = done
 
     def run(self) -> tuple[Vocabulary, list[Diagnostic]]:
@@ -76,7 +111,12 @@ class _Resolver:
         for method in decl.methods:
             params = tuple(p.name for p in method.params)
             known = self.vocab.actions.get(method.name)
-            if known is None:
+            plugin = self.vocab.plugins.get(method.name)
+            if known is None and plugin is not None:
+                self.vocab.actions[method.name] = plugin.spec
+                if plugin.params != params:
+                    self.plugin_mismatch(method.name, plugin.params, method.loc)
+            elif known is None:
                 self.vocab.actions[method.name] = ActionSpec(
                     method.name, params, f"Declared by drone type {decl.name}.", payload=True
                 )
@@ -101,6 +141,19 @@ class _Resolver:
                     "give your drone type another name",
                 )
             )
+
+    def plugin_mismatch(self, name: str, params: tuple[str, ...], loc: SourceLocation) -> None:
+        """A declared action whose parameters are not those of the plugin providing it."""
+        sig = ", ".join(f"{p} float64" for p in params)
+        self.diags.append(
+            Diagnostic(
+                "error",
+                loc,
+                f"action '{name}' is provided by an installed plugin as {name}({sig}); "
+                "the declaration must match it",
+                f"declare it as {name}({sig})",
+            )
+        )
 
     def resolve(self, name: str) -> DroneType | None:
         """The declared type ``name`` with its embedded types resolved (None on error).
@@ -149,8 +202,14 @@ class _Resolver:
         return dtype
 
 
-def vocabulary(mission: Mission) -> tuple[Vocabulary, list[Diagnostic]]:
-    """The mission's drone types and actions, and the errors in its type declarations."""
+def vocabulary(
+    mission: Mission, plugins: PluginRegistry | None = None
+) -> tuple[Vocabulary, list[Diagnostic]]:
+    """The mission's drone types and actions, and the errors in its type declarations.
+
+    ``plugins``: the action plugins to check declared actions against (default:
+    the installed ones, :func:`installed_plugins`).
+    """
     if not mission.types:
         return Vocabulary(), []
-    return _Resolver(mission).run()
+    return _Resolver(mission, installed_plugins() if plugins is None else plugins).run()

@@ -70,8 +70,15 @@ def _refs(stmt: object) -> Iterator[BlockRef | BlockCall]:
 
 
 def _own_nodes(block: Block) -> int:
-    """Mission-tree nodes of a block besides its callees: itself, actions, controls."""
-    return 1 + sum(1 for s in block.statements if isinstance(s, ActionCall | Control))
+    """Mission-tree nodes of a block besides its callees: itself, actions, controls.
+
+    A Whenever counts twice: it and the ``seq`` node holding the statements it guards.
+    """
+    return 1 + sum(
+        2 if isinstance(s, Control) and s.kind == "Whenever" else 1
+        for s in block.statements
+        if isinstance(s, ActionCall | Control)
+    )
 
 
 class _BlockSizes:

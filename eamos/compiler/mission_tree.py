@@ -9,7 +9,7 @@ Node attributes:
     ``init`` (the ground station's initial node), ``seq``, ``par`` (a fork),
     ``action``, or a control structure: ``if``, ``wait_while``, ``wait_until``,
     ``repeat_while``, ``repeat_until``, ``repeat_for``, ``pause_while``,
-    ``pause_until``, ``do_while``, ``do_until``.
+    ``pause_until``, ``do_while``, ``do_until``, ``try``.
 ``drone``
     The drone that hosts the node (``"GCS"`` for the ground station); ``""``
     for ``seq``/``par`` nodes, which are assigned during slicing.
@@ -26,7 +26,11 @@ Node attributes:
 ``count``
     For ``repeat_for``: the number of repetitions.
 
-Edge attributes: ``role`` (``child``, ``then``, ``else``, ``body``, ``exit``)
+Edge attributes: ``role`` (``child``, ``then``, ``else``, ``body``, ``exit``,
+``handler``; a Try's OnFailure block hangs from an ``exit`` edge; a
+Whenever's Handler from a ``handler`` edge and the statements after it in
+its block, under a ``seq`` node labelled ``<block> after Whenever``, from a
+``body`` edge)
 and, for children of ``seq`` nodes, ``order`` (1-based execution order).
 
 Sharing: control structures that are siblings in one PAR block and name the
@@ -71,9 +75,17 @@ CONTROL_KIND = {
     "PauseUntil": "pause_until",
     "DoWhile": "do_while",
     "DoUntil": "do_until",
+    "Try": "try",
+    "Whenever": "whenever",
+    "Abandon": "abandon",
 }
 LOOP_KINDS = frozenset({"repeat_while", "repeat_until", "repeat_for"})
 DO_KINDS = frozenset({"do_while", "do_until"})
+#: Structures shaped like a Do in the graphs (a begin, Body, an end, an Exit block):
+#: the Do loops and Try (whose Exit block is OnFailure).
+TRY_KINDS = frozenset({"try"})
+#: Event handlers: ``Whenever`` (a begin node watching its condition) and ``Abandon()``.
+WHENEVER_KINDS = frozenset({"whenever"})
 WAIT_KINDS = frozenset({"wait_while", "wait_until", "pause_while", "pause_until"})
 CONTROL_KINDS = frozenset(CONTROL_KIND.values())
 
@@ -116,6 +128,8 @@ class _Builder:
     # The first drone of each block, computed once: a block called from many controls
     # would otherwise be rescanned for each (quadratic on wide missions).
     first_drones: dict[str, str | None] = field(default_factory=dict)
+    # The Whenever nodes whose Handler is being built, innermost last (for Abandon).
+    handlers: list[int] = field(default_factory=list)
 
     def add(self, **attrs: object) -> int:
         node = self.next_id
@@ -135,14 +149,31 @@ class _Builder:
         )
         self.tree.add_edge(parent, node, **edge)
         shared: dict[str, int] = {}
-        for order, stmt in enumerate(block.statements, start=1):
-            edge_attrs: dict[str, object] = {"role": "child"}
-            if block.mode == "SEQ":
-                edge_attrs["order"] = order
-            self.statement(
-                stmt, node, block.name, edge_attrs, shared if block.mode == "PAR" else None
-            )
+        self.statements(block.statements, node, name, block.mode, shared)
         return node
+
+    def statements(
+        self, stmts: tuple[object, ...], node: int, name: str, mode: str, shared: dict[str, int]
+    ) -> None:
+        for order, stmt in enumerate(stmts, start=1):
+            edge_attrs: dict[str, object] = {"role": "child"}
+            if mode == "SEQ":
+                edge_attrs["order"] = order
+            if isinstance(stmt, Control) and stmt.kind == "Whenever":
+                # It guards the statements after it: they hang from it (a ``body`` edge).
+                whenever = self.control(stmt, node, name, edge_attrs, None)
+                rest = self.add(
+                    kind="seq",
+                    drone="",
+                    label=f"{name} after Whenever",
+                    block=name,
+                    line=stmt.loc.line,
+                    col=stmt.loc.col,
+                )
+                self.tree.add_edge(whenever, rest, role="body")
+                self.statements(stmts[order:], rest, name, "SEQ", shared)
+                return
+            self.statement(stmt, node, name, edge_attrs, shared if mode == "PAR" else None)
 
     def statement(
         self,
@@ -181,8 +212,10 @@ class _Builder:
         block: str,
         edge: dict[str, object],
         shared: dict[str, int] | None,
-    ) -> None:
+    ) -> int:
         kind = CONTROL_KIND[ctl.kind]
+        if kind == "abandon":
+            return self.abandon(ctl, parent, block, edge)
         drone = ctl.drone or host_of_condition(ctl.cond)
         if drone is None and ctl.body is not None:
             drone = self._first_drone(ctl.body.name) or self.last_drone
@@ -198,22 +231,54 @@ class _Builder:
         if ctl.cond is not None:
             attrs["cond"] = condition_of(ctl.cond)
             attrs["label"] = f"{ctl.kind} {to_text(attrs['cond'])}"  # type: ignore[arg-type]
+        elif kind == "try":
+            attrs["label"] = f"Try {ctl.body.name if ctl.body else ''}"
+        elif kind == "whenever":  # pragma: no cover - a Whenever always has a condition
+            raise CompilerBug("Whenever without a condition")
         else:
             attrs["count"] = ctl.count
             attrs["label"] = f"{ctl.kind} {ctl.count}"
         node = self.add(**attrs)
         self.tree.add_edge(parent, node, **edge)
+        if kind == "whenever" and ctl.body is not None:
+            # The Handler; the guarded statements are added by the block (``body``).
+            self.handlers.append(node)
+            last = self.last_drone
+            self.block(ctl.body.name, node, role="handler")
+            self.handlers.pop()
+            self.last_drone = last
+            return node
         if ctl.body is not None:
             self.block(ctl.body.name, node, role="then" if kind == "if" else "body")
         if ctl.orelse is not None:
             self.block(ctl.orelse.name, node, role="else")
         if ctl.exit is not None:
-            if shared is not None and ctl.exit.name in shared:
+            if kind == "try":
+                # OnFailure is never shared: each Try catches its own Body's failures.
+                self.block(ctl.exit.name, node, role="exit")
+            elif shared is not None and ctl.exit.name in shared:
                 self.tree.add_edge(node, shared[ctl.exit.name], role="exit")
             else:
                 exit_node = self.block(ctl.exit.name, node, role="exit")
                 if shared is not None:
                     shared[ctl.exit.name] = exit_node
+        return node
+
+    def abandon(self, ctl: Control, parent: int, block: str, edge: dict[str, object]) -> int:
+        """``Abandon()``: on the drone of the statement before it, tied to its Whenever."""
+        if not self.handlers:  # the checks refuse it first (check_handlers)
+            raise CompilerBug(f"Abandon() outside a Whenever handler at line {ctl.loc.line}")
+        node = self.add(
+            kind="abandon",
+            drone=self.last_drone,
+            label="Abandon()",
+            block=block,
+            line=ctl.loc.line,
+            col=ctl.loc.col,
+            begin=self.handlers[-1],
+        )
+        self.tree.add_edge(parent, node, **edge)
+        return node
 
     def _first_drone(self, name: str, seen: frozenset[str] = frozenset()) -> str | None:
         """The drone of the first action in a block, in reading order.

@@ -77,6 +77,9 @@ _CONTROL_SIGNATURES = {
     "PauseUntil": "PauseUntil(cond)",
     "DoWhile": "DoWhile(cond, Body[, Exit])",
     "DoUntil": "DoUntil(cond, Body[, Exit])",
+    "Try": "Try(Body, OnFailure)",
+    "Whenever": "Whenever(cond, Handler)",
+    "Abandon": "Abandon()",
 }
 
 
@@ -347,6 +350,13 @@ class _Reader(DeclarationReader):
                 return self._block_call(f"{drone}.{action}", call, args, function)
             if action in ("PauseWhile", "PauseUntil"):
                 return self._control(action, drone, call, args)
+            if action in CONTROL_KINDS:
+                self.error(
+                    field,
+                    f"{action} is a control structure, not an action of {drone}",
+                    f"write {_CONTROL_SIGNATURES[action]}",
+                )
+                return None
             return self._action_call(drone, action, call, args, field)
         self.error(
             function,
@@ -372,6 +382,9 @@ class _Reader(DeclarationReader):
             "PauseUntil": (1, 1),
             "DoWhile": (2, 3),
             "DoUntil": (2, 3),
+            "Try": (2, 2),
+            "Whenever": (2, 2),
+            "Abandon": (0, 0),
         }[kind]
         if not (min_args <= len(args) <= max_args):
             self.diags.append(
@@ -384,6 +397,14 @@ class _Reader(DeclarationReader):
                 )
             )
             return None
+        if kind == "Try":
+            # No condition: both arguments are blocks (Body, then OnFailure).
+            refs = self.control_refs(kind, sig, args)
+            if refs is None:
+                return None
+            return Control("Try", loc, body=refs[0], exit=refs[1])
+        if kind == "Abandon":
+            return Control("Abandon", loc)
         cond: Expr | None = None
         count: int | None = None
         count_expr: Expr | None = None

@@ -101,6 +101,9 @@ ControlKind = Literal[
     "PauseUntil",
     "DoWhile",
     "DoUntil",
+    "Try",
+    "Whenever",
+    "Abandon",
 ]
 
 CONTROL_KINDS: tuple[str, ...] = (
@@ -114,6 +117,9 @@ CONTROL_KINDS: tuple[str, ...] = (
     "PauseUntil",
     "DoWhile",
     "DoUntil",
+    "Try",
+    "Whenever",
+    "Abandon",
 )
 
 
@@ -139,9 +145,9 @@ class Control:
     count: int | None = None  # RepeatFor
     # RepeatFor's count when it reads a block parameter (folded when the block is expanded).
     count_expr: Expr | None = None
-    body: BlockRef | None = None  # Body or Then
+    body: BlockRef | None = None  # Body, Then, or a Whenever's Handler
     orelse: BlockRef | None = None  # Else
-    exit: BlockRef | None = None  # Exit
+    exit: BlockRef | None = None  # Exit (a Try's OnFailure)
     drone: str | None = None  # D1.PauseWhile(...)
 
 

@@ -33,6 +33,7 @@ SHOWN_STATES = (
     "running",
     "ok",
     "failed",
+    "caught",
     "cancelled",
     "waiting",
     "decided",

@@ -31,6 +31,7 @@ from eamos.hal.api import (
     TelemetryCallback,
 )
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, require_mapping
+from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
 
 
@@ -42,6 +43,8 @@ class Call:
     action: str = ""
     args: tuple[float, ...] = ()
     handle: ActionHandle | None = None
+    # ``run``: the typed command the adapter received (not compared: tests name calls)
+    command: Command | None = dataclasses.field(default=None, compare=False)
 
 
 class FakeAdapter:
@@ -55,6 +58,7 @@ class FakeAdapter:
         results: Mapping[str, ActionResult] | None = None,
         run_errors: Mapping[str, Exception] | None = None,
         start_error: AdapterError | None = None,
+        plugins: PluginRegistry = EMPTY_PLUGINS,
     ) -> None:
         """Create a fake for ``drone``.
 
@@ -64,6 +68,10 @@ class FakeAdapter:
         ``start`` raises it (an unreachable vehicle).
         """
         self.drone = drone
+        # It stands in for the simulator: the plugin actions it accepts (the uniform
+        # API decodes them with these parameter lists) are recorded like any action.
+        self.family = "sim"
+        self.plugins = plugins
         self.auto = auto
         self._results = dict(results or {})
         self._run_errors = dict(run_errors or {})
@@ -106,7 +114,7 @@ class FakeAdapter:
         handle = ActionHandle.of(command)
         action = command.action
         with self._cond:
-            self._record(Call("run", action, command.args, handle))
+            self._record(Call("run", action, command.args, handle, command))
             error = self._run_errors.get(action)
             if error is not None:
                 raise error
@@ -239,10 +247,13 @@ class FakeAdapter:
 def fake_adapter_from_settings(
     drone: str, settings: Mapping[str, Any], adapter_log: Any = None
 ) -> FakeAdapter:
-    """A :class:`FakeAdapter` from ``hal`` settings (only ``auto``, a bool, is accepted)."""
+    """A :class:`FakeAdapter` from ``hal`` settings (only ``auto``, a bool, is accepted).
+
+    Like the simulator it stands for, it accepts the installed plugin actions.
+    """
     settings = require_mapping(settings, "hal")
     check_keys(settings, COMMON_KEYS | {"auto"}, "hal")
     auto = settings.get("auto", True)
     if not isinstance(auto, bool):
         raise field_error("hal.auto", f"expected true or false, got {auto!r}")
-    return FakeAdapter(drone, auto=auto)
+    return FakeAdapter(drone, auto=auto, plugins=discover_plugins())

@@ -24,6 +24,7 @@ from eamos.hal.api import (
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.settings import COMMON_KEYS, check_keys, number, require_mapping
 from eamos.logs import make_logger
+from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import Command, PauseFor
 
 
@@ -60,6 +61,11 @@ class _Pause:
 
 class GroundAdapter:
     """An :class:`~eamos.hal.api.Adapter` for the ground station: ``PauseFor`` only."""
+
+    #: The adapter family plugins name implementations for: the station runs none.
+    family = "ground"
+    #: The plugin actions it runs: none (docs/plugins.md).
+    plugins: PluginRegistry = EMPTY_PLUGINS
 
     def __init__(
         self, drone: str = "GCS", settings: GroundSettings | None = None, adapter_log: Any = None
@@ -109,6 +115,8 @@ class GroundAdapter:
             "adapter.action.start", action=handle.action, args=list(handle.args), handle=handle.id
         )
         if not isinstance(command, PauseFor):
+            # The station flies nothing and carries no payload: every motion, every
+            # uniform action but PauseFor and every plugin action fail here, clearly.
             failure = f"the ground station cannot {command.action}"
             self._end(handle, done, ActionResult("failed", failure))
             return handle

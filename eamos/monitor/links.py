@@ -38,7 +38,9 @@ LOOP_KINDS = frozenset({"repeat_while", "repeat_until", "repeat_for"})
 #: Progress states (:data:`eamos.net.wire.Progress.state`) of a node that fired.
 FIRED_STATES = frozenset({"running", "waiting"})
 #: Progress states of a node that resolved (and so triggered its outgoing arcs).
-RESOLVED_STATES = frozenset({"ok", "failed", "cancelled", "skipped", "blocked", "decided"})
+RESOLVED_STATES = frozenset(
+    {"ok", "failed", "caught", "cancelled", "skipped", "blocked", "decided"}
+)
 
 Iteration = tuple[int, ...]
 

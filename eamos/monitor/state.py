@@ -61,7 +61,13 @@ TRAIL_MAX = 4000
 NODE_STATES = ("waiting", "running", "done", "skipped", "failed", "cancelled")
 FINAL_NODE_STATES = frozenset({"done", "skipped", "failed", "cancelled"})
 #: An action's result (ActionEntry.result) -> the node's state.
-ACTION_TO_NODE = {"running": "running", "ok": "done", "failed": "failed", "cancelled": "cancelled"}
+ACTION_TO_NODE = {
+    "running": "running",
+    "ok": "done",
+    "failed": "failed",
+    "caught": "failed",  # it failed, inside a Try whose OnFailure handles it
+    "cancelled": "cancelled",
+}
 #: Progress.state (an action's, or a Wait's) -> the node's state.
 PROGRESS_TO_NODE = {
     **ACTION_TO_NODE,
@@ -71,7 +77,7 @@ PROGRESS_TO_NODE = {
     "blocked": "failed",  # a dependency failed: the node is blocked
 }
 #: Progress states of a node that was triggered and ran (its predecessors finished).
-RAN = frozenset({"running", "waiting", "decided", "ok", "failed", "cancelled"})
+RAN = frozenset({"running", "waiting", "decided", "ok", "failed", "caught", "cancelled"})
 
 
 def final_node_states(setup: MissionSetup, name: str, report: DroneReport | None) -> dict[str, str]:

@@ -29,8 +29,13 @@ Node object: ``key`` (``n<id>`` or ``n<id>@<drone>`` for fork replicas),
 ``meg`` (MEG id), ``kind``, ``drone`` (executing drone), ``native`` (runs
 here; otherwise a proxy of a node on another drone), ``label``, and where
 they apply ``action``, ``args``, ``cond``, ``count``, ``loops``, ``scopes``,
-``begin``, ``end``, ``interrupt_drones``, ``interrupt_mode``, ``line``,
-``col``, ``block``.  See :mod:`eamos.compiler.execution_graph` for meanings.
+``begin``, ``end``, ``interrupt_drones``, ``interrupt_mode``, ``catch``,
+``catch_loops``, ``catch_drones``, ``catch_line`` (nodes inside a Try's
+Body: the Try that catches their failure), ``suspend_drones`` (on a
+Whenever), ``suspendable`` and ``in_handler`` (actions a Whenever suspends,
+actions of a Handler), ``line``, ``col``, ``block``.  The fields added for
+Try and Whenever are absent where they do not apply, so programs without
+them are unchanged.  See :mod:`eamos.compiler.execution_graph` for meanings.
 """
 
 from __future__ import annotations
@@ -63,9 +68,12 @@ NODE_KINDS = frozenset(
         "repeat_for",
         "do_while",
         "do_until",
+        "try",
+        "whenever",
+        "abandon",
     }
 )
-ARC_KINDS = frozenset({"seq", "then", "else", "body", "exit", "loop", "begin"})
+ARC_KINDS = frozenset({"seq", "then", "else", "body", "exit", "loop", "begin", "handler"})
 
 
 class ProgramError(Exception):
@@ -92,6 +100,16 @@ class ProgramNode:
     end: int | None = None
     interrupt_drones: tuple[str, ...] = ()
     interrupt_mode: str | None = None
+    # Inside a Try's Body: the Try that catches a failure here (see execution_graph).
+    catch: int | None = None
+    catch_loops: int = 0
+    catch_drones: tuple[str, ...] = ()
+    catch_line: int = 0  # where that Try is written
+    # On a Whenever: the drones a firing suspends (see execution_graph).
+    suspend_drones: tuple[str, ...] = ()
+    # An action a Whenever's firing suspends; an action of a Whenever's Handler.
+    suspendable: bool = False
+    in_handler: bool = False
     line: int = 0
     col: int = 0
     block: str = ""
@@ -278,6 +296,13 @@ def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
                     end=raw.get("end"),
                     interrupt_drones=tuple(str(d) for d in raw.get("interrupt_drones", ())),
                     interrupt_mode=raw.get("interrupt_mode"),
+                    catch=None if raw.get("catch") is None else int(raw["catch"]),
+                    catch_loops=int(raw.get("catch_loops", 0)),
+                    catch_drones=tuple(str(d) for d in raw.get("catch_drones", ())),
+                    catch_line=int(raw.get("catch_line", 0)),
+                    suspend_drones=tuple(str(d) for d in raw.get("suspend_drones", ())),
+                    suspendable=bool(raw.get("suspendable", False)),
+                    in_handler=bool(raw.get("in_handler", False)),
                     line=int(raw.get("line", 0)),
                     col=int(raw.get("col", 0)),
                     block=str(raw.get("block", "")),

@@ -8,6 +8,7 @@ the drone's home (where it was when its adapter started).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 
@@ -89,7 +90,8 @@ ACTIONS: dict[str, ActionSpec] = {
             "Orbit",
             ("radius_m", "turns"),
             "Circle clockwise `turns` times around the point `radius_m` metres ahead "
-            "(along the heading), at the current height; end where it started.",
+            "(along the heading), at the current height, facing it; whole turns end where "
+            "it started.",
         ),
         ActionSpec("TurnOn", (), "Power on the payload/companion systems.", payload=True),
         ActionSpec("PreFlightCheck", (), "Run the pre-flight checks.", payload=True),
@@ -389,13 +391,54 @@ class Payload(Command):
         return self.name
 
 
-def decode_command(action: str, args: tuple[float, ...] | list[float]) -> Command:
+@dataclass(frozen=True)
+class PluginAction(Command):
+    """An action provided by a plugin (:mod:`eamos.program.plugins`), with its arguments.
+
+    ``params`` are the plugin's parameter names, ``values`` the numbers in that
+    order; adapters find the implementation by ``name`` for their family.
+    """
+
+    name: str
+    params: tuple[str, ...] = ()
+    values: tuple[float, ...] = ()
+
+    @property
+    def action(self) -> str:
+        return self.name
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return self.values
+
+    @property
+    def moves(self) -> bool:
+        return False
+
+    def value(self, param: str) -> float:
+        """The argument given for parameter ``param`` (KeyError if the plugin has none)."""
+        if param not in self.params:
+            raise KeyError(f"{self.name} has no parameter {param!r}")
+        return self.values[self.params.index(param)]
+
+
+def decode_command(
+    action: str,
+    args: tuple[float, ...] | list[float],
+    plugins: Mapping[str, ActionSpec] | None = None,
+) -> Command:
     """Decode an action name and its arguments into a :class:`Command`.
 
-    Raises :class:`CommandError` for an unknown action, a wrong number of
-    arguments, or an argument that is not a finite number.
+    ``plugins`` are the plugin actions the caller's adapter knows (by name,
+    ``PluginRegistry.specs()``); one of them decodes into a :class:`PluginAction`
+    checked against the plugin's parameter list.  Raises :class:`CommandError`
+    for an unknown action, a wrong number of arguments, or an argument that is
+    not a finite number.
     """
     spec = ACTIONS.get(action)
+    plugin = None
+    if spec is None and plugins is not None:
+        spec = plugin = plugins.get(action)
     if spec is None:
         raise CommandError(f"unknown action {action!r}")
     if len(args) != len(spec.params):
@@ -411,6 +454,8 @@ def decode_command(action: str, args: tuple[float, ...] | list[float]) -> Comman
         if number != number or number in (float("inf"), float("-inf")):
             raise CommandError(f"{action}: {name} must be finite, got {value!r}")
         values.append(number)
+    if plugin is not None:
+        return PluginAction(action, plugin.params, tuple(values))
     if spec.payload:
         return Payload(action)
     if action.startswith("FlyBy"):
@@ -571,6 +616,24 @@ CONTROL_STRUCTURES: dict[str, ControlSpec] = {
             ("cond", "Body", "Exit"),
             "Run `Body` until `cond` holds; interrupt it when it does, then run `Exit`.",
             optional=1,
+        ),
+        ControlSpec(
+            "Try",
+            ("Body", "OnFailure"),
+            "Run `Body`; if one of its actions fails (on any of its drones), cancel the rest "
+            "of `Body` on every one of them and run `OnFailure`; the mission goes on.",
+        ),
+        ControlSpec(
+            "Whenever",
+            ("cond", "Handler"),
+            "While the rest of this block runs: each time `cond` becomes true, interrupt the "
+            "running actions of the drones `Handler` uses, run `Handler`, then resume them.",
+        ),
+        ControlSpec(
+            "Abandon",
+            (),
+            "In a Whenever's `Handler`: skip the rest of the guarded block on every drone of it "
+            "instead of resuming.",
         ),
     )
 }

@@ -47,7 +47,7 @@ from ..actors.state import Iteration
 from ..hal.api import ActionHandle, ActionResult, Telemetry
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION, CommandError, decode_command
-from .decisions import Decide, install_decide
+from .decisions import FAILED_ON_PURPOSE, Decide, FailHook, install_decide
 from .result import DroneOutcome, VirtualRun, Waiting
 from .vehicles import (
     STEP_S,
@@ -113,13 +113,15 @@ class VirtualMission:
         time_limit_s: float = TIME_LIMIT_S,
         log: Any = None,
         decide: Decide | None = None,
+        fail: FailHook | None = None,
     ) -> None:
         """``programs``: every participant's program (the ground station's included).
 
         ``vehicles(drone, clock)`` builds each drone's vehicle (default: the
         simulator core with default settings); ``log``, if given, receives the
         nodes' mission-log lines (bound with ``drone`` and ``node``); ``decide``,
-        if given, decides every condition (see :mod:`eamos.virtual.decisions`).
+        if given, decides every condition, and ``fail`` whether an action of a
+        Try's Body fails (see :mod:`eamos.virtual.decisions`).
         """
         progs = list(programs.values()) if isinstance(programs, Mapping) else list(programs)
         if not progs:
@@ -160,6 +162,7 @@ class VirtualMission:
             for part in self.participants.values():
                 for logic in part.logic.values():
                     logic.quiet = True
+        self._fail = fail
         if decide is not None:
             for drone, part in self.participants.items():
                 for logic in part.logic.values():
@@ -311,9 +314,21 @@ class VirtualMission:
             )
 
         try:
-            command = decode_command(fx.action, fx.args)
+            # Plugin actions decode with the parameter list of the vehicle's plugins.
+            plugins = getattr(part.vehicle, "plugins", None)
+            command = decode_command(
+                fx.action, fx.args, plugins.specs() if plugins is not None else None
+            )
         except CommandError as exc:
             done(ActionResult("failed", str(exc)))
+            return
+        if (
+            self._fail is not None
+            and isinstance(logic, ActionLogic)
+            and logic.spec.catch is not None
+            and self._fail(drone, logic, fx.iteration)
+        ):
+            done(ActionResult("failed", FAILED_ON_PURPOSE))
             return
         if part.vehicle is None:
             handle = self._ground.run(self.t, command, done)

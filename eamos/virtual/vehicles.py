@@ -14,6 +14,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from ..hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
 from ..hal.sim import SIM_DT_S, SimCore, SimSettings
+from ..program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from ..program.uniform import Command
 
 #: A finished action: its done callback and its result.
@@ -80,6 +81,12 @@ class LazyVehicle:
         self._sync()
         self.wake = self._at + 1
 
+    @property
+    def plugins(self) -> PluginRegistry:
+        """The plugin actions the wrapped vehicle runs (none if it does not say)."""
+        plugins: PluginRegistry = getattr(self._inner, "plugins", EMPTY_PLUGINS)
+        return plugins
+
     def start(self) -> Telemetry:
         """As the wrapped vehicle."""
         return self._inner.start()
@@ -138,19 +145,25 @@ class QuietLog:
 
 
 def sim_vehicles(
-    settings: SimSettings | Mapping[str, SimSettings] | None = None, log: Any = None
+    settings: SimSettings | Mapping[str, SimSettings] | None = None,
+    log: Any = None,
+    plugins: PluginRegistry | None = None,
 ) -> VehicleFactory:
     """A factory of simulator cores: one ``settings`` for all, or one per drone.
 
-    Drones without settings get ``SimSettings()``.
+    Drones without settings get ``SimSettings()``.  The cores run ``plugins``'
+    actions (default: the plugins installed through entry points, found once here).
     """
+    registry = discover_plugins() if plugins is None else plugins
 
     def make(drone: str, clock: Clock) -> Vehicle:
         if isinstance(settings, Mapping):
             chosen = settings.get(drone, SimSettings())
         else:
             chosen = settings or SimSettings()
-        return SimCore(drone, chosen, log if log is not None else QuietLog(), clock)
+        return SimCore(
+            drone, chosen, log if log is not None else QuietLog(), clock, plugins=registry
+        )
 
     return make
 
@@ -167,6 +180,7 @@ class GroundPauses:
         """Start a pause; any other action fails at once (then None is returned)."""
         handle = ActionHandle(command.action, command.args)
         if command.action != "PauseFor":
+            # As the ground adapter: no motion, no payload, no plugin action.
             done(ActionResult("failed", f"the ground station cannot {command.action}"))
             return None
         if command.args[0] < 0:

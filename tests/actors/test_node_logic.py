@@ -523,6 +523,9 @@ def test_every_program_kind_has_a_logic_class():
         **dict.fromkeys(("wait_while", "wait_until", "pause_while", "pause_until"), "WaitLogic"),
         **dict.fromkeys(("repeat_while", "repeat_until", "repeat_for"), "LoopLogic"),
         **dict.fromkeys(("do_while", "do_until"), "DoLogic"),
+        "try": "PassThrough",
+        "whenever": "WheneverLogic",
+        "abandon": "AbandonLogic",
     }
     assert logic_class("end", "do_until") is DoEndLogic
     with pytest.raises(ValueError, match="unknown node kind"):

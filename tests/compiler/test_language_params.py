@@ -130,10 +130,13 @@ CASES = [
     ),
     Bad(
         "declared action no adapter implements",
-        INSPECTOR + "func SEQ_A() {\n\tD1.TakePhoto()\n}\n",
+        # Sample is neither uniform nor provided by an installed plugin (TakePhoto is: the
+        # camera plugins, docs/plugins.md).
+        "type Sampler interface {\n\tQuadcopter\n\tSample()\n}\nvar D1 Sampler\n"
+        "func SEQ_A() {\n\tD1.Sample()\n}\n",
         "7:5",
-        "no adapter implements action 'TakePhoto' yet",
-        "only the uniform API's actions",
+        "no adapter implements action 'Sample' yet",
+        "declared by a drone type",
     ),
     Bad(
         "misspelt declared action",
@@ -368,8 +371,12 @@ def test_the_examples_in_the_language_reference_compile() -> None:
     compile_mission(patrol, "patrol.go")
     compiled = compile_mission(inspector + "func SEQ_A() {\n\tD1.Land()\n}\n", "i.go")
     assert compiled.programs["D1"].drone_type == "Inspector"
-    with pytest.raises(MissionError, match="no adapter implements action 'Gimbal' yet"):
-        compile_mission(inspector + "func SEQ_A() {\n\tD1.Gimbal(-30)\n}\n", "i.go")
+    # TakePhoto and Gimbal are the camera plugins' actions (installed with the project).
+    compile_mission(inspector + "func SEQ_A() {\n\tD1.Gimbal(-30)\n\tD1.TakePhoto()\n}\n")
+    with pytest.raises(MissionError, match="no adapter implements action 'Sample' yet"):
+        compile_mission(
+            inspector.replace("TakePhoto()", "Sample()") + "func SEQ_A() {\n\tD1.Sample()\n}\n"
+        )
 
 
 def test_controls_in_a_block_with_parameters_run_on_the_drone_passed() -> None:
@@ -420,14 +427,14 @@ def test_the_parameter_count_is_capped() -> None:
 
 def test_a_drone_whose_type_has_actions_no_adapter_runs_is_warned_of() -> None:
     source = (
-        "type Inspector interface {\n\tQuadcopter\n\tTakePhoto()\n\tGimbal(pitch_deg float64)\n}\n"
+        "type Inspector interface {\n\tQuadcopter\n\tWinch(length_m float64)\n\tSample()\n}\n"
         "var D1 Inspector\nfunc SEQ_A() {\n\tD1.Arm()\n}\n"
     )
     compiled = compile_mission(source, "m.go")
     [warning] = [w for w in compiled.warnings if "no adapter" in w.message]
     assert f"{warning.loc}" == "6:8"
     assert warning.message == (
-        "D1's type Inspector has actions no adapter implements yet: Gimbal, TakePhoto"
+        "D1's type Inspector has actions no adapter implements yet: Sample, Winch"
     )
 
 

@@ -2,13 +2,16 @@
 
 Public names: :class:`NodeLogic` and the kinds (:class:`PassThrough`,
 :class:`ActionLogic`, :class:`IfLogic`, :class:`WaitLogic`, :class:`LoopLogic`,
-:class:`DoLogic`, :class:`DoEndLogic`), :func:`node_logic`, :func:`program_wiring`,
-:class:`NodeWiring`, :class:`Route`, and the effects (:mod:`.effects`).  No
-pykka, no threads, no clocks: the actor (:mod:`eamos.actors.node`) and the
-virtual-time driver (:mod:`eamos.virtual`) are the hosts that apply effects.
+:class:`DoLogic`, :class:`DoEndLogic`, :class:`TryEndLogic`,
+:class:`WheneverLogic`, :class:`WheneverEndLogic`, :class:`AbandonLogic`),
+:func:`node_logic`, :func:`program_wiring`, :class:`NodeWiring`,
+:class:`Route`, and the effects (:mod:`.effects`).  No pykka, no threads, no
+clocks: the actor (:mod:`eamos.actors.node`) and the virtual-time driver
+(:mod:`eamos.virtual`) are the hosts that apply effects.
 """
 
-from .base import ActionLogic, NodeLogic, PassThrough
+from .actions import ActionLogic
+from .base import NodeLogic, PassThrough
 from .conditions import ConditionLogic, DoEndLogic, DoLogic, IfLogic, WaitLogic
 from .effects import (
     Broadcast,
@@ -25,11 +28,15 @@ from .effects import (
     UnwatchTelemetry,
     WatchTelemetry,
 )
+from .events import AbandonLogic, WheneverEndLogic, WheneverLogic
+from .handlers import TryEndLogic
 from .kinds import (
     CONDITION_KINDS,
     DO_KINDS,
     LOOP_KINDS,
+    TRY_KINDS,
     WAIT_KINDS,
+    WHENEVER_KINDS,
     NodeWiring,
     logic_class,
     node_logic,
@@ -41,7 +48,10 @@ __all__ = [
     "CONDITION_KINDS",
     "DO_KINDS",
     "LOOP_KINDS",
+    "TRY_KINDS",
     "WAIT_KINDS",
+    "WHENEVER_KINDS",
+    "AbandonLogic",
     "ActionLogic",
     "Broadcast",
     "CancelAction",
@@ -63,9 +73,12 @@ __all__ = [
     "Resolve",
     "Route",
     "StartAction",
+    "TryEndLogic",
     "UnwatchTelemetry",
     "WaitLogic",
     "WatchTelemetry",
+    "WheneverEndLogic",
+    "WheneverLogic",
     "logic_class",
     "node_logic",
     "program_wiring",

@@ -14,21 +14,9 @@ from collections.abc import Callable
 from typing import Any, ClassVar
 
 from ...program.format import ProgramNode
-from ..messages import ActionRecord, Interrupt, NodeEvent
+from ..messages import Interrupt, NodeEvent
 from ..state import Fired, Iteration, Preconditions, Status, within
-from .effects import (
-    CancelAction,
-    Effect,
-    Emit,
-    Note,
-    Progress,
-    Record,
-    Resolve,
-    Route,
-    StartAction,
-)
-
-_RESULT_STATUS: dict[str, Status] = {"ok": "done", "failed": "failed", "cancelled": "skipped"}
+from .effects import Broadcast, Effect, Emit, Note, Progress, Resolve, Route
 
 
 class NodeLogic:
@@ -102,6 +90,10 @@ class NodeLogic:
         """A structure around this node interrupts its body for one of its activations."""
         if interrupt.scope not in self.spec.scopes:
             return []
+        if interrupt.mode in ("suspend", "resume"):
+            # A Whenever's Handler runs (or ended): only running actions care.
+            self._hold(interrupt.scope, interrupt.iteration, interrupt.mode == "suspend")
+            return self._take()
         if interrupt.mode != "all" and not self.interrupted_by_waits:
             return []
         self.interrupts.add((interrupt.scope, interrupt.iteration))
@@ -113,6 +105,37 @@ class NodeLogic:
             mode=interrupt.mode,
         )
         self._interrupt_within(interrupt.iteration)
+        return self._take()
+
+    def peer_lost(self, sources: frozenset[str]) -> list[Effect]:
+        """The drone hosting the nodes ``sources`` (keys) is lost for good.
+
+        Inside a Try's Body the arcs this node still waits for from them are
+        completed as ``failed`` (the Try catches it: see :mod:`.handlers`) and
+        the Try's Body is interrupted on all its drones, as for a failed action.
+        Outside a Try nothing changes (empty list): the drone's end policy
+        applies.  Only activations outside loops (or already partly triggered)
+        are known here.
+        """
+        spec = self.spec
+        if spec.catch is None or self.aborted:
+            return []
+        waits = {act: missing for (group, act), missing in self.pre.waiting().items()}
+        if not spec.loops and () not in waits and not self.pre.has_fired("entry", ()):
+            waits[()] = self.pre.entry
+        caught = False
+        for act, missing in waits.items():
+            for src in sorted(missing & sources):
+                caught = True
+                fired = self.pre.receive(src, act, "failed")
+                if fired is not None:
+                    self._fired(fired)
+        if caught:
+            self._note("warning", "mission.try.peer_lost", sources=sorted(sources))
+            act = next(iter(waits))
+            self._fx.append(
+                Broadcast(Interrupt(spec.catch, act[: spec.catch_loops], "all"), spec.catch_drones)
+            )
         return self._take()
 
     def abort(self) -> list[Effect]:
@@ -168,6 +191,9 @@ class NodeLogic:
     def _on_abort(self) -> None:
         """Drop what waits (nothing, for a pass-through)."""
 
+    def _hold(self, scope: int, scope_iteration: Iteration, suspend: bool) -> None:
+        """A Whenever around the node suspends (or resumes) its drone: only actions care."""
+
     # -- helpers ---------------------------------------------------------------------
 
     def _take(self) -> list[Effect]:
@@ -193,6 +219,10 @@ class NodeLogic:
             self._fx.append(Emit(route, iteration, status))
 
     def _resolved(self, act: Iteration, status: Status) -> None:
+        if status == "failed" and self.spec.catch is not None:
+            # Inside a Try's Body a failure is caught by the Try's end (which hands on
+            # the failure itself if the Try was blocked from outside): not a blocked node.
+            status = "skipped"
         self._fx.append(Resolve(act, status, not self.spec.loops and act == ()))
 
     def _event(self, act: Iteration, state: str, detail: str = "") -> None:
@@ -206,70 +236,3 @@ class NodeLogic:
 
 class PassThrough(NodeLogic):
     """The initial node, forks and joins (``init``, ``fork``, ``end``): trigger on."""
-
-
-class ActionLogic(NodeLogic):
-    """A node running one uniform action; its outcome decides what it hands on."""
-
-    def __init__(
-        self,
-        spec: ProgramNode,
-        routes: tuple[Route, ...],
-        entry: frozenset[str],
-        loop: frozenset[str] = frozenset(),
-    ) -> None:
-        super().__init__(spec, routes, entry, loop)
-        if spec.action is None:
-            raise ValueError(f"action node {spec.key} has no action")
-        self.action: str = spec.action
-        self.running: dict[Iteration, None] = {}  # activations with an action out (ordered)
-
-    def _pass_on(self, act: Iteration, status: Status) -> None:
-        self._emit(act, lambda r: status)
-        self._event(act, "blocked" if status == "failed" else "skipped")
-        self._resolved(act, status)
-
-    def _start(self, act: Iteration) -> None:
-        self.running[act] = None
-        self._event(act, "running")
-        self._fx.append(StartAction(act, self.action, self.spec.args))
-
-    def action_finished(
-        self, iteration: Iteration, status: str, reason: str, start_s: float, end_s: float
-    ) -> list[Effect]:
-        if iteration not in self.running:
-            return []
-        del self.running[iteration]
-        self._fx.append(
-            Record(
-                ActionRecord(
-                    self.key,
-                    self.action,
-                    tuple(self.spec.args),
-                    iteration,
-                    start_s,
-                    end_s,
-                    status,
-                    reason,
-                )
-            )
-        )
-        if self.aborted:
-            return self._take()
-        outcome = _RESULT_STATUS[status]
-        if status == "failed":
-            self._note(
-                "error",
-                "mission.action.failed",
-                action=self.action,
-                reason=reason,
-                iteration=list(iteration),
-            )
-        self._emit(iteration, lambda r: outcome)
-        self._resolved(iteration, outcome)
-        return self._take()
-
-    def _interrupt_within(self, scope_iteration: Iteration) -> None:
-        for act in list(self.running):
-            if within(act, scope_iteration):
-                self._fx.append(CancelAction(act))

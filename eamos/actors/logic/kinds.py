@@ -10,16 +10,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...program.format import DroneProgram, ProgramNode
-from .base import ActionLogic, NodeLogic, PassThrough
+from .actions import ActionLogic
+from .base import NodeLogic, PassThrough
 from .conditions import DoEndLogic, DoLogic, IfLogic, WaitLogic
 from .effects import Route
+from .events import AbandonLogic, WheneverEndLogic, WheneverLogic
+from .handlers import TryEndLogic
 from .loops import LoopLogic
 
 LOOP_KINDS = frozenset({"repeat_while", "repeat_until", "repeat_for"})
 DO_KINDS = frozenset({"do_while", "do_until"})
+TRY_KINDS = frozenset({"try"})
+WHENEVER_KINDS = frozenset({"whenever"})
 WAIT_KINDS = frozenset({"wait_while", "wait_until", "pause_while", "pause_until"})
-CONDITION_KINDS = frozenset({"if"}) | LOOP_KINDS | DO_KINDS | WAIT_KINDS
-PASS_KINDS = frozenset({"init", "fork", "end"})
+CONDITION_KINDS = frozenset({"if"}) | LOOP_KINDS | DO_KINDS | WAIT_KINDS | WHENEVER_KINDS
+# A Try's begin node only starts Body (and tells its end it ran): a pass-through.
+PASS_KINDS = frozenset({"init", "fork", "end"}) | TRY_KINDS
 
 _LOGIC: dict[str, type[NodeLogic]] = {
     "action": ActionLogic,
@@ -28,6 +34,8 @@ _LOGIC: dict[str, type[NodeLogic]] = {
     **dict.fromkeys(WAIT_KINDS, WaitLogic),
     **dict.fromkeys(LOOP_KINDS, LoopLogic),
     **dict.fromkeys(DO_KINDS, DoLogic),
+    **dict.fromkeys(WHENEVER_KINDS, WheneverLogic),
+    "abandon": AbandonLogic,
 }
 
 
@@ -35,6 +43,10 @@ def logic_class(kind: str, begin_kind: str = "") -> type[NodeLogic]:
     """The logic class of a node kind (``begin_kind``: for an ``end``, its begin's kind)."""
     if kind == "end" and begin_kind in DO_KINDS:
         return DoEndLogic
+    if kind == "end" and begin_kind in TRY_KINDS:
+        return TryEndLogic
+    if kind == "end" and begin_kind in WHENEVER_KINDS:
+        return WheneverEndLogic
     try:
         return _LOGIC[kind]
     except KeyError:

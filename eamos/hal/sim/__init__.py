@@ -3,10 +3,13 @@
 :class:`SimCore` is the vehicle with no thread and no clock (``step()`` advances it
 one :data:`SIM_DT_S`); :class:`SimAdapter` paces a core in (scaled) real time for
 ``eamos-node``; the virtual-time driver (:mod:`eamos.virtual`) steps cores itself.
+Plugin actions' simulator implementations see a :class:`SimView` and return a
+:class:`SimOutcome` (docs/plugins.md).
 """
 
 from eamos.hal.sim.adapter import SimAdapter, paced_ticks, sim_adapter_from_settings
 from eamos.hal.sim.core import PAYLOAD_DELAY_S, SIM_DT_S, Finished, SimCore
+from eamos.hal.sim.plugin_api import SimOutcome, SimView
 from eamos.hal.sim.settings import SimSettings, Waypoint
 
 __all__ = [
@@ -15,7 +18,9 @@ __all__ = [
     "Finished",
     "SimAdapter",
     "SimCore",
+    "SimOutcome",
     "SimSettings",
+    "SimView",
     "Waypoint",
     "paced_ticks",
     "sim_adapter_from_settings",

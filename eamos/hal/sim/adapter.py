@@ -6,7 +6,13 @@ threads, no clock); :class:`SimAdapter` runs one thread that steps it every
 with ``stop_event.wait(...)``: that wait *is* the simulator's clock, and
 ``speedup`` makes it run faster than real time.  Everything else (action
 durations, timeouts, telemetry rate, pause lengths) is counted in simulated
-steps, so a mission behaves the same at any speed-up, only faster.
+steps, so a mission behaves the same at any speed-up, only faster.  While the
+vehicle rests (nothing but the clock and an unseen battery change, as
+:meth:`~eamos.hal.sim.core.SimCore.idle_steps` says), the thread sleeps on an
+event instead of stepping, for as long as the rest lasts in wall time, and a new
+request wakes it; the steps slept through are skipped exactly, so simulated time,
+telemetry and the position log are those of stepping every step (100 hovering
+drones cost next to nothing).
 
 Actions complete on real criteria checked after every step:
 
@@ -16,6 +22,14 @@ Actions complete on real criteria checked after every step:
   slower than ``settle_speed_mps``.
 * ``Land``: the landed flag is set.  ``Disarm``: immediate, on the ground only.
 * ``PauseFor(s)``: ``s`` simulated seconds.  Payload actions: 0.2 simulated s.
+* ``Hold(s)``: ``s`` simulated seconds of hover (only in the air, not during a move).
+* ``SetSpeed(v)``: at once; later horizontal moves cruise at ``v``.
+* ``Yaw(deg)``: the heading reaches ``deg`` (90 degrees per second, the shorter way).
+* ``Orbit(r, turns)``: the circle swept and the vehicle settled at its end
+  (:mod:`eamos.hal.sim.motions`).
+* ``ReturnHome``: above home at the current height, then landed.
+* Plugin actions: their "sim" implementation's duration (:mod:`eamos.hal.sim.plugin_api`;
+  the plugins come from entry points, docs/plugins.md).
 
 Rules: ``Takeoff`` needs the vehicle armed ("not armed"); ``FlyBy*``/``FlyTo*``
 need it airborne ("not flying"); ``Disarm`` fails in the air ("in the air");
@@ -68,6 +82,7 @@ from eamos.hal.kinematics import VehicleState
 from eamos.hal.sim.core import SIM_DT_S, Finished, SimCore
 from eamos.hal.sim.settings import SimSettings, Waypoint
 from eamos.logs import make_logger
+from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
 
 #: Shortest wall-clock tick: at high speed-ups several steps run per tick, so
@@ -76,6 +91,9 @@ MIN_WALL_TICK_S = 0.005
 #: If the thread falls this far behind its wall schedule (a loaded machine),
 #: the simulation slows down instead of bursting to catch up.
 MAX_LAG_S = 0.1
+#: The longest rest the pacing thread sleeps through at once (steps; the core
+#: says how many are idle, at most this many).
+MAX_REST_STEPS = 1_000_000
 
 
 def paced_ticks(stop: threading.Event, speedup: float) -> Iterator[int]:
@@ -106,18 +124,33 @@ class SimAdapter:
     A thin threaded pacer: all vehicle logic is in its :class:`SimCore`.
     """
 
+    #: The adapter family plugins name implementations for (docs/plugins.md).
+    family = "sim"
+
     def __init__(
-        self, drone: str, settings: SimSettings | None = None, adapter_log: Any = None
+        self,
+        drone: str,
+        settings: SimSettings | None = None,
+        adapter_log: Any = None,
+        plugins: PluginRegistry = EMPTY_PLUGINS,
     ) -> None:
+        """A simulated ``drone``; ``plugins``: the plugin actions it runs (their "sim" code)."""
         self.drone = drone
         self.settings = settings or SimSettings()
+        self.plugins = plugins
         self._log = adapter_log if adapter_log is not None else make_logger(None)
-        self._core = SimCore(drone, self.settings, self._log)
+        self._core = SimCore(drone, self.settings, self._log, plugins=plugins)
         # One lock guards the core; the condition lets observers (tests, tools)
         # wait for the next simulator tick.
         self._lock = threading.Lock()
         self._tick_cond = threading.Condition(self._lock)
         self._stop = threading.Event()
+        # Set by every request (and close): the pacing thread, asleep while the
+        # vehicle rests, wakes at once.
+        self._wake = threading.Event()
+        # While asleep: (monotonic time it fell asleep, idle steps it may skip).
+        self._asleep: tuple[float, int] | None = None
+        self._wakeups = 0  # pacing-thread wake-ups (ticks and rests): cheap to watch
         self._thread: threading.Thread | None = None
         self._closed = False
         self._on_telemetry: TelemetryCallback | None = None
@@ -144,19 +177,26 @@ class SimAdapter:
         with self._lock:
             if self._closed:
                 raise AdapterError(f"{self.drone}: simulator closed")
-            return self._core.run(command, done)
+            self._catch_up()
+            handle = self._core.run(command, done)
+        self._wake.set()
+        return handle
 
     def cancel(self, handle: ActionHandle) -> None:
         """Interrupt ``handle``: the vehicle holds where it is; done gets "cancelled"."""
         with self._lock:
             if not self._closed:
+                self._catch_up()
                 self._core.cancel(handle)
+        self._wake.set()
 
     def abort(self) -> None:
         """Cancel every action, take control from the pilot, land, then disarm."""
         with self._lock:
             if not self._closed:
+                self._catch_up()
                 self._core.abort()
+        self._wake.set()
 
     def close(self) -> None:
         """Stop the simulator thread; actions still running end "cancelled". Idempotent."""
@@ -166,9 +206,11 @@ class SimAdapter:
             self._closed = True
             thread = self._thread
         self._stop.set()
+        self._wake.set()
         if thread is not None and thread is not threading.current_thread():
             thread.join()
         with self._lock:
+            self._catch_up()
             finished = self._core.finish_all(ActionResult("cancelled", "adapter closed"))
             self._log.info("adapter.close", t_sim=round(self._core.t_s, 3))
             self._tick_cond.notify_all()
@@ -180,13 +222,21 @@ class SimAdapter:
     def state(self) -> VehicleState:
         """A snapshot of the simulated vehicle."""
         with self._lock:
+            self._catch_up()
             return self._core.state()
 
     @property
     def sim_time_s(self) -> float:
         """Simulated seconds since :meth:`start`."""
         with self._lock:
+            self._catch_up()
             return self._core.t_s
+
+    @property
+    def wakeups(self) -> int:
+        """How often the pacing thread has woken (a resting vehicle costs next to none)."""
+        with self._lock:
+            return self._wakeups
 
     @property
     def pilot_flying(self) -> bool:
@@ -212,15 +262,67 @@ class SimAdapter:
     # -- simulator thread ----------------------------------------------------
 
     def _loop(self) -> None:
-        for steps in paced_ticks(self._stop, self.settings.speedup):
-            try:
-                self._tick(steps)
-            except Exception as exc:  # keep the adapter's promise: done is always called
-                # Fail the running actions first: logging may itself fail (a full disk).
-                self._crash(exc)
-                with contextlib.suppress(Exception):
-                    self._log.exception("adapter.error", error=repr(exc))
+        try:
+            self._pace()
+        except Exception as exc:  # keep the adapter's promise: done is always called
+            # Fail the running actions first: logging may itself fail (a full disk).
+            self._crash(exc)
+            with contextlib.suppress(Exception):
+                self._log.exception("adapter.error", error=repr(exc))
+
+    def _pace(self) -> None:
+        """Step the core on a wall schedule (as :func:`paced_ticks`), resting while it rests.
+
+        While the core says its next steps are idle (:meth:`SimCore.idle_steps`: only
+        the clock and an unseen battery change), the thread waits on ``_wake`` for as
+        long as those steps last in wall time instead of stepping them; a request wakes
+        it.  Whoever touches the core first (a request or the thread) skips the steps
+        that wall time has covered (:meth:`_catch_up`), so simulated time, battery,
+        telemetry and the position log are those of stepping every step.
+        """
+        speedup = self.settings.speedup
+        steps = max(1, round(MIN_WALL_TICK_S * speedup / SIM_DT_S))
+        wall_tick = steps * SIM_DT_S / speedup
+        next_tick = time.monotonic()
+        while not self._stop.is_set():
+            rest = self._fall_asleep(steps)
+            if rest:
+                # The wait is the simulator's clock (as in paced_ticks), ended early by a request.
+                self._wake.wait(rest * SIM_DT_S / speedup)
+                with self._lock:
+                    self._catch_up()
+                next_tick = time.monotonic()
+                continue
+            next_tick += wall_tick
+            delay = next_tick - time.monotonic()
+            if delay < -MAX_LAG_S:
+                next_tick = time.monotonic()
+                delay = 0.0
+            if self._stop.wait(max(0.0, delay)):
                 return
+            self._tick(steps)
+
+    def _fall_asleep(self, steps: int) -> int:
+        """If more than one tick's ``steps`` are idle: note the rest, return its steps; else 0."""
+        with self._lock:
+            self._wakeups += 1
+            if self._closed:
+                return 0
+            rest = self._core.idle_steps(MAX_REST_STEPS)
+            if rest <= steps:
+                return 0
+            self._wake.clear()
+            self._asleep = (time.monotonic(), rest)
+            return rest
+
+    def _catch_up(self) -> None:
+        """Skip the idle steps wall time has covered since the thread fell asleep (lock held)."""
+        if self._asleep is None:
+            return
+        since, most = self._asleep
+        self._asleep = None
+        covered = int((time.monotonic() - since) * self.settings.speedup / SIM_DT_S)
+        self._core.skip(min(most, covered))
 
     def _crash(self, exc: Exception) -> None:
         with self._lock:
@@ -266,8 +368,16 @@ class SimAdapter:
 def sim_adapter_from_settings(
     drone: str, settings: Mapping[str, Any], adapter_log: Any = None
 ) -> SimAdapter:
-    """Build a :class:`SimAdapter` from a drone's ``hal`` settings mapping."""
-    return SimAdapter(drone, SimSettings.from_mapping(settings), adapter_log)
+    """Build a :class:`SimAdapter` from a drone's ``hal`` settings mapping.
+
+    It runs the plugin actions installed through entry points (``eamos.actions``);
+    broken plugins are logged (``adapter.plugin_problem``) and left out.
+    """
+    plugins = discover_plugins()
+    log = adapter_log if adapter_log is not None else make_logger(None)
+    for problem in plugins.problems:
+        log.warning("adapter.plugin_problem", problem=problem)
+    return SimAdapter(drone, SimSettings.from_mapping(settings), log, plugins)
 
 
 __all__ = [

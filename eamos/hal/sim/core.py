@@ -3,8 +3,10 @@
 :class:`SimCore` holds everything the simulated vehicle does (the kinematic
 model, the action rules and timeouts, the scripted pilot, battery drain,
 telemetry sampling and the adapter log events, all described in
-:mod:`eamos.hal.sim.adapter`) and advances only when told: each :meth:`SimCore.step`
-is one :data:`SIM_DT_S` step of simulated time.  Whoever owns the core is its
+:mod:`eamos.hal.sim.adapter`) and advances only when told: each
+:meth:`SimCore.step` is one :data:`SIM_DT_S` step of simulated time.  The action
+lifecycle is its base class (:class:`~eamos.hal.sim.actions.ActionRules`); telemetry,
+the pilot and the guided motions have modules of their own.  Whoever owns the core is its
 clock: :class:`eamos.hal.sim.adapter.SimAdapter` steps it from a thread paced in wall
 time; a virtual-time driver steps it as fast as it likes.
 
@@ -31,271 +33,27 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, Literal
+from collections.abc import Callable, Mapping
+from typing import Any
 
-from eamos.hal.api import POSITION_LOG_HZ, ActionHandle, ActionResult, DoneCallback, Telemetry
-from eamos.hal.kinematics import GeoFrame, Quadcopter, VehicleState
-from eamos.hal.sim.settings import SimSettings, Waypoint
-from eamos.program.uniform import (
-    Arm,
-    Command,
-    Disarm,
-    FlyToLLA,
-    Land,
-    PauseFor,
-    Payload,
-    Takeoff,
-    target_xyz,
+from eamos.hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
+from eamos.hal.kinematics import Quadcopter, VehicleState
+from eamos.hal.sim.actions import (
+    PAYLOAD_DELAY_S,
+    SIM_DT_S,
+    ActionRules,
+    Finished,
+    SimAction,
+    SimRequest,
 )
-
-#: Simulated seconds per model step.
-SIM_DT_S = 0.02
-#: Simulated duration of payload actions.
-PAYLOAD_DELAY_S = 0.2
-#: Simulated seconds between position log lines.
-POSITION_LOG_PERIOD_S = 1.0 / POSITION_LOG_HZ
-#: Absorbs float error in summed step times when comparing simulated times.
-_EPS_S = 1e-9
-
-#: A finished action: its done callback and its result (the caller invokes it).
-Finished = tuple[DoneCallback, ActionResult]
-
-_Kind = Literal["arm", "motion", "land", "timer"]
+from eamos.hal.sim.pilot import ScriptedPilot
+from eamos.hal.sim.settings import SimSettings
+from eamos.hal.sim.telemetry import EPS_S, TelemetrySampler
+from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
+from eamos.program.uniform import Command
 
 
-@dataclass(eq=False)
-class _Action:
-    """A running action inside the simulator."""
-
-    handle: ActionHandle
-    command: Command
-    done: DoneCallback
-    kind: _Kind = "timer"
-    started_s: float = 0.0  # sim time the action (really) started
-    until_s: float = 0.0  # "timer": when it completes
-    deadline_s: float = math.inf  # "arm"/"motion"/"land": when it times out
-    target: tuple[float, float, float] | None = None
-    deferred: bool = False  # waiting for the scripted pilot
-
-
-@dataclass(frozen=True)
-class _Request:
-    op: Literal["run", "cancel", "abort"]
-    action: _Action | None = None
-    handle: ActionHandle | None = None
-
-
-class _Telemetry:
-    """Telemetry sampling: quantized samples at ``telemetry_hz``, sent only on change.
-
-    Also writes the ``adapter.position`` log line at ``POSITION_LOG_HZ`` of
-    simulated time while the position or the armed/landed flags change.
-    """
-
-    def __init__(
-        self, drone: str, settings: SimSettings, log: Any, clock: Callable[[], float]
-    ) -> None:
-        self._drone = drone
-        self._period_s = 1.0 / settings.telemetry_hz
-        self._frame: GeoFrame = settings.frame
-        self._log = log
-        self._clock = clock
-        self._next_sample_s = 0.0
-        self._last_sample_key: tuple[Any, ...] | None = None
-        self._next_position_log_s = 0.0
-        self._last_position_key: tuple[Any, ...] | None = None
-        # The raw state the last sample and the last position line showed
-        # (for settled(); None until the first of each).
-        self._sampled_raw: tuple[Any, ...] | None = None
-        self._sampled_battery: float | None = None
-        self._logged_raw: tuple[Any, ...] | None = None
-
-    def first(self, st: VehicleState) -> Telemetry:
-        """The sample sent at start; the next one is due one period later."""
-        sample = self.sample(st)
-        self._last_sample_key = sample.state()
-        self._sampled_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
-        self._sampled_battery = sample.battery_pct
-        self._next_sample_s = self._period_s
-        return sample
-
-    def sample(self, st: VehicleState) -> Telemetry:
-        """``st`` as a telemetry sample, quantized to 1 cm / 1e-7 degree / 0.1 %."""
-        lat, lon, alt = self._frame.to_lla(st.x_m, st.y_m, st.z_m)
-        return Telemetry(
-            drone=self._drone,
-            time_s=self._clock(),
-            x_m=round(st.x_m, 2) + 0.0,  # + 0.0 turns -0.0 into 0.0
-            y_m=round(st.y_m, 2) + 0.0,
-            z_m=round(st.z_m, 2) + 0.0,
-            lat_deg=round(lat, 7),
-            lon_deg=round(lon, 7),
-            alt_m=round(alt, 2) + 0.0,
-            battery_pct=round(st.battery_pct, 1),
-            armed=st.armed,
-            landed=st.landed,
-        )
-
-    def settled(self, raw: tuple[Any, ...], shown_battery_pct: float) -> bool:
-        """True when the last sample and position line already show this state.
-
-        ``raw`` is ``(x_m, y_m, z_m, armed, landed)``, ``shown_battery_pct`` the
-        battery as a sample shows it (0.1 %).  Then the coming steps of a vehicle
-        at rest emit nothing until that changes.  Compared on the raw state
-        (exact at rest): costs no sample.
-        """
-        return (
-            shown_battery_pct == self._sampled_battery
-            and raw == self._sampled_raw == self._logged_raw
-        )
-
-    def catch_up(self, t_s: float) -> None:
-        """Move the sampling schedule to ``t_s`` as the skipped steps would have."""
-        while self._next_sample_s <= t_s + _EPS_S:
-            self._next_sample_s += self._period_s
-        while t_s >= self._next_position_log_s - _EPS_S:
-            self._next_position_log_s += POSITION_LOG_PERIOD_S
-
-    def observe(self, t_s: float, st: VehicleState, samples: list[Telemetry]) -> None:
-        """After a step at ``t_s``: append a sample if one is due and differs."""
-        if t_s >= self._next_sample_s - _EPS_S:
-            while self._next_sample_s <= t_s + _EPS_S:
-                self._next_sample_s += self._period_s
-            raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
-            # Unchanged since the last sample (a vehicle at rest): the same sample, not sent.
-            if raw != self._sampled_raw or round(st.battery_pct, 1) != self._sampled_battery:
-                sample = self.sample(st)
-                key = sample.state()
-                if key != self._last_sample_key:
-                    self._last_sample_key = key
-                    samples.append(sample)
-                self._sampled_raw = raw
-                self._sampled_battery = sample.battery_pct
-        if t_s >= self._next_position_log_s - _EPS_S:
-            self._next_position_log_s += POSITION_LOG_PERIOD_S
-            raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
-            if raw == self._logged_raw:
-                return  # unchanged: no line
-            self._logged_raw = raw
-            key = (round(st.x_m, 2), round(st.y_m, 2), round(st.z_m, 2), st.armed, st.landed)
-            if key != self._last_position_key:
-                self._last_position_key = key
-                self._log.info(
-                    "adapter.position",
-                    x_m=key[0],
-                    y_m=key[1],
-                    z_m=key[2],
-                    speed_mps=round(st.speed_mps, 2),
-                    armed=st.armed,
-                    landed=st.landed,
-                    battery_pct=round(st.battery_pct, 1),
-                    t_sim=round(t_s, 3),
-                )
-
-
-class _Pilot:
-    """The scripted pilot: flies its waypoints in order, holding at each (a hand-flown drone)."""
-
-    def __init__(self, path: tuple[Waypoint, ...], settings: SimSettings, log: Any) -> None:
-        self._path = path
-        self._settings = settings
-        self._log = log
-        self.state: Literal["idle", "flying", "done"] = "idle" if path else "done"
-        self._index = 0
-        self._hold_until: float | None = None
-
-    @property
-    def flying(self) -> bool:
-        """True while the pilot has the controls."""
-        return self.state == "flying"
-
-    def take_off(self, model: Quadcopter) -> None:
-        """The mission's Takeoff completed: the pilot takes the controls (once)."""
-        if self.state != "idle" or model.landed:
-            return
-        self.state = "flying"
-        self._index = 0
-        self._hold_until = None
-        self._log.info("adapter.pilot.start", waypoints=len(self._path))
-        self._fly_to(model, self._path[0])
-
-    def abort(self) -> None:
-        """Abort takes the controls back at once."""
-        if self.state == "flying":
-            self._log.info("adapter.pilot.end", reason="aborted")
-        self.state = "done"
-
-    def update(self, t_s: float, model: Quadcopter) -> bool:
-        """After a step at ``t_s``; True when the path has just ended."""
-        if self.state != "flying":
-            return False
-        s = self._settings
-        wp = self._path[self._index]
-        if self._hold_until is None:
-            if model.at_target(s.tolerance_m, s.settle_speed_mps):
-                self._hold_until = t_s + wp.hold_s
-                x, y, z = model.position
-                self._log.info(
-                    "adapter.pilot.waypoint",
-                    index=self._index,
-                    x_m=round(x, 3),
-                    y_m=round(y, 3),
-                    z_m=round(z, 3),
-                    t_sim=round(t_s, 3),
-                )
-            return False
-        if t_s < self._hold_until - _EPS_S:
-            return False
-        self._index += 1
-        self._hold_until = None
-        if self._index < len(self._path):
-            self._fly_to(model, self._path[self._index])
-            return False
-        self.state = "done"
-        self._log.info("adapter.pilot.end", reason="path finished", t_sim=round(t_s, 3))
-        return True
-
-    @staticmethod
-    def _fly_to(model: Quadcopter, wp: Waypoint) -> None:
-        model.set_target(wp.x_m, wp.y_m, wp.z_m)
-
-
-def refusal(
-    command: Command, settings: SimSettings, model: Quadcopter, busy: bool, aborting: bool
-) -> str | None:
-    """Why the vehicle refuses ``command`` now (its rules), or None.
-
-    ``busy``: a motion action runs (one at a time); ``aborting``: an abort
-    is landing the vehicle.
-    """
-    if command.action in settings.reject_actions:
-        return "rejected by vehicle"
-    if aborting and not isinstance(command, Payload | PauseFor):
-        return "aborting"
-    if isinstance(command, PauseFor) and command.duration_s < 0:
-        return "duration_s must be >= 0"
-    if isinstance(command, Disarm) and model.armed:
-        if not model.landed:
-            return "in the air"
-        if busy:
-            return "busy"  # e.g. a Takeoff about to lift off
-    if not command.moves:
-        return None
-    if busy:
-        return "busy"  # one motion action at a time
-    if isinstance(command, Takeoff):
-        if command.height_m <= 0:
-            return "height_m must be > 0"
-        if not model.armed:
-            return "not armed"
-    elif not isinstance(command, Land) and model.landed:
-        return "not flying"
-    return None
-
-
-class SimCore:
+class SimCore(ActionRules):
     """One simulated quadcopter, advanced step by step by its owner (see module doc).
 
     Not thread-safe: the owner serialises every call (``SimAdapter`` holds a lock).
@@ -307,21 +65,28 @@ class SimCore:
         settings: SimSettings,
         log: Any,
         clock: Callable[[], float] = time.time,
+        plugins: PluginRegistry = EMPTY_PLUGINS,
     ) -> None:
-        """A core for ``drone``; ``clock`` gives the epoch time stamped on telemetry."""
+        """A core for ``drone``; ``clock`` gives the epoch time stamped on telemetry.
+
+        ``plugins``: the plugin actions it may run (their "sim" implementations).
+        """
         self.drone = drone
         self.settings = settings
         self._log = log
         self._frame = settings.frame
         self._model = Quadcopter(settings.limits, battery_pct=settings.battery_pct)
-        self._telemetry = _Telemetry(drone, settings, log, clock)
-        self._requests: deque[_Request] = deque()
-        self._actions: dict[int, _Action] = {}
-        self._motion: _Action | None = None
+        self._telemetry = TelemetrySampler(drone, settings, log, clock)
+        self._requests: deque[SimRequest] = deque()
+        self._actions: dict[int, SimAction] = {}
+        self._motion: SimAction | None = None
         self._step_count = 0  # time is step_count * SIM_DT_S: no summing error, skips in O(1)
         self._started = False
         self._aborting = False
-        self._pilot = _Pilot(settings.pilot, settings, log)
+        self._pilot = ScriptedPilot(settings.pilot, settings, log)
+        self.plugins = plugins
+        self._heading_deg = 0.0  # compass degrees; Orbit's centre lies ahead along it
+        self._payload: dict[str, float] = {}  # plugin state (gimbal pitch, photos, video)
 
     # -- requests ------------------------------------------------------------
 
@@ -348,16 +113,16 @@ class SimCore:
     def run(self, command: Command, done: DoneCallback) -> ActionHandle:
         """Queue ``command``; it is taken up at the next :meth:`step`."""
         handle = ActionHandle.of(command)
-        self._requests.append(_Request("run", action=_Action(handle, command, done)))
+        self._requests.append(SimRequest("run", action=SimAction(handle, command, done)))
         return handle
 
     def cancel(self, handle: ActionHandle) -> None:
         """Queue a cancel: the vehicle holds where it is; done gets ``cancelled``."""
-        self._requests.append(_Request("cancel", handle=handle))
+        self._requests.append(SimRequest("cancel", handle=handle))
 
     def abort(self) -> None:
         """Queue an abort: cancel every action, take control from the pilot, land, disarm."""
-        self._requests.append(_Request("abort"))
+        self._requests.append(SimRequest("abort"))
 
     def finish_all(self, result: ActionResult) -> list[Finished]:
         """End every running and queued action with ``result`` (closing, crashing)."""
@@ -381,6 +146,7 @@ class SimCore:
         finished: list[Finished] = []
         samples: list[Telemetry] = []
         self._handle_requests(finished)
+        self._guide()
         self._model.step(SIM_DT_S)
         self._step_count += 1
         if self._pilot.update(self.t_s, self._model):
@@ -423,12 +189,12 @@ class SimCore:
             limit = min(limit, max(0, crossing))
         if due == math.inf:
             return max(0, limit)
-        # A timer ends at the first step k with k * SIM_DT_S >= due (less _EPS_S):
+        # A timer ends at the first step k with k * SIM_DT_S >= due (less EPS_S):
         # the steps before it are idle.
-        first = math.ceil((due - _EPS_S) / SIM_DT_S)
-        while first > 0 and (first - 1) * SIM_DT_S >= due - _EPS_S:
+        first = math.ceil((due - EPS_S) / SIM_DT_S)
+        while first > 0 and (first - 1) * SIM_DT_S >= due - EPS_S:
             first -= 1  # float rounding put it one late
-        while first * SIM_DT_S < due - _EPS_S:
+        while first * SIM_DT_S < due - EPS_S:
             first += 1  # ... or one early
         return max(0, min(limit, first - self._step_count - 1))
 
@@ -443,11 +209,6 @@ class SimCore:
         self._telemetry.catch_up(self.t_s)
 
     # -- observation ---------------------------------------------------------
-
-    @property
-    def t_s(self) -> float:
-        """Simulated seconds since :meth:`start` (from the step count, never summed)."""
-        return self._step_count * SIM_DT_S
 
     def state(self) -> VehicleState:
         """A snapshot of the simulated vehicle."""
@@ -465,27 +226,17 @@ class SimCore:
         """True while the scripted pilot has the controls."""
         return self._pilot.flying
 
-    # -- bookkeeping ---------------------------------------------------------
+    @property
+    def heading_deg(self) -> float:
+        """The compass heading (0 north, 90 east) the vehicle faces."""
+        return self._heading_deg
 
-    def _finish(self, act: _Action, result: ActionResult, finished: list[Finished]) -> None:
-        self._actions.pop(act.handle.id, None)
-        if self._motion is act:
-            self._motion = None
-        x, y, z = self._model.position
-        self._log.info(
-            "adapter.action.end",
-            action=act.handle.action,
-            args=list(act.handle.args),
-            handle=act.handle.id,
-            status=result.status,
-            reason=result.reason,
-            t_sim=round(self.t_s, 3),
-            duration_sim_s=round(self.t_s - act.started_s, 3),
-            x_m=round(x, 3),
-            y_m=round(y, 3),
-            z_m=round(z, 3),
-        )
-        finished.append((act.done, result))
+    @property
+    def payload(self) -> Mapping[str, float]:
+        """The plugins' payload state (``gimbal_pitch_deg``, ``photos``, ``video``), a copy."""
+        return dict(self._payload)
+
+    # -- requests (taken up at the start of a step) -----------------------------
 
     def _handle_requests(self, finished: list[Finished]) -> None:
         while self._requests:
@@ -510,131 +261,6 @@ class SimCore:
         self._pilot.abort()
         self._aborting = True
         self._model.land()
-
-    def _begin(self, act: _Action, finished: list[Finished]) -> None:
-        command = act.command
-        act.started_s = self.t_s
-        self._log.info(
-            "adapter.action.start",
-            action=act.handle.action,
-            args=list(act.handle.args),
-            handle=act.handle.id,
-            t_sim=round(self.t_s, 3),
-        )
-        reason = refusal(
-            command, self.settings, self._model, self._motion is not None, self._aborting
-        )
-        if reason is not None:
-            return self._finish(act, ActionResult("failed", reason), finished)
-        self._actions[act.handle.id] = act
-        model = self._model
-        match command:
-            case Payload():
-                act.until_s = self.t_s + PAYLOAD_DELAY_S
-            case PauseFor(duration_s=duration):
-                act.until_s = self.t_s + duration
-            case Arm():
-                if model.armed:
-                    return self._finish(act, ActionResult("ok"), finished)
-                act.kind = "arm"
-                act.deadline_s = self.t_s + self.settings.action_timeout_s
-            case Disarm():
-                if model.armed:
-                    model.disarm()
-                return self._finish(act, ActionResult("ok"), finished)
-            case Land() if model.landed:
-                return self._finish(act, ActionResult("ok"), finished)
-            case _:  # a motion action, checked by _refusal
-                self._motion = act
-                if self._pilot.flying:
-                    # Every motion action waits for the pilot's path to end (the
-                    # pilot only starts after Takeoff, so only a repeated one meets it).
-                    act.deferred = True
-                    self._log.info(
-                        "adapter.action.deferred", action=command.action, handle=act.handle.id
-                    )
-                    return None
-                self._start_motion(act, finished)
-        return None
-
-    def _start_motion(self, act: _Action, finished: list[Finished]) -> None:
-        """Command the model for a motion action (now, or when the pilot hands over)."""
-        command, model = act.command, self._model
-        act.deferred = False
-        act.deadline_s = self.t_s + self.settings.action_timeout_s
-        if isinstance(command, Land):
-            if model.landed:
-                return self._finish(act, ActionResult("ok"), finished)
-            act.kind = "land"
-            model.land()
-            return None
-        target = target_xyz(command, self._base_point())
-        if target is None and isinstance(command, FlyToLLA):
-            target = self._frame.from_lla(command.lat_deg, command.lon_deg, command.alt_m)
-        if target is None:
-            reason = f"{command.action} is not a motion the simulator knows"
-            return self._finish(act, ActionResult("failed", reason), finished)
-        if target[2] <= 0:
-            reason = f"target z {target[2]:.2f} m is not above ground (use Land)"
-            return self._finish(act, ActionResult("failed", reason), finished)
-        act.kind = "motion"
-        act.target = target
-        model.set_target(*target)
-        return None
-
-    def _base_point(self) -> tuple[float, float, float]:
-        """Where relative moves start: the held setpoint if we are there, else here.
-
-        Using the setpoint keeps FlyBy sequences from accumulating the
-        tolerance of each previous leg.
-        """
-        target = self._model.target
-        if target is not None and self._model.distance_to(target) <= self.settings.tolerance_m:
-            return target
-        return self._model.position
-
-    def _update_actions(self, finished: list[Finished]) -> None:
-        model, s = self._model, self.settings
-        for act in list(self._actions.values()):
-            if act.deferred:
-                continue
-            if act.kind == "timer":
-                if self.t_s >= act.until_s - _EPS_S:
-                    self._finish(act, ActionResult("ok"), finished)
-                continue
-            if act.kind == "arm":
-                if self.t_s >= s.arm_delay_s:
-                    model.arm()
-                if model.armed:
-                    self._finish(act, ActionResult("ok"), finished)
-                    continue
-            elif act.kind == "land":
-                if model.landed:
-                    self._finish(act, ActionResult("ok"), finished)
-                    continue
-            elif (
-                act.target is not None
-                and model.distance_to(act.target) <= s.tolerance_m
-                and model.state.speed_mps <= s.settle_speed_mps
-            ):
-                self._finish(act, ActionResult("ok"), finished)
-                if isinstance(act.command, Takeoff):
-                    self._pilot.take_off(model)
-                continue
-            if self.t_s >= act.deadline_s:
-                if act.kind != "arm":
-                    model.hold()
-                what = "vehicle not armable" if act.kind == "arm" else "target not reached"
-                self._finish(
-                    act,
-                    ActionResult("failed", f"timeout after {s.action_timeout_s:g} s: {what}"),
-                    finished,
-                )
-
-    def _pilot_handed_over(self, finished: list[Finished]) -> None:
-        """The pilot's path ended: a deferred motion action starts from where it left."""
-        if self._motion is not None and self._motion.deferred:
-            self._start_motion(self._motion, finished)
 
     def _update_abort(self) -> None:
         if self._aborting and self._model.landed:

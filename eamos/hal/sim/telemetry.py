@@ -1,0 +1,130 @@
+"""The simulator's telemetry sampling and position log (pure: no thread, no clock read).
+
+Split from :mod:`eamos.hal.sim.core`: how the simulated vehicle's state becomes
+telemetry samples and ``adapter.position`` lines.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from eamos.hal.api import POSITION_LOG_HZ, Telemetry
+from eamos.hal.kinematics import GeoFrame, VehicleState
+from eamos.hal.sim.settings import SimSettings
+
+#: Simulated seconds between position log lines.
+POSITION_LOG_PERIOD_S = 1.0 / POSITION_LOG_HZ
+#: Absorbs float error in summed step times when comparing simulated times.
+EPS_S = 1e-9
+
+
+class TelemetrySampler:
+    """Telemetry sampling: quantized samples at ``telemetry_hz``, sent only on change.
+
+    Also writes the ``adapter.position`` log line at ``POSITION_LOG_HZ`` of
+    simulated time while the position or the armed/landed flags change.
+    """
+
+    def __init__(
+        self, drone: str, settings: SimSettings, log: Any, clock: Callable[[], float]
+    ) -> None:
+        self._drone = drone
+        self._period_s = 1.0 / settings.telemetry_hz
+        self._frame: GeoFrame = settings.frame
+        self._log = log
+        self._clock = clock
+        self._next_sample_s = 0.0
+        self._last_sample_key: tuple[Any, ...] | None = None
+        self._next_position_log_s = 0.0
+        self._last_position_key: tuple[Any, ...] | None = None
+        # The raw state the last sample and the last position line showed
+        # (for settled(); None until the first of each).
+        self._sampled_raw: tuple[Any, ...] | None = None
+        self._sampled_battery: float | None = None
+        self._logged_raw: tuple[Any, ...] | None = None
+
+    def first(self, st: VehicleState) -> Telemetry:
+        """The sample sent at start; the next one is due one period later."""
+        sample = self.sample(st)
+        self._last_sample_key = sample.state()
+        self._sampled_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+        self._sampled_battery = sample.battery_pct
+        self._next_sample_s = self._period_s
+        return sample
+
+    def sample(self, st: VehicleState) -> Telemetry:
+        """``st`` as a telemetry sample, quantized to 1 cm / 1e-7 degree / 0.1 %."""
+        lat, lon, alt = self._frame.to_lla(st.x_m, st.y_m, st.z_m)
+        return Telemetry(
+            drone=self._drone,
+            time_s=self._clock(),
+            x_m=round(st.x_m, 2) + 0.0,  # + 0.0 turns -0.0 into 0.0
+            y_m=round(st.y_m, 2) + 0.0,
+            z_m=round(st.z_m, 2) + 0.0,
+            lat_deg=round(lat, 7),
+            lon_deg=round(lon, 7),
+            alt_m=round(alt, 2) + 0.0,
+            battery_pct=round(st.battery_pct, 1),
+            armed=st.armed,
+            landed=st.landed,
+        )
+
+    def settled(self, raw: tuple[Any, ...], shown_battery_pct: float) -> bool:
+        """True when the last sample and position line already show this state.
+
+        ``raw`` is ``(x_m, y_m, z_m, armed, landed)``, ``shown_battery_pct`` the
+        battery as a sample shows it (0.1 %).  Then the coming steps of a vehicle
+        at rest emit nothing until that changes.  Compared on the raw state
+        (exact at rest): costs no sample.
+        """
+        return (
+            shown_battery_pct == self._sampled_battery
+            and raw == self._sampled_raw == self._logged_raw
+        )
+
+    def catch_up(self, t_s: float) -> None:
+        """Move the sampling schedule to ``t_s`` as the skipped steps would have."""
+        while self._next_sample_s <= t_s + EPS_S:
+            self._next_sample_s += self._period_s
+        while t_s >= self._next_position_log_s - EPS_S:
+            self._next_position_log_s += POSITION_LOG_PERIOD_S
+
+    def observe(self, t_s: float, st: VehicleState, samples: list[Telemetry]) -> None:
+        """After a step at ``t_s``: append a sample if one is due and differs."""
+        if t_s >= self._next_sample_s - EPS_S:
+            while self._next_sample_s <= t_s + EPS_S:
+                self._next_sample_s += self._period_s
+            raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+            # Unchanged since the last sample (a vehicle at rest): the same sample, not sent.
+            if raw != self._sampled_raw or round(st.battery_pct, 1) != self._sampled_battery:
+                sample = self.sample(st)
+                key = sample.state()
+                if key != self._last_sample_key:
+                    self._last_sample_key = key
+                    samples.append(sample)
+                self._sampled_raw = raw
+                self._sampled_battery = sample.battery_pct
+        if t_s >= self._next_position_log_s - EPS_S:
+            self._next_position_log_s += POSITION_LOG_PERIOD_S
+            raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+            if raw == self._logged_raw:
+                return  # unchanged: no line
+            self._logged_raw = raw
+            key = (round(st.x_m, 2), round(st.y_m, 2), round(st.z_m, 2), st.armed, st.landed)
+            if key != self._last_position_key:
+                self._last_position_key = key
+                self._log.info(
+                    "adapter.position",
+                    x_m=key[0],
+                    y_m=key[1],
+                    z_m=key[2],
+                    speed_mps=round(st.speed_mps, 2),
+                    armed=st.armed,
+                    landed=st.landed,
+                    battery_pct=round(st.battery_pct, 1),
+                    t_sim=round(t_s, 3),
+                )
+
+
+__all__ = ["EPS_S", "POSITION_LOG_PERIOD_S", "TelemetrySampler"]

@@ -1,0 +1,212 @@
+"""Action plugins: actions a lab adds without editing the project (entry points ``eamos.actions``).
+
+A plugin is pure data, an :class:`ActionPlugin`: the action's name, its parameters (numbers,
+named with their unit like the uniform API's: ``pitch_deg``, ``duration_s``) and, per adapter
+family, where its implementation lives (``"module:callable"``, imported only by the adapter
+that runs it).  A package installs one with an entry point in the group ``eamos.actions``::
+
+    [project.entry-points."eamos.actions"]
+    Spray = "mylab.eamos_spray:SPRAY"     # SPRAY is an ActionPlugin named "Spray"
+
+The module holding the :class:`ActionPlugin` must be light (it may import only
+``eamos.program``): the compiler loads it to check missions.  Discovery returns a
+:class:`PluginRegistry` object that callers pass on; nothing global is mutated.
+
+Adapter families: ``"sim"`` (the simulated quadcopter, the virtual driver's vehicles, the fake
+adapter) and ``"mavlink"`` (PX4 and ArduPilot).  The ground station runs no plugin action.
+See docs/plugins.md.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import re
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from .uniform import ACTIONS, ActionSpec
+
+#: The entry-point group plugins are installed under.
+ENTRY_POINT_GROUP = "eamos.actions"
+
+#: The adapter families a plugin may implement an action for.
+FAMILIES = ("sim", "mavlink")
+
+_NAME = re.compile(r"[A-Z][A-Za-z0-9]*\Z")
+_PARAM = re.compile(r"[a-z][a-z0-9]*(_[a-z0-9]+)*_(m|deg|s|m_s|pct|count)\Z")
+
+
+class PluginError(Exception):
+    """A plugin that cannot be used: a bad declaration or an implementation that does not load."""
+
+
+@dataclass(frozen=True)
+class ActionPlugin:
+    """One plugin action: name, unit-named number parameters, implementation per family.
+
+    ``implementations`` maps a family (:data:`FAMILIES`) to ``"module:callable"``;
+    ``ranges`` optionally bounds parameters (inclusive), for the compiler's checks
+    (:func:`eamos.compiler.drone_types.plugin_argument_problem`).
+    """
+
+    name: str
+    params: tuple[str, ...]
+    doc: str
+    implementations: Mapping[str, str] = field(default_factory=dict)
+    ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def problems(self) -> list[str]:
+        """What is wrong with this declaration (empty when it is usable)."""
+        out: list[str] = []
+        if not isinstance(self.name, str) or not _NAME.match(self.name):
+            out.append(f"action name {self.name!r} is not a CamelCase identifier")
+        elif self.name in ACTIONS:
+            out.append(f"action {self.name!r} is a uniform action; a plugin cannot replace it")
+        if not isinstance(self.params, tuple):
+            return [*out, "params must be a tuple of parameter names"]
+        for param in self.params:
+            if not isinstance(param, str) or not _PARAM.match(param):
+                out.append(
+                    f"parameter {param!r} must be lower_snake_case ending in its unit "
+                    "(_m, _deg, _s, _m_s, _pct, _count)"
+                )
+        if len(set(self.params)) != len(self.params):
+            out.append("parameter names repeat")
+        for family, target in dict(self.implementations).items():
+            if family not in FAMILIES:
+                out.append(f"unknown adapter family {family!r} (known: {', '.join(FAMILIES)})")
+            if not isinstance(target, str) or target.count(":") != 1:
+                out.append(f"implementation for {family!r} must be 'module:callable'")
+        for param, bounds in dict(self.ranges).items():
+            if param not in self.params:
+                out.append(f"range for unknown parameter {param!r}")
+            elif len(bounds) != 2 or not bounds[0] <= bounds[1]:
+                out.append(f"range of {param!r} must be (low, high) with low <= high")
+        return out
+
+    @property
+    def spec(self) -> ActionSpec:
+        """The action as the compiler and :func:`~eamos.program.uniform.decode_command` see it."""
+        return ActionSpec(self.name, self.params, self.doc, payload=True)
+
+    @property
+    def families(self) -> tuple[str, ...]:
+        """The families with an implementation, in :data:`FAMILIES` order."""
+        return tuple(f for f in FAMILIES if f in self.implementations)
+
+
+class PluginRegistry:
+    """The plugins one process uses, by action name; passed around, never global.
+
+    ``problems`` lists the entry points that could not be used (a broken plugin
+    must not stop a mission that does not call it).  Implementations are
+    imported on first use and cached in this object.
+    """
+
+    def __init__(self, plugins: Iterable[ActionPlugin] = (), problems: Iterable[str] = ()) -> None:
+        self.plugins: Mapping[str, ActionPlugin] = MappingProxyType({p.name: p for p in plugins})
+        self.problems: tuple[str, ...] = tuple(problems)
+        self._loaded: dict[tuple[str, str], Callable[..., Any]] = {}
+
+    def __repr__(self) -> str:
+        return f"PluginRegistry({sorted(self.plugins)})"
+
+    def get(self, name: str) -> ActionPlugin | None:
+        """The plugin named ``name``, or None."""
+        return self.plugins.get(name)
+
+    def specs(self) -> Mapping[str, ActionSpec]:
+        """Every plugin action as an :class:`ActionSpec`, by name."""
+        return {name: p.spec for name, p in self.plugins.items()}
+
+    def implemented_by(self, family: str) -> frozenset[str]:
+        """The plugin actions with an implementation for ``family``."""
+        return frozenset(n for n, p in self.plugins.items() if family in p.implementations)
+
+    def implementation(self, name: str, family: str) -> Callable[..., Any]:
+        """Import and return ``name``'s implementation for ``family`` (cached).
+
+        Raises :class:`PluginError` with a clear message when there is none
+        or it does not import.
+        """
+        key = (name, family)
+        if key in self._loaded:
+            return self._loaded[key]
+        plugin = self.plugins.get(name)
+        if plugin is None:
+            raise PluginError(f"no plugin provides action {name!r}")
+        target = plugin.implementations.get(family)
+        if target is None:
+            have = ", ".join(plugin.families) or "none"
+            raise PluginError(
+                f"plugin action {name!r} has no {family!r} implementation (it has: {have})"
+            )
+        module_name, _, attr = target.partition(":")
+        try:
+            found: Any = importlib.import_module(module_name)
+            for part in attr.split("."):
+                found = getattr(found, part)
+        except Exception as exc:  # a broken plugin: say which, never crash the adapter
+            raise PluginError(
+                f"plugin action {name!r}: cannot load its {family!r} implementation "
+                f"{target!r}: {exc!r}"
+            ) from exc
+        if not callable(found):
+            raise PluginError(f"plugin action {name!r}: {target!r} is not callable")
+        self._loaded[key] = found
+        return found  # type: ignore[no-any-return]
+
+
+#: A registry with no plugin (tests, the ground station).
+EMPTY_PLUGINS = PluginRegistry()
+
+
+def discover_plugins(group: str = ENTRY_POINT_GROUP) -> PluginRegistry:
+    """The plugins installed through entry points in ``group`` (importlib.metadata).
+
+    Loads each entry point's :class:`ActionPlugin`; an entry point that does not
+    load, is not an :class:`ActionPlugin`, is named differently from its action,
+    declares itself badly or repeats another's name goes to ``problems`` instead.
+    """
+    plugins: dict[str, ActionPlugin] = {}
+    problems: list[str] = []
+    seen: set[tuple[str, str]] = set()
+    for ep in importlib.metadata.entry_points(group=group):
+        if (ep.name, ep.value) in seen:
+            continue  # one distribution found twice on the path
+        seen.add((ep.name, ep.value))
+        where = f"entry point {ep.name!r} ({ep.value})"
+        try:
+            plugin = ep.load()
+        except Exception as exc:  # a broken plugin must not break the others
+            problems.append(f"{where}: does not load: {exc!r}")
+            continue
+        if not isinstance(plugin, ActionPlugin):
+            problems.append(f"{where}: is a {type(plugin).__name__}, not an ActionPlugin")
+            continue
+        if plugin.name != ep.name:
+            problems.append(f"{where}: names action {plugin.name!r}; the names must be equal")
+            continue
+        bad = plugin.problems()
+        if bad:
+            problems.append(f"{where}: {'; '.join(bad)}")
+            continue
+        if plugin.name in plugins:
+            problems.append(f"{where}: action {plugin.name!r} is provided twice")
+            continue
+        plugins[plugin.name] = plugin
+    return PluginRegistry(plugins.values(), problems)
+
+
+__all__ = [
+    "EMPTY_PLUGINS",
+    "ENTRY_POINT_GROUP",
+    "FAMILIES",
+    "ActionPlugin",
+    "PluginError",
+    "PluginRegistry",
+    "discover_plugins",
+]
