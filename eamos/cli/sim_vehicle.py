@@ -138,6 +138,23 @@ def build_parser() -> argparse.ArgumentParser:
         "--seed", type=int, default=0, help="random seed of the wandering estimate (0)"
     )
     parser.add_argument(
+        "--estimator-settle",
+        type=_delay,
+        default=None,
+        metavar="S",
+        help="the estimator's flags (ESTIMATOR_STATUS / EKF_STATUS_REPORT) settle S simulated "
+        "seconds after start (PX4: 6, after it already accepts arming, as PX4 main does; "
+        "ArduPilot: when armable)",
+    )
+    parser.add_argument(
+        "--estimator-bias",
+        type=_metres,
+        default=0.0,
+        metavar="M",
+        help="the unsettled estimate is off by M metres at start, shrinking to 0 when it "
+        "settles (0, default: no error)",
+    )
+    parser.add_argument(
         "--signing-key",
         type=Path,
         metavar="FILE",
@@ -177,6 +194,8 @@ def main(argv: list[str] | None = None) -> int:
             reject=parse_reject(args.reject),
             disarm_after_s=args.disarm_after,
             wander_m=args.wander,
+            estimator_settle_s=args.estimator_settle,
+            estimator_bias_m=args.estimator_bias,
             seed=args.seed,
             signing_key=key,
             die_after_s=args.die_after,

@@ -11,7 +11,8 @@ ArduPilot style: the vehicle serves TCP, ``tcp:127.0.0.1:PORT``) and no
 ``sim_vehicle`` keys: ``autopilot`` (required), ``speedup`` (default: the
 run's ``--speedup``), ``prearm_delay_s`` (3; ``inf``: never armable),
 ``disarm_after_s`` (10),
-``sysid`` (1), ``home`` ([lat, lon, alt]), ``reject`` (list of commands,
+``estimator_settle_s`` and ``estimator_bias_m`` (an estimator that settles late, and
+its error until then), ``sysid`` (1), ``home`` ([lat, lon, alt]), ``reject`` (list of commands,
 e.g. ``["MAV_CMD_NAV_LAND=FAILED"]``).  Each vehicle logs to
 ``<log_dir>/<drone>/sim-vehicle.log`` (its console to ``sim-vehicle.out``).
 """
@@ -43,6 +44,8 @@ SIM_VEHICLE_KEYS = frozenset(
         "reject",
         "wander_m",  # a wandering position estimate (PX4 SIH-like), with its seed
         "seed",
+        "estimator_settle_s",  # when the estimator's flags settle (PX4 default 6 s)
+        "estimator_bias_m",  # the unsettled estimate's error at start
         "die_after_s",  # sudden vehicle death after this long in the air
         "signing_key",  # MAVLink 2 signing: the fleet's key file
     }
@@ -119,6 +122,8 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
         ("disarm_after_s", "--disarm-after"),
         ("wander_m", "--wander"),
         ("die_after_s", "--die-after"),
+        ("estimator_settle_s", "--estimator-settle"),
+        ("estimator_bias_m", "--estimator-bias"),
     ):
         # prearm_delay_s = inf: a vehicle that never passes its pre-arm checks (tests).
         value = number(key, 0.0, infinite=key == "prearm_delay_s")

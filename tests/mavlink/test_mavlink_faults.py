@@ -129,7 +129,14 @@ def test_arming_temporarily_rejected_is_retried_until_armable(flight):
     # Firmware that does not report the pre-arm bit in SYS_STATUS gives the
     # adapter no way to wait: it tries, PX4 answers TEMPORARILY_REJECTED while
     # unready, and the adapter tries again until arming is accepted.
-    f = flight("px4", vehicle={"prearm_delay_s": 10.0, "speedup": 5.0, "report_prearm": False})
+    # (Its estimator reports settled from the start: only the pre-arm checks are late.)
+    vehicle = {
+        "prearm_delay_s": 10.0,
+        "speedup": 5.0,
+        "report_prearm": False,
+        "estimator_settle_s": 0.0,
+    }
+    f = flight("px4", vehicle=vehicle)
     f.ok("Arm")
     assert f.vehicle.sim_time_s >= 10.0
     assert (400, TEMPORARILY_REJECTED) in f.vehicle.commands

@@ -7,7 +7,11 @@ messages it reads), :mod:`.autopilots` (what differs between PX4 and ArduPilot),
 :mod:`.frames` (mission frame <-> NED), :mod:`.settings` (the ``hal`` section),
 :mod:`.braking` (stop now, wait until at rest), :mod:`.params` and :mod:`.keeper`
 (the drone type's speeds set on the vehicle and restored), :mod:`.targets`
-(SET_POSITION_TARGET_* messages), :mod:`.signing` (MAVLink 2 signing keys and rules).
+(SET_POSITION_TARGET_* messages), :mod:`.signing` (MAVLink 2 signing keys and rules),
+:mod:`.waits` (how actions wait and end), :mod:`.estimator`, :mod:`.arming` and
+:mod:`.home` (a settled estimate before arming, home from it), :mod:`.manoeuvres`
+(ReturnHome, Hold, Yaw, SetSpeed, Orbit), :mod:`.payload` and :mod:`.camera` (plugin
+actions: the "mavlink" seam, the camera and gimbal).
 Importing this package does not load pymavlink; connecting does.
 """
 

@@ -46,8 +46,12 @@ leaves a flying vehicle silently: it lands it first, or logs
 ``adapter.stranded`` at error level.  After connecting, the drone type's
 speeds are set on the vehicle and restored at close
 (:mod:`eamos.hal.mavlink.params`); a vehicle that disarmed itself after our
-Arm is armed again before Takeoff (``adapter.rearm``).  Payload actions are acknowledged at
-once (this vehicle has no payload); ``PauseFor`` is a timer.
+Arm is armed again before Takeoff (``adapter.rearm``); Arm waits for a settled
+position estimate (:mod:`eamos.hal.mavlink.arming`).  ReturnHome, Hold, Yaw, SetSpeed
+and Orbit fly each autopilot's own way (:mod:`eamos.hal.mavlink.manoeuvres`).
+Plugin actions (TakePhoto, Gimbal...) run their "mavlink" implementation on the
+action's thread (:mod:`eamos.hal.mavlink.payload`); the fixed payload actions (TurnOn,
+Calibrate...) are acknowledged at once; ``PauseFor`` is a timer.
 
 Telemetry: x/y/z from LOCAL_POSITION_NED (mission frame), lat/lon/alt from
 GLOBAL_POSITION_INT (alt = relative_alt), battery from SYS_STATUS or
@@ -83,20 +87,35 @@ from eamos.hal.api import (
     TelemetryCallback,
 )
 from eamos.hal.mavlink.autopilots import CommandRejected
-from eamos.hal.mavlink.flight import Ended, Failed, Flight, Run, RunKind, TimedOut
+from eamos.hal.mavlink.flight import Ended, Failed, Flight, Run, RunControl, TimedOut
 from eamos.hal.mavlink.frames import Vector
+from eamos.hal.mavlink.manoeuvres import MANOEUVRES, perform_manoeuvre
+from eamos.hal.mavlink.payload import payload_context
 from eamos.hal.mavlink.settings import MavlinkSettings
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
+from eamos.hal.mavlink.waits import RunKind
 from eamos.logs import make_logger
-from eamos.program.uniform import Arm, Command, Disarm, PauseFor, Payload
+from eamos.program.plugins import EMPTY_PLUGINS, PluginError, PluginRegistry, discover_plugins
+from eamos.program.uniform import Arm, Command, Disarm, PauseFor, Payload, PluginAction
 
 
 class MavlinkAdapter:
     """An :class:`~eamos.hal.api.Adapter` for a MAVLink autopilot (see module docstring)."""
 
-    def __init__(self, drone: str, settings: MavlinkSettings, adapter_log: Any = None) -> None:
+    #: The adapter family plugin actions name implementations for (docs/plugins.md).
+    family = "mavlink"
+
+    def __init__(
+        self,
+        drone: str,
+        settings: MavlinkSettings,
+        adapter_log: Any = None,
+        plugins: PluginRegistry = EMPTY_PLUGINS,
+    ) -> None:
         self.drone = drone
         self.settings = settings
+        #: The plugin actions it runs (their "mavlink" code, eamos.hal.mavlink.payload).
+        self.plugins = plugins
         self._log = adapter_log if adapter_log is not None else make_logger(None)
         self.vehicle = MavlinkVehicle(drone, settings, self._log)
         self._flight = Flight(self.vehicle)
@@ -153,6 +172,12 @@ class MavlinkAdapter:
             kind = "disarm"
         run = Run(handle, done, kind, time.monotonic(), command)
         immediate: ActionResult | None = None
+        missing: str | None = None  # a plugin action without a "mavlink" implementation
+        if isinstance(command, PluginAction):
+            try:
+                self.plugins.implementation(command.name, self.family)
+            except PluginError as exc:
+                missing = str(exc)
         with self._cond:
             if self._closed:
                 raise AdapterError(f"{self.drone}: adapter closed")
@@ -163,7 +188,9 @@ class MavlinkAdapter:
                 args=list(handle.args),
                 handle=handle.id,
             )
-            if isinstance(command, Payload):
+            if missing is not None:
+                immediate = ActionResult("failed", missing)
+            elif isinstance(command, Payload):
                 self._log.info(
                     "adapter.payload",
                     action=handle.action,
@@ -313,7 +340,12 @@ class MavlinkAdapter:
     def _execute(self, run: Run) -> None:
         assert run.handle is not None
         try:
-            result = self._flight.perform(run)
+            if isinstance(run.command, PluginAction):
+                result = self._plugin(run, run.command)
+            elif isinstance(run.command, MANOEUVRES):
+                result = perform_manoeuvre(self._flight, run)
+            else:
+                result = self._flight.perform(run)
         except Ended:
             return  # finished already (cancel, abort, close): its done was called
         except TimedOut as exc:
@@ -327,6 +359,17 @@ class MavlinkAdapter:
             self._log.exception("adapter.error", action=run.handle.action, error=repr(exc))
             result = ActionResult("failed", f"adapter error: {exc!r}")
         self._finish(run, result)
+
+    def _plugin(self, run: Run, command: PluginAction) -> ActionResult:
+        """A plugin action's "mavlink" implementation, on this action's thread."""
+        with self._cond:
+            self._flight.waiter.raise_if_over(run)
+        implementation = self.plugins.implementation(command.name, self.family)
+        ctx = payload_context(self.vehicle, RunControl(self._flight, run), run)
+        result = implementation(ctx, command)
+        if not isinstance(result, ActionResult):
+            raise Failed(f"plugin {command.name} returned {result!r}, not an ActionResult")
+        return result
 
     def _abort(self) -> None:
         try:
@@ -403,8 +446,17 @@ class MavlinkAdapter:
 def mavlink_adapter_from_settings(
     drone: str, settings: Mapping[str, Any], adapter_log: Any = None
 ) -> MavlinkAdapter:
-    """Build a :class:`MavlinkAdapter` from a drone's ``hal`` settings mapping."""
-    return MavlinkAdapter(drone, MavlinkSettings.from_mapping(settings), adapter_log)
+    """Build a :class:`MavlinkAdapter` from a drone's ``hal`` settings mapping.
+
+    It runs the plugin actions installed through entry points (``eamos.actions``) that
+    have a "mavlink" implementation; broken plugins are logged
+    (``adapter.plugin_problem``) and left out.
+    """
+    plugins = discover_plugins()
+    log = adapter_log if adapter_log is not None else make_logger(None)
+    for problem in plugins.problems:
+        log.warning("adapter.plugin_problem", problem=problem)
+    return MavlinkAdapter(drone, MavlinkSettings.from_mapping(settings), log, plugins)
 
 
 __all__ = [

@@ -30,6 +30,7 @@ MAV_AUTOPILOT_PX4 = 12
 #: MAVLink command ids used here (MAV_CMD).
 MAV_CMD_NAV_TAKEOFF = 22
 MAV_CMD_NAV_LAND = 21
+MAV_CMD_CONDITION_YAW = 115
 #: DO_SET_MODE param1 flag: "custom_mode is valid" (MAV_MODE_FLAG_CUSTOM_MODE_ENABLED).
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 
@@ -38,6 +39,7 @@ PX4_MODES: dict[str, tuple[int, int]] = {
     "MANUAL": (1, 0),
     "ALTCTL": (2, 0),
     "POSCTL": (3, 0),
+    "ORBIT": (3, 1),  # POSCTL's Orbit sub mode: MAV_CMD_DO_ORBIT flies in it
     "AUTO.READY": (4, 1),
     "AUTO.TAKEOFF": (4, 2),
     "HOLD": (4, 3),  # AUTO.LOITER; PX4's boot mode
@@ -112,8 +114,8 @@ class Controller(Protocol):
         """Request ``mode`` with MAV_CMD_DO_SET_MODE and wait until a HEARTBEAT shows it."""
         ...
 
-    def command(self, command: int, params: tuple[float, ...]) -> None:
-        """Send COMMAND_LONG (7 params) and wait for MAV_RESULT_ACCEPTED."""
+    def command(self, command: int, params: tuple[float, ...], frame: int | None = None) -> None:
+        """Send COMMAND_LONG (7 params; COMMAND_INT in ``frame``), wait for ACCEPTED."""
         ...
 
     def stream(self, target_ned: Vector | None) -> None:
@@ -126,6 +128,10 @@ class Controller(Protocol):
 
     def position_target(self, target_ned: Vector) -> None:
         """Send SET_POSITION_TARGET_LOCAL_NED (position only) and keep it refreshed."""
+        ...
+
+    def set_yaw(self, heading_deg: float) -> None:
+        """Let the setpoint stream carry the compass heading ``heading_deg`` from now on."""
         ...
 
     def stop_target(self) -> None:
@@ -159,6 +165,10 @@ class Autopilot(ABC):
     #: PX4 SIH's estimate wanders +-0.3-0.6 m while hovering (the notes), ArduCopter's not.
     tolerance_m: float = 0.3
     settle_speed_mps: float = 0.3
+    #: The modes of Hold, ReturnHome and Orbit.
+    hold_mode: str
+    rtl_mode: str
+    orbit_mode: str
 
     @abstractmethod
     def mode_name(self, custom_mode: int) -> str:
@@ -198,6 +208,18 @@ class Autopilot(ABC):
     def brake(self, ctl: Controller) -> bool:
         """Start the autopilot's fastest documented stop; False if it has none in this mode."""
 
+    @abstractmethod
+    def return_altitude(self, height_m: float) -> tuple[str, float]:
+        """The parameter (and its value) that makes RTL return at ``height_m``."""
+
+    @abstractmethod
+    def speed_params(self, speed_mps: float) -> tuple[tuple[str, float], ...]:
+        """The parameters (and values) that set the horizontal speed."""
+
+    @abstractmethod
+    def yaw(self, ctl: Controller, target_ned: Vector, heading_deg: float) -> None:
+        """Turn on the spot (at ``target_ned``) to the compass heading ``heading_deg``."""
+
     def land(self, ctl: Controller, here_ned: Vector) -> None:
         """Descend and land at the current position (MAV_CMD_NAV_LAND)."""
         nan = math.nan
@@ -212,6 +234,9 @@ class Px4(Autopilot):
     mavlink_id = MAV_AUTOPILOT_PX4
     motion_mode = "OFFBOARD"
     land_mode = "AUTO.LAND"
+    hold_mode = "HOLD"
+    rtl_mode = "AUTO.RTL"
+    orbit_mode = "ORBIT"
     tolerance_m = 0.6
     settle_speed_mps = 0.5
 
@@ -285,6 +310,21 @@ class Px4(Autopilot):
         ctl.stop_target()
         return True
 
+    def return_altitude(self, height_m: float) -> tuple[str, float]:
+        # RTL climbs to RTL_RETURN_ALT (60 m by default) when lower; at or below the
+        # current height it returns at the current height.
+        return ("RTL_RETURN_ALT", round(max(height_m, 0.5), 2))
+
+    def speed_params(self, speed_mps: float) -> tuple[tuple[str, float], ...]:
+        # MAV_CMD_DO_CHANGE_SPEED is ignored in OFFBOARD: the setpoints fly under
+        # MPC_XY_VEL_MAX; MPC_XY_CRUISE is the AUTO modes' speed.
+        return (("MPC_XY_VEL_MAX", speed_mps), ("MPC_XY_CRUISE", speed_mps))
+
+    def yaw(self, ctl: Controller, target_ned: Vector, heading_deg: float) -> None:
+        # OFFBOARD setpoints carry the yaw (CONDITION_YAW is for missions).
+        ctl.set_yaw(heading_deg)
+        self._offboard(ctl, target_ned)
+
     def land(self, ctl: Controller, here_ned: Vector) -> None:
         # Keep streaming "here": harmless in AUTO.LAND, and a cancel that
         # returns to OFFBOARD then holds instead of jumping to an old target.
@@ -299,6 +339,9 @@ class ArduPilot(Autopilot):
     mavlink_id = MAV_AUTOPILOT_ARDUPILOTMEGA
     motion_mode = "GUIDED"
     land_mode = "LAND"
+    hold_mode = "LOITER"
+    rtl_mode = "RTL"
+    orbit_mode = "CIRCLE"
 
     def mode_name(self, custom_mode: int) -> str:
         return _ARDU_BY_CUSTOM.get(custom_mode, f"ArduCopter({custom_mode})")
@@ -335,6 +378,21 @@ class ArduPilot(Autopilot):
             return
         self._guided(ctl)
         ctl.position_target(here_ned)
+
+    def return_altitude(self, height_m: float) -> tuple[str, float]:
+        # RTL_ALT (cm, at least 30): RTL climbs to it when lower, else returns at the
+        # current height.
+        return ("RTL_ALT", round(max(height_m * 100.0, 30.0)))
+
+    def speed_params(self, speed_mps: float) -> tuple[tuple[str, float], ...]:
+        # MAV_CMD_DO_CHANGE_SPEED holds only until the next mode change: WPNAV_SPEED too.
+        return (("WPNAV_SPEED", round(speed_mps * 100.0, 1)),)
+
+    def yaw(self, ctl: Controller, target_ned: Vector, heading_deg: float) -> None:
+        self._guided(ctl)
+        # param1 heading, param2 rate (0: default), param3 direction (0: shortest),
+        # param4 0: absolute.
+        ctl.command(MAV_CMD_CONDITION_YAW, (heading_deg, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 
     def brake(self, ctl: Controller) -> bool:
         # BRAKE mode stops at ArduCopter's hardest deceleration (BRAKE_MODE_DECEL_RATE,

@@ -2,10 +2,12 @@
 
 :class:`Flight` runs each action on the caller's thread (the adapter gives
 every action a thread of its own) and returns its :class:`ActionResult` or
-raises why it failed.  Every wait (:class:`Waiter`) is ``Condition.wait_for``
-on the vehicle's condition against a ``time.monotonic()`` deadline, and ends
-early when the action is finished by someone else (cancel, abort, close), when
-HEARTBEATs stop, or when a guard sees that someone else took the vehicle over.
+raises why it failed.  Every wait (:class:`~eamos.hal.mavlink.waits.Waiter`) is
+``Condition.wait_for`` on the vehicle's condition against a ``time.monotonic()``
+deadline, and ends early when the action is finished by someone else (cancel,
+abort, close), when HEARTBEATs stop, or when a guard sees that someone else took
+the vehicle over.  ReturnHome, Hold, Yaw, SetSpeed and Orbit are in
+:mod:`eamos.hal.mavlink.manoeuvres`, plugin actions in :mod:`eamos.hal.mavlink.payload`.
 
 What differs between PX4 and ArduPilot is asked of the vehicle's
 :class:`~eamos.hal.mavlink.autopilots.Autopilot`, through a :class:`RunControl`: the
@@ -16,11 +18,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Literal
 
-from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
+from eamos.hal.api import ActionResult
+from eamos.hal.mavlink.arming import await_settled
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.braking import brake_to_rest
 from eamos.hal.mavlink.frames import Vector, mission_to_ned
@@ -31,9 +31,9 @@ from eamos.hal.mavlink.link import (
     result_name,
 )
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
+from eamos.hal.mavlink.waits import Ended, Failed, Run, TimedOut, Waiter
 from eamos.program.uniform import (
     Arm,
-    Command,
     Disarm,
     FlyBy,
     FlyToLLA,
@@ -58,38 +58,16 @@ COMMAND_NAMES = {
     22: "MAV_CMD_NAV_TAKEOFF",
     21: "MAV_CMD_NAV_LAND",
     511: "MAV_CMD_SET_MESSAGE_INTERVAL",
+    20: "MAV_CMD_NAV_RETURN_TO_LAUNCH",
+    34: "MAV_CMD_DO_ORBIT",
+    115: "MAV_CMD_CONDITION_YAW",
+    178: "MAV_CMD_DO_CHANGE_SPEED",
+    205: "MAV_CMD_DO_MOUNT_CONTROL",
+    1000: "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW",
+    2000: "MAV_CMD_IMAGE_START_CAPTURE",
+    2500: "MAV_CMD_VIDEO_START_CAPTURE",
+    2501: "MAV_CMD_VIDEO_STOP_CAPTURE",
 }
-
-
-class Ended(Exception):
-    """The action was already finished (cancelled, aborted, closed): just stop."""
-
-
-class Failed(Exception):
-    """The action fails with this reason."""
-
-
-class TimedOut(Failed):
-    """The action fails because its deadline passed (the vehicle should then hold)."""
-
-
-RunKind = Literal["motion", "arm", "disarm", "timer", "internal"]
-
-
-@dataclass(eq=False)
-class Run:
-    """One running action, or an internal job (hold, abort) that nobody finishes early."""
-
-    handle: ActionHandle | None
-    done: DoneCallback | None
-    kind: RunKind
-    started: float  # time.monotonic()
-    command: Command | None = None  # None for internal jobs
-    finished: bool = False  # set (condition held) by whoever finishes it
-
-
-Check = Callable[[LinkState], bool]
-Guard = Callable[[LinkState], str | None]
 
 
 class RunControl:
@@ -110,7 +88,7 @@ class RunControl:
         with self.v.cond:
             return self.v.mode_name()
 
-    def command(self, command: int, params: tuple[float, ...]) -> None:
+    def command(self, command: int, params: tuple[float, ...], frame: int | None = None) -> None:
         v, run, s = self.v, self.run, self.v.settings
         with v.cmd_lock:
             with v.cond:
@@ -122,6 +100,7 @@ class RunControl:
                 timeout_s=s.command_timeout_s,
                 retries=s.command_retries,
                 abandon=lambda: run.finished or not v.state.link_ok,
+                frame=frame,
             )
         name = COMMAND_NAMES.get(command, f"MAV_CMD({command})")
         with v.cond:
@@ -161,6 +140,10 @@ class RunControl:
             v.stream_stop = False
         if target_ned is not None:
             v.send_setpoint(target_ned)  # at once, not at the next tick
+
+    def set_yaw(self, heading_deg: float) -> None:
+        with self.v.cond:
+            self.v.stream_yaw = heading_deg
 
     def stop_target(self) -> None:
         v = self.v
@@ -211,112 +194,6 @@ class RunControl:
         )
 
 
-class Waiter:
-    """How every flight step waits for the vehicle: on its condition, against a deadline.
-
-    A wait ends early when the run is finished by someone else, the link
-    closes, HEARTBEATs stop, or a guard sees that someone else took over.
-    """
-
-    def __init__(self, vehicle: MavlinkVehicle) -> None:
-        self.v = vehicle
-        self.s = vehicle.settings
-
-    def wait(
-        self,
-        run: Run,
-        until: Check,
-        deadline: float,
-        timeout_reason: Callable[[LinkState], str],
-        *,
-        guard: Guard | None = None,
-        quiet_timeout: bool = False,
-        watch_link: bool = True,
-    ) -> None:
-        """Wait on the condition until ``until(state)``; raise why not.
-
-        Ends early (raising) when the run is finished by someone else, the
-        link closes, HEARTBEATs stop (``watch_link``) or ``guard`` names a
-        problem.  At ``deadline`` it raises ``TimedOut(timeout_reason(state))``,
-        or returns quietly with ``quiet_timeout`` (a plain timer).
-        """
-        v, st = self.v, self.v.state
-
-        def ready() -> bool:
-            return (
-                run.finished
-                or st.closed
-                or (watch_link and not st.link_ok)
-                or until(st)
-                or (guard is not None and guard(st) is not None)
-            )
-
-        with v.cond:
-            v.cond.wait_for(ready, timeout=max(0.0, deadline - time.monotonic()))
-            self.raise_if_over(run, watch_link=watch_link)
-            if until(st):
-                return
-            problem = guard(st) if guard is not None else None
-            if problem is not None:
-                raise Failed(problem)
-            if quiet_timeout:
-                return
-            raise TimedOut(timeout_reason(st))
-
-    def raise_if_over(self, run: Run, watch_link: bool = True) -> None:
-        """Raise if ``run`` must stop (condition held)."""
-        if run.finished:
-            raise Ended
-        if self.v.state.closed:
-            raise Failed("adapter closed")
-        if watch_link and not self.v.state.link_ok:
-            raise Failed(self.v.lost_reason())
-
-    def confirm_modes(self, run: Run, modes: frozenset[str], done: Check) -> None:
-        """Wait until a HEARTBEAT shows one of ``modes`` (or ``done``): acks run ahead of it."""
-        v = self.v
-        self.wait(
-            run,
-            lambda st: v.mode_name(st) in modes or done(st),
-            time.monotonic() + self.confirm_s(),
-            lambda st: (
-                f"vehicle is in mode {v.mode_name(st)}, expected {' or '.join(sorted(modes))}"
-            ),
-        )
-
-    def guard(
-        self, modes: frozenset[str], need_armed: bool = True, unless: Check | None = None
-    ) -> Guard:
-        """A check that nobody else took the vehicle over mid-action (a reason, or None)."""
-        v, grace = self.v, self.s.heartbeat_timeout_s
-
-        def check(st: LinkState) -> str | None:
-            if unless is not None and unless(st):
-                return None
-            text = f" ({st.last_statustext})" if st.last_statustext else ""
-            if need_armed and not st.armed:
-                return f"vehicle disarmed{text}"
-            mode = v.mode_name(st)
-            if mode not in modes:
-                # PX4 leaves OFFBOARD when setpoints stop for a second and comes
-                # back when they resume: tolerate that after a gap or failsafe.
-                if time.monotonic() < max(st.gap_ended_at, st.failsafe_at) + grace:
-                    return None
-                return f"vehicle switched to mode {mode} under us{text}"
-            return None
-
-        return check
-
-    def timeout_reason(self, what: str) -> Callable[[LinkState], str]:
-        """The failure reason of an action that ran past ``action_timeout_s``."""
-        t = self.s.action_timeout_s
-        return lambda st: f"timeout after {t:g} s: {what}"
-
-    def confirm_s(self) -> float:
-        """How long a HEARTBEAT may take to confirm an acknowledged change."""
-        return max(2.5, self.s.command_timeout_s * self.s.command_retries)
-
-
 class Flight:
     """The flight procedures of one vehicle (see module docstring)."""
 
@@ -354,13 +231,13 @@ class Flight:
             case Disarm():
                 return self.disarm(run, ctl)
             case Takeoff(height_m=height):
-                self._await_hold()
+                self.await_hold()
                 return self.takeoff(run, ctl, height)
             case Land():
-                self._await_hold()
+                self.await_hold()
                 return self.land(run, ctl)
             case FlyBy() | FlyToXYZ() | FlyToLLA():
-                self._await_hold()
+                self.await_hold()
                 return self.move(run, ctl, command)
         raise Failed(f"{command.action} is not an action this vehicle flies")
 
@@ -388,6 +265,9 @@ class Flight:
                 f"{st.last_statustext or 'no STATUSTEXT from the vehicle'}"
             ),
         )
+        # The pre-arm bit is not enough: PX4 main accepts arming long before its estimate
+        # settles, and home taken from that estimate is metres off.
+        await_settled(self.waiter, v, run, deadline)
         with v.cond:
             v.capture_origin(ground=True)
             here = v.here_ned()
@@ -492,6 +372,7 @@ class Flight:
                 raise Failed("no LOCAL_POSITION_NED from the vehicle yet")
             x, y, _ = v.mission_position()
             v.commanded = (x, y, height)
+            v.flown = True
             target_ned = mission_to_ned(v.commanded, v.origin)
         v.autopilot.takeoff(ctl, target_ned, height)
         modes = v.autopilot.takeoff_modes()
@@ -593,7 +474,7 @@ class Flight:
             self._pending_hold = thread
             thread.start()
 
-    def _await_hold(self) -> None:
+    def await_hold(self) -> None:
         with self.v.cond:
             hold = self._pending_hold
         if hold is not None:
@@ -631,7 +512,7 @@ class Flight:
         v = self.v
         run = Run(None, None, "internal", time.monotonic())
         ctl = RunControl(self, run)
-        self._await_hold()
+        self.await_hold()
         try:
             with v.cond:
                 known = v.state.local is not None

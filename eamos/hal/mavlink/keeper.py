@@ -81,6 +81,26 @@ class ParamKeeper:
             self.changes.append(ParamChange(name, before.before, value, before.param_type))
             self.log.info("adapter.param.set", name=name, before=before.before, value=value)
 
+    def set_param(self, name: str, value: float) -> bool:
+        """Set one parameter for an action (ReturnHome's return altitude, Orbit's circle,
+        SetSpeed), remembering the value found the first time so :meth:`restore` puts it
+        back; False when the vehicle does not answer or refuses (logged)."""
+        known = next((c for c in self.changes if c.name == name), None)
+        if known is None:
+            before = self._exchange(name, None)
+            if before is None:
+                self.log.warning("adapter.param.missing", name=name, note="no PARAM_VALUE")
+                return False
+            known = ParamChange(name, before.before, before.before, before.param_type)
+        after = self._exchange(name, value, known.param_type)
+        if after is None or not math.isclose(after.before, value, rel_tol=1e-3, abs_tol=1e-3):
+            self.log.warning("adapter.param.refused", name=name, value=value)
+            return False
+        self.changes = [c for c in self.changes if c.name != name]
+        self.changes.append(ParamChange(name, known.before, value, known.param_type))
+        self.log.info("adapter.param.set", name=name, before=known.before, value=value)
+        return True
+
     def restore(self) -> None:
         """Write back what :meth:`apply_speeds` found (in reverse order); log each."""
         changes, self.changes = self.changes, []

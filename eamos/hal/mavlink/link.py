@@ -323,8 +323,13 @@ class MavlinkLink:
         timeout_s: float,
         retries: int,
         abandon: Callable[[], bool] = lambda: False,
+        frame: int | None = None,
     ) -> int | None:
         """Send COMMAND_LONG and return the MAV_RESULT of its COMMAND_ACK.
+
+        With ``frame`` it is sent as COMMAND_INT in that MAV_FRAME instead: params 5
+        and 6 (x, y: latitude and longitude in degrees) travel as degrees * 1e7, so a
+        position keeps its centimetres (COMMAND_LONG's float32 loses ~0.4 m).
 
         Tries ``retries`` times, waiting ``timeout_s`` for an ack each time
         (``confirmation`` counts the tries, as the protocol asks).  Returns
@@ -337,7 +342,23 @@ class MavlinkLink:
             with self.cond:
                 seen = self.state.ack_serial
             system, component = self.target
-            self.send("command_long", system, component, command, attempt, *params)
+            if frame is None:
+                self.send("command_long", system, component, command, attempt, *params)
+            else:
+                p = params
+                self.send(
+                    "command_int",
+                    system,
+                    component,
+                    frame,
+                    command,
+                    0,  # current
+                    0,  # autocontinue
+                    *p[:4],
+                    round(p[4] * 1e7),
+                    round(p[5] * 1e7),
+                    p[6],
+                )
             deadline = time.monotonic() + timeout_s
             while True:
                 with self.cond:

@@ -61,6 +61,18 @@ class GlobalPosition:
     vd_mps: float
 
 
+@dataclass(frozen=True)
+class CapturedImage:
+    """CAMERA_IMAGE_CAPTURED in SI units: where a photo was taken."""
+
+    index: int
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    rel_alt_m: float
+    ok: bool  # capture_result == 1
+
+
 @dataclass
 class LinkState:
     """What the reader knows about the vehicle; read and written under ``MavlinkLink.cond``."""
@@ -94,6 +106,15 @@ class LinkState:
     sensors_health: int | None = None
     battery_pct: float | None = None
     landed_state: int | None = None  # EXTENDED_SYS_STATE (MAV_LANDED_STATE)
+    #: ESTIMATOR_STATUS (PX4) / EKF_STATUS_REPORT (ArduPilot) flags; None: not heard.
+    estimator_flags: int | None = None
+    #: Compass heading from ATTITUDE.yaw (degrees, 0 north, 90 east); None: not heard.
+    heading_deg: float | None = None
+    #: CAMERA_IMAGE_CAPTURED (latest first seen last), and how many were heard.
+    images: deque[CapturedImage] = field(default_factory=lambda: deque(maxlen=20))
+    image_serial: int = 0
+    #: The gimbal's pitch from GIMBAL_DEVICE_ATTITUDE_STATUS (degrees); None: not heard.
+    gimbal_pitch_deg: float | None = None
     acks: dict[int, tuple[int, int]] = field(default_factory=dict)  # command -> (result, serial)
     ack_serial: int = 0
     statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
@@ -274,6 +295,41 @@ class StateTracker:
     def _on_extended_sys_state(self, msg: Any, now: float, events: Events) -> None:
         self.state.landed_state = msg.landed_state
 
+    def _on_camera_image_captured(self, msg: Any, now: float, events: Events) -> None:
+        st = self.state
+        image = CapturedImage(
+            int(msg.image_index),
+            msg.lat / 1e7,
+            msg.lon / 1e7,
+            msg.alt / 1000.0,
+            msg.relative_alt / 1000.0,
+            msg.capture_result == 1,
+        )
+        st.images.append(image)
+        st.image_serial += 1
+        events.append(("vehicle.image", {"index": image.index, "ok": image.ok}))
+
+    def _on_gimbal_device_attitude_status(self, msg: Any, now: float, events: Events) -> None:
+        w, x, y, z = msg.q
+        self.state.gimbal_pitch_deg = math.degrees(
+            math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+        )
+
+    def _on_attitude(self, msg: Any, now: float, events: Events) -> None:
+        self.state.heading_deg = math.degrees(msg.yaw) % 360.0
+
+    def _on_estimator_status(self, msg: Any, now: float, events: Events) -> None:
+        self._estimator(int(msg.flags), events)
+
+    def _on_ekf_status_report(self, msg: Any, now: float, events: Events) -> None:
+        self._estimator(int(msg.flags), events)
+
+    def _estimator(self, flags: int, events: Events) -> None:
+        st = self.state
+        if flags != st.estimator_flags:
+            events.append(("vehicle.estimator", {"flags": flags, "previous": st.estimator_flags}))
+        st.estimator_flags = flags
+
     def _on_statustext(self, msg: Any, now: float, events: Events) -> None:
         text = msg.text.decode("utf-8", "replace") if isinstance(msg.text, bytes) else msg.text
         text = text.rstrip("\x00")
@@ -295,6 +351,7 @@ class StateTracker:
 
 __all__ = [
     "MAV_RESULT_NAMES",
+    "CapturedImage",
     "Events",
     "GlobalPosition",
     "LinkState",

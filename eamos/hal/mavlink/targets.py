@@ -9,6 +9,7 @@ zero velocity (velocity only): "stop now", PX4's fastest stop in OFFBOARD
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from eamos.hal.mavlink.frames import Vector
@@ -20,25 +21,34 @@ MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 6
 TYPE_MASK_POSITION = 0x0FF8
 #: ...and the velocity only (ignore position, acceleration, yaw, yaw rate): a stop.
 TYPE_MASK_VELOCITY = 0x0DC7
+#: The "ignore yaw" bit of the type_mask.
+TYPE_MASK_YAW_IGNORE = 0x0400
 
 #: What the vehicle is told to go to: ("local", NED point) or ("global", (lat, lon, rel alt)).
 GuidedTarget = tuple[str, Vector]
 
 
-def send_position(link: Any, target: Vector) -> None:
-    """SET_POSITION_TARGET_LOCAL_NED, position only, MAV_FRAME_LOCAL_NED."""
+def send_position(link: Any, target: Vector, yaw_deg: float | None = None) -> None:
+    """SET_POSITION_TARGET_LOCAL_NED, position only (and the compass heading ``yaw_deg``
+    if given: PX4 turns to an OFFBOARD setpoint's yaw), MAV_FRAME_LOCAL_NED."""
     system, component = link.target
+    mask, yaw = TYPE_MASK_POSITION, 0.0
+    if yaw_deg is not None:
+        mask &= ~TYPE_MASK_YAW_IGNORE
+        yaw = math.remainder(math.radians(yaw_deg), 2 * math.pi)
     link.send(
         "set_position_target_local_ned",
         link.time_boot_ms(),
         system,
         component,
         MAV_FRAME_LOCAL_NED,
-        TYPE_MASK_POSITION,
+        mask,
         target[0],
         target[1],
         target[2],
-        *(0.0,) * 8,
+        *(0.0,) * 6,
+        yaw,
+        0.0,
     )
 
 

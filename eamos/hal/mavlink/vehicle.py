@@ -23,9 +23,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
-from eamos.hal.kinematics import EARTH_RADIUS_M, GeoFrame
+from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
+from eamos.hal.mavlink.estimator import (
+    MSG_EKF_STATUS_REPORT,
+    MSG_ESTIMATOR_STATUS,
+    estimator_message,
+)
 from eamos.hal.mavlink.frames import NedOrigin, Vector, ned_to_mission
+from eamos.hal.mavlink.home import capture_home
 from eamos.hal.mavlink.keeper import ParamKeeper
 from eamos.hal.mavlink.link import (
     MAV_SYS_STATUS_PREARM_CHECK,
@@ -58,13 +64,17 @@ MSG_SYS_STATUS = 1
 MSG_EXTENDED_SYS_STATE = 245
 MSG_BATTERY_STATUS = 147
 MSG_HOME_POSITION = 242
+MSG_ATTITUDE = 30
 TELEMETRY_INTERVALS: dict[int, float | None] = {
     MSG_LOCAL_POSITION_NED: None,
     MSG_GLOBAL_POSITION_INT: None,
     MSG_EXTENDED_SYS_STATE: None,
+    MSG_ATTITUDE: None,  # the heading (Yaw, Orbit)
     MSG_SYS_STATUS: 2.0,
     MSG_BATTERY_STATUS: 1.0,
     MSG_HOME_POSITION: 0.5,
+    MSG_ESTIMATOR_STATUS: 2.0,  # PX4 only
+    MSG_EKF_STATUS_REPORT: 2.0,  # ArduPilot only
 }
 #: Below this height (m above the take-off ground) a vehicle without
 #: EXTENDED_SYS_STATE counts as on the ground.
@@ -113,10 +123,17 @@ class MavlinkVehicle:
         self.cmd_lock = threading.Lock()
         self.autopilot: Autopilot = autopilot_named("px4")  # replaced by connect()
         self.origin: NedOrigin | None = None  # home, in the vehicle's NED frame
+        # Home was taken from an estimate not (known to be) settled: take it again
+        # before the first take-off, once the estimator says it settled.
+        self.origin_provisional = False
+        self.flown = False  # took off since connecting (home then stays where it is)
         self.geo: GeoFrame | None = None  # home, in WGS84
         self.commanded: Vector | None = None  # last motion target, mission frame
         self.stream_target: Vector | None = None  # PX4 setpoint stream (NED)
         self.stream_stop = False  # the stream carries a zero velocity instead (a brake)
+        self.stream_yaw: float | None = None  # heading the PX4 stream asks for (Yaw), degrees
+        #: Horizontal speed the vehicle was told (the drone type's, then SetSpeed's).
+        self.horizontal_speed_mps = settings.horizontal_speed_mps
         self.keeper = ParamKeeper(self.link, settings, log)  # speeds set, to restore
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
@@ -182,6 +199,10 @@ class MavlinkVehicle:
         for msg_id, hz in TELEMETRY_INTERVALS.items():
             if time.monotonic() >= deadline:
                 break
+            if msg_id in (MSG_ESTIMATOR_STATUS, MSG_EKF_STATUS_REPORT) and msg_id != (
+                estimator_message(self.autopilot.name)
+            ):
+                continue  # the other autopilot's estimator report
             rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
             result = self.link.command_long(
                 MAV_CMD_SET_MESSAGE_INTERVAL,
@@ -292,30 +313,9 @@ class MavlinkVehicle:
         return math.dist(position, target) <= self.tolerance_m
 
     def capture_origin(self, ground: bool = False) -> None:
-        """Record home at the first fix and, with ``ground``, the ground height before arming."""
-        st = self.state
-        if st.local is None:
-            return
-        if self.origin is None:
-            self.origin = NedOrigin(st.local[0], st.local[1], st.local[2])
-            self.log.info(
-                "adapter.home",
-                north_m=round(st.local[0], 3),
-                east_m=round(st.local[1], 3),
-                down_m=round(st.local[2], 3),
-            )
-        elif ground and not st.armed:
-            self.origin = self.origin.with_ground(st.local[2])
-        if self.geo is None and st.global_pos is not None:
-            # The WGS84 point of home: the vehicle's fix shifted back by where
-            # it stands in the mission frame.
-            g = st.global_pos
-            x, y, z = ned_to_mission(st.local[:3], self.origin)
-            lat0 = g.lat_deg - math.degrees(x / EARTH_RADIUS_M)
-            lon0 = g.lon_deg - math.degrees(
-                y / (EARTH_RADIUS_M * math.cos(math.radians(g.lat_deg)))
-            )
-            self.geo = GeoFrame(lat0, lon0, g.alt_amsl_m - z)
+        """Record home at the first (settled) fix and, with ``ground``, the ground height
+        before arming (:func:`eamos.hal.mavlink.home.capture_home`; condition held)."""
+        capture_home(self, ground)
 
     def sample(self) -> Telemetry | None:
         """A telemetry sample of the current state (None before the first position)."""
@@ -358,7 +358,9 @@ class MavlinkVehicle:
 
     def send_setpoint(self, target: Vector) -> None:
         """SET_POSITION_TARGET_LOCAL_NED, position only, MAV_FRAME_LOCAL_NED."""
-        send_position(self.link, target)
+        with self.cond:
+            yaw = self.stream_yaw
+        send_position(self.link, target, yaw)
 
     def send_guided_target(self, target: GuidedTarget) -> None:
         """A local or global (relative altitude) position target."""

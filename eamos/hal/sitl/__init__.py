@@ -4,7 +4,8 @@ The other end of the MAVLink adapter, for CI and desk tests without an autopilot
 build: :mod:`.core` (vehicle state, arming, modes, steps), one personality per
 autopilot (:mod:`.px4`, :mod:`.ardupilot`), :mod:`.inbox` (commands and their
 acks), :mod:`.streams` (heartbeat and telemetry streams), :mod:`.wire` (MAVLink
-numbers, options), :mod:`.vehicle` (the thread and the connection).
+numbers, options), :mod:`.manoeuvres` (heading, return to launch, orbits),
+:mod:`.payload` (camera and gimbal), :mod:`.vehicle` (the thread and the connection).
 """
 
 from eamos.hal.sitl.vehicle import (

@@ -21,10 +21,12 @@ import math
 
 from eamos.hal.mavlink.autopilots import ARDUCOPTER_MODES, MAV_AUTOPILOT_ARDUPILOTMEGA
 from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.manoeuvres import wrap_deg
 from eamos.hal.sitl.wire import (
     ACCEPTED,
     ARDUPILOT_READY_S,
     FAILED,
+    MSG_EKF_STATUS_REPORT,
     MSG_SYS_STATUS,
     PARAM_REAL32,
     SEV_CRITICAL,
@@ -53,6 +55,8 @@ class ArduPilotPersonality(Personality):
     default_ground_offset_m = 0.0
     default_rates = {MSG_SYS_STATUS: 1.0}  # ArduPilot waits to be asked
     refused = FAILED
+    # Its EKF settles when the pre-arm checks pass (they include it): the default.
+    estimator_msg = MSG_EKF_STATUS_REPORT
     data_streams = True
     land_mode = "LAND"
     text_armable = "EKF3 IMU0 is using GPS"
@@ -82,6 +86,9 @@ class ArduPilotPersonality(Personality):
             "WPNAV_SPEED_DN": (150.0, PARAM_REAL32),
             "WPNAV_ACCEL": (250.0, PARAM_REAL32),
             "FS_GCS_ENABLE": (0.0, PARAM_REAL32),
+            "RTL_ALT": (1500.0, PARAM_REAL32),  # cm
+            "CIRCLE_RADIUS": (1000.0, PARAM_REAL32),  # cm
+            "CIRCLE_RATE": (20.0, PARAM_REAL32),  # deg/s, positive clockwise
         }
 
     def speeds(self, v: VehicleCore) -> tuple[float, float, float]:
@@ -102,7 +109,46 @@ class ArduPilotPersonality(Personality):
         if mode == "BRAKE":
             v.stop_at(BRAKE_DECEL_MPS2)  # the fastest stop ArduCopter has
             return True
+        if mode == "CIRCLE" and v.armed and not v.model.landed:
+            radius = v.params.value("CIRCLE_RADIUS") / 100.0
+            rate = v.params.value("CIRCLE_RATE")
+            if radius < 0.01 or rate == 0:
+                return False  # a zero circle: it just holds (and yaws)
+            # The centre is CIRCLE_RADIUS ahead of the nose; the speed follows from the
+            # rate, capped by WPNAV_SPEED.
+            speed = min(math.radians(abs(rate)) * radius, self.speeds(v)[0])
+            orbit = v.manoeuvres.orbit_ahead(v, radius, speed)
+            orbit.clockwise = rate > 0
+            v.manoeuvres.speed_override_mps = speed
+            v.manoeuvres.start_orbit(v, orbit)
+            return True
         return False
+
+    def rtl_alt_m(self, v: VehicleCore) -> float:
+        return v.params.value("RTL_ALT") / 100.0
+
+    def condition_yaw(self, v: VehicleCore, p: tuple[float, ...]) -> int:
+        # param1 angle (deg), param2 rate, param3 direction (-1 ccw, 1 cw, 0 shortest),
+        # param4 relative (1) or absolute (0).  GUIDED (and AUTO) only.
+        angle, direction, relative = p[0], p[2], p[3]
+        if v.mode != "GUIDED" or not v.armed or v.model.landed or not math.isfinite(angle):
+            return FAILED
+        heading = v.manoeuvres.heading_deg
+        if math.isfinite(relative) and relative >= 0.5:
+            sign = -1.0 if math.isfinite(direction) and direction < 0 else 1.0
+            v.manoeuvres.yaw_to(wrap_deg(heading + sign * angle))
+        else:
+            v.manoeuvres.yaw_to(angle)
+        return ACCEPTED
+
+    def change_speed(self, v: VehicleCore, p: tuple[float, ...]) -> int:
+        # param1 speed type (0 airspeed, 1 ground speed, 2 climb, 3 descent), param2 m/s;
+        # it holds until the next mode change.
+        kind, speed = param_int(p[0], -1), p[1]
+        if kind not in (0, 1) or not math.isfinite(speed) or speed <= 0:
+            return FAILED
+        v.manoeuvres.speed_override_mps = speed
+        return ACCEPTED
 
     def boot(self, v: VehicleCore) -> None:
         if not self._ready_announced and v.t >= ARDUPILOT_READY_S:

@@ -29,14 +29,19 @@ from typing import Any
 
 from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter
 from eamos.hal.sim.core import SIM_DT_S
+from eamos.hal.sitl.manoeuvres import Manoeuvres
+from eamos.hal.sitl.payload import CameraGimbal
 from eamos.hal.sitl.streams import Identity, Send, Status, Streams
 from eamos.hal.sitl.wire import (
     BOOT_S,
+    ESTIMATOR_SETTLED_FLAGS,
+    ESTIMATOR_UNSETTLED_FLAGS,
     LAND_DISARM_S,
     PREARM_TEXT_PERIOD_S,
     SEV_CRITICAL,
     SEV_INFO,
     STATUSTEXT_LEN,
+    UNSUPPORTED,
     AutopilotName,
     VehicleOptions,
 )
@@ -52,6 +57,8 @@ RTL_MODES = frozenset({"AUTO.RTL", "RTL"})
 LAND_DECEL_MPS2 = 1.25
 #: Descent speed in LAND (ArduCopter LAND_SPEED 50 cm/s, PX4 MPC_LAND_SPEED 0.7 m/s).
 LAND_SPEED_MPS = 0.7
+#: GIMBAL_DEVICE_ATTITUDE_STATUS period (simulated seconds).
+GIMBAL_STATUS_PERIOD_S = 0.2
 #: The wandering estimate's correlation time (seconds): slow, like an EKF's drift.
 WANDER_TAU_S = 2.0
 
@@ -86,6 +93,8 @@ class Personality:
     default_ground_offset_m: float = 0.0
     #: What it streams unasked (message id -> Hz, simulated time).
     default_rates: Mapping[int, float]
+    #: Its estimator report (ESTIMATOR_STATUS or EKF_STATUS_REPORT).
+    estimator_msg: int
     #: The MAV_RESULT of a refused command (PX4 DENIED, ArduPilot FAILED).
     refused: int
     #: Whether REQUEST_DATA_STREAM is understood.
@@ -122,6 +131,10 @@ class Personality:
     def preflight_disarm_s(self, v: VehicleCore) -> float:
         """Armed on the ground without a take-off, disarm after this (<= 0: never)."""
         raise NotImplementedError
+
+    def estimator_settle_s(self, options: VehicleOptions) -> float:
+        """When its estimator settles unless the options say (simulated seconds from start)."""
+        return options.prearm_delay_s
 
     #: The mode in which it follows a companion's position and velocity targets.
     target_mode: str
@@ -199,6 +212,27 @@ class Personality:
         """A position target in the model frame: fly there if the mode follows targets."""
         raise NotImplementedError
 
+    # -- manoeuvres (eamos.hal.sitl.manoeuvres); UNSUPPORTED unless the autopilot has them --
+
+    def rtl_alt_m(self, v: VehicleCore) -> float:
+        """The return altitude (m above home) from its parameters."""
+        raise NotImplementedError
+
+    def setpoint_yaw(self, v: VehicleCore, heading_deg: float) -> None:
+        """A setpoint carried a yaw (PX4 OFFBOARD follows it)."""
+
+    def condition_yaw(self, v: VehicleCore, p: tuple[float, ...]) -> int:
+        """MAV_CMD_CONDITION_YAW: the MAV_RESULT."""
+        return UNSUPPORTED
+
+    def orbit(self, v: VehicleCore, p: tuple[float, ...], frame: int | None) -> int:
+        """MAV_CMD_DO_ORBIT: the MAV_RESULT."""
+        return UNSUPPORTED
+
+    def change_speed(self, v: VehicleCore, p: tuple[float, ...]) -> int:
+        """MAV_CMD_DO_CHANGE_SPEED: the MAV_RESULT."""
+        return UNSUPPORTED
+
 
 class ParamTable:
     """The vehicle's parameters: PARAM_REQUEST_LIST/READ and PARAM_SET, each answered with
@@ -267,6 +301,9 @@ class VehicleCore:
         self.model = Quadcopter(o.limits)
         # Set by a brake (BRAKE mode, a zero-velocity target) until the next target.
         self.braking_accel: float | None = None
+        self.manoeuvres = Manoeuvres()  # heading, return to launch, orbits
+        self.camera = CameraGimbal()  # photos, video, the gimbal
+        self._next_gimbal_status = BOOT_S
         self._rng = random.Random(o.seed)
         self.wander: list[float] = [0.0] * 6  # estimate error: x y z (m), vx vy vz (m/s)
         self.offset_m = (
@@ -289,7 +326,16 @@ class VehicleCore:
         self._next_position_log = 0.0
         self._last_position_key: tuple[Any, ...] | None = None
         identity = Identity(
-            personality.mav_autopilot, personality.capabilities, personality.version, o.sysid
+            personality.mav_autopilot,
+            personality.capabilities,
+            personality.version,
+            o.sysid,
+            personality.estimator_msg,
+        )
+        self.settle_s = (
+            o.estimator_settle_s
+            if o.estimator_settle_s is not None
+            else personality.estimator_settle_s(o)
         )
         self.streams = Streams(identity, personality.default_rates, o, self.offset_m, send)
 
@@ -312,6 +358,11 @@ class VehicleCore:
 
     def status(self) -> Status:
         """The vehicle as its streams see it now."""
+        error = list(self.wander)
+        bias = self.estimator_bias()
+        error[0] += bias
+        error[1] += bias
+        erring = self.options.wander_m > 0 or bias != 0.0
         return Status(
             self.t,
             self.model.state,
@@ -319,12 +370,30 @@ class VehicleCore:
             self.p.custom_mode(self.mode),
             self.armed,
             self.armable(),
-            (tuple(self.wander) if self.options.wander_m > 0 else None),  # type: ignore[arg-type]
+            (tuple(error) if erring else None),  # type: ignore[arg-type]
+            ESTIMATOR_SETTLED_FLAGS if self.estimator_settled() else ESTIMATOR_UNSETTLED_FLAGS,
+            self.manoeuvres.heading_deg,
         )
+
+    def estimator_settled(self) -> bool:
+        """The estimator's flags are all good (``settle_s`` after start)."""
+        return self.t >= self.settle_s
+
+    def estimator_bias(self) -> float:
+        """The unsettled estimate's north and east error (m): ``estimator_bias_m`` at start,
+        shrinking linearly to 0 when the estimator settles."""
+        bias = self.options.estimator_bias_m
+        if bias <= 0 or self.estimator_settled() or not math.isfinite(self.settle_s):
+            return 0.0
+        return bias * (1.0 - self.t / self.settle_s) / math.sqrt(2.0)
 
     def send_due(self) -> None:
         """Send the HEARTBEAT and the streams that are due."""
         self.streams.send_due(self.status())
+        if self.t >= self._next_gimbal_status:
+            # A gimbal device broadcasts its attitude by itself (GIMBAL_STATUS_PERIOD_S).
+            self._next_gimbal_status = self.t + GIMBAL_STATUS_PERIOD_S
+            self.send(*self.camera.attitude_status(self.t))
 
     # -- simulated time ------------------------------------------------------------------
 
@@ -344,6 +413,8 @@ class VehicleCore:
         delay = p.preflight_disarm_s(self)
         if self.armed and model.landed and not self.flew and 0 < delay <= t - self.armed_at:
             self.disarm(p.text_preflight_disarm)
+        self.manoeuvres.step(self, SIM_DT_S)
+        self.camera.step(SIM_DT_S)
         model.limits = self.flight_limits()
         model.step(SIM_DT_S)
         self._wander()
@@ -367,6 +438,8 @@ class VehicleCore:
     def flight_limits(self) -> Limits:
         """The model's limits now: the autopilot's speed parameters, the mode's deceleration."""
         horizontal, climb, descent = self.p.speeds(self)
+        if self.manoeuvres.speed_override_mps is not None:
+            horizontal = self.manoeuvres.speed_override_mps
         accel = self.braking_accel or self.p.accel(self)
         if self.mode in LAND_MODES:
             accel, descent = LAND_DECEL_MPS2, LAND_SPEED_MPS
@@ -447,6 +520,7 @@ class VehicleCore:
         self.mode = mode
         self.log.info("vehicle.mode", mode=mode, by=by, t_sim=round(self.t, 3))
         model = self.model
+        self.manoeuvres.mode_changed()
         if self.p.mode_entered(self, mode):
             return
         self.braking_accel = None
@@ -456,9 +530,8 @@ class VehicleCore:
             if model.landed and self.armed:
                 self.touchdown_at = self.t  # already down: disarm soon
         elif mode in RTL_MODES:
-            # Back over the boot point at the current height (landing there is left out).
-            if not model.landed:
-                model.set_target(0.0, 0.0, max(model.position[2], 2.0))
+            # Over the boot point at max(current height, return altitude), then land there.
+            self.manoeuvres.start_rtl(self, self.p.rtl_alt_m(self))
         else:
             model.hold()  # HOLD, LOITER, BRAKE, GUIDED, POSCTL...: stop where it is
 

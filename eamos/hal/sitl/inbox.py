@@ -17,14 +17,23 @@ from eamos.hal.sitl.core import VehicleCore
 from eamos.hal.sitl.wire import (
     ACCEPTED,
     CMD_COMPONENT_ARM_DISARM,
+    CMD_CONDITION_YAW,
+    CMD_DO_CHANGE_SPEED,
+    CMD_DO_GIMBAL_MANAGER_PITCHYAW,
+    CMD_DO_MOUNT_CONTROL,
+    CMD_DO_ORBIT,
     CMD_DO_REPOSITION,
     CMD_DO_SET_MODE,
     CMD_GET_HOME_POSITION,
+    CMD_IMAGE_START_CAPTURE,
     CMD_NAV_LAND,
+    CMD_NAV_RETURN_TO_LAUNCH,
     CMD_NAV_TAKEOFF,
     CMD_REQUEST_AUTOPILOT_CAPABILITIES,
     CMD_REQUEST_MESSAGE,
     CMD_SET_MESSAGE_INTERVAL,
+    CMD_VIDEO_START_CAPTURE,
+    CMD_VIDEO_STOP_CAPTURE,
     DENIED,
     FORCE_MAGIC,
     FRAME_GLOBAL,
@@ -34,6 +43,7 @@ from eamos.hal.sitl.wire import (
     FRAME_LOCAL_NED,
     IGNORE_POSITION,
     IGNORE_VELOCITY,
+    IGNORE_YAW,
     MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
     MSG_AUTOPILOT_VERSION,
     MSG_HOME_POSITION,
@@ -104,6 +114,15 @@ class Inbox:
             CMD_NAV_TAKEOFF: lambda p, f: self.v.p.takeoff(self.v, p),
             CMD_NAV_LAND: self._cmd_land,
             CMD_DO_REPOSITION: self._cmd_reposition,
+            CMD_NAV_RETURN_TO_LAUNCH: self._cmd_return_to_launch,
+            CMD_CONDITION_YAW: lambda p, f: self.v.p.condition_yaw(self.v, p),
+            CMD_DO_ORBIT: lambda p, f: self.v.p.orbit(self.v, p, f),
+            CMD_DO_CHANGE_SPEED: lambda p, f: self.v.p.change_speed(self.v, p),
+            CMD_IMAGE_START_CAPTURE: lambda p, f: self.v.camera.capture(self.v, p),
+            CMD_VIDEO_START_CAPTURE: lambda p, f: self.v.camera.video(self.v, True),
+            CMD_VIDEO_STOP_CAPTURE: lambda p, f: self.v.camera.video(self.v, False),
+            CMD_DO_GIMBAL_MANAGER_PITCHYAW: lambda p, f: self.v.camera.point(self.v, p[0]),
+            CMD_DO_MOUNT_CONTROL: lambda p, f: self.v.camera.point(self.v, p[0]),
             CMD_SET_MESSAGE_INTERVAL: lambda p, f: self.v.streams.set_interval(
                 param_int(p[0], -1), p[1], self.v.t
             ),
@@ -166,6 +185,14 @@ class Inbox:
         self.v.p.landing(self.v)
         return ACCEPTED
 
+    def _cmd_return_to_launch(self, p: tuple[float, ...], frame: int | None) -> int:
+        if not self.v.armed or self.v.model.landed:
+            return self.v.p.refused
+        rtl = "AUTO.RTL" if "AUTO.RTL" in self.v.p.modes else "RTL"
+        if self.v.mode != rtl:
+            self.v.enter_mode(rtl, "return to launch command")
+        return ACCEPTED
+
     def _cmd_reposition(self, p: tuple[float, ...], frame: int | None) -> int:
         model = self.v.model
         if not self.v.armed or model.landed:
@@ -203,6 +230,9 @@ class Inbox:
         self.v.p.setpoint(self.v)
         if msg.coordinate_frame != FRAME_LOCAL_NED:
             return
+        yaw = getattr(msg, "yaw", math.nan)
+        if not msg.type_mask & IGNORE_YAW and math.isfinite(yaw):
+            self.v.p.setpoint_yaw(self.v, math.degrees(yaw))
         if msg.type_mask & IGNORE_POSITION:
             if not msg.type_mask & IGNORE_VELOCITY:
                 # NED velocity -> model frame (z up); only a stop is simulated.

@@ -27,11 +27,13 @@ import struct
 
 from eamos.hal.mavlink.autopilots import MAV_AUTOPILOT_PX4, PX4_MODES, px4_custom_mode
 from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.manoeuvres import Orbit
 from eamos.hal.sitl.wire import (
     ACCEPTED,
     DEFAULT_STREAM_RATES,
     DENIED,
     LAND_DISARM_S,
+    MSG_ESTIMATOR_STATUS,
     OFFBOARD_LOSS_S,
     OFFBOARD_LOSS_WALL_S,
     PARAM_INT32,
@@ -46,6 +48,12 @@ from eamos.hal.sitl.wire import (
 #: The speed OFFBOARD position targets were seen to fly at (PX4 main, SIH), below
 #: MPC_XY_VEL_MAX's default of 12 m/s.
 OFFBOARD_CRUISE_MPS = 6.0
+#: PX4 main accepts arming 2-4 s after start, but its estimate settles only later (the
+#: notes: "flights armed that early drift the most"): ESTIMATOR_STATUS flags settle
+#: this many simulated seconds after start (at least ESTIMATOR_AFTER_ARMABLE_S after the
+#: pre-arm delay).
+ESTIMATOR_SETTLE_S = 6.0
+ESTIMATOR_AFTER_ARMABLE_S = 2.0
 #: Modes a GCS cannot switch to without an RC transmitter.
 _RC_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"})
 _BY_NUMBERS = {pair: name for name, pair in PX4_MODES.items()}
@@ -65,6 +73,7 @@ class Px4Personality(Personality):
     default_ground_offset_m = 1.5
     default_rates = DEFAULT_STREAM_RATES  # PX4's onboard link streams a lot by default
     refused = DENIED
+    estimator_msg = MSG_ESTIMATOR_STATUS
     land_mode = "AUTO.LAND"
     text_armable = "Ready for takeoff!"
     text_not_ready = "Preflight Fail: ekf2 missing data"
@@ -103,6 +112,7 @@ class Px4Personality(Personality):
             "MPC_Z_VEL_MAX_DN": (1.5, PARAM_REAL32),
             "MPC_ACC_HOR": (3.0, PARAM_REAL32),
             "MPC_ACC_HOR_MAX": (5.0, PARAM_REAL32),
+            "RTL_RETURN_ALT": (60.0, PARAM_REAL32),
         }
 
     def speeds(self, v: VehicleCore) -> tuple[float, float, float]:
@@ -119,6 +129,9 @@ class Px4Personality(Personality):
 
     def preflight_disarm_s(self, v: VehicleCore) -> float:
         return v.params.value("COM_DISARM_PRFLT")
+
+    def estimator_settle_s(self, options: VehicleOptions) -> float:
+        return max(ESTIMATOR_SETTLE_S, options.prearm_delay_s + ESTIMATOR_AFTER_ARMABLE_S)
 
     def velocity_target(self, v: VehicleCore, velocity: tuple[float, float, float]) -> None:
         super().velocity_target(v, velocity)
@@ -240,6 +253,33 @@ class Px4Personality(Personality):
 
     def setpoint(self, v: VehicleCore) -> None:
         self._last_sp_t, self._last_sp_wall = v.t, v.wall()
+
+    # -- manoeuvres ------------------------------------------------------------------------
+
+    def rtl_alt_m(self, v: VehicleCore) -> float:
+        return v.params.value("RTL_RETURN_ALT")
+
+    def setpoint_yaw(self, v: VehicleCore, heading_deg: float) -> None:
+        if v.mode == "OFFBOARD" and v.armed:
+            v.manoeuvres.yaw_to(heading_deg)
+
+    def orbit(self, v: VehicleCore, p: tuple[float, ...], frame: int | None) -> int:
+        # param1 radius (positive: clockwise), param2 tangential speed (NaN: MPC_XY_CRUISE),
+        # x/y the centre (COMMAND_INT: degrees * 1e7).
+        radius, speed, lat, lon = p[0], p[1], p[4], p[5]
+        if not v.armed or v.model.landed or not math.isfinite(radius) or abs(radius) < 1.0:
+            return DENIED
+        if frame is not None:
+            lat, lon = lat / 1e7, lon / 1e7
+        if not (math.isfinite(lat) and math.isfinite(lon)):
+            return DENIED
+        if not math.isfinite(speed) or speed <= 0:
+            speed = v.params.value("MPC_XY_CRUISE")
+        cx, cy, _ = v.frame.from_lla(lat, lon, 0.0)
+        v.enter_mode("ORBIT", "orbit command")
+        v.manoeuvres.speed_override_mps = min(speed, v.params.value("MPC_XY_VEL_MAX"))
+        v.manoeuvres.start_orbit(v, Orbit(cx, cy, abs(radius), speed, clockwise=radius > 0))
+        return ACCEPTED
 
     def position_target(self, v: VehicleCore, target: tuple[float, float, float]) -> None:
         self._offboard_target = target

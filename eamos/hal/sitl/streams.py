@@ -35,6 +35,8 @@ from eamos.hal.sitl.wire import (
     MSG_ATTITUDE,
     MSG_AUTOPILOT_VERSION,
     MSG_BATTERY_STATUS,
+    MSG_EKF_STATUS_REPORT,
+    MSG_ESTIMATOR_STATUS,
     MSG_EXTENDED_SYS_STATE,
     MSG_GLOBAL_POSITION_INT,
     MSG_GPS_RAW_INT,
@@ -68,6 +70,10 @@ class Status:
     armable: bool
     #: The position estimate's error (x y z m, vx vy vz m/s, mission frame), or None.
     wander: tuple[float, float, float, float, float, float] | None = None
+    #: ESTIMATOR_STATUS / EKF_STATUS_REPORT flags (0: not reported).
+    estimator_flags: int = 0
+    #: Compass heading (degrees, 0 north, 90 east).
+    heading_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -78,6 +84,15 @@ class Identity:
     capabilities: int
     version: int
     sysid: int
+    #: Its estimator report: ESTIMATOR_STATUS (PX4) or EKF_STATUS_REPORT (ArduPilot).
+    estimator_msg: int = MSG_ESTIMATOR_STATUS
+
+    @property
+    def foreign_msg(self) -> int:
+        """The other autopilot's estimator report, which this one never sends."""
+        if self.estimator_msg == MSG_ESTIMATOR_STATUS:
+            return MSG_EKF_STATUS_REPORT
+        return MSG_ESTIMATOR_STATUS
 
 
 class Streams:
@@ -93,6 +108,7 @@ class Streams:
     ) -> None:
         self._identity = identity
         self._rates: dict[int, float] = dict(rates)
+        self._rates.pop(identity.foreign_msg, None)
         self._due: dict[int, float] = {}
         self._next_heartbeat = BOOT_S
         self._options = options
@@ -108,7 +124,7 @@ class Streams:
             interval_us = 0.0
         if msg_id == MSG_HEARTBEAT:
             return FAILED if 0 < interval_us < 1e6 else ACCEPTED  # HEARTBEAT stays 1 Hz
-        if msg_id not in STREAMABLE:
+        if msg_id not in STREAMABLE or msg_id == self._identity.foreign_msg:
             return UNSUPPORTED
         if interval_us < 0:
             self._rates.pop(msg_id, None)
@@ -126,6 +142,8 @@ class Streams:
         else:
             groups = [DATA_STREAMS.get(stream_id, ())]
         for msg_id in (m for group in groups for m in group):
+            if msg_id == self._identity.foreign_msg:
+                continue
             if start and rate_hz > 0:
                 self._rates[msg_id] = float(rate_hz)
                 self._due[msg_id] = t_s
@@ -198,7 +216,16 @@ class Streams:
             ),
             MSG_SYS_STATUS: lambda: self._sys_status(status),
             MSG_EXTENDED_SYS_STATE: lambda: ("extended_sys_state", 0, _landed_state(status)),
-            MSG_ATTITUDE: lambda: ("attitude", ms, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            MSG_ATTITUDE: lambda: (
+                "attitude",
+                ms,
+                0.0,
+                0.0,
+                math.remainder(math.radians(status.heading_deg), 2 * math.pi),
+                0.0,
+                0.0,
+                0.0,
+            ),
             MSG_BATTERY_STATUS: lambda: _battery_status(st),
             MSG_HOME_POSITION: lambda: self._home_position(t),
             MSG_GPS_RAW_INT: lambda: (
@@ -221,7 +248,22 @@ class Streams:
                 0,
             ),
             MSG_AUTOPILOT_VERSION: self._autopilot_version,
+            MSG_ESTIMATOR_STATUS: lambda: (
+                "estimator_status",
+                int(t * 1e6),
+                status.estimator_flags,
+                *(0.1, 0.1, 0.1, 0.1, 0.0, 0.0),
+                math.hypot(w[0], w[1]) + 0.05,
+                abs(w[2]) + 0.05,
+            ),
+            MSG_EKF_STATUS_REPORT: lambda: (
+                "ekf_status_report",
+                status.estimator_flags,
+                *(0.1, 0.1, 0.1, 0.1, 0.0, 0.0),
+            ),
         }
+        if msg_id == self._identity.foreign_msg:
+            return
         encode = encoders.get(msg_id)
         if encode is not None:
             self._send(*encode())

@@ -150,6 +150,8 @@ class SimVehicle:
             disarm_after_s=o.disarm_after_s,
             wander_m=o.wander_m,
             seed=o.seed,
+            estimator_settle_s=self._core.settle_s,
+            estimator_bias_m=o.estimator_bias_m,
             signing=o.signing_key is not None,
         )
         self._thread = threading.Thread(
@@ -229,6 +231,12 @@ class SimVehicle:
         """The model's current setpoint (x north, y east, z up), or None."""
         with self._lock:
             return self._core.model.target
+
+    @property
+    def heading_deg(self) -> float:
+        """The compass heading (degrees, 0 north, 90 east)."""
+        with self._lock:
+            return self._core.manoeuvres.heading_deg
 
     @property
     def sim_time_s(self) -> float:

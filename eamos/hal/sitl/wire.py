@@ -42,6 +42,10 @@ FORCE_MAGIC = 21196  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (disarm in the
 CMD_NAV_LAND, CMD_NAV_TAKEOFF = 21, 22
 CMD_DO_SET_MODE, CMD_DO_REPOSITION = 176, 192
 CMD_COMPONENT_ARM_DISARM = 400
+CMD_NAV_RETURN_TO_LAUNCH, CMD_DO_ORBIT, CMD_CONDITION_YAW = 20, 34, 115
+CMD_DO_CHANGE_SPEED = 178
+CMD_DO_MOUNT_CONTROL, CMD_DO_GIMBAL_MANAGER_PITCHYAW = 205, 1000
+CMD_IMAGE_START_CAPTURE, CMD_VIDEO_START_CAPTURE, CMD_VIDEO_STOP_CAPTURE = 2000, 2500, 2501
 CMD_GET_HOME_POSITION = 410
 CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 511, 512
 CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
@@ -50,6 +54,13 @@ MSG_HEARTBEAT, MSG_SYS_STATUS, MSG_GPS_RAW_INT, MSG_ATTITUDE = 0, 1, 24, 30
 MSG_LOCAL_POSITION_NED, MSG_GLOBAL_POSITION_INT = 32, 33
 MSG_BATTERY_STATUS, MSG_AUTOPILOT_VERSION = 147, 148
 MSG_HOME_POSITION, MSG_EXTENDED_SYS_STATE = 242, 245
+#: The estimator's health: PX4's ESTIMATOR_STATUS, ArduPilot's EKF_STATUS_REPORT.
+MSG_ESTIMATOR_STATUS, MSG_EKF_STATUS_REPORT = 230, 193
+#: ESTIMATOR_STATUS_FLAGS / EKF_STATUS_FLAGS (the same bits up to 512): a settled
+#: estimate has attitude, velocity, relative and absolute position, height, predictions.
+ESTIMATOR_SETTLED_FLAGS = 1 | 2 | 4 | 8 | 16 | 32 | 256 | 512
+#: ...an unsettled one: attitude, velocity, height, and "constant position mode".
+ESTIMATOR_UNSETTLED_FLAGS = 1 | 2 | 4 | 32 | 128
 STREAMABLE = frozenset(
     {
         MSG_SYS_STATUS,
@@ -60,6 +71,8 @@ STREAMABLE = frozenset(
         MSG_BATTERY_STATUS,
         MSG_HOME_POSITION,
         MSG_EXTENDED_SYS_STATE,
+        MSG_ESTIMATOR_STATUS,
+        MSG_EKF_STATUS_REPORT,
     }
 )
 #: The rate (Hz, simulated time) a stream returns to when MAV_CMD_SET_MESSAGE_INTERVAL
@@ -73,13 +86,16 @@ DEFAULT_STREAM_RATES: Mapping[int, float] = {
     MSG_HOME_POSITION: 0.5,
     MSG_GPS_RAW_INT: 1.0,
     MSG_BATTERY_STATUS: 0.5,
+    MSG_ESTIMATOR_STATUS: 1.0,
+    MSG_EKF_STATUS_REPORT: 1.0,
 }
 #: ArduPilot's REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) of the messages simulated here.
 DATA_STREAMS: dict[int, tuple[int, ...]] = {
     2: (MSG_SYS_STATUS, MSG_GPS_RAW_INT),  # EXTENDED_STATUS
     6: (MSG_GLOBAL_POSITION_INT, MSG_LOCAL_POSITION_NED),  # POSITION
     10: (MSG_ATTITUDE,),  # EXTRA1
-    12: (MSG_BATTERY_STATUS, MSG_EXTENDED_SYS_STATE, MSG_HOME_POSITION),  # EXTRA3
+    # EXTRA3
+    12: (MSG_BATTERY_STATUS, MSG_EXTENDED_SYS_STATE, MSG_HOME_POSITION, MSG_EKF_STATUS_REPORT),
 }
 
 FRAME_GLOBAL, FRAME_LOCAL_NED, FRAME_GLOBAL_RELATIVE_ALT = 0, 1, 3
@@ -87,6 +103,8 @@ FRAME_GLOBAL_INT, FRAME_GLOBAL_RELATIVE_ALT_INT = 5, 6
 #: SET_POSITION_TARGET type_mask bits meaning "ignore x, y, z" and "ignore vx, vy, vz".
 IGNORE_POSITION = 0x7
 IGNORE_VELOCITY = 0x38
+#: ...and "ignore yaw".
+IGNORE_YAW = 0x400
 
 PARAM_INT32, PARAM_REAL32 = 6, 9
 #: MAV_SYS_STATUS sensors every simulated vehicle has and reports healthy.
@@ -151,6 +169,13 @@ class VehicleOptions:
     #: Sudden death: this many simulated seconds after leaving the ground the vehicle
     #: stops dead (no message, no goodbye), like a crashed autopilot process.
     die_after_s: float | None = None
+    #: Simulated seconds from start until the estimator settles (ESTIMATOR_STATUS /
+    #: EKF_STATUS_REPORT flags); None: the personality's (PX4 6 s, after it already
+    #: accepts arming at ``prearm_delay_s``, as PX4 main does; ArduPilot: armable).
+    estimator_settle_s: float | None = None
+    #: The unsettled estimate's horizontal error at start (m, north-east), shrinking to 0
+    #: when it settles: whatever is anchored to an early estimate (home) is off by it.
+    estimator_bias_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.autopilot not in ("px4", "ardupilot"):
@@ -167,6 +192,10 @@ class VehicleOptions:
             raise ValueError("prearm delay must be >= 0 and disarm-after > 0")
         if not self.wander_m >= 0:
             raise ValueError("wander must be >= 0")
+        if self.estimator_settle_s is not None and not self.estimator_settle_s >= 0:
+            raise ValueError("estimator settle time must be >= 0")
+        if not self.estimator_bias_m >= 0:
+            raise ValueError("estimator bias must be >= 0")
 
 
 def parse_reject(specs: Iterable[str]) -> dict[int, int]:

@@ -1,0 +1,295 @@
+"""ReturnHome, Hold, Yaw, SetSpeed and Orbit on a MAVLink autopilot, each the way it flies them.
+
+=========== ============================================ ===========================================
+action      PX4                                          ArduCopter
+=========== ============================================ ===========================================
+ReturnHome  RTL_RETURN_ALT = current height (m), then    RTL_ALT = current height (cm), then
+            MAV_CMD_NAV_RETURN_TO_LAUNCH: AUTO.RTL flies MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL flies
+            over home, lands, disarms                    over home, lands, disarms
+Hold        mode HOLD (AUTO.LOITER) for the duration     mode LOITER for the duration
+Yaw         the OFFBOARD setpoints carry the yaw         MAV_CMD_CONDITION_YAW in GUIDED
+SetSpeed    MPC_XY_VEL_MAX and MPC_XY_CRUISE (DO_CHANGE_ WPNAV_SPEED (cm/s), and in GUIDED
+            SPEED is ignored in OFFBOARD)                MAV_CMD_DO_CHANGE_SPEED (lasts until the
+                                                         next mode change)
+Orbit       MAV_CMD_DO_ORBIT (COMMAND_INT: centre lat/   CIRCLE_RADIUS (cm) and CIRCLE_RATE (deg/s),
+            lon, radius positive = clockwise, speed):    then mode CIRCLE (its centre is the radius
+            mode ORBIT                                   ahead of the nose)
+=========== ============================================ ===========================================
+
+Every parameter changed is put back at close (:class:`~eamos.hal.mavlink.keeper.ParamKeeper`).
+Completion is read from telemetry: ReturnHome when the vehicle is landed and
+disarmed; Yaw when ATTITUDE's heading is within :data:`YAW_TOLERANCE_DEG`; Orbit
+when the angle flown around the centre (unwrapped from LOCAL_POSITION_NED)
+reaches ``turns`` full circles, after which the vehicle flies back to where it
+started (in the motion mode) and settles there.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from eamos.hal.api import ActionResult
+from eamos.hal.mavlink.flight import Flight, RunControl
+from eamos.hal.mavlink.frames import mission_to_ned
+from eamos.hal.mavlink.link import LinkState
+from eamos.hal.mavlink.waits import Failed, Run
+from eamos.program.uniform import Hold, Orbit, ReturnHome, SetSpeed, Yaw
+
+#: The commands :func:`perform_manoeuvre` runs.
+MANOEUVRES = (ReturnHome, Hold, Yaw, SetSpeed, Orbit)
+
+MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
+MAV_CMD_DO_ORBIT = 34
+MAV_CMD_DO_CHANGE_SPEED = 178
+MAV_FRAME_GLOBAL_INT = 5
+#: A Yaw is done within this many degrees of the heading.
+YAW_TOLERANCE_DEG = 2.0
+#: Orbits fly at most this centripetal acceleration (m/s/s): v <= sqrt(a r).
+ORBIT_ACCEL_MPS2 = 2.0
+#: After landing at home, the autopilot disarms within this long (vehicle seconds).
+DISARM_AFTER_LANDING_S = 10.0
+
+
+def heading_error_deg(heading: float, target: float) -> float:
+    """The shortest signed turn from ``heading`` to ``target`` (degrees, pure)."""
+    return (target - heading + 180.0) % 360.0 - 180.0
+
+
+def orbit_centre(
+    start: tuple[float, float, float], heading_deg: float, radius_m: float
+) -> tuple[float, float]:
+    """The point ``radius_m`` ahead of ``start`` along the compass heading (mission x, y)."""
+    h = math.radians(heading_deg)
+    return start[0] + radius_m * math.cos(h), start[1] + radius_m * math.sin(h)
+
+
+def orbit_speed_mps(speed_mps: float, radius_m: float) -> float:
+    """The speed an orbit of ``radius_m`` flies at (capped by :data:`ORBIT_ACCEL_MPS2`)."""
+    return min(speed_mps, math.sqrt(ORBIT_ACCEL_MPS2 * radius_m))
+
+
+class AngleFlown:
+    """The clockwise angle (radians) flown around a centre, unwrapped sample by sample."""
+
+    def __init__(self, cx: float, cy: float) -> None:
+        self.cx, self.cy = cx, cy
+        self.total = 0.0
+        self._last: float | None = None
+
+    def add(self, x: float, y: float) -> float:
+        """Fold in one position (mission x north, y east); the total so far."""
+        bearing = math.atan2(y - self.cy, x - self.cx)  # grows clockwise seen from above
+        if self._last is not None:
+            self.total += math.remainder(bearing - self._last, 2 * math.pi)
+        self._last = bearing
+        return self.total
+
+
+def perform_manoeuvre(flight: Flight, run: Run) -> ActionResult:
+    """Run ReturnHome, Hold, Yaw, SetSpeed or Orbit to its end (see module docstring);
+    raises like :meth:`~eamos.hal.mavlink.flight.Flight.perform`."""
+    command = run.command
+    assert command is not None
+    ctl = RunControl(flight, run)
+    with flight.v.cond:
+        flight.waiter.raise_if_over(run)
+    flight.await_hold()  # a cancel's brake and hold finish first
+    if isinstance(command, SetSpeed):
+        return set_speed(flight, ctl, command.speed_m_s)
+    _need_flying(flight)
+    if isinstance(command, ReturnHome):
+        return return_home(flight, run, ctl)
+    if isinstance(command, Hold):
+        return hold(flight, run, ctl, command.duration_s)
+    if isinstance(command, Yaw):
+        return yaw(flight, run, ctl, command.heading_deg)
+    if isinstance(command, Orbit):
+        return orbit(flight, run, ctl, command.radius_m, command.turns)
+    raise Failed(f"{command.action} is not an action this vehicle flies")
+
+
+def _need_flying(flight: Flight) -> None:
+    v = flight.v
+    with v.cond:
+        if not v.state.armed:
+            raise Failed("not armed")
+        if v.on_ground(v.state) or v.origin is None:
+            raise Failed("not flying")
+
+
+def _set(flight: Flight, name: str, value: float) -> None:
+    if not flight.v.keeper.set_param(name, value):
+        raise Failed(f"the vehicle did not take parameter {name} = {value:g}")
+
+
+def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
+    """Back above home at the current height, land there and disarm (the autopilot's RTL)."""
+    v, s, waiter = flight.v, flight.s, flight.waiter
+    flight.brake(run, ctl)  # at rest first: RTL's own turn would overshoot at speed
+    with v.cond:
+        height = v.mission_position()[2]
+    _set(flight, *v.autopilot.return_altitude(height))
+    ctl.command(MAV_CMD_NAV_RETURN_TO_LAUNCH, (0.0,) * 7)
+    with v.cond:
+        v.stop_steering()  # the autopilot flies now; our targets would fight it
+    modes = frozenset({v.autopilot.rtl_mode, v.autopilot.land_mode})
+    waiter.confirm_modes(run, modes, done=v.landed)
+    waiter.wait(
+        run,
+        v.landed,
+        run.started + s.scaled(s.action_timeout_s),
+        waiter.timeout_reason("not back home and landed"),
+        guard=waiter.guard(modes, need_armed=False, unless=v.landed),
+    )
+    waiter.wait(
+        run,
+        lambda st: not st.armed,
+        time.monotonic() + s.scaled(DISARM_AFTER_LANDING_S) + waiter.confirm_s(),
+        lambda st: "landed at home but the vehicle did not disarm",
+    )
+    with v.cond:
+        v.stop_steering()
+        v.commanded = None
+        flight.armed_by_us = False
+    return ActionResult("ok")
+
+
+def hold(flight: Flight, run: Run, ctl: RunControl, duration_s: float) -> ActionResult:
+    """Hover in the autopilot's hold mode (PX4 HOLD, ArduCopter LOITER) for ``duration_s``."""
+    v, s, waiter = flight.v, flight.s, flight.waiter
+    if duration_s < 0:
+        raise Failed("duration_s must be >= 0")
+    mode = v.autopilot.hold_mode
+    ctl.set_mode(mode)
+    waiter.wait(
+        run,
+        lambda st: False,
+        run.started + s.scaled(duration_s),
+        lambda st: "",
+        guard=waiter.guard(frozenset({mode})),
+        quiet_timeout=True,
+    )
+    return ActionResult("ok")
+
+
+def yaw(flight: Flight, run: Run, ctl: RunControl, heading_deg: float) -> ActionResult:
+    """Turn on the spot to ``heading_deg``; done when ATTITUDE shows it."""
+    v, s, waiter = flight.v, flight.s, flight.waiter
+    target = heading_deg % 360.0
+    with v.cond:
+        here = v.base_point()
+        v.commanded = here
+        assert v.origin is not None
+        here_ned = mission_to_ned(here, v.origin)
+    v.autopilot.yaw(ctl, here_ned, target)
+    modes = frozenset({v.autopilot.motion_mode})
+    waiter.confirm_modes(run, modes, done=lambda st: False)
+
+    def turned(st: LinkState) -> bool:
+        return (
+            st.heading_deg is not None
+            and abs(heading_error_deg(st.heading_deg, target)) <= YAW_TOLERANCE_DEG
+        )
+
+    waiter.wait(
+        run,
+        turned,
+        run.started + s.scaled(s.action_timeout_s),
+        lambda st: (
+            f"timeout after {s.action_timeout_s:g} s: heading {st.heading_deg} not "
+            f"{target:g} (no ATTITUDE?)"
+        ),
+        guard=waiter.guard(modes),
+    )
+    return ActionResult("ok")
+
+
+def set_speed(flight: Flight, ctl: RunControl, speed_mps: float) -> ActionResult:
+    """Fly later horizontal moves at ``speed_mps`` (parameters, restored at close)."""
+    v = flight.v
+    if not speed_mps > 0:
+        raise Failed("speed_m_s must be > 0")
+    for name, value in v.autopilot.speed_params(speed_mps):
+        _set(flight, name, value)
+    if v.autopilot.name == "ardupilot" and ctl.mode() == "GUIDED":
+        # Effective at once, mid-flight: param1 1 = ground speed, param3 -1: throttle as is.
+        ctl.command(MAV_CMD_DO_CHANGE_SPEED, (1.0, speed_mps, -1.0, 0.0, 0.0, 0.0, 0.0))
+    with v.cond:
+        v.horizontal_speed_mps = speed_mps
+    return ActionResult("ok")
+
+
+def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: float) -> ActionResult:
+    """Circle ``turns`` times clockwise around the point ``radius_m`` ahead, end at the start."""
+    v, s, waiter = flight.v, flight.s, flight.waiter
+    if not radius_m > 0 or not turns > 0:
+        raise Failed("radius_m and turns must be > 0")
+    with v.cond:
+        heading = v.state.heading_deg
+        if heading is None:
+            raise Failed("no ATTITUDE from the vehicle: its heading (and so the centre) unknown")
+        start = v.base_point()
+        cx, cy = orbit_centre(start, heading, radius_m)
+        speed = orbit_speed_mps(v.horizontal_speed_mps, radius_m)
+        geo = v.geo
+    autopilot = v.autopilot
+    if autopilot.name == "px4":
+        if geo is None:
+            raise Failed("no GLOBAL_POSITION_INT from the vehicle: cannot place the centre")
+        lat, lon, _ = geo.to_lla(cx, cy, start[2])
+        # param1 radius (> 0: clockwise), param2 speed, param3 0: nose to the centre,
+        # param4 NaN: orbit until told otherwise; z NaN: at the current altitude.
+        nan = math.nan
+        ctl.command(
+            MAV_CMD_DO_ORBIT, (radius_m, speed, 0.0, nan, lat, lon, nan), MAV_FRAME_GLOBAL_INT
+        )
+    else:
+        _set(flight, "CIRCLE_RADIUS", round(radius_m * 100.0))
+        _set(flight, "CIRCLE_RATE", round(math.degrees(speed / radius_m), 2))
+        ctl.set_mode(autopilot.orbit_mode)
+    modes = frozenset({autopilot.orbit_mode})
+    waiter.confirm_modes(run, modes, done=lambda st: False)
+    flown = AngleFlown(cx, cy)
+    goal = turns * 2 * math.pi
+
+    def around(st: LinkState) -> bool:
+        if st.local is None:
+            return False
+        x, y, _ = v.mission_position(st)
+        return flown.add(x, y) >= goal
+
+    lap_s = 2 * math.pi * radius_m / speed
+    waiter.wait(
+        run,
+        around,
+        time.monotonic() + s.scaled(s.action_timeout_s + 2 * turns * lap_s),
+        lambda st: f"orbit not finished: {math.degrees(flown.total):.0f} of {turns * 360:g} deg",
+        guard=waiter.guard(modes),
+    )
+    # Back to where it started, in the motion mode, and settled there.
+    with v.cond:
+        v.commanded = start
+        assert v.origin is not None
+        start_ned = mission_to_ned(start, v.origin)
+    autopilot.goto(ctl, start_ned)
+    motion = frozenset({autopilot.motion_mode})
+    waiter.confirm_modes(run, motion, done=lambda st: False)
+    waiter.wait(
+        run,
+        lambda st: v.settled(st, start),
+        time.monotonic() + s.scaled(s.action_timeout_s),
+        waiter.timeout_reason("orbit's start point not reached again"),
+        guard=waiter.guard(motion),
+    )
+    return ActionResult("ok")
+
+
+__all__ = [
+    "MANOEUVRES",
+    "AngleFlown",
+    "heading_error_deg",
+    "orbit_centre",
+    "orbit_speed_mps",
+    "perform_manoeuvre",
+]
