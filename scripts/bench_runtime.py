@@ -18,6 +18,12 @@ Measures, each in fresh processes:
   ``eamos-node`` processes started from configs (:mod:`tests.support.netlab`), with
   CURVE on and off (plain, loopback), and with CURVE under 10 % random packet
   loss (iptables in a network namespace; needs root, else reported skipped).
+* ``reference_hops``: the floors the two trigger paths are compared with, in
+  fresh processes of the same run: a pykka ``tell`` hop (a chain of actors
+  passing one message along, per hop) and a raw ZeroMQ CURVE hop between two
+  processes on loopback (PUB/SUB both ways, half a round trip, p50/p99); and
+  the ratios ``local_trigger`` / pykka hop and ``cross_drone`` p50 / CURVE hop
+  (issue 15's targets: at most 5 and 3).
 * ``net_bytes``: what one trigger costs on the network: its message (topic +
   msgpack payload), its acknowledgement, and the bytes on the wire (IP packets
   counted by iptables in a namespace, CURVE on and off; needs root).
@@ -200,6 +206,114 @@ def bench_mission(tmp: Path, drones: int, blocks: int, per_drone: int) -> dict:
         "first_to_last_action_s": round(max(ends) - min(starts), 3),
         "eamos_run_wall_s": round(data["_wall_s"], 2),
         "triggers_sent": sum(r["triggers_sent"] for r in data["drones"].values()),
+    }
+
+
+# -- reference hops: what a trigger path is compared with --------------------------------
+
+_PYKKA_CHILD = r"""
+import json, sys, threading, time, pykka
+n, rounds = int(sys.argv[1]), int(sys.argv[2])
+done = threading.Event()
+class Hop(pykka.ThreadingActor):
+    def __init__(self, nxt):
+        super().__init__()
+        self.nxt = nxt
+    def on_receive(self, message):
+        if self.nxt is None:
+            done.set()
+        else:
+            self.nxt.tell(message)
+chain = None
+for _ in range(n):
+    chain = Hop.start(chain)
+best = float("inf")
+for _ in range(rounds):
+    done.clear()
+    t0 = time.perf_counter()
+    chain.tell({"hop": 1})
+    done.wait(60)
+    best = min(best, (time.perf_counter() - t0) / (n - 1))
+pykka.ActorRegistry.stop_all()
+print(json.dumps({"actors": n, "per_hop_us": round(best * 1e6, 1)}))
+"""
+
+_CURVE_ECHO = r"""
+import sys, zmq
+server_pub, server_sec, client_pub, client_sec, port_me, port_peer, n = sys.argv[1:8]
+ctx = zmq.Context()
+pub = ctx.socket(zmq.PUB)
+pub.curve_server = True
+pub.curve_publickey, pub.curve_secretkey = server_pub.encode(), server_sec.encode()
+pub.bind(f"tcp://127.0.0.1:{port_me}")
+sub = ctx.socket(zmq.SUB)
+sub.curve_serverkey = server_pub.encode()
+sub.curve_publickey, sub.curve_secretkey = client_pub.encode(), client_sec.encode()
+sub.setsockopt(zmq.SUBSCRIBE, b"")
+sub.connect(f"tcp://127.0.0.1:{port_peer}")
+ping = sys.argv[8] == "ping"
+import time, json
+lat = []
+if ping:
+    while True:  # until the echo is subscribed and answering
+        pub.send(b"hello")
+        if sub.poll(100):
+            sub.recv()
+            break
+    while sub.poll(200):
+        sub.recv()
+    for _ in range(int(n)):
+        t0 = time.perf_counter()
+        pub.send(b"x" * 90)
+        sub.recv()
+        lat.append((time.perf_counter() - t0) / 2 * 1e3)
+    pub.send(b"end")
+    lat.sort()
+    print(json.dumps({"hops": len(lat), "p50_ms": round(lat[len(lat) // 2], 4),
+                      "p99_ms": round(lat[int(0.99 * (len(lat) - 1))], 4)}))
+else:
+    while True:
+        msg = sub.recv()
+        if msg == b"end":
+            break
+        pub.send(msg)
+"""
+
+
+def bench_reference_hops(hops: int) -> dict:
+    """A pykka tell hop and a raw ZeroMQ CURVE hop between processes (see the docstring)."""
+    import zmq
+
+    pykka = subprocess.run(
+        [sys.executable, "-c", _PYKKA_CHILD, "200", "20"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    )
+    server_pub, server_sec = (k.decode() for k in zmq.curve_keypair())
+    client_pub, client_sec = (k.decode() for k in zmq.curve_keypair())
+    from eamos.ground import free_ports
+
+    a, b = free_ports(2)
+    keys = [server_pub, server_sec, client_pub, client_sec]
+    echo = subprocess.Popen(
+        [sys.executable, "-c", _CURVE_ECHO, *keys, str(b), str(a), str(hops), "echo"],
+        stdout=subprocess.DEVNULL,
+    )
+    try:
+        ping = subprocess.run(
+            [sys.executable, "-c", _CURVE_ECHO, *keys, str(a), str(b), str(hops), "ping"],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=300,
+        )
+    finally:
+        echo.wait(30)
+    return {
+        "pykka_tell": json.loads(pykka.stdout.strip().splitlines()[-1]),
+        "zmq_curve": json.loads(ping.stdout.strip().splitlines()[-1]),
     }
 
 
@@ -431,6 +545,7 @@ def main() -> int:
             ("startup", lambda: bench_startup(tmp)),
             ("local_trigger", lambda: bench_local(tmp, 200 if args.quick else 2000)),
             ("cross_drone", lambda: bench_cross(tmp, 100 if args.quick else 1000)),
+            ("reference_hops", lambda: bench_reference_hops(200 if args.quick else 2000)),
             (
                 "mission_5000",
                 lambda: bench_mission(tmp, 4 if args.quick else 20, 5 if args.quick else 10, 25),
@@ -449,6 +564,15 @@ def main() -> int:
             if not args.json:
                 print(f"... {name}", file=sys.stderr, flush=True)
             out[name] = step()
+    refs = out.get("reference_hops")
+    if refs and "local_trigger" in out:
+        out["local_trigger"]["x_pykka_tell"] = round(
+            out["local_trigger"]["per_node_us"] / refs["pykka_tell"]["per_hop_us"], 1
+        )
+    if refs and "cross_drone" in out:
+        out["cross_drone"]["x_zmq_curve_p50"] = round(
+            out["cross_drone"]["p50_ms"] / refs["zmq_curve"]["p50_ms"], 1
+        )
     out["targets"] = {"startup_s": 0.2, "cross_drone_p99_ms": 2.0, "mission_5000_overhead_s": 5.0}
     print(json.dumps(out, indent=None if args.json else 1))
     return 0

@@ -1,5 +1,12 @@
 """``eamos-node --config drone1.toml``: run one participant's part of a mission.
 
+``eamos-node --config d1.toml --config d2.toml ...`` runs several drones that
+share a machine in one process, each in a thread of its own with its own
+runtime, sockets, keys and logs (``eamos run --drones-per-process``): one
+interpreter and one set of imports instead of one per drone.  A real drone
+runs one config per process.  Each drone's exit code is written to
+``<log_dir>/exit_code``; the process exits with the worst of them.
+
 Given a drone's program, it runs the drone (:func:`eamos.actors.drone.run_drone`):
 reports ready once every participant it sends to listens, executes until the
 ground station declares the mission complete (or aborts), sends its report
@@ -22,6 +29,7 @@ import signal
 import sys
 import threading
 import traceback
+from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
 
@@ -78,7 +86,13 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=NODE_CONFIG_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--config", required=True, type=Path, help="the drone's TOML config file")
+    parser.add_argument(
+        "--config",
+        required=True,
+        type=Path,
+        action="append",
+        help="the drone's TOML config file (repeat it to run several drones in this process)",
+    )
     parser.add_argument(
         "-v", "--verbose", action="store_true", help="show tracebacks of internal errors"
     )
@@ -97,6 +111,62 @@ def run_node(config: NodeConfig, stop: threading.Event) -> int:
     return EXITS[run_drone(config, program, stop)]
 
 
+#: EXIT_CODE_FILE in a drone's log folder holds its exit code when it ran in a group.
+EXIT_CODE_FILE = "exit_code"
+
+
+def load_group(paths: list[Path]) -> list[NodeConfig]:
+    """The configs of drones to run in one process; ConfigError if they cannot share it."""
+    configs = [NodeConfig.load(p) for p in paths]
+    names = [c.drone for c in configs]
+    if GROUND_STATION in names and len(configs) > 1:
+        raise ConfigError("the ground station runs in a process of its own (one --config)")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ConfigError(f"drone {', '.join(twice)} given twice")
+    return configs
+
+
+def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -> int:
+    """Run each drone of ``configs`` in its own thread; the worst exit code of them."""
+    codes: dict[str, int] = {}
+
+    def one(config: NodeConfig) -> None:
+        code = guarded(lambda: run_node(config, stop), verbose, config.drone)
+        codes[config.drone] = code
+        try:
+            (config.log_dir / EXIT_CODE_FILE).write_text(f"{code}\n")
+        except OSError:
+            pass  # the process's own exit code still tells
+
+    threads = [threading.Thread(target=one, args=(c,), name=f"node-{c.drone}") for c in configs]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        # Bounded waits so that the main thread still takes signals (they set ``stop``).
+        while thread.is_alive():
+            thread.join(0.5)
+    return max(codes.values(), default=EXIT_INTERNAL)
+
+
+def guarded(body: Callable[[], int], verbose: bool, who: str = "") -> int:
+    """``body()``'s exit code, or the exit code of the error it raised (said on stderr)."""
+    prefix = f"eamos-node {who}" if who else "eamos-node"
+    try:
+        return body()
+    except (ConfigError, ProgramError) as exc:
+        print(f"{prefix}: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except (AdapterError, DroneRuntimeError) as exc:
+        print(f"{prefix}: {exc}", file=sys.stderr)
+        return EXIT_CONNECT
+    except Exception as exc:  # an internal error: one line, the trace only with -v
+        if verbose:
+            traceback.print_exc()
+        print(f"{prefix}: internal error: {exc!r} (run with -v for details)", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console entry point of ``eamos-node``."""
     args = build_parser().parse_args(argv)
@@ -107,19 +177,14 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    try:
-        return run_node(NodeConfig.load(args.config), stop)
-    except (ConfigError, ProgramError) as exc:
-        print(f"eamos-node: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except (AdapterError, DroneRuntimeError) as exc:
-        print(f"eamos-node: {exc}", file=sys.stderr)
-        return EXIT_CONNECT
-    except Exception as exc:  # an internal error: one line, the trace only with -v
-        if args.verbose:
-            traceback.print_exc()
-        print(f"eamos-node: internal error: {exc!r} (run with -v for details)", file=sys.stderr)
-        return EXIT_INTERNAL
+    if len(args.config) > 1:
+        try:
+            configs = load_group(args.config)
+        except ConfigError as exc:
+            print(f"eamos-node: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        return run_group(configs, stop, args.verbose)
+    return guarded(lambda: run_node(NodeConfig.load(args.config[0]), stop), args.verbose)
 
 
 if __name__ == "__main__":

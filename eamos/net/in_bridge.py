@@ -40,6 +40,18 @@ __all__ = ["InBridge"]
 RECONNECT_GRACE_S = 0.5
 
 
+def latest_telemetry(batch: list[list[bytes]]) -> tuple[list[list[bytes]], int]:
+    """``batch`` without the telemetry samples a newer one of the same drone follows; how many.
+
+    Telemetry is latest-value: a receiver that fell behind decodes only each
+    drone's newest sample.  Everything else stays, in order: control messages
+    never wait behind a backlog of samples.
+    """
+    newest = {frames[0]: i for i, frames in enumerate(batch) if frames[0][:3] == b"tm/"}
+    kept = [f for i, f in enumerate(batch) if f[0][:3] != b"tm/" or newest[f[0]] == i]
+    return kept, len(batch) - len(kept)
+
+
 class InBridge(BridgeThread):
     """The participant's incoming side: one SUB socket per peer it connects to.
 
@@ -151,6 +163,7 @@ class InBridge(BridgeThread):
         self._dropped = 0
         self._dropped_by_reason: dict[str, int] = {}
         self._ignored = 0
+        self._superseded = 0
         self._callback_errors = 0
         self._thread = threading.Thread(target=self._run, name="eamos-inbridge", daemon=True)
 
@@ -205,6 +218,11 @@ class InBridge(BridgeThread):
     def dropped_by_reason(self) -> dict[str, int]:
         """:attr:`dropped` per reason (a copy)."""
         return dict(self._dropped_by_reason)
+
+    @property
+    def superseded(self) -> int:
+        """Telemetry samples skipped undecoded: a newer one of the same drone was waiting."""
+        return self._superseded
 
     @property
     def ignored(self) -> int:
@@ -333,17 +351,19 @@ class InBridge(BridgeThread):
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
         # Bounded batch so a stop or subscribe command, or another peer, is not
         # starved by a flood.
-        got = False
+        batch: list[list[bytes]] = []
         for _ in range(256):
-            if self._closed:
-                return got  # close() was called from on_message: deliver nothing more
             try:
-                frames = sub.recv_multipart(zmq.NOBLOCK)
+                batch.append(sub.recv_multipart(zmq.NOBLOCK))
             except zmq.Again:
-                return got
-            got = True
+                break
+        kept, skipped = latest_telemetry(batch)
+        self._superseded += skipped
+        for frames in kept:
+            if self._closed:
+                break  # close() was called from on_message: deliver nothing more
             self._handle(frames, peer)
-        return got
+        return bool(batch)
 
     def _handle(self, frames: list[bytes], peer: str = "") -> None:
         """Filter, decode and deliver one received multipart message from ``peer``."""

@@ -14,7 +14,7 @@ reads it back.
 
 How the keys are used (see :mod:`eamos.net.bridges`): every Out-Bridge (XPUB)
 is a CURVE *server* with its participant's key pair, and a ZAP handler
-(:class:`FleetAuthenticator`, pyzmq's :class:`~zmq.auth.thread.ThreadAuthenticator`)
+(:class:`FleetAuthenticator`, a ZAP handler: :mod:`eamos.net.zap`)
 lets in only clients whose public key is one of the fleet's.  Every In-Bridge
 socket is a CURVE *client* with its own key pair and the public key of the
 one peer it connects to, so it only accepts that peer: an impostor at the
@@ -29,7 +29,6 @@ Plain (unauthenticated, unencrypted) sockets are for development only:
 from __future__ import annotations
 
 import ipaddress
-import logging
 import os
 import shutil
 import threading
@@ -40,9 +39,9 @@ from typing import Any, Final
 
 import zmq
 import zmq.auth
-from zmq.auth.thread import ThreadAuthenticator
 
 from eamos.logs import make_logger
+from eamos.net.zap import ZapHandler
 
 __all__ = [
     "ZAP_DOMAIN",
@@ -248,7 +247,7 @@ class _FleetCredentials:
 
 
 class FleetAuthenticator:
-    """pyzmq's ZAP authenticator for one ZeroMQ context, letting in only the fleet.
+    """The ZAP handler of one ZeroMQ context, letting in only the fleet.
 
     ZAP handlers are per context (they bind ``inproc://zeromq.zap.01``), so a
     context can host one fleet's CURVE servers; a second authenticator on the
@@ -260,20 +259,14 @@ class FleetAuthenticator:
     def __init__(self, context: zmq.Context[Any], keys: FleetKeys, log: Any = None) -> None:
         self._log = log if log is not None else make_logger(None)
         self.credentials = _FleetCredentials(keys, self._log)
-        self._auth = ThreadAuthenticator(context, log=_QuietLog())
+        # The domain must be the one the sockets name (ZAP_ENFORCE_DOMAIN).
         try:
-            self._auth.start()
+            self._auth = ZapHandler(context, ZAP_DOMAIN, self.credentials.callback)
         except zmq.ZMQError as exc:
-            self._auth.stop()
             raise KeysError(
                 f"cannot start the ZAP authenticator ({exc}); one CURVE participant per "
                 "ZeroMQ context"
             ) from exc
-        # The domain must be the one the sockets name: pyzmq maps "*" only to an
-        # empty domain.
-        self._auth.configure_curve_callback(
-            domain=ZAP_DOMAIN, credentials_provider=self.credentials
-        )
         self._stopped = False
 
     @property
@@ -293,18 +286,3 @@ class FleetAuthenticator:
         if not self._stopped:
             self._stopped = True
             self._auth.stop()
-
-
-class _QuietLog:
-    """Drops the authenticator's per-request debug chatter; passes its errors on."""
-
-    def debug(self, *args: Any, **kw: Any) -> None:
-        pass
-
-    info = debug
-
-    def warning(self, msg: str, *args: Any) -> None:
-        logging.getLogger("zmq.auth").warning(msg, *args)
-
-    error = warning
-    exception = warning

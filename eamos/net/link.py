@@ -35,6 +35,7 @@ from eamos.logs import make_logger
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
+from eamos.net.reports import ReportJoiner
 from eamos.net.session import (
     Action,
     PeerChanged,
@@ -90,6 +91,7 @@ class LinkDriver(Generic[OutT, InT]):
         self._on_message: Callable[[Any], None] = lambda msg: None
         self.delivery_errors = 0
         self.peer_events: list[dict[str, Any]] = []
+        self._reports = ReportJoiner()  # ReportParts arrive on the receive thread only
         self.out: OutT = transport.open_out(self._on_subscription)
         self.inb: InT | None = None
         self._thread = threading.Thread(
@@ -178,6 +180,15 @@ class LinkDriver(Generic[OutT, InT]):
         """Hand deliveries and peer events to the application (lock not held)."""
         for action in later:
             item = action.status if type(action) is PeerChanged else action.item  # type: ignore[union-attr]
+            if type(item) is wire.ReportPart:
+                # A report in parts reaches the application whole, as one Report.
+                try:
+                    item = self._reports.add(item)
+                except wire.WireError as exc:
+                    self.log.warning("net.report.parts_dropped", error=str(exc))
+                    continue
+                if item is None:
+                    continue
             try:
                 self._on_message(item)
             except Exception:  # a consumer bug must not cut this participant off
@@ -319,9 +330,12 @@ class LinkDriver(Generic[OutT, InT]):
                 "nacks_sent": c.nacks_sent,
                 "acks_received": c.acks_received,
                 "heartbeats_sent": c.heartbeats_sent,
+                "late_ticks": c.late_ticks,
+                "stalled_s": round(c.stalled_s, 3),
                 "unacked": self.session.unacked(),
                 "abandoned": c.abandoned,
                 "dropped": dropped,
+                "telemetry_superseded": int(getattr(inb, "superseded", 0)),
                 "auth_denied": self.transport.auth_denied,
                 "auth_failures": self.out.auth_failures
                 + (inb.auth_failures if inb is not None else 0),

@@ -8,15 +8,20 @@ rate cap, coalescing, refresh).  Both are pure: time is passed in.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Final
 
 import eamos.net.wire as wire
 from eamos.net.actions import Action, Deliver, PeerChanged, PeerStatus, Send, TelemetryStale, Wake
-from eamos.net.sequence import Peer
+from eamos.net.sequence import Peer, Sending, SessionCounters
 from eamos.net.settings import LinkSettings
 
-__all__ = ["Liveness", "TelemetryOut"]
+__all__ = ["LATE_TICK_S", "Liveness", "TelemetryOut"]
+
+LATE_TICK_S: Final = 0.1
+"""A timer call later than asked by more than this means this participant's loop stalled
+(a busy machine); the driver's own jitter stays far below it."""
 
 
 class Liveness:
@@ -30,6 +35,7 @@ class Liveness:
         self.settings = settings
         self.log = log
         self._serial = 0
+        self.tick_due = float("inf")  # when the session's timer asked to be called next
 
     def event(self, peer: Peer, state: str, silent_s: float) -> PeerChanged:
         """Report ``peer`` ``state`` (lost, back, left, restarted): ``mission.peer.<state>``."""
@@ -78,6 +84,41 @@ class Liveness:
             peer.tel_stale = False
             self.log.info("mission.telemetry.fresh", drone=peer.name)
         return True
+
+    def stalled(
+        self, now: float, peers: Iterable[Peer], counters: SessionCounters, broadcasts: Sending
+    ) -> None:
+        """The timer is called at ``now``: if later than it asked, credit the stall to ``peers``.
+
+        The retransmission timers wait the stall too: the acknowledgements that
+        came meanwhile are still unread, on the receive thread that stalled
+        with this one; resending now would only repeat what arrived.
+        """
+        late = now - self.tick_due
+        if late > LATE_TICK_S:
+            counters.late_ticks += 1
+            counters.stalled_s += late
+            peers = list(peers)
+            self.forgive(peers, late, now)
+            for tx in [broadcasts, *(p.tx for p in peers)]:
+                if tx.due is not None:  # and the receive thread gets its turn first
+                    tx.due = max(tx.due + late, now + LATE_TICK_S)
+
+    def forgive(self, peers: Iterable[Peer], stalled_s: float, now: float) -> None:
+        """This participant's own loop stalled ``stalled_s``: that time is not the peers' silence.
+
+        On a busy machine the timer (and the receive thread with it) may run
+        seconds late; what peers sent meanwhile waits unread in the sockets.
+        Counting the stall as their silence declared healthy peers lost and
+        had everything unacknowledged resent, which made the machine busier
+        still.  So a peer is lost only after ``peer_timeout_s`` of silence
+        measured while this loop ran.
+        """
+        for peer in peers:
+            if peer.heard is not None:
+                peer.heard = min(now, peer.heard + stalled_s)
+            if peer.tel_heard is not None:
+                peer.tel_heard = min(now, peer.tel_heard + stalled_s)
 
     def check(self, peer: Peer, now: float, actions: list[Action]) -> float:
         """Report ``peer`` lost or its telemetry stale if due; return the next deadline."""

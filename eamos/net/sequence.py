@@ -37,6 +37,8 @@ class SessionCounters:
     abandoned: int = 0  # unacknowledged messages given up because their peer left
     restarts: int = 0  # peers seen with a new incarnation (a restarted process)
     old_incarnation: int = 0  # messages of a predecessor of a restarted peer, dropped
+    late_ticks: int = 0  # timer calls this participant's own stalled loop made late
+    stalled_s: float = 0.0  # their lateness, summed: not counted as the peers' silence
 
 
 @dataclass

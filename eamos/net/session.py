@@ -13,7 +13,7 @@ batch, a (re)subscription, the time passing (:meth:`~ReliableSession.on_tick`)
 protocol is tested with a fake clock and messages passed in memory.
 
 * **Sequence numbers.**  Each reliable message gets ``seq`` = 1, 2, 3 ... per
-  link (sender, dest) -- Trigger, Interrupt, Ready, Resolved, Report -- or per
+  link (sender, dest) -- Trigger, Interrupt, Ready, Resolved, Report(Part) -- or per
   sender for the broadcasts Start, Abort, Complete (see
   :data:`~eamos.net.wire.RELIABLE_TO`, :data:`~eamos.net.wire.RELIABLE_BROADCAST`).
 * **Acknowledgements** are cumulative (every seq up to ``upto`` arrived).
@@ -78,11 +78,12 @@ from eamos.net.actions import (
     Wake,
 )
 from eamos.net.incarnation import admit, mine, new_incarnation
-from eamos.net.liveness import Liveness, TelemetryOut
+from eamos.net.liveness import LATE_TICK_S, Liveness, TelemetryOut
 from eamos.net.sequence import Peer, Receiving, Sending, SessionCounters
 from eamos.net.settings import LinkSettings
 
 __all__ = [
+    "LATE_TICK_S",
     "NACK_INTERVAL_S",
     "Action",
     "Deliver",
@@ -100,9 +101,11 @@ __all__ = [
 _LOG_FIRST: Final = 20
 _LOG_EVERY: Final = 500
 
-_ACK_AT_ONCE: Final = frozenset({wire.Report})
-"""Delivered messages acknowledged at once rather than by the next heartbeat:
-the final report's sender waits for its ack before it exits."""
+_ACK_AT_ONCE: Final = frozenset({wire.Ready, wire.Resolved, wire.Report, wire.ReportPart})
+"""Delivered messages acknowledged at once rather than by the next heartbeat: the
+final report's sender waits for its ack before it exits; Ready and Resolved reach
+the ground station from the whole fleet at once (at the start, at the end), when
+its heartbeat is most likely late: one Ack each spares a retransmission each."""
 
 NACK_INTERVAL_S: Final = 0.02
 """At most one nack per peer per this interval: after a gap, every later arrival
@@ -340,6 +343,7 @@ class ReliableSession:
         """Do what is due at ``now``; return the actions and when to be called next."""
         s = self.settings
         actions: list[Action] = []
+        self._live.stalled(now, self._peers.values(), self.counters, self._btx)  # late: our stall
         if now >= self._hb_due:
             self._hb_due = now + s.heartbeat_s
             actions.append(Send(self._heartbeat_message(leaving=False)))
@@ -355,7 +359,8 @@ class ReliableSession:
             deadline = min(deadline, btx.due)
         sent, due = self._tel.tick(now)
         actions += sent
-        return actions, min(deadline, due)
+        self._live.tick_due = due = min(deadline, due)
+        return actions, due
 
     def _tick_peer(self, peer: Peer, now: float, actions: list[Action]) -> float:
         """One peer's timers: retransmission, liveness, telemetry staleness."""

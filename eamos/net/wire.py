@@ -1,4 +1,4 @@
-"""The EAMOS wire format, version 2: the only place messages become bytes and back.
+"""The EAMOS wire format, version 4: the only place messages become bytes and back.
 
 Every message crossing the network between participants (drones and the ground
 station) is one of the frozen dataclasses below.  On the wire it is a two-frame
@@ -8,7 +8,7 @@ ZeroMQ multipart message ``[topic, payload]``:
 
   ========================  =====================================================
   ``to/<participant>``      addressed to one participant: Trigger, Interrupt,
-                            Ready, Progress, Resolved, Report, Ack
+                            Ready, Progress, Resolved, Report, ReportPart, Ack
                             (``<participant>`` is the message's ``dest``)
   ``tm/<drone>``            telemetry published by ``<drone>`` (the ``sender``)
   ``hb/<participant>``      heartbeats of ``<participant>`` (the ``sender``),
@@ -27,7 +27,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   =====  ======  ========================================================
   key    type    meaning
   =====  ======  ========================================================
-  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 3)
+  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 4)
   ``t``  str     message type code (table below)
   ``m``  str     mission id; receivers drop messages of other missions
   ``s``  str     sender: name of the participant that sent the message
@@ -50,7 +50,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   ``int``    Interrupt       dest                    ``d``     str
                              scope                   ``sc``    str, scope being interrupted
                              iteration               ``i``     array of int
-                             mode                    ``md``    "all" | "waits"
+                             mode                    ``md``    "all"|"waits"|"suspend"|"resume"
                              seq                     ``q``     int >= 0
   ``tel``    TelemetrySample time_s                  ``ts``    float, sender clock (s)
                              x_m, y_m, z_m           ``x``     float, local frame (m);
@@ -80,6 +80,13 @@ ZeroMQ multipart message ``[topic, payload]``:
   ``rep``    Report          dest                    ``d``     str (default ``"GCS"``)
                              report                  ``rp``    map str -> plain data
                              seq                     ``q``     int >= 0
+  ``rpp``    ReportPart      dest                    ``d``     str (default ``"GCS"``)
+                             part                    ``pi``    int >= 0, this part's index
+                             parts                   ``pn``    int, 1 <= parts <=
+                                                               :data:`MAX_REPORT_PARTS`
+                             data                    ``pd``    bin, at most
+                                                               :data:`REPORT_PART_BYTES`
+                             seq                     ``q``     int >= 0
   ``ack``    Ack             dest                    ``d``     str, the sender being acked
                              upto                    ``a``     int >= 0, every seq <= a of the
                                                                link dest -> sender arrived
@@ -100,7 +107,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   =========  ==============  ======================  ========  ================================
 
   ``seq`` (key ``q``) numbers the reliable messages: Trigger, Interrupt, Ready,
-  Resolved and Report per link (sender, dest), Start, Abort and Complete per
+  Resolved, Report and ReportPart per link (sender, dest), Start, Abort and Complete per
   sender (broadcast sequence); 1, 2, 3 ... as the reliability layer
   (:mod:`eamos.net.session`) sends them, 0 for a message sent outside it (not
   acknowledged, not deduplicated).  Progress, TelemetrySample, Ack and
@@ -112,8 +119,15 @@ ZeroMQ multipart message ``[topic, payload]``:
   str, bin, array and str-keyed maps, nested at most :data:`MAX_DEPTH` deep
   (arrays come back as lists).
 
-Ready, Progress, Resolved and Report are addressed to the ground station; their
-``dest`` defaults to :data:`GROUND_STATION` so their constructors stay short.
+Ready, Progress, Resolved, Report and ReportPart are addressed to the ground
+station; their ``dest`` defaults to :data:`GROUND_STATION` so their constructors
+stay short.
+
+A report too large for one message travels as ReportParts: the MessagePack
+encoding of the report map cut into ``parts`` slices of at most
+:data:`REPORT_PART_BYTES`, sent in order on the reliable link (so they arrive
+once each, in order); the receiver joins them and decodes the whole as a
+Report's ``rp`` (:mod:`eamos.net.reports`).
 
 :func:`decode` raises :class:`WireError`, and nothing else, for any malformed
 input: wrong frame count, oversize frames, payload that is not msgpack, wrong or
@@ -126,7 +140,8 @@ Changing anything in this table means bumping :data:`WIRE_VERSION`;
 Version history: 1 (first format); 2 adds ``q`` (sequence numbers), Ack and
 Heartbeat for reliable delivery and peer liveness; 3 adds the incarnation
 (``n`` in every message, ``di`` in Ack, ``ki`` in Heartbeat) so that peers
-resynchronise with a restarted participant.
+resynchronise with a restarted participant; 4 adds ReportPart (reports of any
+size, in parts).
 """
 
 from __future__ import annotations
@@ -137,6 +152,27 @@ from typing import Any, ClassVar, Final
 
 import msgpack
 
+from eamos.net.wire_fields import (
+    _MAX_CONTAINER_LEN,
+    MAX_DEPTH,
+    MAX_PAYLOAD_BYTES,
+    MAX_REPORT_PARTS,
+    MAX_TOPIC_BYTES,
+    REPORT_PART_BYTES,
+    WireError,
+    _check_bool,
+    _check_choice,
+    _check_float,
+    _check_iteration,
+    _check_map,
+    _check_name,
+    _check_part_data,
+    _check_parts,
+    _check_seq,
+    _check_seq_map,
+    _check_str,
+    _m,
+)
 from eamos.program.uniform import GROUND_STATION as _GCS
 
 __all__ = [
@@ -144,10 +180,12 @@ __all__ = [
     "INTERRUPT_MODES",
     "MAX_DEPTH",
     "MAX_PAYLOAD_BYTES",
+    "MAX_REPORT_PARTS",
     "MAX_TOPIC_BYTES",
     "MESSAGE_TYPES",
     "RELIABLE_BROADCAST",
     "RELIABLE_TO",
+    "REPORT_PART_BYTES",
     "TOPIC_ALL",
     "TRIGGER_STATUSES",
     "WIRE_VERSION",
@@ -160,6 +198,7 @@ __all__ = [
     "Progress",
     "Ready",
     "Report",
+    "ReportPart",
     "Resolved",
     "Start",
     "TelemetrySample",
@@ -172,7 +211,7 @@ __all__ = [
     "topic_to",
 ]
 
-WIRE_VERSION: Final = 3
+WIRE_VERSION: Final = 4
 """Version of this format, carried in every payload under key ``v``."""
 
 GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground station
@@ -182,28 +221,7 @@ TOPIC_ALL: Final = b"all"
 """Topic of broadcasts (Start, Abort, Complete)."""
 
 TRIGGER_STATUSES: Final = frozenset({"done", "skipped", "failed"})
-INTERRUPT_MODES: Final = frozenset({"all", "waits"})
-
-# Limits applied before and during unpacking so a hostile or broken peer cannot
-# make a receiver allocate without bound.  Reports are the largest legitimate
-# messages and stay far below this.
-MAX_PAYLOAD_BYTES: Final = 1 << 20
-MAX_TOPIC_BYTES: Final = 256
-MAX_DEPTH: Final = 32
-_MAX_CONTAINER_LEN: Final = 1 << 16
-
-
-class WireError(ValueError):
-    """A message could not be encoded or decoded (the network layer's one error type).
-
-    ``reason`` is ``"version"`` when the payload is of another wire version,
-    ``"oversize"`` for a payload over :data:`MAX_PAYLOAD_BYTES` and ``"malformed"``
-    for everything else; receivers log and count drops by it.
-    """
-
-    def __init__(self, message: str, reason: str = "malformed") -> None:
-        super().__init__(message)
-        self.reason = reason
+INTERRUPT_MODES: Final = frozenset({"all", "waits", "suspend", "resume"})
 
 
 def topic_to(participant: str) -> bytes:
@@ -219,113 +237,6 @@ def topic_heartbeat(participant: str) -> bytes:
 def topic_telemetry(drone: str) -> bytes:
     """Topic of the telemetry published by ``drone`` (``b"tm/<drone>"``)."""
     return b"tm/" + drone.encode("utf-8")
-
-
-# ---------------------------------------------------------------------------
-# Field kinds: one validator per kind, used both when a message is constructed
-# (so a bad message fails at the sender, not at the receiver) and when decoded.
-
-
-def _check_name(value: Any, name: str) -> str:
-    # Participant names end up in topics: keep them non-empty and free of "/",
-    # which would make "to/<name>" ambiguous.
-    if not isinstance(value, str) or not value or "/" in value:
-        raise WireError(f"{name}: expected a non-empty name without '/', got {value!r}")
-    return value
-
-
-def _check_str(value: Any, name: str) -> str:
-    if not isinstance(value, str):
-        raise WireError(f"{name}: expected str, got {type(value).__name__}")
-    return value
-
-
-def _check_float(value: Any, name: str) -> float:
-    # bool is an int subclass; a True in a coordinate is a bug, not a 1.0.
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise WireError(f"{name}: expected a number, got {type(value).__name__}")
-    try:
-        return float(value)
-    except OverflowError as exc:  # ints beyond float range
-        raise WireError(f"{name}: number out of range") from exc
-
-
-def _check_bool(value: Any, name: str) -> bool:
-    if not isinstance(value, bool):
-        raise WireError(f"{name}: expected bool, got {type(value).__name__}")
-    return value
-
-
-def _check_iteration(value: Any, name: str) -> tuple[int, ...]:
-    # Lists are accepted because msgpack decodes arrays as lists; the message
-    # always holds a tuple so it stays hashable and compares equal after a trip.
-    if not isinstance(value, tuple | list):
-        raise WireError(f"{name}: expected a sequence of int, got {type(value).__name__}")
-    for item in value:
-        if isinstance(item, bool) or not isinstance(item, int):
-            raise WireError(f"{name}: expected int items, got {item!r}")
-    return tuple(value)
-
-
-_MAX_SEQ: Final = (1 << 63) - 1
-
-
-def _check_seq(value: Any, name: str) -> int:
-    # Sequence numbers are compared and stored as ints; bools and floats are bugs.
-    if type(value) is not int or not 0 <= value <= _MAX_SEQ:
-        raise WireError(f"{name}: expected an int in [0, 2**63), got {value!r}")
-    return value
-
-
-def _check_seq_map(value: Any, name: str) -> dict[str, int]:
-    if not isinstance(value, dict) or len(value) > _MAX_CONTAINER_LEN:
-        raise WireError(f"{name}: expected a map of participant -> int")
-    for key, item in value.items():
-        _check_name(key, name)
-        _check_seq(item, name)
-    return value
-
-
-def _check_plain(value: Any, name: str, depth: int) -> None:
-    if depth > MAX_DEPTH:
-        raise WireError(f"{name}: nested deeper than {MAX_DEPTH}")
-    if value is None or isinstance(value, bool | int | str | bytes):
-        return
-    if isinstance(value, float):
-        return
-    if isinstance(value, list | tuple):
-        for item in value:
-            _check_plain(item, name, depth + 1)
-        return
-    if isinstance(value, dict):
-        for key, item in value.items():
-            if not isinstance(key, str):
-                raise WireError(f"{name}: map keys must be str, got {key!r}")
-            _check_plain(item, name, depth + 1)
-        return
-    raise WireError(f"{name}: {type(value).__name__} is not plain data")
-
-
-def _check_map(value: Any, name: str) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise WireError(f"{name}: expected a map, got {type(value).__name__}")
-    _check_plain(value, name, 0)
-    return value
-
-
-def _check_choice(choices: frozenset[str]) -> Any:
-    def check(value: Any, name: str) -> str:
-        # isinstance first: membership of an unhashable value would raise TypeError.
-        if not isinstance(value, str) or value not in choices:
-            raise WireError(f"{name}: expected one of {sorted(choices)}, got {value!r}")
-        return str(value)
-
-    return check
-
-
-def _m(key: str, check: Any) -> dict[str, Any]:
-    """Field metadata: the field's wire key and its validator."""
-    return {"key": key, "check": check}
 
 
 # ---------------------------------------------------------------------------
@@ -345,12 +256,15 @@ class _Base:
     # Keyword-only (last in every constructor): the session stamps it on sending.
     incarnation: int = field(default=0, kw_only=True, metadata=_m("n", _check_seq))
 
+    # (field name, validator, "Class.field") per field, set once below the classes:
+    # ``dataclasses.fields()`` and the labels cost more than the checks themselves.
+    _CHECKS: ClassVar[tuple[tuple[str, Any, str], ...]] = ()
+
     def __post_init__(self) -> None:
         # Validate and normalise every field (e.g. list -> tuple, int -> float).
         # object.__setattr__ is the documented way to do this in a frozen dataclass.
-        for f in fields(self):
-            value = f.metadata["check"](getattr(self, f.name), f"{type(self).__name__}.{f.name}")
-            object.__setattr__(self, f.name, value)
+        for name, check, label in self._CHECKS:
+            object.__setattr__(self, name, check(getattr(self, name), label))
 
     @property
     def topic(self) -> bytes:
@@ -493,6 +407,29 @@ class Report(_Base):
 
 
 @dataclass(frozen=True)
+class ReportPart(_Base):
+    """Part ``part`` of ``parts`` of a final report too large for one message.
+
+    ``data`` is a slice of the report map's MessagePack encoding; the parts of
+    one report follow each other on the link, ``part`` 0 first.
+    """
+
+    CODE: ClassVar[str] = "rpp"
+    KIND: ClassVar[str] = "to"
+
+    part: int = field(metadata=_m("pi", _check_seq))
+    parts: int = field(metadata=_m("pn", _check_parts))
+    data: bytes = field(metadata=_m("pd", _check_part_data))
+    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+    seq: int = field(metadata=_m("q", _check_seq), default=0)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.part >= self.parts:
+            raise WireError(f"ReportPart.part: {self.part} of {self.parts} parts")
+
+
+@dataclass(frozen=True)
 class Ack(_Base):
     """Cumulative acknowledgement from ``sender`` to ``dest`` (the reliability layer).
 
@@ -550,6 +487,7 @@ Message = (
     | Progress
     | Resolved
     | Report
+    | ReportPart
     | Ack
     | Heartbeat
 )
@@ -566,17 +504,23 @@ MESSAGE_TYPES: Final[tuple[type[_Base], ...]] = (
     Progress,
     Resolved,
     Report,
+    ReportPart,
     Ack,
     Heartbeat,
 )
 
 RELIABLE_TO: Final[frozenset[type[_Base]]] = frozenset(
-    {Trigger, Interrupt, Ready, Resolved, Report}
+    {Trigger, Interrupt, Ready, Resolved, Report, ReportPart}
 )
 """Addressed messages the reliability layer numbers per link (sender, dest) and acknowledges."""
 
 RELIABLE_BROADCAST: Final[frozenset[type[_Base]]] = frozenset({Start, Abort, Complete})
 """Broadcasts the reliability layer numbers per sender and has every peer acknowledge."""
+
+for _cls in MESSAGE_TYPES:
+    _cls._CHECKS = tuple(
+        (f.name, f.metadata["check"], f"{_cls.__name__}.{f.name}") for f in fields(_cls)
+    )
 
 _BY_CODE: Final[dict[str, type[_Base]]] = {cls.CODE: cls for cls in MESSAGE_TYPES}
 # Wire key -> field name, per type; computed once (immutable afterwards).

@@ -131,8 +131,9 @@ def test_many_blocked_nodes_are_counted_not_all_named() -> None:
     assert received.blocked_nodes_more == 30_000 - LISTED_BLOCKED_MAX
 
 
-def test_a_report_json_file_is_what_the_wire_carries(tmp_path: Path) -> None:
-    # drone.py writes report.json from the same to_json(): it stays readable at any length.
+def test_a_report_json_file_stays_readable_at_any_length(tmp_path: Path) -> None:
+    # drone.py writes report.json from to_json() (folded); the wire carries every
+    # action, in parts when needed (test_local_report_parts.py).
     report = _report(_entries(20_000))
     path = tmp_path / "report.json"
     path.write_text(json.dumps(report.to_json()))

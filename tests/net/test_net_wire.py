@@ -22,6 +22,7 @@ from eamos.net import (
     Progress,
     Ready,
     Report,
+    ReportPart,
     Resolved,
     Start,
     TelemetrySample,
@@ -58,6 +59,7 @@ SAMPLES: list[Message] = [
     Ack(M, "GCS", "D1", 3, 2, nack=True),
     Heartbeat(M, "D1", {"D2": 17, "GCS": 4}, 0),
     Heartbeat(M, "GCS", {}, 3, leaving=True),
+    ReportPart(M, "D2", 1, 3, b"\x81\xa1a", seq=5),
 ]
 
 
@@ -195,7 +197,8 @@ MALFORMED: list[tuple[str, Any, str]] = [
     ("missing version", [TO, body(v=...)], "version"),
     ("version 1", [TO, body(v=1)], "version"),
     ("version 2", [TO, body(v=2)], "version"),
-    ("version 4", [TO, body(v=4)], "version"),
+    ("version 3", [TO, body(v=3)], "version"),
+    ("version 5", [TO, body(v=5)], "version"),
     ("version true", [TO, body(v=True)], "version"),
     ("version float", [TO, body(v=3.0)], "version"),
     ("version str", [TO, body(v="2")], "version"),
