@@ -17,16 +17,19 @@ import time
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
 from eamos.logs import close_logger, make_logger, report_write_error
-from eamos.net import wire
+from eamos.net.reports import report_messages
+from eamos.net.wire import WireError
 from eamos.program.format import DroneProgram, load_program
 from eamos.program.uniform import GROUND_STATION
 
 from .board import ask_final_sample
 from .executive import ask_activity, ask_snapshot
 from .failure import tell_operator
+from .messages import PeerLost
 from .runtime import DroneRuntime, NetSettings
 from .stranded import (
     EndOnOwn,
+    caught_lost_peer,
     end_on_own,
     silent_since,
     trigger_sources,
@@ -70,7 +73,13 @@ def run_drone(config: NodeConfig, program: DroneProgram, stop: threading.Event) 
     config.log_dir.mkdir(parents=True, exist_ok=True)
     adapter_log = make_logger(config.log_dir / "adapter.log", drone=config.drone)
     adapter = make_adapter(config.drone, config.hal, adapter_log)
-    runtime = DroneRuntime(program, adapter, net_settings(config), config.log_dir)
+    runtime = DroneRuntime(
+        program,
+        adapter,
+        net_settings(config),
+        config.log_dir,
+        battery_reserve_pct=config.battery_reserve_pct,
+    )
     policy = end_policy(config)
     try:
         runtime.start()
@@ -95,7 +104,14 @@ def run_drone(config: NodeConfig, program: DroneProgram, stop: threading.Event) 
             (config.log_dir / "report.json").write_text(json.dumps(data, indent=1) + "\n")
         except OSError as exc:  # a full disk: the ground station still gets the report
             report_write_error(config.log_dir / "report.json", exc, "the report is still sent")
-        runtime.send(wire.Report(mission=program.mission_id, sender=config.drone, report=data))
+        # Every action goes to the ground station, in parts when it is large (beyond
+        # 64 MiB, the folded report, which always fits).
+        try:
+            msgs = report_messages(program.mission_id, config.drone, report.to_json(fold=False))
+        except WireError:
+            msgs = report_messages(program.mission_id, config.drone, data)
+        for msg in msgs:
+            runtime.send(msg)
         # The report is the last word: retransmitted until acknowledged (bounded),
         # unless the ground station is known to be gone.
         gone = ending is not None and ending.kind == "no_complete"
@@ -132,6 +148,7 @@ def _execute(
     limit_s = peer_wait_limit(config)
     sources = trigger_sources(program)
     checked_airborne = False
+    caught: set[str] = set()  # lost peers a Try here has caught (once each)
     while not (runtime.completed.is_set() or runtime.aborted.is_set()):
         if stop.is_set():
             runtime.abort("stopped by signal")
@@ -153,6 +170,15 @@ def _execute(
                 limit_s,
             )
         if ending is None:
+            continue
+        peer = ending.peer
+        lost = caught_lost_peer(program, peer) if peer and peer not in caught else frozenset()
+        if peer and lost:
+            # A Try's Body waits on the lost peer: its failure to catch, not a stranding.
+            caught.add(peer)
+            runtime.log.warning("mission.try.peer_lost", peer=peer, reason=ending.reason)
+            for node in runtime.nodes.values():
+                node.tell(PeerLost(lost))
             continue
         tell_operator(config.drone, ending.reason)
         if ending.kind != "stranded":

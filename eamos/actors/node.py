@@ -141,8 +141,10 @@ class MissionNode(PooledActor):
         log: Any,
         begin_kind: str = "",
         logic: NodeLogic | None = None,
+        battery_floor_pct: float | None = None,
     ) -> None:
-        """``logic`` replaces the one built from ``spec`` (tests inject faults this way)."""
+        """``logic`` replaces the one built from ``spec`` (tests inject faults this way);
+        ``battery_floor_pct``: below it an action of a Try's Body fails."""
         super().__init__(dispatcher)
         self.spec = spec
         self.key = spec.key
@@ -151,6 +153,8 @@ class MissionNode(PooledActor):
         self.logic = (
             logic if logic is not None else node_logic(spec, routes, entry, loop, begin_kind)
         )
+        if isinstance(self.logic, ActionLogic):
+            self.logic.battery_floor_pct = battery_floor_pct
         self.links: Links | None = None
         self.crashed = False
         self._current: Any = None  # the message being handled (for the failure policy)

@@ -152,6 +152,7 @@ class FoldedActions:
     cancelled: int
     first_start: float
     last_end: float
+    caught: int = 0  # failed inside a Try's Body, handled by its OnFailure
 
     @classmethod
     def of(cls, entries: Sequence[ActionEntry]) -> FoldedActions:
@@ -164,6 +165,7 @@ class FoldedActions:
             cancelled=results.count("cancelled"),
             first_start=min(a.start for a in entries),
             last_end=max(a.end for a in entries),
+            caught=results.count("caught"),
         )
 
     def merged(self, other: FoldedActions | None) -> FoldedActions:
@@ -177,6 +179,7 @@ class FoldedActions:
             self.cancelled + other.cancelled,
             min(self.first_start, other.first_start),
             max(self.last_end, other.last_end),
+            self.caught + other.caught,
         )
 
     @property
@@ -194,6 +197,7 @@ class FoldedActions:
             "ok": self.ok,
             "failed": self.failed,
             "cancelled": self.cancelled,
+            **({"caught": self.caught} if self.caught else {}),
             "first_start": self.first_start,
             "last_end": self.last_end,
             "note": self.note,
@@ -212,6 +216,7 @@ class FoldedActions:
             cancelled=_get(data, "cancelled", int, where),
             first_start=float(_get(data, "first_start", num, where)),
             last_end=float(_get(data, "last_end", num, where)),
+            caught=int(data.get("caught", 0)),
         )
 
 
@@ -311,14 +316,19 @@ class DroneReport:
         """The actions that ended ``failed``."""
         return [a for a in self.actions if a.result == "failed"]
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self, *, fold: bool = True) -> dict[str, Any]:
         """The report as the first version's JSON object (same keys, same order).
 
         A long mission's oldest actions are folded into ``actions_folded`` and
         blocked nodes beyond :data:`LISTED_BLOCKED_MAX` into ``blocked_nodes_more``
-        (keys present only then), so the report always fits one wire message.
+        (keys present only then), so a report file or summary stays readable.
+        ``fold=False`` lists every action (the wire: a report of any size goes in
+        parts, :mod:`eamos.net.reports`).
         """
-        listed, folded = fold_actions(self.actions, self.folded)
+        if fold:
+            listed, folded = fold_actions(self.actions, self.folded)
+        else:
+            listed, folded = [a.to_json() for a in self.actions], self.folded
         blocked = self.blocked_nodes[:LISTED_BLOCKED_MAX]
         more = self.blocked_nodes_more + len(self.blocked_nodes) - len(blocked)
         out = {

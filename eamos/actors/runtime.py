@@ -117,8 +117,10 @@ class DroneRuntime:
         context: zmq.Context[Any] | None = None,
         ground_handler: Callable[[Any], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
+        battery_reserve_pct: float | None = None,
     ) -> None:
         self.program = program
+        self.battery_reserve_pct = battery_reserve_pct  # a Try's Body fails below it
         self.drone = program.drone
         self.adapter = adapter
         self.net = net
@@ -146,8 +148,7 @@ class DroneRuntime:
         self.abort_reason = ""
         self.adapter_error: AdapterError | None = None
         self._lock = threading.Lock()
-        self._resolved_told = False
-        self._stopped = False
+        self._resolved_told = self._stopped = False
         self.started_at = 0.0
 
     # -- building -------------------------------------------------------------------
@@ -239,6 +240,7 @@ class DroneRuntime:
                 self.drone,
                 self.logs.mission,
                 w.begin_kind,
+                battery_floor_pct=self.battery_reserve_pct,
             )
 
     def _start_executive(self) -> None:

@@ -61,6 +61,23 @@ class EndOnOwn:
 
     kind: str
     reason: str
+    peer: str | None = None  # stranded by this lost peer (None: another reason)
+
+
+def caught_lost_peer(program: DroneProgram, peer: str) -> frozenset[str]:
+    """The nodes hosted by ``peer`` that a Try's Body on this drone waits on (keys).
+
+    When a peer whose link is lost feeds a node inside a Try's Body, the loss is
+    a failure that Try catches (:meth:`~eamos.actors.logic.NodeLogic.peer_lost`)
+    instead of stranding the drone; empty: no Try here waits on ``peer``.
+    """
+    hosted = frozenset(n.key for n in program.nodes if n.drone == peer)
+    native = {n.key: n for n in program.native_nodes()}
+    for arc in program.arcs:
+        node = native.get(arc.dst)
+        if arc.external and arc.src in hosted and node is not None and node.catch is not None:
+            return hosted
+    return frozenset()
 
 
 def trigger_sources(program: DroneProgram) -> frozenset[str]:
@@ -129,5 +146,6 @@ def end_on_own(
                 "stranded",
                 f"stranded: waited {waited:.0f} s for {peer}, whose link is lost "
                 f"(peer_wait_limit_s = {limit_s:g})",
+                peer,
             )
     return None

@@ -12,7 +12,7 @@ from ..net import wire
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION
 
-__all__ = ["destinations", "released_arcs", "subscriptions", "watched_peers"]
+__all__ = ["connected_peers", "destinations", "released_arcs", "subscriptions", "watched_peers"]
 
 
 def destinations(program: DroneProgram) -> list[str]:
@@ -43,6 +43,29 @@ def watched_peers(program: DroneProgram, whole_fleet: bool) -> list[str] | None:
     watch = {*destinations(program), *sources, *program.telemetry_from, GROUND_STATION}
     watch.discard(program.drone)
     return sorted(watch)
+
+
+def connected_peers(programs: dict[str, DroneProgram]) -> dict[str, list[str]]:
+    """Per participant, the peers its In-Bridge connects to, from every program of a mission.
+
+    A drone connects to the peers it watches (:func:`watched_peers`: those it
+    sends to, those that trigger it, those whose telemetry it reads, the ground
+    station) and to every drone that sends to it (an interrupt needs no arc);
+    the ground station to the whole fleet.  So a relay of N drones makes about
+    3N connections instead of N², each one a CURVE handshake and a heartbeat
+    stream.  Its own program alone cannot tell a drone who interrupts it:
+    the ground, holding every program, writes these into the node configs.
+    """
+    names = sorted(programs)
+    peers: dict[str, set[str]] = {}
+    for name, program in programs.items():
+        watched = watched_peers(program, whole_fleet=False)
+        peers[name] = set(names if watched is None else watched)
+    for name, program in programs.items():
+        for dest in destinations(program):
+            if dest in peers:
+                peers[dest].add(name)
+    return {name: sorted(p - {name}) for name, p in peers.items()}
 
 
 def subscriptions(program: DroneProgram, extra: tuple[bytes, ...] = ()) -> list[bytes]:

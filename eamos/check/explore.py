@@ -60,11 +60,14 @@ def run_once(
     decide: Decide | None = None,
     fail: FailHook | None = None,
     plugins: PluginRegistry = EMPTY_PLUGINS,
+    battery_floor_pct: float | None = None,
 ) -> tuple[VirtualRun, dict[str, Track]]:
     """One virtual run with every drone's track recorded (fleet frame).
 
     ``plugins``: the action plugins the simulated drones run (their "sim"
     implementations); a check passes the installed ones, found once.
+    ``battery_floor_pct``: the fleet's battery reserve, below which a Try's Body
+    action fails (as on the drones).
     """
     recorders: dict[str, TrackRecorder] = {}
 
@@ -77,7 +80,14 @@ def run_once(
         return rec
 
     with collector_paused():
-        run = VirtualMission(compiled.programs, make, time_limit_s, decide=decide, fail=fail).run()
+        run = VirtualMission(
+            compiled.programs,
+            make,
+            time_limit_s,
+            decide=decide,
+            fail=fail,
+            battery_floor_pct=battery_floor_pct,
+        ).run()
     return run, {d: r.track() for d, r in recorders.items()}
 
 
@@ -179,7 +189,14 @@ def _check_mission(
         prefix = queue.popleft()
         oracle = Oracle(prefix, piloted)
         run, tracks = run_once(
-            compiled, settings, homes, time_limit_s, oracle, oracle.fail, plugins=plugins
+            compiled,
+            settings,
+            homes,
+            time_limit_s,
+            oracle,
+            oracle.fail,
+            plugins=plugins,
+            battery_floor_pct=safety.battery_reserve_pct,
         )
         choices = oracle.choices()
         # Every choice point met beyond the prefix is another run: its other way.

@@ -68,12 +68,35 @@ def add_run_parser(sub: Any) -> None:
     add_seconds(
         run, "--ready-timeout", "how long drones may take to start and connect", default=60.0
     )
+    run.add_argument(
+        "--drones-per-process",
+        type=drones_per_process,
+        default=1,
+        metavar="N|auto",
+        help="drones sharing one eamos-node process, each in a thread of its own "
+        "(auto: about one process per CPU core; default 1: a process per drone)",
+    )
     add_plain(run)
     add_svg(run, default=True)
     add_check(run)
     add_monitor_options(run)
     add_verbose(run)
     run.set_defaults(func=cmd_run)
+
+
+def drones_per_process(text: str) -> int | None:
+    """``--drones-per-process``: a whole number >= 1, or ``auto`` (None)."""
+    if text == "auto":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a whole number or 'auto', got {text!r}"
+        ) from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
 
 
 @dataclass
@@ -91,6 +114,7 @@ class RunOptions:
     svg: bool = True
     check: bool = True  # the pre-flight check first (eamos check); refuse on an error
     monitor: MonitorOptions | None = None  # serve the live browser monitor (--monitor)
+    drones_per_process: int | None = 1  # None: about one process per core
 
 
 def default_run_dir(mission: str) -> Path:
@@ -119,6 +143,8 @@ def run_mission(
     from eamos.program.uniform import GROUND_STATION
 
     compiled = compile_file(opts.mission)
+    # Bound to the mission, each drone's type selects its [types.NAME.hal] settings.
+    fleet = opts.fleet.for_mission(compiled.programs, compiled.mission.types)
     run_dir = (opts.run_dir or default_run_dir(compiled.mission.name)).resolve()
     use_run_dir(run_dir)  # --run-dir naming a file: bad input, said with the path
     notes: list[str] = []
@@ -128,21 +154,22 @@ def run_mission(
     if opts.check:
         from eamos.cli.check import preflight
 
-        preflight(compiled, opts.fleet, str(opts.mission), report_file=run_dir / "check.json")
+        preflight(compiled, fleet, str(opts.mission), report_file=run_dir / "check.json")
     drones = [n for n in compiled.programs if n != GROUND_STATION]
     stop = stop or threading.Event()
     shown = display or make_display(opts.live, drones)
     # The map's frame: each drone's home as the check and the simulated drones see it.
-    homes = opts.fleet.homes(fleet_order(compiled.programs))
+    homes = fleet.homes(fleet_order(compiled.programs))
     with live_monitor(opts.monitor, run_dir, stop, shown, homes) as monitored:
         summary = fly_local(
             LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
             run_dir,
-            opts.fleet,
+            fleet,
             Limits(opts.ready_timeout_s, opts.timeout_s),
             stop,
             speedup=opts.speedup,
             display=monitored.display,
+            drones_per_process=opts.drones_per_process,
         )
         monitored.finish(summary)
     if opts.summary is not None:
@@ -195,6 +222,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         svg=args.svg,
         check=args.check,
         monitor=MonitorOptions.of(args),
+        drones_per_process=args.drones_per_process,
     )
     summary = run_mission(opts, stop)
     print("\n".join(summary_lines(summary)))

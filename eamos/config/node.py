@@ -11,6 +11,8 @@ Drone config (TOML)::
     peer_wait_limit_s = 20                    # waiting on a lost peer (or for Complete from a
                                               # silent ground station) at most this long, then
     on_stranded = "land"                      # the end policy: land | hold | return (lands now)
+    battery_reserve_pct = 20                  # inside a Try, an action fails below this battery
+                                              # (the fleet's [safety] value; default: none)
 
     [net]
     bind = "tcp://127.0.0.1:6001"             # this drone's out-bridge
@@ -37,6 +39,7 @@ their range:
     land_timeout_s     0 < value <= 3600 s       telemetry_stale_s  0 < value <= 3600 s
     mission_timeout_s  0 < value <= 604800 s     telemetry_max_hz   0.01 <= value <= 1000 Hz
     peer_give_up_s     0 < value <= 86400 s      hal.speedup        0 < value <= 1000
+    battery_reserve_pct  0 < value <= 100 %
     heartbeat_s        0.01 <= value <= 60 s     (and peer_timeout_s, telemetry_stale_s
                                                   longer than heartbeat_s)
 
@@ -90,6 +93,9 @@ class NodeConfig:
     # most this long; then the drone applies ``on_stranded`` (actors/stranded.py).
     peer_wait_limit_s: float = 20.0
     on_stranded: str = "land"
+    # Inside a Try's Body an action fails when the battery drops below this
+    # (actors/logic/actions.py); None: a low battery fails nothing.
+    battery_reserve_pct: float | None = None
 
     @classmethod
     def load(cls, path: Path) -> NodeConfig:
@@ -109,6 +115,7 @@ class NodeConfig:
                 "mission_timeout_s",
                 "peer_wait_limit_s",
                 "on_stranded",
+                "battery_reserve_pct",
                 "net",
                 "hal",
             },
@@ -139,10 +146,14 @@ class NodeConfig:
         if not isinstance(hal, dict):
             raise ConfigError(f"{w}hal: must be a table")
         check_hal(f"{w}hal.", hal, drone=drone != GROUND_STATION)
-        timeouts = {}
+        timeouts: dict[str, float] = {}
         for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s", "peer_wait_limit_s"):
             if key in doc:
                 timeouts[key] = in_range(f"{w}{key}", doc[key], key)
+        if "battery_reserve_pct" in doc:
+            timeouts["battery_reserve_pct"] = in_range(
+                f"{w}battery_reserve_pct", doc["battery_reserve_pct"], "battery_reserve_pct"
+            )
         on_stranded = doc.get("on_stranded", "land")
         if on_stranded not in END_POLICIES:
             raise ConfigError(
@@ -196,6 +207,11 @@ class NodeConfig:
             f"mission_timeout_s = {toml_value(self.mission_timeout_s)}",
             f"peer_wait_limit_s = {toml_value(self.peer_wait_limit_s)}",
             f"on_stranded = {toml_value(self.on_stranded)}",
+            *(
+                [f"battery_reserve_pct = {toml_value(self.battery_reserve_pct)}"]
+                if self.battery_reserve_pct is not None
+                else []
+            ),
             "",
             "[net]",
             f"bind = {toml_value(self.bind)}",

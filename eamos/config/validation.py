@@ -88,6 +88,7 @@ RANGES: dict[str, Range] = {
     "telemetry_max_hz": Range(0.01, 1000, "Hz", closed_low=True),
     "peer_give_up_s": Range(0, _DAY_S, "s"),
     "peer_wait_limit_s": Range(0, _DAY_S, "s"),
+    "battery_reserve_pct": Range(0, 100, "%"),
     "speedup": Range(0, MAX_SPEEDUP, ""),
 }
 """Accepted values of every numeric field of a drone config (and of ``hal.speedup``)."""

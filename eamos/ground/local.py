@@ -1,10 +1,11 @@
-"""A fleet of local processes for ``eamos run``: one ``eamos-node`` per drone, on loopback.
+"""A fleet of local processes for ``eamos run``: ``eamos-node`` processes on loopback.
 
 :func:`fly_local` takes a compiled mission's programs (already in the run
 folder's ``programs/``), writes one node config per drone (simulated by
 default; a fleet file may pick other adapters, and MAVLink drones get a
-simulated vehicle each), starts every drone as its own process, and is their
-ground station through :func:`~eamos.ground.flight.fly`.  Ctrl-C (the ``stop``
+simulated vehicle each), starts the drones as processes (one per drone, or
+``drones_per_process`` drones sharing one, :func:`process_groups`), and is
+their ground station through :func:`~eamos.ground.flight.fly`.  Ctrl-C (the ``stop``
 event) aborts: every drone lands, then the processes end.
 """
 
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from eamos.actors.runtime import NetSettings
+from eamos.actors.wiring import connected_peers
 from eamos.config import ConfigError, FleetConfig, NodeConfig, fleet_order, in_range
 from eamos.hal import AdapterError, make_adapter
 from eamos.logs import make_logger
@@ -189,37 +191,77 @@ def check_hal_settings(drone: str, hal: Mapping[str, Any], fleet_path: Path | No
     adapter.close()
 
 
-def last_line(path: Path) -> str:
-    """The last non-empty line of a text file ("" when there is none)."""
+def last_line(path: Path, about: str = "") -> str:
+    """The last non-empty line of a text file containing ``about`` ("" when there is none)."""
     try:
-        lines = [ln for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+        lines = [
+            ln for ln in path.read_text(errors="replace").splitlines() if ln.strip() and about in ln
+        ]
     except OSError:
         return ""
     return lines[-1] if lines else ""
 
 
+def process_groups(drones: list[str], per_process: int | None) -> list[list[str]]:
+    """The drones each process runs, in mission order: ``per_process`` at most per process.
+
+    ``None`` (automatic): about one process per CPU core, each drone's
+    runtime a thread of it; ``1``: one process per drone (a drone killed alone,
+    as the fault tests do).
+    """
+    if per_process is None:
+        cores = os.cpu_count() or 1
+        per_process = max(1, -(-len(drones) // cores))
+    if per_process < 1:
+        raise ConfigError(f"--drones-per-process {per_process}: must be at least 1")
+    return [drones[i : i + per_process] for i in range(0, len(drones), per_process)]
+
+
 @dataclass
 class _Proc:
-    name: str
+    name: str  # the process's first drone
     popen: subprocess.Popen[bytes]
+    drones: tuple[str, ...] = ()
     exit_code: int | None = None
 
 
 class LocalFleet:
-    """The drone processes of one run, watched by a thread each."""
+    """The drone processes of one run, watched by a thread each.
+
+    ``on_exit(drone, code)`` is called for each drone of a process when it ends:
+    with the drone's own exit code when it shared the process (``exit_code``
+    in its log folder), else the process's.
+    """
 
     def __init__(self, on_exit: Callable[[str, int], None]) -> None:
         self.procs: dict[str, _Proc] = {}
         self.on_exit = on_exit
+        self.log_dirs: dict[str, Path] = {}
+        self.outputs: dict[str, Path] = {}  # drone -> its process's node.out
 
     def spawn(self, name: str, config: Path, log_dir: Path) -> None:
         """Start ``eamos-node --config config``; its output goes to ``log_dir/node.out``."""
-        log_dir.mkdir(parents=True, exist_ok=True)
-        out = (log_dir / "node.out").open("wb")
+        self.spawn_group({name: config}, {name: log_dir}, log_dir / "node.out")
+
+    def spawn_group(
+        self, configs: Mapping[str, Path], log_dirs: Mapping[str, Path], out_path: Path
+    ) -> None:
+        """Start one ``eamos-node`` running the drones of ``configs``; output to ``out_path``."""
+        names = list(configs)
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        for name in names:
+            log_dirs[name].mkdir(parents=True, exist_ok=True)
+            (log_dirs[name] / "exit_code").unlink(missing_ok=True)  # a run before's, if reused
+            self.log_dirs[name] = log_dirs[name]
+            self.outputs[name] = out_path
+        out = out_path.open("wb")
         env = dict(os.environ)
         env.setdefault("PYTHONUNBUFFERED", "1")
+        argv = [sys.executable, "-m", NODE_MODULE]
+        for name in names:
+            argv += ["--config", str(configs[name])]
         popen = subprocess.Popen(
-            [sys.executable, "-m", NODE_MODULE, "--config", str(config)],
+            argv,
             stdout=out,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,
@@ -227,15 +269,22 @@ class LocalFleet:
             start_new_session=True,  # Ctrl-C reaches the ground station only; it lands everyone
         )
         out.close()
-        proc = _Proc(name, popen)
-        self.procs[name] = proc
+        proc = _Proc(names[0], popen, tuple(names))
+        self.procs[names[0]] = proc
         threading.Thread(
-            target=self._watch, args=(proc,), name=f"watch-{name}", daemon=True
+            target=self._watch, args=(proc,), name=f"watch-{names[0]}", daemon=True
         ).start()
 
     def _watch(self, proc: _Proc) -> None:
         proc.exit_code = proc.popen.wait()
-        self.on_exit(proc.name, proc.exit_code)
+        for name in proc.drones:
+            own = None
+            if len(proc.drones) > 1:
+                try:
+                    own = int((self.log_dirs[name] / "exit_code").read_text().strip())
+                except (OSError, ValueError):
+                    own = None  # it never finished: the process's code says why
+            self.on_exit(name, proc.exit_code if own is None else own)
 
     def wait(self, timeout_s: float) -> bool:
         """Wait until every process ended; False on timeout."""
@@ -275,10 +324,15 @@ def write_node_configs(
     hals: Mapping[str, dict[str, Any]],
     ready_timeout_s: float,
     keys_dir: Path | None = None,
+    peers_of: Mapping[str, list[str]] | None = None,
+    battery_reserve_pct: float | None = None,
 ) -> dict[str, Path]:
     """One ``configs/<Drone>.toml`` per drone of ``hals`` (paths relative to it); their paths.
 
-    ``keys_dir`` holds the run's keys (default ``run_dir/keys``).
+    ``keys_dir`` holds the run's keys (default ``run_dir/keys``).  ``peers_of``
+    names each drone's peers (:func:`~eamos.actors.wiring.connected_peers`);
+    default every other participant.  ``battery_reserve_pct``: the fleet's
+    ``[safety]`` reserve, below which a Try's Body action fails.
     """
     keys_root = keys_dir or run_dir / "keys"
     configs: dict[str, Path] = {}
@@ -289,10 +343,15 @@ def write_node_configs(
             program=run_dir / "programs" / f"{name}.program.json",
             log_dir=run_dir / "logs" / name,
             bind=endpoints[name],
-            peers={n: e for n, e in endpoints.items() if n != name},
+            peers={
+                n: e
+                for n, e in endpoints.items()
+                if n != name and (peers_of is None or n in peers_of[name])
+            },
             hal=dict(hal),
             ready_timeout_s=ready_timeout_s,
             keys_dir=keys_root / name,
+            battery_reserve_pct=battery_reserve_pct,
         )
         configs[name] = config.write()
     return configs
@@ -307,10 +366,13 @@ def fly_local(
     *,
     speedup: float | None = None,
     display: Display | None = None,
+    drones_per_process: int | None = 1,
 ) -> RunSummary:
-    """Fly ``mission`` with one process per drone; return the summary (also written).
+    """Fly ``mission`` with drones as local processes; return the summary (also written).
 
     ``display`` defaults to a live table on a terminal, plain lines otherwise.
+    ``drones_per_process`` drones share one process (None: about one process
+    per core; 1: one process per drone).
     Before anything starts, a fleet table for a drone not in the mission and a
     ready timeout a drone's config cannot hold are refused (ConfigError).
     """
@@ -319,10 +381,13 @@ def fly_local(
     fleet.check_drones(drones)
     # The drones' configs must load: an option beyond a config's range is refused here.
     in_range("--ready-timeout", limits.ready_timeout_s, "ready_timeout_s")
+    groups = process_groups(drones, drones_per_process)
     # The ports stay reserved until the run is over (see PortReservation).
     ports = PortReservation(len(names))
     try:
-        return _fly_local(mission, run_dir, fleet, limits, stop, ports.ports, speedup, display)
+        return _fly_local(
+            mission, run_dir, fleet, limits, stop, ports.ports, speedup, display, groups
+        )
     finally:
         ports.release()
 
@@ -336,6 +401,7 @@ def _fly_local(
     ports: tuple[int, ...],
     speedup: float | None,
     display: Display | None,
+    groups: list[list[str]],
 ) -> RunSummary:
     names = list(mission.programs)
     drones = [n for n in names if n != GROUND_STATION]
@@ -360,7 +426,17 @@ def _fly_local(
     except ConfigError:
         vehicles.stop()
         raise
-    configs = write_node_configs(run_dir, endpoints, hals, limits.ready_timeout_s, keys_dir)
+    # Each drone connects only to the peers it works with and the ground station.
+    peers_of = connected_peers(dict(mission.programs))
+    configs = write_node_configs(
+        run_dir,
+        endpoints,
+        hals,
+        limits.ready_timeout_s,
+        keys_dir,
+        peers_of,
+        battery_reserve_pct=fleet.safety.battery_reserve_pct,
+    )
     shown = display or make_display(None, drones)
     station = GroundStation(drones, mission.mission_id, on_change=shown.event)
     shown.watch(station)
@@ -384,7 +460,9 @@ def _fly_local(
         exits[name] = code
         view = station.snapshot().get(name)
         if view is not None and view.report is None:
-            why = last_line(run_dir / "logs" / name / "node.out")
+            out = processes.outputs.get(name, run_dir / "logs" / name / "node.out")
+            # A shared process's output: the last line that names this drone.
+            why = last_line(out, "" if out.name == "node.out" else f" {name}:")
             station.fail(name, f"process exited with code {code}" + (f": {why}" if why else ""))
 
     processes = LocalFleet(on_exit)
@@ -393,8 +471,15 @@ def _fly_local(
     try:
         runtime.start()
         station.attach(runtime)
-        for name in drones:
-            processes.spawn(name, configs[name], run_dir / "logs" / name)
+        for group in groups:
+            if len(group) == 1:
+                processes.spawn(group[0], configs[group[0]], run_dir / "logs" / group[0])
+            else:  # several drones in one process: its output beside their folders
+                processes.spawn_group(
+                    {n: configs[n] for n in group},
+                    {n: run_dir / "logs" / n for n in group},
+                    run_dir / "logs" / f"node-{group[0]}-{group[-1]}.out",
+                )
         with shown:
             shown.say(f"mission {mission.name}: {len(drones)} drone(s), run folder {run_dir}")
             flight = fly(

@@ -37,6 +37,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
+from eamos.program.plugins import PluginRegistry
 from eamos.program.uniform import Command
 
 ActionStatus = Literal["ok", "failed", "cancelled"]
@@ -118,9 +119,16 @@ DoneCallback = Callable[[ActionResult], None]
 
 
 class Adapter(Protocol):
-    """What the uniform-API actor needs from a vehicle driver (see module docstring)."""
+    """What the uniform-API actor needs from a vehicle driver (see module docstring).
+
+    ``family`` names the adapter family plugin actions are implemented for
+    (``"sim"``, ``"mavlink"``, ``"ground"``); ``plugins`` are the action plugins it
+    was built with (docs/plugins.md): it runs the uniform actions and those.
+    """
 
     drone: str
+    family: str
+    plugins: PluginRegistry
 
     def start(self, on_telemetry: TelemetryCallback) -> None: ...
 

@@ -111,12 +111,14 @@ def drone_config(
     hal: dict[str, Any],
     ready_timeout_s: float,
     keys: bool,
+    battery_reserve_pct: float | None = None,
 ) -> NodeConfig:
     """A drone's ``configs/<Drone>.toml`` in ``mission_dir``, the layout of ``eamos run``.
 
     ``mission_dir`` is the operator's run folder; the drone's mission folder has
     the same layout, and the config names its files relative to itself, so the
-    text written here is the text the drone reads.
+    text written here is the text the drone reads.  ``battery_reserve_pct``: the
+    fleet's ``[safety]`` reserve, below which a Try's Body action fails.
     """
     peers = {GROUND_STATION: ground_bind}
     peers.update({n: e for n, e in endpoints.items() if n != drone})
@@ -133,6 +135,7 @@ def drone_config(
         hal=dict(hal),
         ready_timeout_s=float(ready_timeout_s),
         keys_dir=mission_dir / "keys" / drone if keys else None,
+        battery_reserve_pct=battery_reserve_pct,
     )
 
 

@@ -149,6 +149,7 @@ def _plans(
             hal,
             targets.ground.ready_timeout_s,
             keys is not None,
+            fleet.safety.battery_reserve_pct,
         )
         plans[name] = DronePlan(
             drone=name,

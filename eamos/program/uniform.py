@@ -69,7 +69,7 @@ ACTIONS: dict[str, ActionSpec] = {
         ActionSpec(
             "ReturnHome",
             (),
-            "Fly back above home at the current height, then land there (like RTL).",
+            "Fly back above home at the current height, land there and disarm (like RTL).",
         ),
         ActionSpec(
             "Hold",
@@ -332,7 +332,7 @@ class PauseFor(Command):
 
 @dataclass(frozen=True)
 class ReturnHome(Command):
-    """Fly back above home at the current height, then land (RTL)."""
+    """Fly back above home at the current height, land and disarm (RTL)."""
 
 
 @dataclass(frozen=True)

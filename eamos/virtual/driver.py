@@ -114,6 +114,7 @@ class VirtualMission:
         log: Any = None,
         decide: Decide | None = None,
         fail: FailHook | None = None,
+        battery_floor_pct: float | None = None,
     ) -> None:
         """``programs``: every participant's program (the ground station's included).
 
@@ -121,7 +122,10 @@ class VirtualMission:
         simulator core with default settings); ``log``, if given, receives the
         nodes' mission-log lines (bound with ``drone`` and ``node``); ``decide``,
         if given, decides every condition, and ``fail`` whether an action of a
-        Try's Body fails (see :mod:`eamos.virtual.decisions`).
+        Try's Body fails (see :mod:`eamos.virtual.decisions`);
+        ``battery_floor_pct``: below it a Try's Body action fails, as on the drones
+        (the fleet's ``[safety] battery_reserve_pct``; see
+        :mod:`eamos.actors.logic.actions`).
         """
         progs = list(programs.values()) if isinstance(programs, Mapping) else list(programs)
         if not progs:
@@ -157,6 +161,10 @@ class VirtualMission:
                 top_level=frozenset(k for k, w in wiring.items() if not w.spec.loops),
                 scope_index=scope_index,
             )
+        for part in self.participants.values():
+            for logic in part.logic.values():
+                if isinstance(logic, ActionLogic):
+                    logic.battery_floor_pct = battery_floor_pct
         if log is None:
             # Nobody reads notes or progress in this run: the logic need not make them.
             for part in self.participants.values():

@@ -162,8 +162,9 @@ def test_return_home_flies_above_home_at_its_height_then_lands() -> None:
     rig.run("home", ReturnHome())
     track = rig.track("home")
     assert rig.results.got["home"].ok
-    x, y, z, landed, _armed, _ = rig.core.where()
+    x, y, z, landed, armed, _ = rig.core.where()
     assert math.hypot(x, y) <= 0.1 and z == 0.0 and landed
+    assert not armed  # disarmed after touchdown, as RTL does
     # No descent before it is above home.
     for _, tx, ty, tz in track:
         if math.hypot(tx, ty) > 0.2:

@@ -12,6 +12,14 @@ the start plus the distance) minus the position at the resume.  A Handler's
 own action refused ``busy`` (it reached the vehicle before the cancel of the
 suspended one) is re-issued at the drone's next telemetry push, at most
 :data:`BUSY_RETRIES` times: event-driven, no timer.
+
+A Try also catches a low battery: when the host sets :attr:`ActionLogic.battery_floor_pct`
+(the fleet's ``[safety] battery_reserve_pct``), an action of a Try's Body watches its
+own drone's battery while it runs; a sample below the floor cancels it (the drone
+holds) and the action ends ``failed`` ("battery 18.2 % below the reserve of 20 %"),
+which the Try catches like any other failure.  Outside a Try the floor changes
+nothing: the pre-flight check reports a reserve breach, the mission decides with
+its own conditions.
 """
 
 from __future__ import annotations
@@ -67,6 +75,9 @@ class ActionLogic(NodeLogic):
         self.watching = False
         self.retries: dict[Iteration, int] = {}
         self.retry_at_next_sample: list[Iteration] = []
+        #: Set by the host: a Try's Body action fails below this battery (percent).
+        self.battery_floor_pct: float | None = None
+        self.low_battery: dict[Iteration, str] = {}  # activations cancelled for the battery
 
     def _pass_on(self, act: Iteration, status: Status) -> None:
         self._emit(act, lambda r: status)
@@ -90,6 +101,12 @@ class ActionLogic(NodeLogic):
         self.issued[act] = args
         self._event(act, "running")
         self._fx.append(StartAction(act, self.action, args))
+        if self._guards_battery():
+            self._watch_own()
+
+    def _guards_battery(self) -> bool:
+        """True when a low battery is a failure of this action (inside a Try, floor set)."""
+        return self.spec.catch is not None and self.battery_floor_pct is not None
 
     def action_finished(
         self, iteration: Iteration, status: str, reason: str, start_s: float, end_s: float
@@ -97,6 +114,9 @@ class ActionLogic(NodeLogic):
         if iteration not in self.running:
             return []
         del self.running[iteration]
+        low = self.low_battery.pop(iteration, None)
+        if low is not None and status == "cancelled":
+            status, reason = "failed", low
         args = self.issued.pop(iteration, self.spec.args)
         if iteration in self.suspending:
             self.suspending.discard(iteration)
@@ -209,6 +229,8 @@ class ActionLogic(NodeLogic):
         if self.axis is not None and values.get(self.axis) is not None:
             for act in self.running:
                 self.origin.setdefault(act, float(values[self.axis]))
+        if self._guards_battery():
+            self._check_battery(values.get("Battery"))
         retry, self.retry_at_next_sample = self.retry_at_next_sample, []
         for act in retry:
             if act in self.running:
@@ -216,13 +238,26 @@ class ActionLogic(NodeLogic):
         self._maybe_unwatch()
         return self._take()
 
+    def _check_battery(self, battery: Any) -> None:
+        floor = self.battery_floor_pct
+        if battery is None or floor is None or float(battery) >= floor:
+            return
+        for act in self.running:
+            if act not in self.low_battery and act not in self.suspending:
+                self.low_battery[act] = (
+                    f"battery {float(battery):.1f} % below the reserve of {floor:g} %"
+                )
+                self._fx.append(CancelAction(act))
+
     def _watch_own(self) -> None:
         if not self.watching:
             self.watching = True
             self._fx.append(WatchTelemetry((self.spec.drone,)))
 
     def _maybe_unwatch(self) -> None:
-        needed = self.retry_at_next_sample or (self.axis is not None and self.running)
+        needed = self.retry_at_next_sample or (
+            (self.axis is not None or self._guards_battery()) and self.running
+        )
         if self.watching and not needed and not self.suspended:
             self.watching = False
             self._fx.append(UnwatchTelemetry())

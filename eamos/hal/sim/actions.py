@@ -317,6 +317,8 @@ class ActionRules:
                     continue
             elif act.kind == "land":
                 if model.landed:
+                    if isinstance(act.command, ReturnHome):
+                        model.disarm()  # as both autopilots' RTL does after touchdown
                     self._finish(act, ActionResult("ok"), finished)
                     continue
             elif act.kind == "yaw":
