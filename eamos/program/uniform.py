@@ -9,7 +9,7 @@ the drone's home (where it was when its adapter started).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 
 @dataclass(frozen=True)
@@ -234,8 +234,12 @@ class Command:
 
     @property
     def args(self) -> tuple[float, ...]:
-        """The arguments in the order of the action's parameters."""
-        return ()
+        """The arguments in the order of the action's parameters: the number fields, in order.
+
+        Subclasses whose fields are not the parameters themselves (``FlyBy``'s
+        axis, a payload's or plugin's name) say their own.
+        """
+        return tuple(getattr(self, f.name) for f in fields(self))
 
     @property
     def moves(self) -> bool:
@@ -258,10 +262,6 @@ class Takeoff(Command):
     """Climb vertically to ``height_m`` above home."""
 
     height_m: float
-
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.height_m,)
 
 
 @dataclass(frozen=True)
@@ -301,10 +301,6 @@ class FlyToXYZ(Command):
     y_m: float
     z_m: float
 
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.x_m, self.y_m, self.z_m)
-
 
 @dataclass(frozen=True)
 class FlyToLLA(Command):
@@ -314,20 +310,12 @@ class FlyToLLA(Command):
     lon_deg: float
     alt_m: float
 
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.lat_deg, self.lon_deg, self.alt_m)
-
 
 @dataclass(frozen=True)
 class PauseFor(Command):
     """Hold position (or stay on the ground) for ``duration_s``."""
 
     duration_s: float
-
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.duration_s,)
 
 
 @dataclass(frozen=True)
@@ -341,20 +329,12 @@ class Hold(Command):
 
     duration_s: float
 
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.duration_s,)
-
 
 @dataclass(frozen=True)
 class Yaw(Command):
     """Turn on the spot to the compass heading ``heading_deg`` (0 north, 90 east)."""
 
     heading_deg: float
-
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.heading_deg,)
 
 
 @dataclass(frozen=True)
@@ -363,10 +343,6 @@ class SetSpeed(Command):
 
     speed_m_s: float
 
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.speed_m_s,)
-
 
 @dataclass(frozen=True)
 class Orbit(Command):
@@ -374,10 +350,6 @@ class Orbit(Command):
 
     radius_m: float
     turns: float
-
-    @property
-    def args(self) -> tuple[float, ...]:
-        return (self.radius_m, self.turns)
 
 
 @dataclass(frozen=True)
@@ -389,6 +361,10 @@ class Payload(Command):
     @property
     def action(self) -> str:
         return self.name
+
+    @property
+    def args(self) -> tuple[float, ...]:
+        return ()
 
 
 @dataclass(frozen=True)
