@@ -108,19 +108,12 @@ class ReportJoiner:
 
 
 def _joined(last: wire.ReportPart, packed: bytes) -> wire.Report:
-    try:
-        body = msgpack.unpackb(
-            packed,
-            raw=False,
-            strict_map_key=True,
-            max_str_len=MAX_REPORT_BYTES,
-            max_bin_len=MAX_REPORT_BYTES,
-            max_array_len=MAX_REPORT_BYTES,
-            max_map_len=MAX_REPORT_BYTES,
-            max_ext_len=0,
-        )
-    except (ValueError, TypeError, OverflowError, msgpack.UnpackException) as exc:
-        raise wire.WireError(f"joined report from {last.sender} is not msgpack: {exc}") from exc
+    body = wire.unpack_bounded(
+        packed,
+        MAX_REPORT_BYTES,
+        MAX_REPORT_BYTES,
+        f"joined report from {last.sender} is not msgpack",
+    )
     # The Report's own check: a map of plain data, nested at most MAX_DEPTH deep.
     return wire.Report(
         mission=last.mission,

@@ -209,6 +209,7 @@ __all__ = [
     "topic_heartbeat",
     "topic_telemetry",
     "topic_to",
+    "unpack_bounded",
 ]
 
 WIRE_VERSION: Final = 4
@@ -558,6 +559,33 @@ def encode(msg: Message) -> list[bytes]:
     return [msg.topic, payload]
 
 
+def unpack_bounded(
+    data: bytes | bytearray | memoryview, max_bytes: int, max_items: int, refusal: str
+) -> Any:
+    """``data`` decoded from msgpack with every length bounded; :class:`WireError` if bad.
+
+    Strings and binaries are at most ``max_bytes`` long, arrays and maps hold at
+    most ``max_items``; extension types are refused.  ``refusal`` begins the
+    error's message ("payload is not valid msgpack").
+    """
+    try:
+        return msgpack.unpackb(
+            data,
+            raw=False,
+            strict_map_key=True,
+            max_str_len=max_bytes,
+            max_bin_len=max_bytes,
+            max_array_len=max_items,
+            max_map_len=max_items,
+            max_ext_len=0,
+        )
+    # msgpack signals bad input with ValueError subclasses (incl. UnicodeDecodeError),
+    # its own UnpackException family, TypeError (e.g. unhashable keys) and
+    # OverflowError; all mean "not valid msgpack".
+    except (ValueError, TypeError, OverflowError, msgpack.UnpackException) as exc:
+        raise WireError(f"{refusal}: {exc}") from exc
+
+
 def decode(frames: Sequence[bytes]) -> Message:
     """Decode multipart ``frames`` (``[topic, payload]``) into a message.
 
@@ -577,22 +605,9 @@ def decode(frames: Sequence[bytes]) -> Message:
         raise WireError(
             f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD_BYTES}", reason="oversize"
         )
-    try:
-        body = msgpack.unpackb(
-            payload,
-            raw=False,
-            strict_map_key=True,
-            max_str_len=MAX_PAYLOAD_BYTES,
-            max_bin_len=MAX_PAYLOAD_BYTES,
-            max_array_len=_MAX_CONTAINER_LEN,
-            max_map_len=_MAX_CONTAINER_LEN,
-            max_ext_len=0,
-        )
-    # msgpack signals bad input with ValueError subclasses (incl. UnicodeDecodeError),
-    # its own UnpackException family, TypeError (e.g. unhashable keys) and
-    # OverflowError; all mean "not a valid payload".
-    except (ValueError, TypeError, OverflowError, msgpack.UnpackException) as exc:
-        raise WireError(f"payload is not valid msgpack: {exc}") from exc
+    body = unpack_bounded(
+        payload, MAX_PAYLOAD_BYTES, _MAX_CONTAINER_LEN, "payload is not valid msgpack"
+    )
     if not isinstance(body, dict):
         raise WireError(f"payload must be a map, got {type(body).__name__}")
     version = body.get("v")
