@@ -22,6 +22,8 @@ from eamos.program.uniform import DRONE_TYPES
 from eamos.virtual import run_virtual
 from eamos.virtual.vehicles import sim_vehicles
 
+from .refusals import assert_fleet_refused
+
 # (defaults, types, lineage, drone table, the value of drain_airborne_pct_per_min)
 PRECEDENCE: list[tuple[dict[str, Any], dict[str, dict[str, Any]], tuple[str, ...], dict, Any]] = [
     ({}, {}, (), {}, None),  # nothing said: the simulator's default (no key written)
@@ -180,13 +182,7 @@ BAD_TYPES = [
 def test_a_bad_type_table_names_file_and_field(
     tmp_path: Path, text: str, field: str, words: str
 ) -> None:
-    path = tmp_path / "fleet.toml"
-    path.write_text(text)
-    with pytest.raises(ConfigError) as info:
-        FleetConfig.load(path)
-    message = str(info.value)
-    assert message.startswith(f"{path}: {field}"), message
-    assert words in message, message
+    assert_fleet_refused(tmp_path, text, field, words)
 
 
 def test_a_type_table_for_another_adapter_is_left_to_that_adapter(tmp_path: Path) -> None:

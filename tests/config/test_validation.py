@@ -17,6 +17,8 @@ from eamos.cli.main import main
 from eamos.cli.options import MAX_SECONDS, positive_number, seconds_number, speedup_number
 from eamos.config import MAX_SPEEDUP, RANGES, ConfigError, FleetConfig, NodeConfig
 
+from .refusals import assert_fleet_refused
+
 REPO = Path(__file__).resolve().parents[2]
 GOOD = REPO / "missions" / "experiment_b.go"
 
@@ -132,13 +134,7 @@ BAD_FLEET = [
 def test_a_bad_fleet_file_names_file_and_field(
     tmp_path: Path, text: str, field: str, words: str
 ) -> None:
-    path = tmp_path / "fleet.toml"
-    path.write_text(text)
-    with pytest.raises(ConfigError) as info:
-        FleetConfig.load(path)
-    message = str(info.value)
-    assert message.startswith(f"{path}: {field}"), message
-    assert words in message, message
+    assert_fleet_refused(tmp_path, text, field, words)
 
 
 @pytest.mark.parametrize(
