@@ -165,6 +165,11 @@ def _latency(summary: dict[str, Any]) -> dict[str, Any]:
         (a for d in ("D1", "D2") for a in summary["drones"][d]["actions"]), key=lambda a: a["start"]
     )
     lat = sorted((b["start"] - a["end"]) * 1e3 for a, b in itertools.pairwise(acts))
+    return {**_percentiles(lat), "_samples": lat}
+
+
+def _percentiles(lat: list[float]) -> dict[str, Any]:
+    lat = sorted(lat)
     return {
         "hops": len(lat),
         "p50_ms": round(statistics.median(lat), 3),
@@ -251,9 +256,13 @@ def _cpu_s(pid: int) -> float:
 def bench_latency(hops: int) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         return {
-            "without_monitor": run_once(Path(tmp), "plain", hops, False),
-            "with_monitor": run_once(Path(tmp), "monitored", hops, True),
+            "without_monitor": _public(run_once(Path(tmp), "plain", hops, False)),
+            "with_monitor": _public(run_once(Path(tmp), "monitored", hops, True)),
         }
+
+
+def _public(result: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in result.items() if not k.startswith("_")}
 
 
 def bench_loaded(drones: int, hops: int, rounds: int = 1) -> dict[str, Any]:
@@ -282,11 +291,21 @@ def bench_loaded(drones: int, hops: int, rounds: int = 1) -> dict[str, Any]:
                 result = run_once(folder, f"{name}{i}", hops, monitor, source=source, fleet=fleet)
                 runs[name].append(result)
     for name, results in runs.items():
-        out[name] = results[0] if rounds == 1 else results
+        out[name] = _public(results[0]) if rounds == 1 else [_public(r) for r in results]
     if rounds > 1:
         med = {n: statistics.median(r["p99_ms"] for r in rs) for n, rs in runs.items()}
         out["p99_ms_median"] = med
         out["p99_ratio_with_to_without"] = round(med["with_monitor"] / med["without_monitor"], 3)
+        # All rounds' hops together: a p99 over rounds x hops samples is steadier than
+        # any one round's (whose p99 rests on its ten slowest hops).
+        pooled = {n: _percentiles([x for r in rs for x in r["_samples"]]) for n, rs in runs.items()}
+        out["pooled"] = pooled
+        out["pooled_p99_ratio_with_to_without"] = round(
+            pooled["with_monitor"]["p99_ms"] / pooled["without_monitor"]["p99_ms"], 3
+        )
+        out["ground_cpu_s_median"] = {
+            n: statistics.median(r["ground_process_cpu_s"] for r in rs) for n, rs in runs.items()
+        }
     return out
 
 

@@ -3,12 +3,14 @@
 :class:`Hub` owns the :class:`~.state.MonitorState` behind one lock.  The
 ground station's threads call :meth:`Hub.event` (never blocking on a
 browser: it applies the event, appends the patches to a bounded log and
-returns); each browser connection reads the log from its own position with
-:meth:`Hub.since`.  A connection that fell further behind than the log keeps
+returns, without waking anything); each browser connection reads the log from
+its own position with :meth:`Hub.since`.  A connection that fell further behind than the log keeps
 (a slow or stalled browser) gets the whole state again instead
 (:meth:`Hub.resync`), and the patches it missed are counted as dropped
-frames.  ``wake`` is called (outside the lock) after every append; the
-server uses it to wake its connections.
+frames.  The server sends what is new on its own timer (every 0.1 s), so a
+burst of events costs one message per page per tick and no thread switch per
+event; ``wake`` (the server's) is called only for what should not wait for
+the next tick: the run's end and an abort request.
 """
 
 from __future__ import annotations
@@ -57,18 +59,13 @@ class Hub:
         """A message from participant ``name`` reached the ground station (any thread)."""
         with self._lock:
             self.events += 1
-            patches = self.state.apply(name, msg, self.clock())
-            self._publish(patches)
-        if patches:
-            self.wake()
+            self._publish(self.state.apply(name, msg, self.clock()))
 
     def tick(self) -> None:
-        """Send the coalesced drone updates that are due (the server calls it every 0.1 s)."""
+        """Publish the coalesced drone updates that are due (the server calls it every 0.1 s,
+        then sends the new patches to its pages)."""
         with self._lock:
-            patches = self.state.tick(self.clock())
-            self._publish(patches)
-        if patches:
-            self.wake()
+            self._publish(self.state.tick(self.clock()))
 
     def finish(self, summary: RunSummary) -> None:
         """The run ended with ``summary``: final states and the outcome word."""

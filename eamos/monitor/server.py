@@ -187,7 +187,7 @@ class MonitorServer:
                 loop.call_soon_threadsafe(closing.set)
 
     def _wake(self) -> None:
-        """Called by the hub after new patches (any thread): wake every connection once."""
+        """Called by the hub at the run's end or an abort (any thread): wake every connection."""
         loop = self._loop
         if loop is None or self._wake_pending:
             return
@@ -233,18 +233,25 @@ class MonitorServer:
         )
 
     async def _ticker(self) -> None:
-        """Flush the held drone updates every :data:`TICK_S` until the server closes.
+        """Every :data:`TICK_S` until the server closes: flush the held drone updates and
+        send every page what is new (at most 10 messages a second to a page).
 
         It waits on the closing event with a timeout (not a sleep), so :meth:`stop`
         ends it at once instead of after the current period.
         """
         closing = self._closing
         assert closing is not None
+        sent = -1
         while not closing.is_set():
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(closing.wait(), TICK_S)
             if self.replay is None and not closing.is_set():
                 self.hub.tick()
+                # Events never wake the pages (a thread switch per event would cost the
+                # ground station); what arrived since the last tick goes out now, at once.
+                if self.hub.seq != sent:
+                    sent = self.hub.seq
+                    self._notify()
 
     async def _page(self, request: Request) -> Response:
         from starlette.responses import HTMLResponse

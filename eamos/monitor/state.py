@@ -188,13 +188,16 @@ class MonitorState:
         """The patches for ``msg`` from participant ``name`` arriving at wall time ``now``."""
         out: list[dict[str, Any]] = []
         drone = self.drones.get(name)
+        if isinstance(msg, wire.TelemetrySample):
+            # Most events are telemetry (20 Hz per drone), and a sample has no line.
+            if drone is not None:
+                self._telemetry(drone, msg, now)
+                return self._drone_patch(drone, now)
+            return out
         line = format_event(name, msg, now)
         if drone is not None and line is not None:
             drone.line = line
-        if isinstance(msg, wire.TelemetrySample):
-            if drone is not None:
-                self._telemetry(drone, msg, now)
-        elif isinstance(msg, wire.Progress):
+        if isinstance(msg, wire.Progress):
             out += self._progress(name, msg, now)
         elif isinstance(msg, wire.Ready):
             if drone is not None:
