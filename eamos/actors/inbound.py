@@ -104,6 +104,9 @@ class InRouter:
         if ref is None or msg.dest != self.drone:
             self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
             return
+        self.executive.tell(TriggerReceived(msg.sender))
+        ref.tell(Trigger(msg.src_node, msg.dst_node, tuple(msg.iteration), msg.status))  # type: ignore[arg-type]
+        # Logged after the hand-over: the node starts while this thread writes the line.
         self.log.info(
             "mission.inbridge.received",
             src_drone=msg.sender,
@@ -112,8 +115,6 @@ class InRouter:
             iteration=list(msg.iteration),
             status=msg.status,
         )
-        self.executive.tell(TriggerReceived(msg.sender))
-        ref.tell(Trigger(msg.src_node, msg.dst_node, tuple(msg.iteration), msg.status))  # type: ignore[arg-type]
 
     def _interrupt(self, msg: wire.Interrupt) -> None:
         try:

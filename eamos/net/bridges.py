@@ -10,16 +10,19 @@ Each participant (drone or ground station) owns exactly one :class:`OutBridge`
 
 Threading model
 ---------------
-ZeroMQ sockets must not be used by two threads at once, so each bridge owns one
-thread that is the only user of its network socket:
+ZeroMQ sockets must not be used by two threads at once; a socket may change
+threads behind a full memory barrier (a lock).  So:
 
 * ``OutBridge.send`` may be called from any thread.  It encodes the message in
   the caller's thread (so a bad message raises :class:`~eamos.net.wire.WireError`
-  at the caller), then, under a lock, writes the frames into an in-process
-  PAIR pipe.  The bridge thread forwards them to the XPUB socket in FIFO order
-  and, on the same poller, reads the subscription frames the XPUB socket
-  delivers.  Messages from one thread therefore leave in the order they were
-  sent.  The pipe has no high-water mark, so ``send`` never blocks.
+  at the caller), then, under the bridge's lock, writes the frames to the XPUB
+  socket itself: no hand-over to another thread, which cost every message a
+  context switch.  The bridge thread polls the socket's descriptor
+  (``ZMQ_FD``, safe to poll from any thread) and reads the subscription frames
+  under the same lock; since ``ZMQ_FD`` is edge-triggered, a sender that finds
+  a subscription frame waiting after its send wakes the thread through an
+  in-process PAIR pipe.  Messages from one thread leave in the order they were
+  sent, and ``send`` never blocks (XPUB drops at the high-water mark instead).
 * ``InBridge`` runs one receive thread polling the SUB socket and a control
   PAIR pipe; ``add_subscription`` and ``close`` talk to it through that pipe.
   ``on_message`` is called on that thread, so it should hand work off quickly

@@ -18,7 +18,9 @@ from eamos.net.sockets import (
     CMD_SUB,
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_HWM,
+    EVENTS_OPT,
     MAX_FRAME_BYTES,
+    POLLIN_BIT,
     RECONNECT_IVL_MAX_MS,
     BridgeThread,
     Monitor,
@@ -32,7 +34,7 @@ from eamos.net.wire import Message, WireError, decode
 if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
 
-__all__ = ["InBridge"]
+__all__ = ["InBridge", "latest_telemetry", "read_batch"]
 
 #: After a disconnect, how long the bridge leaves libzmq to start its own
 #: reconnect (it retries within RECONNECT_IVL_MS after a normal disconnect)
@@ -50,6 +52,24 @@ def latest_telemetry(batch: list[list[bytes]]) -> tuple[list[list[bytes]], int]:
     newest = {frames[0]: i for i, frames in enumerate(batch) if frames[0][:3] == b"tm/"}
     kept = [f for i, f in enumerate(batch) if f[0][:3] != b"tm/" or newest[f[0]] == i]
     return kept, len(batch) - len(kept)
+
+
+def read_batch(sub: zmq.Socket[Any], limit: int = 256) -> list[list[bytes]]:
+    """The multipart messages waiting on ``sub``, at most ``limit``.
+
+    Bounded so that a stop or subscribe command, or another peer, is not
+    starved by a flood.  ``ZMQ_EVENTS`` says when the socket is empty: cheaper
+    than the exception a read of an empty socket raises.
+    """
+    batch: list[list[bytes]] = []
+    for _ in range(limit):
+        try:
+            batch.append(sub.recv_multipart(zmq.NOBLOCK))
+        except zmq.Again:
+            break
+        if not sub.getsockopt(EVENTS_OPT) & POLLIN_BIT:  # type: ignore[operator]
+            break
+    return batch
 
 
 class InBridge(BridgeThread):
@@ -349,14 +369,7 @@ class InBridge(BridgeThread):
                 self._subscribe(frames[1])
 
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
-        # Bounded batch so a stop or subscribe command, or another peer, is not
-        # starved by a flood.
-        batch: list[list[bytes]] = []
-        for _ in range(256):
-            try:
-                batch.append(sub.recv_multipart(zmq.NOBLOCK))
-            except zmq.Again:
-                break
+        batch = read_batch(sub)
         kept, skipped = latest_telemetry(batch)
         self._superseded += skipped
         for frames in kept:

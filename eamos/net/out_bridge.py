@@ -1,4 +1,4 @@
-"""The Out-Bridge: a participant's one bound XPUB socket, fed by any thread.
+"""The Out-Bridge: a participant's one bound XPUB socket, written by any thread under a lock.
 
 See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security.
 """
@@ -15,11 +15,13 @@ import zmq
 from eamos.logs import make_logger
 from eamos.net.descriptors import connection_budget
 from eamos.net.sockets import (
-    CMD_SEND,
     CMD_STOP,
+    CMD_WAKE,
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_HWM,
     DEFAULT_LINGER_MS,
+    EVENTS_OPT,
+    POLLIN_BIT,
     BridgeThread,
     Monitor,
     connection_options,
@@ -93,7 +95,10 @@ class OutBridge(BridgeThread):
         self.endpoint: str = self._xpub.getsockopt(zmq.LAST_ENDPOINT).decode()
         self._ctrl_rx, self._ctrl_tx = control_pair(context, "out")
 
-        # _lock guards _ctrl_tx, the lifecycle flags and the send counters.
+        # _lock guards every use of _xpub (senders write to it directly, the
+        # bridge thread reads subscriptions and rebinds it: ZeroMQ allows a
+        # socket to change threads behind a full memory barrier, which the lock
+        # is), _ctrl_tx, the lifecycle flags and the send counters.
         self._lock = threading.Lock()
         self._started = False
         self._closed = False
@@ -128,19 +133,30 @@ class OutBridge(BridgeThread):
     # -- sending -----------------------------------------------------------
 
     def send(self, msg: Message) -> bool:
-        """Queue ``msg`` for publication; thread-safe and non-blocking.
+        """Publish ``msg``; thread-safe and non-blocking.
 
-        Returns False (and logs) if the bridge is closed.  Raises
-        :class:`~eamos.net.wire.WireError` if ``msg`` cannot be encoded.
-        Messages sent before :meth:`start` are queued and go out once started.
+        The calling thread writes to the XPUB socket itself, under the bridge's
+        lock (no hand-over to the bridge thread: that cost every message a
+        context switch).  Returns False (and logs) if the bridge is closed.
+        Raises :class:`~eamos.net.wire.WireError` if ``msg`` cannot be encoded.
+        Messages sent before :meth:`start` go out too (the socket is bound).
         """
         frames = encode(msg)
+        return self.send_frames(frames, type(msg).__name__)
+
+    def send_frames(self, frames: list[bytes], name: str = "raw") -> bool:
+        """Publish already encoded ``frames`` (``[topic, payload]``), counted under ``name``."""
         with self._lock:
             if self._closed or not self._tx_open:
-                self._log.info("net.out.send_after_close", type=type(msg).__name__)
+                self._log.info("net.out.send_after_close", type=name)
                 return False
-            self._ctrl_tx.send_multipart([CMD_SEND, *frames])
-            name = type(msg).__name__
+            # XPUB never blocks: it drops for a peer whose queue is at the HWM
+            # (hence the large HWM).
+            self._xpub.send_multipart(frames)
+            # The send may have consumed the socket's wake-up signal (ZMQ_FD is
+            # edge-triggered) with a subscription waiting: hand it to the thread.
+            if self._started and self._xpub.getsockopt(EVENTS_OPT) & POLLIN_BIT:
+                self._ctrl_tx.send(CMD_WAKE)
             size = len(frames[0]) + len(frames[1])
             self._sent_counts[name] = self._sent_counts.get(name, 0) + 1
             self._sent_bytes_by_type[name] = self._sent_bytes_by_type.get(name, 0) + size
@@ -202,15 +218,18 @@ class OutBridge(BridgeThread):
     def _run(self) -> None:
         poller = zmq.Poller()
         poller.register(self._ctrl_rx, zmq.POLLIN)
-        poller.register(self._xpub, zmq.POLLIN)
+        # The socket's own descriptor, not the socket: polling a descriptor is
+        # safe while other threads send; what it signals is read under the lock.
+        with self._lock:
+            xpub_fd = self._xpub.getsockopt(zmq.FD)
+        poller.register(xpub_fd, zmq.POLLIN)
         monitor = self._monitor
         if monitor is not None:
             poller.register(monitor.socket, zmq.POLLIN)
         try:
             while True:
+                self._read_subscriptions()
                 events = dict(poller.poll(self._poll_timeout_ms()))
-                if self._xpub in events:
-                    self._read_subscriptions()
                 if monitor is not None and monitor.socket in events:
                     monitor.drain()
                 if monitor is not None:
@@ -225,10 +244,10 @@ class OutBridge(BridgeThread):
             with self._lock:
                 self._ctrl_tx.close()
                 self._tx_open = False
+                self._xpub.close()
             self._ctrl_rx.close()
             if monitor is not None:
                 monitor.close()
-            self._xpub.close()
             with self._cond:
                 self._running = False
                 self._cond.notify_all()
@@ -255,12 +274,14 @@ class OutBridge(BridgeThread):
                 pause_s=FLOOD_PAUSE_S,
                 count=self.pauses,
             )
-            self._xpub.unbind(self.endpoint)  # closes every accepted connection
+            with self._lock:
+                self._xpub.unbind(self.endpoint)  # closes every accepted connection
             monitor.accepted.clear()
             self._paused_until = now + FLOOD_PAUSE_S
         elif now >= self._paused_until:
             try:
-                self._xpub.bind(self.endpoint)
+                with self._lock:
+                    self._xpub.bind(self.endpoint)
             except zmq.ZMQError as exc:
                 self._log.warning("net.out.rebind_failed", endpoint=self.endpoint, error=str(exc))
                 self._paused_until = now + FLOOD_PAUSE_S
@@ -269,7 +290,7 @@ class OutBridge(BridgeThread):
             self._log.info("net.out.listening", endpoint=self.endpoint)
 
     def _drain_control(self) -> bool:
-        """Forward every queued command; False once the stop command is seen."""
+        """Read every queued command (wake-ups); False once the stop command is seen."""
         while True:
             try:
                 frames = self._ctrl_rx.recv_multipart(zmq.NOBLOCK)
@@ -277,20 +298,21 @@ class OutBridge(BridgeThread):
                 return True
             if frames[0] == CMD_STOP:
                 return False
-            self._forward(frames[1:])
-
-    def _forward(self, frames: list[bytes]) -> None:
-        # The one place outgoing frames hit the network.  XPUB never blocks: it
-        # drops for a peer whose queue is at the HWM (hence the large HWM).
-        self._xpub.send_multipart(frames)
 
     def _read_subscriptions(self) -> None:
+        frames: list[bytes] = []
+        with self._lock:
+            if not self._tx_open:
+                return
+            # ZMQ_EVENTS also re-arms the descriptor the thread polls.
+            while self._xpub.getsockopt(EVENTS_OPT) & POLLIN_BIT:
+                try:
+                    frames.append(self._xpub.recv(zmq.NOBLOCK))
+                except zmq.Again:
+                    break
+        # The callbacks run without the lock: they send (the lock order is link, then bridge).
         changed: list[tuple[bytes, bool]] = []
-        while True:
-            try:
-                frame = self._xpub.recv(zmq.NOBLOCK)
-            except zmq.Again:
-                break
+        for frame in frames:
             if not frame or frame[0] not in (0, 1):
                 continue  # not a (un)subscription frame; SUB peers send nothing else
             topic = frame[1:]

@@ -11,15 +11,27 @@ decides when.
 
 from __future__ import annotations
 
-import dataclasses
 import random
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Final
 
 import eamos.net.wire as wire
 from eamos.net.settings import LinkSettings
 
-__all__ = ["Peer", "Receiving", "Sending", "SessionCounters"]
+__all__ = [
+    "HEARTBEAT_ACK_REPEATS",
+    "Peer",
+    "Receiving",
+    "Sending",
+    "SessionCounters",
+    "heartbeat",
+]
+
+HEARTBEAT_ACK_REPEATS: Final = 3
+"""A link's acknowledgements ride on this many heartbeats after they last changed
+(then no more: a heartbeat carries news, not the whole fleet).  The retransmission
+timeout is at least two heartbeats, so the sender normally has one of them first."""
 
 
 @dataclass
@@ -67,7 +79,7 @@ class Sending:
         """``msg`` with the next seq (and the sender's ``incarnation``), kept until acknowledged."""
         seq = self.next_seq
         self.next_seq += 1
-        numbered = dataclasses.replace(msg, seq=seq, incarnation=incarnation)  # type: ignore[call-arg,arg-type]
+        numbered = wire.restamp(msg, seq=seq, incarnation=incarnation)
         self.pending[seq] = _Out(numbered, now, now)
         self.history[seq] = numbered
         return numbered
@@ -187,6 +199,10 @@ class Peer:
     tel_stale: bool = False
     retransmitted: int = 0
     duplicates: int = 0
+    # The acknowledgements last shown on heartbeats (rx.upto, brx.upto, incarnation)
+    # and how many more heartbeats show them: see ReliableSession._heartbeat_message.
+    shown_acks: tuple[int, int, int] = (0, 0, 0)
+    ack_repeats: int = 0
 
     def stats(self) -> dict[str, Any]:
         """State (``unwatched`` if its heartbeats are not followed), RTT, counts."""
@@ -211,3 +227,38 @@ class Peer:
         if self.srtt is None:
             return s.rto_min_s
         return max(0.005, 1.5 * self.srtt)
+
+
+def heartbeat(
+    mission: str, name: str, incarnation: int, peers: Iterable[Peer], bsent: int, leaving: bool
+) -> wire.Heartbeat:
+    """``name``'s heartbeat, naming only the links with news: its size follows the traffic.
+
+    ``sent`` lists the links with messages not yet acknowledged (a receiver of
+    an acknowledged link has everything); ``acks``/``backs``/``known`` a peer's
+    acknowledgements for :data:`HEARTBEAT_ACK_REPEATS` heartbeats after they
+    last changed (counted here: call it once per heartbeat sent).  A heartbeat
+    naming every peer grew with the fleet on every receiver (the ground
+    station's reached every drone).  Should all the repeats be lost, the sender
+    retransmits and the duplicate is acknowledged at once.
+    """
+    sent: dict[str, int] = {}
+    acks: dict[str, int] = {}
+    backs: dict[str, int] = {}
+    known: dict[str, int] = {}
+    for p in peers:
+        if p.tx.pending:
+            sent[p.name] = p.tx.next_seq - 1
+        shown = (p.rx.upto, p.brx.upto, p.incarnation)
+        if shown != p.shown_acks:
+            p.shown_acks, p.ack_repeats = shown, HEARTBEAT_ACK_REPEATS
+        if p.ack_repeats > 0 and (p.rx.upto or p.brx.upto):
+            p.ack_repeats -= 1
+            if p.rx.upto:
+                acks[p.name] = p.rx.upto
+            if p.brx.upto:
+                backs[p.name] = p.brx.upto
+            known[p.name] = p.incarnation
+    return wire.Heartbeat(
+        mission, name, sent, bsent, leaving, acks, backs, known, incarnation=incarnation
+    )

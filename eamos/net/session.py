@@ -41,9 +41,10 @@ protocol is tested with a fake clock and messages passed in memory.
   activation), as it always did).
 * **Heartbeats.**  Every participant publishes a
   :class:`~eamos.net.wire.Heartbeat` every ``heartbeat_s`` on ``hb/<name>``,
-  followed by the peers watching it.  It carries the acks, and the highest seq
-  sent on each link, so a receiver missing the tail of a link asks for it
-  (nack) instead of waiting for the sender's timer.  A peer not heard from
+  followed by the peers watching it.  It carries the acks that changed lately,
+  and the highest seq sent on each link with messages not yet acknowledged, so
+  a receiver missing the tail of a link asks for it (nack) instead of waiting
+  for the sender's timer; its size follows the traffic, not the fleet.  A peer not heard from
   (any message) for ``peer_timeout_s`` is reported lost (``mission.peer.lost``,
   and a :class:`PeerStatus` event for the ground station); heard again, it is
   reported back.  A participant shutting down says so (``leaving``), and is
@@ -61,7 +62,6 @@ protocol is tested with a fake clock and messages passed in memory.
 
 from __future__ import annotations
 
-import dataclasses
 import random
 from collections.abc import Iterable
 from typing import Any, Final
@@ -79,10 +79,18 @@ from eamos.net.actions import (
 )
 from eamos.net.incarnation import admit, mine, new_incarnation
 from eamos.net.liveness import LATE_TICK_S, Liveness, TelemetryOut
-from eamos.net.sequence import Peer, Receiving, Sending, SessionCounters
+from eamos.net.sequence import (
+    HEARTBEAT_ACK_REPEATS,
+    Peer,
+    Receiving,
+    Sending,
+    SessionCounters,
+    heartbeat,
+)
 from eamos.net.settings import LinkSettings
 
 __all__ = [
+    "HEARTBEAT_ACK_REPEATS",
     "LATE_TICK_S",
     "NACK_INTERVAL_S",
     "Action",
@@ -143,6 +151,7 @@ class ReliableSession:
         self.log = log if log is not None else make_logger(None)
         self._rng = rng or random.Random()
         self._peers: dict[str, Peer] = {}
+        self._acks_owed: dict[str, Peer] = {}  # peers whose ack_now was set since the last batch
         self._btx = Sending(backoff=s.rto_initial_s)
         self._tel = TelemetryOut(1.0 / s.telemetry_max_hz, s.heartbeat_s)
         self._live = Liveness(s, self.log)
@@ -173,7 +182,7 @@ class ReliableSession:
         elif cls in wire.RELIABLE_BROADCAST and msg.seq == 0:  # type: ignore[union-attr]
             return self._send_reliable(self._btx, msg, now)
         if msg.incarnation != self.incarnation:
-            msg = dataclasses.replace(msg, incarnation=self.incarnation)
+            msg = wire.restamp(msg, incarnation=self.incarnation)
         if cls is wire.TelemetrySample:
             return self._tel.offer(msg, now)  # type: ignore[arg-type]
         return [Send(msg)]
@@ -215,6 +224,8 @@ class ReliableSession:
                 self.counters.old_telemetry += 1  # latest-value: an older sample is no news
         else:
             actions.append(Deliver(msg))
+        if peer.ack_now:
+            self._acks_owed[peer.name] = peer
         return actions
 
     def _heard(self, peer: Peer, now: float, actions: list[Action]) -> None:
@@ -308,7 +319,9 @@ class ReliableSession:
         """The end of a receive batch: the explicit Acks it called for (gaps, duplicates)."""
         if self.closed:
             return []  # nothing may follow the goodbye heartbeat
-        return [self._ack(peer, now) for peer in self._peers.values() if peer.ack_now]
+        # Only the peers this batch called for: the ground station has the whole fleet.
+        owed, self._acks_owed = self._acks_owed, {}
+        return [self._ack(peer, now) for peer in owed.values() if peer.ack_now]
 
     def _ack(self, peer: Peer, now: float) -> Send:
         """One cumulative Ack to ``peer``; a nack if a gap is known."""
@@ -414,19 +427,9 @@ class ReliableSession:
             )
 
     def _heartbeat_message(self, leaving: bool) -> wire.Heartbeat:
-        peers = self._peers.values()
         self.counters.heartbeats_sent += 1
-        return wire.Heartbeat(
-            mission=self.mission,
-            sender=self.name,
-            incarnation=self.incarnation,
-            sent={p.name: p.tx.next_seq - 1 for p in peers if p.tx.next_seq > 1},
-            bsent=self._btx.next_seq - 1,
-            leaving=leaving,
-            acks={p.name: p.rx.upto for p in peers if p.rx.upto},
-            backs={p.name: p.brx.upto for p in peers if p.brx.upto},
-            known={p.name: p.incarnation for p in peers if p.rx.upto or p.brx.upto},
-        )
+        bsent, peers = self._btx.next_seq - 1, self._peers.values()
+        return heartbeat(self.mission, self.name, self.incarnation, peers, bsent, leaving)
 
     # -- results and shutdown --------------------------------------------------------
 

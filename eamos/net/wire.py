@@ -95,11 +95,14 @@ ZeroMQ multipart message ``[topic, payload]``:
                              nack                    ``nk``    bool, a gap is known: resend now
                              dest_incarnation        ``di``    int, dest's incarnation acked
   ``hb``     Heartbeat       sent                    ``hs``    map name -> int, highest seq
-                                                               sent on each link
+                                                               sent on each link with messages
+                                                               not yet acknowledged
                              bsent                   ``bs``    int, highest broadcast seq sent
                              leaving                 ``end``   bool, the sender is shutting down
                              acks                    ``ak``    map name -> int, cumulative seq
-                                                               delivered from each link
+                                                               delivered from each link whose
+                                                               ack changed in the last 3
+                                                               heartbeats
                              backs                   ``bk``    map name -> int, same for each
                                                                participant's broadcasts
                              known                   ``ki``    map name -> int, incarnation of
@@ -148,7 +151,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar, Final
+from typing import Any, ClassVar, Final, TypeVar
 
 import msgpack
 
@@ -206,6 +209,7 @@ __all__ = [
     "WireError",
     "decode",
     "encode",
+    "restamp",
     "topic_heartbeat",
     "topic_telemetry",
     "topic_to",
@@ -266,6 +270,10 @@ class _Base:
         # object.__setattr__ is the documented way to do this in a frozen dataclass.
         for name, check, label in self._CHECKS:
             object.__setattr__(self, name, check(getattr(self, name), label))
+        self._check_together()
+
+    def _check_together(self) -> None:
+        """Checks across fields, after each field's own (none by default)."""
 
     @property
     def topic(self) -> bytes:
@@ -424,8 +432,7 @@ class ReportPart(_Base):
     dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
+    def _check_together(self) -> None:
         if self.part >= self.parts:
             raise WireError(f"ReportPart.part: {self.part} of {self.parts} parts")
 
@@ -529,6 +536,22 @@ _KEYS: Final[dict[type[_Base], dict[str, str]]] = {
     cls: {f.metadata["key"]: f.name for f in fields(cls)} for cls in MESSAGE_TYPES
 }
 _ENVELOPE_KEYS: Final = frozenset({"v", "t"})
+# Per type: every key of a payload (envelope included), and (key, field, validator,
+# label) per field: what decode checks, once, without the constructor's overhead.
+_PAYLOAD_KEYS: Final[dict[type[_Base], frozenset[str]]] = {
+    cls: frozenset(keys) | _ENVELOPE_KEYS for cls, keys in _KEYS.items()
+}
+_DECODERS: Final[dict[type[_Base], tuple[tuple[str, str, Any, str], ...]]] = {
+    cls: tuple(
+        (f.metadata["key"], f.name, f.metadata["check"], f"{cls.__name__}.{f.name}")
+        for f in fields(cls)
+    )
+    for cls in MESSAGE_TYPES
+}
+_CHECK_OF: Final[dict[type[_Base], dict[str, tuple[Any, str]]]] = {
+    cls: {name: (check, label) for _key, name, check, label in checks}
+    for cls, checks in _DECODERS.items()
+}
 
 
 # ---------------------------------------------------------------------------
@@ -620,13 +643,45 @@ def decode(frames: Sequence[bytes]) -> Message:
     cls = _BY_CODE.get(code) if isinstance(code, str) else None
     if cls is None:
         raise WireError(f"unknown message type {code!r}")
-    keys = _KEYS[cls]
-    present = set(body) - _ENVELOPE_KEYS
-    if present != set(keys):
-        missing = sorted(set(keys) - present)
-        extra = sorted(map(repr, present - set(keys)))
+    if body.keys() != _PAYLOAD_KEYS[cls]:
+        keys = set(_KEYS[cls])
+        present = set(body) - _ENVELOPE_KEYS
+        missing = sorted(keys - present)
+        extra = sorted(map(repr, present - keys))
         raise WireError(f"{cls.__name__}: missing keys {missing}, unexpected keys {extra}")
-    msg: Message = cls(**{name: body[key] for key, name in keys.items()})  # type: ignore[assignment]
-    if bytes(topic) != msg.topic:
-        raise WireError(f"{cls.__name__} on topic {bytes(topic)!r}, expected {msg.topic!r}")
+    # Validated here, once, at the trust boundary: each field's check, then the
+    # instance filled in directly (the constructor would look every field up again).
+    msg: Message = cls.__new__(cls)  # type: ignore[assignment]
+    values = msg.__dict__
+    for key, name, check, label in _DECODERS[cls]:
+        values[name] = check(body[key], label)
+    msg._check_together()
+    if type(topic) is not bytes:
+        topic = bytes(topic)
+    if topic != msg.topic:
+        raise WireError(f"{cls.__name__} on topic {topic!r}, expected {msg.topic!r}")
     return msg
+
+
+MessageT = TypeVar("MessageT", bound=_Base)
+
+
+def restamp(msg: MessageT, **changes: Any) -> MessageT:
+    """``msg`` with the fields in ``changes`` replaced and checked; the others are kept.
+
+    What :func:`dataclasses.replace` does, without checking again the fields
+    that were checked when ``msg`` was made (the session stamps every message
+    it sends with its sequence number and incarnation).
+    """
+    cls = type(msg)
+    checks = _CHECK_OF[cls]
+    new = cls.__new__(cls)
+    values = new.__dict__
+    values.update(msg.__dict__)
+    for name, value in changes.items():
+        if name not in checks:
+            raise TypeError(f"{cls.__name__} has no field {name!r}")
+        check, label = checks[name]
+        values[name] = check(value, label)
+    new._check_together()
+    return new

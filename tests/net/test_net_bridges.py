@@ -107,6 +107,47 @@ def test_concurrent_senders_keep_per_sender_order(bridges: Bridges) -> None:
     assert all(seq == list(range(per_thread)) for seq in streams.values())
 
 
+def test_senders_write_the_socket_themselves_and_subscriptions_are_still_seen(
+    bridges: Bridges,
+) -> None:
+    """No hand-over to the bridge thread, yet a subscriber joining mid-stream is noticed.
+
+    The bridge thread reads subscriptions while other threads send on the same
+    socket (under its lock); a send can consume the socket's edge-triggered
+    wake-up signal, which the sender then passes on.
+    """
+    out = bridges.out()
+    sending_threads: set[str] = set()
+    real = out._xpub.send_multipart
+
+    def spy(frames: Any, *args: Any, **kw: Any) -> Any:
+        sending_threads.add(threading.current_thread().name)
+        return real(frames, *args, **kw)
+
+    out._xpub.send_multipart = spy  # type: ignore[method-assign]
+    stop = threading.Event()
+
+    def flood() -> None:
+        n = 0
+        while not stop.is_set():
+            out.send(trig("D1", "D9", n))
+            n += 1
+
+    flooder = threading.Thread(target=flood, name="flooder")
+    flooder.start()
+    try:
+        for n in range(3):  # three subscribers join, one after another, while it sends
+            inbox = Collector()
+            bridges.inb({"D1": out.endpoint}, [topic_to(f"D{n + 2}")], inbox)
+            assert out.wait_subscribed([topic_to(f"D{n + 2}")], WAIT_S), n
+            assert out.send(trig("D1", f"D{n + 2}", n))
+            assert inbox.wait_count(1)
+    finally:
+        stop.set()
+        flooder.join(WAIT_S)
+    assert sending_threads == {"flooder", threading.current_thread().name}
+
+
 @dataclass
 class Participant:
     name: str

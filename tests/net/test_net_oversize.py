@@ -16,7 +16,7 @@ import pytest
 from eamos.logs import close_logger, make_logger, read_log
 from eamos.net import wire
 from eamos.net.link import Link
-from eamos.net.sockets import CMD_SEND, MAX_FRAME_BYTES
+from eamos.net.sockets import MAX_FRAME_BYTES
 
 from .link_helpers import MISSION, WAIT_S, Inbox, eventually, network, trig
 
@@ -27,9 +27,7 @@ def send_raw(link: Link, size: int) -> None:
     """Publish a Report-shaped payload of about ``size`` bytes on ``to/B``, bypassing encode."""
     body = {"v": wire.WIRE_VERSION, "t": "rep", "m": MISSION, "s": "A", "d": "B"}
     body |= {"rp": {"junk": "x" * size}, "q": 0}
-    out = link.out
-    with out._lock:  # the Out-Bridge's own pipe: what send() does after encode()
-        out._ctrl_tx.send_multipart([CMD_SEND, wire.topic_to("B"), msgpack.packb(body)])
+    assert link.out.send_frames([wire.topic_to("B"), msgpack.packb(body)])
 
 
 @pytest.mark.parametrize(

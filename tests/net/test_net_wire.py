@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import fields
 from typing import Any
 
@@ -33,7 +34,7 @@ from eamos.net import (
     topic_telemetry,
     topic_to,
 )
-from eamos.net.wire import MAX_PAYLOAD_BYTES, MESSAGE_TYPES
+from eamos.net.wire import MAX_PAYLOAD_BYTES, MESSAGE_TYPES, restamp
 
 M = "survey-1"
 
@@ -353,3 +354,26 @@ def test_progress_keeps_its_node_and_its_sender_incarnation() -> None:
     msg = Progress(M, "D2", "ok", "n4", "Arm", incarnation=1234567)
     back = decode(encode(msg))
     assert back == msg and back.node == "n4" and back.incarnation == 1234567
+
+
+@pytest.mark.parametrize("msg", SAMPLES, ids=lambda m: type(m).__name__)
+def test_restamp_equals_replace_and_checks_what_it_changes(msg: Message) -> None:
+    """The session stamps seq and incarnation without checking every field again."""
+    assert restamp(msg, incarnation=99) == dataclasses.replace(msg, incarnation=99)
+    with pytest.raises(WireError, match="incarnation"):
+        restamp(msg, incarnation=-1)
+    with pytest.raises(TypeError, match="no field"):
+        restamp(msg, nonsense=1)
+
+
+def test_restamp_keeps_the_checks_across_fields() -> None:
+    part = ReportPart(M, "D1", 1, 2, b"x")
+    with pytest.raises(WireError, match="of 2 parts"):
+        restamp(part, part=2)
+
+
+def test_decoded_equals_constructed() -> None:
+    """decode fills messages in without the constructor: they must be the same values."""
+    for msg in SAMPLES:
+        back = decode(encode(msg))
+        assert type(back) is type(msg) and vars(back) == vars(msg) and back == msg
