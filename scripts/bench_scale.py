@@ -28,12 +28,16 @@ each N in a fresh process, and reported per N:
   action to the start of the next drone's (one cross-drone trigger each, both
   relays), from the drones' reports.
 
+* ``telemetry_samples_sent``: telemetry samples all drones sent (their links'
+  ``messages_sent``), at ``ground_telemetry_hz`` (the fleet file's ``[net]`` key,
+  docs/configuration.md; ``--ground-telemetry-hz``, default the fleet's default).
+
 ``--drones-per-process N|auto`` runs N drones per ``eamos-node`` process
-(``eamos run --drones-per-process``; default 1, a process per drone; ``auto``,
-about one per core); ``processes`` says how many there were.
+(``eamos run --drones-per-process``; default ``auto``, about one per core, as
+``eamos run``; 1: a process per drone); ``processes`` says how many there were.
 
 Usage: ``python scripts/bench_scale.py --json [--drones 10,25,50,100] [--speedup 10]
-[--drones-per-process auto]``.
+[--drones-per-process 1] [--ground-telemetry-hz 20]``.
 """
 
 from __future__ import annotations
@@ -70,6 +74,8 @@ FIELDS = (
     "relay_gap_ms",
     "node_ready_s",
     "processes",
+    "ground_telemetry_hz",
+    "telemetry_samples_sent",
 )
 PHASES = ("compile", "startup", "flight", "shutdown")
 
@@ -255,9 +261,16 @@ def ready_times(log_root: Path, names: list[str]) -> list[float]:
 
 
 def one_run(
-    drones: int, speedup: float, timeout_s: float, per_process: int | None, keep: str = ""
+    drones: int,
+    speedup: float,
+    timeout_s: float,
+    per_process: int | None,
+    keep: str = "",
+    ground_telemetry_hz: float | None = None,
 ) -> dict[str, Any]:
     """Fly the relay mission with ``drones`` drones here (run in a fresh process)."""
+    import dataclasses
+
     from eamos.compiler import compile_mission, write_artifacts
     from eamos.config import FleetConfig
     from eamos.ground import Limits, LocalMission, fly_local
@@ -275,12 +288,15 @@ def one_run(
         virtual = run_virtual(compiled.programs, sim_vehicles(None))
         names = [f"D{d}" for d in range(1, drones + 1)]
         clock = PhaseClock(names)
+        fleet = FleetConfig.empty()
+        if ground_telemetry_hz is not None:
+            fleet = dataclasses.replace(fleet, ground_telemetry_hz=ground_telemetry_hz)
         started = time.monotonic()
         started_wall = time.time()
         summary = fly_local(
             LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
             run_dir,
-            FleetConfig.empty(),
+            fleet,
             Limits(ready_timeout_s=max(60.0, 3.0 * drones), timeout_s=timeout_s),
             threading.Event(),
             speedup=speedup,
@@ -329,6 +345,11 @@ def one_run(
                 "last": round(max(ready), 3) if ready else None,
             },
             "processes": len(process_groups(names, per_process)),  # eamos-node processes
+            "ground_telemetry_hz": fleet.ground_telemetry_hz,
+            "telemetry_samples_sent": sum(
+                int(r.net.get("messages_sent", {}).get("TelemetrySample", 0))
+                for r in reports.values()
+            ),
         }
 
 
@@ -346,9 +367,16 @@ def main() -> None:
     )
     parser.add_argument(
         "--drones-per-process",
-        default="1",
+        default="auto",
         metavar="N|auto",
-        help="drones per eamos-node process (default 1; auto: about one process per core)",
+        help="drones per eamos-node process (default auto: about one process per core)",
+    )
+    parser.add_argument(
+        "--ground-telemetry-hz",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="the fleet's [net] ground_telemetry_hz (default: the fleet file's default)",
     )
     parser.add_argument(
         "--keep", default="", metavar="DIR", help="keep each run folder as DIR/run-N (a new DIR)"
@@ -357,7 +385,10 @@ def main() -> None:
     args = parser.parse_args()
     if args.one:
         per_process = None if args.drones_per_process == "auto" else int(args.drones_per_process)
-        print(json.dumps(one_run(args.one, args.speedup, args.timeout, per_process, args.keep)))
+        result = one_run(
+            args.one, args.speedup, args.timeout, per_process, args.keep, args.ground_telemetry_hz
+        )
+        print(json.dumps(result))
         return
     runs = []
     for n in (int(s) for s in args.drones.split(",") if s.strip()):
@@ -375,6 +406,11 @@ def main() -> None:
                 args.drones_per_process,
                 "--keep",
                 args.keep,
+                *(
+                    ["--ground-telemetry-hz", str(args.ground_telemetry_hz)]
+                    if args.ground_telemetry_hz is not None
+                    else []
+                ),
             ],
             capture_output=True,
             text=True,

@@ -1,4 +1,4 @@
-"""``eamos run``: fly a mission on this machine, one ``eamos-node`` process per drone."""
+"""``eamos run``: fly a mission on this machine, about one ``eamos-node`` process per core."""
 
 from __future__ import annotations
 
@@ -28,10 +28,12 @@ if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `
     from eamos.ground import Display, RunSummary
 
 _RUN_HELP = """\
-Fly a mission on this machine: compile it, start one eamos-node process per drone
-(simulated quadcopters unless the fleet file says otherwise), act as the ground
-station, show live progress, and write a run folder with the programs, graphs,
-per-drone logs (mission.log, uniform.log, adapter.log) and summary.json.
+Fly a mission on this machine: compile it, start the drones (simulated quadcopters
+unless the fleet file says otherwise) in about one eamos-node process per CPU core
+(--drones-per-process), act as the ground station, show live progress, and write a
+run folder with the programs, graphs, per-drone logs (mission.log, uniform.log,
+adapter.log) and summary.json.  The fleet file's [net] ground_telemetry_hz sets how
+often each drone's position reaches the ground station (docs/configuration.md).
 
 Exit code 0 when every drone finished its part, 1 otherwise (a failed action, a
 timeout, an abort), 2 for a bad mission or fleet file.  Ctrl-C aborts: every
@@ -47,7 +49,7 @@ def add_run_parser(sub: Any) -> None:
     """Add ``eamos run`` to the ``eamos`` subcommands."""
     run = sub.add_parser(
         "run",
-        help="fly a mission on simulated drones (one process per drone)",
+        help="fly a mission on simulated drones (about one process per core)",
         description=_RUN_HELP,
         epilog=_RUN_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -71,10 +73,11 @@ def add_run_parser(sub: Any) -> None:
     run.add_argument(
         "--drones-per-process",
         type=drones_per_process,
-        default=1,
+        default=None,
         metavar="N|auto",
         help="drones sharing one eamos-node process, each in a thread of its own "
-        "(auto: about one process per CPU core; default 1: a process per drone)",
+        "(default auto: about one process per CPU core; 1: a process per drone, "
+        "so that one drone's process can be stopped alone)",
     )
     add_plain(run)
     add_svg(run, default=True)
@@ -114,7 +117,7 @@ class RunOptions:
     svg: bool = True
     check: bool = True  # the pre-flight check first (eamos check); refuse on an error
     monitor: MonitorOptions | None = None  # serve the live browser monitor (--monitor)
-    drones_per_process: int | None = 1  # None: about one process per core
+    drones_per_process: int | None = None  # None: about one process per core; 1: one each
 
 
 def default_run_dir(mission: str) -> Path:

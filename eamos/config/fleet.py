@@ -15,6 +15,8 @@ Fleet config (TOML), for ``eamos run``::
     max_altitude_m = 30
     geofence_m = [[-50, -50], [-50, 50], [50, 50], [50, -50]]
     battery_reserve_pct = 20
+    [net]                                     # eamos run's links (docs/configuration.md)
+    ground_telemetry_hz = 2                   # telemetry to the ground station, newest only
 
 A fleet file may also say how to reach real drones for ``eamos rollout``
 (``[ground]``, ``[defaults.ssh]``, ``[drones.X.ssh]``, ``drones.X.bind``); those
@@ -36,12 +38,23 @@ from typing import Any
 
 from ..hal.kinematics import GeoFrame
 from ..hal.settings import did_you_mean
+from ..net.settings import LinkSettings
 from ..program.uniform import GROUND_STATION
 from .types import check_type_names, embedded_names, load_types, merge_hal, type_lineage
 from .validation import ConfigError, check_hal, check_keys, number, point, read_toml
 
 #: Spacing of a fleet lined up east when the fleet file gives no homes (metres).
 HOME_SPACING_M = 5.0
+
+#: ``[net] ground_telemetry_hz`` when the fleet file does not say: a few samples a
+#: second are enough for people watching; a drone whose telemetry a peer's condition
+#: reads still sends at ``telemetry_max_hz`` (see :meth:`FleetConfig.telemetry_hz`).
+DEFAULT_GROUND_TELEMETRY_HZ = 2.0
+#: Its range: at least one sample every 2 s, within the receivers' ``telemetry_stale_s``
+#: (2.5 s), so the ground station never sees a moving drone's telemetry as stale.
+GROUND_TELEMETRY_HZ_RANGE = (0.5, 1000.0)
+#: The rate of a drone whose telemetry another drone's conditions read: the link's default.
+PEER_TELEMETRY_HZ = LinkSettings.telemetry_max_hz
 
 
 def fleet_order(programs: Mapping[str, Any]) -> list[str]:
@@ -106,6 +119,21 @@ def _safety(w: str, table: Any) -> SafetySettings:
     return out
 
 
+def _ground_telemetry_hz(w: str, table: Any) -> float:
+    """Validate the ``[net]`` table; its ``ground_telemetry_hz`` (default when absent)."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{w}net: must be a table")
+    check_keys(f"{w}net.", table, {"ground_telemetry_hz"})
+    if "ground_telemetry_hz" not in table:
+        return DEFAULT_GROUND_TELEMETRY_HZ
+    where = f"{w}net.ground_telemetry_hz"
+    hz = number(where, table["ground_telemetry_hz"])
+    low, high = GROUND_TELEMETRY_HZ_RANGE
+    if not low <= hz <= high:
+        raise ConfigError(f"{where}: must be between {low:g} and {high:g} Hz, got {hz!r}")
+    return hz
+
+
 @dataclass(frozen=True)
 class FleetConfig:
     """Per-drone hardware settings for a run: defaults merged with each drone's table."""
@@ -126,6 +154,20 @@ class FleetConfig:
     # (:meth:`for_mission`): its type, then the types that type embeds.
     types: dict[str, dict[str, Any]] = field(default_factory=dict)
     lineages: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    # [net] ground_telemetry_hz: how often a drone's telemetry leaves for the ground station.
+    ground_telemetry_hz: float = DEFAULT_GROUND_TELEMETRY_HZ
+
+    def telemetry_hz(self, read_by_peers: bool) -> float:
+        """A drone's outgoing telemetry rate (its node config's ``net.telemetry_max_hz``).
+
+        Telemetry is one stream per drone, the newest sample only (a burst is
+        coalesced): ``ground_telemetry_hz`` when only the ground station reads it;
+        at least :data:`PEER_TELEMETRY_HZ` when another drone's conditions read it
+        (``read_by_peers``), so those conditions see what they saw before.
+        """
+        if read_by_peers:
+            return max(self.ground_telemetry_hz, PEER_TELEMETRY_HZ)
+        return self.ground_telemetry_hz
 
     def homes(self, drones: Iterable[str]) -> dict[str, tuple[float, float]]:
         """Each drone's home in the fleet frame, (north_m, east_m), in ``drones``' order.
@@ -208,8 +250,9 @@ class FleetConfig:
         """Read and validate a fleet config file."""
         doc = read_toml(path)
         w = f"{path}: "
-        check_keys(w, doc, {"defaults", "types", "drones", "ground", "safety"})
+        check_keys(w, doc, {"defaults", "types", "drones", "ground", "safety", "net"})
         safety = _safety(w, doc.get("safety", {}))
+        ground_telemetry_hz = _ground_telemetry_hz(w, doc.get("net", {}))
         homes_m: dict[str, tuple[float, float]] = {}
         homes_lla: dict[str, tuple[float, ...]] = {}
         defaults = doc.get("defaults", {})
@@ -271,4 +314,5 @@ class FleetConfig:
             homes_m,
             homes_lla,
             types,
+            ground_telemetry_hz=ground_telemetry_hz,
         )

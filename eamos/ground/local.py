@@ -3,10 +3,11 @@
 :func:`fly_local` takes a compiled mission's programs (already in the run
 folder's ``programs/``), writes one node config per drone (simulated by
 default; a fleet file may pick other adapters, and MAVLink drones get a
-simulated vehicle each), starts the drones as processes (one per drone, or
-``drones_per_process`` drones sharing one, :func:`process_groups`), and is
-their ground station through :func:`~eamos.ground.flight.fly`.  Ctrl-C (the ``stop``
-event) aborts: every drone lands, then the processes end.
+simulated vehicle each), starts the drones as processes (by default about one
+per CPU core, ``drones_per_process`` drones sharing one, :func:`process_groups`;
+1: one process per drone), and is their ground station through
+:func:`~eamos.ground.flight.fly`.  Ctrl-C (the ``stop`` event) aborts: every
+drone lands, then the processes end.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,7 @@ from eamos.config import ConfigError, FleetConfig, NodeConfig, fleet_order, in_r
 from eamos.hal import AdapterError, make_adapter
 from eamos.logs import make_logger
 from eamos.net.keys import FleetKeys, create_fleet_keys
+from eamos.net.settings import LinkSettings
 from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
 
@@ -202,19 +204,66 @@ def last_line(path: Path, about: str = "") -> str:
     return lines[-1] if lines else ""
 
 
-def process_groups(drones: list[str], per_process: int | None) -> list[list[str]]:
+def process_groups(
+    drones: list[str], per_process: int | None, alone: Iterable[str] = ()
+) -> list[list[str]]:
     """The drones each process runs, in mission order: ``per_process`` at most per process.
 
     ``None`` (automatic): about one process per CPU core, each drone's
-    runtime a thread of it; ``1``: one process per drone (a drone killed alone,
-    as the fault tests do).
+    runtime a thread of it; the drones in ``alone`` (those with a vehicle of
+    their own, which may fail to connect) then get a process each, so that
+    one failing to start is reported at once, not when its process-mates give
+    up.  ``1``: one process per drone (a drone killed alone, as the fault tests do).
     """
-    if per_process is None:
-        cores = os.cpu_count() or 1
-        per_process = max(1, -(-len(drones) // cores))
-    if per_process < 1:
+    if per_process is not None and per_process < 1:
         raise ConfigError(f"--drones-per-process {per_process}: must be at least 1")
-    return [drones[i : i + per_process] for i in range(0, len(drones), per_process)]
+    if per_process is not None:
+        return [drones[i : i + per_process] for i in range(0, len(drones), per_process)]
+    single = set(alone)
+    shared = [d for d in drones if d not in single]
+    cores = os.cpu_count() or 1
+    size = max(1, -(-len(shared) // cores))
+    groups = [shared[i : i + size] for i in range(0, len(shared), size)]
+    groups += [[d] for d in drones if d in single]
+    first = {d: i for i, d in enumerate(drones)}
+    return sorted(groups, key=lambda g: first[g[0]])
+
+
+def telemetry_readers(programs: Mapping[str, DroneProgram]) -> set[str]:
+    """The drones whose telemetry a condition of another participant reads (``telemetry_from``).
+
+    The ground station's own conditions count: they need the peers' rate too.
+    """
+    return {
+        read
+        for name, program in programs.items()
+        for read in program.telemetry_from
+        if read != name
+    }
+
+
+def telemetry_links(
+    programs: Mapping[str, DroneProgram], drones: list[str], fleet: FleetConfig
+) -> dict[str, LinkSettings]:
+    """Each drone's link settings: its outgoing telemetry rate from the fleet file.
+
+    Only the ground station reads a drone's telemetry: ``[net] ground_telemetry_hz``
+    (the newest sample, a burst coalesced by the link); another drone's conditions
+    read it too: the peers' rate (:meth:`FleetConfig.telemetry_hz`).
+    """
+    read = telemetry_readers(programs)
+    return {d: LinkSettings(telemetry_max_hz=fleet.telemetry_hz(d in read)) for d in drones}
+
+
+def exit_reason(code: int, group: tuple[str, ...], why: str = "") -> str:
+    """Why a drone without a report failed: its process ended with ``code``.
+
+    Said for each drone of a shared process (``group``, its drones), so the
+    operator sees why they all failed at once; ``why`` is the last line of the
+    process's output about the drone.
+    """
+    shared = f" (shared by {', '.join(group)})" if len(group) > 1 else ""
+    return f"process exited with code {code}{shared}" + (f": {why}" if why else "")
 
 
 @dataclass
@@ -238,6 +287,7 @@ class LocalFleet:
         self.on_exit = on_exit
         self.log_dirs: dict[str, Path] = {}
         self.outputs: dict[str, Path] = {}  # drone -> its process's node.out
+        self.groups: dict[str, tuple[str, ...]] = {}  # drone -> the drones of its process
 
     def spawn(self, name: str, config: Path, log_dir: Path) -> None:
         """Start ``eamos-node --config config``; its output goes to ``log_dir/node.out``."""
@@ -254,6 +304,7 @@ class LocalFleet:
             (log_dirs[name] / "exit_code").unlink(missing_ok=True)  # a run before's, if reused
             self.log_dirs[name] = log_dirs[name]
             self.outputs[name] = out_path
+            self.groups[name] = tuple(names)
         out = out_path.open("wb")
         env = dict(os.environ)
         env.setdefault("PYTHONUNBUFFERED", "1")
@@ -326,13 +377,15 @@ def write_node_configs(
     keys_dir: Path | None = None,
     peers_of: Mapping[str, list[str]] | None = None,
     battery_reserve_pct: float | None = None,
+    links: Mapping[str, LinkSettings] | None = None,
 ) -> dict[str, Path]:
     """One ``configs/<Drone>.toml`` per drone of ``hals`` (paths relative to it); their paths.
 
     ``keys_dir`` holds the run's keys (default ``run_dir/keys``).  ``peers_of``
     names each drone's peers (:func:`~eamos.actors.wiring.connected_peers`);
     default every other participant.  ``battery_reserve_pct``: the fleet's
-    ``[safety]`` reserve, below which a Try's Body action fails.
+    ``[safety]`` reserve, below which a Try's Body action fails.  ``links``:
+    each drone's link settings (:func:`telemetry_links`; default the built-in ones).
     """
     keys_root = keys_dir or run_dir / "keys"
     configs: dict[str, Path] = {}
@@ -352,6 +405,7 @@ def write_node_configs(
             ready_timeout_s=ready_timeout_s,
             keys_dir=keys_root / name,
             battery_reserve_pct=battery_reserve_pct,
+            link=links[name] if links is not None and name in links else LinkSettings(),
         )
         configs[name] = config.write()
     return configs
@@ -366,13 +420,13 @@ def fly_local(
     *,
     speedup: float | None = None,
     display: Display | None = None,
-    drones_per_process: int | None = 1,
+    drones_per_process: int | None = None,
 ) -> RunSummary:
     """Fly ``mission`` with drones as local processes; return the summary (also written).
 
     ``display`` defaults to a live table on a terminal, plain lines otherwise.
-    ``drones_per_process`` drones share one process (None: about one process
-    per core; 1: one process per drone).
+    ``drones_per_process`` drones share one process (None, the default: about
+    one process per core; 1: one process per drone).
     Before anything starts, a fleet table for a drone not in the mission and a
     ready timeout a drone's config cannot hold are refused (ConfigError).
     """
@@ -381,7 +435,9 @@ def fly_local(
     fleet.check_drones(drones)
     # The drones' configs must load: an option beyond a config's range is refused here.
     in_range("--ready-timeout", limits.ready_timeout_s, "ready_timeout_s")
-    groups = process_groups(drones, drones_per_process)
+    # Drones with a vehicle of their own (not simulated here) each get a process.
+    own_vehicle = [d for d in drones if fleet.hal_for(d).get("adapter", "sim") != "sim"]
+    groups = process_groups(drones, drones_per_process, alone=own_vehicle)
     # The ports stay reserved until the run is over (see PortReservation).
     ports = PortReservation(len(names))
     try:
@@ -436,6 +492,7 @@ def _fly_local(
         keys_dir,
         peers_of,
         battery_reserve_pct=fleet.safety.battery_reserve_pct,
+        links=telemetry_links(mission.programs, drones, fleet),
     )
     shown = display or make_display(None, drones)
     station = GroundStation(drones, mission.mission_id, on_change=shown.event)
@@ -463,7 +520,7 @@ def _fly_local(
             out = processes.outputs.get(name, run_dir / "logs" / name / "node.out")
             # A shared process's output: the last line that names this drone.
             why = last_line(out, "" if out.name == "node.out" else f" {name}:")
-            station.fail(name, f"process exited with code {code}" + (f": {why}" if why else ""))
+            station.fail(name, exit_reason(code, processes.groups.get(name, (name,)), why))
 
     processes = LocalFleet(on_exit)
     started = time.time()

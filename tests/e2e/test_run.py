@@ -239,7 +239,14 @@ def test_a_drone_that_goes_silent_shows_as_link_lines_and_the_mission_finishes(t
             sys.executable,
             "-m",
             "eamos.cli",
-            *run_argv(MISSIONS / "experiment_b.go", tmp_path, speedup=2, timeout_s=600),
+            *run_argv(
+                MISSIONS / "experiment_b.go",
+                tmp_path,
+                # Drone2 is frozen alone: a process of its own.
+                *("--drones-per-process", "1"),
+                speedup=2,
+                timeout_s=600,
+            ),
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,

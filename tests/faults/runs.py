@@ -1,4 +1,10 @@
-"""A live ``eamos run`` for fault tests: its output read as it comes, its drones found by pid."""
+"""A live ``eamos run`` for fault tests: its output read as it comes, its drones found by pid.
+
+Fault tests kill, stop or signal one drone's process and read its own
+``logs/<Drone>/node.out``, so :class:`LiveRun` asks for one process per drone
+(``--drones-per-process 1``) unless the test says otherwise; ``eamos run``
+groups drones about one process per core by default.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +19,9 @@ from typing import Any
 
 from eamos.ops.ground import wait_pid_exit
 from tests.support.runs import REPO, run_argv
+
+#: ``eamos run`` options for a process of its own per drone (one can be killed alone).
+ONE_PER_PROCESS = ("--drones-per-process", "1")
 
 
 @dataclass
@@ -34,7 +43,12 @@ class LiveRun:
         timeout_s: float,
         run_dir: Path | None = None,
     ) -> LiveRun:
-        """Start ``eamos run MISSION`` (run folder ``run_dir`` or ``tmp_path/run``)."""
+        """Start ``eamos run MISSION`` (run folder ``run_dir`` or ``tmp_path/run``).
+
+        One process per drone unless ``extra`` gives ``--drones-per-process``.
+        """
+        if "--drones-per-process" not in extra:
+            extra = (*extra, *ONE_PER_PROCESS)
         args = run_argv(mission, tmp_path, *extra, speedup=speedup, timeout_s=timeout_s)
         if run_dir is not None:
             args[args.index("--run-dir") + 1] = str(run_dir)
