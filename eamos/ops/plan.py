@@ -17,6 +17,7 @@ from typing import Any
 
 from .. import __version__
 from ..config import ConfigError, NodeConfig
+from ..net.link import LinkSettings
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION
 from .identity import sha256_bytes
@@ -112,13 +113,15 @@ def drone_config(
     ready_timeout_s: float,
     keys: bool,
     battery_reserve_pct: float | None = None,
+    link: LinkSettings | None = None,
 ) -> NodeConfig:
     """A drone's ``configs/<Drone>.toml`` in ``mission_dir``, the layout of ``eamos run``.
 
     ``mission_dir`` is the operator's run folder; the drone's mission folder has
     the same layout, and the config names its files relative to itself, so the
     text written here is the text the drone reads.  ``battery_reserve_pct``: the
-    fleet's ``[safety]`` reserve, below which a Try's Body action fails.
+    fleet's ``[safety]`` reserve, below which a Try's Body action fails; ``link``:
+    its link settings (the telemetry rate of :func:`eamos.ground.local.telemetry_links`).
     """
     peers = {GROUND_STATION: ground_bind}
     peers.update({n: e for n, e in endpoints.items() if n != drone})
@@ -136,6 +139,7 @@ def drone_config(
         ready_timeout_s=float(ready_timeout_s),
         keys_dir=mission_dir / "keys" / drone if keys else None,
         battery_reserve_pct=battery_reserve_pct,
+        link=link if link is not None else LinkSettings(),
     )
 
 

@@ -53,7 +53,7 @@ from pathlib import Path
 from ..compiler import CompiledMission, compile_file, write_artifacts
 from ..config import FleetConfig
 from ..ground import check_hal_settings
-from ..ground.local import new_run_dir, use_run_dir
+from ..ground.local import new_run_dir, telemetry_links, use_run_dir
 from ..program.uniform import GROUND_STATION
 from .identity import execution_digest, fleet_mission_id, folder_digest, restamp
 from .plan import (
@@ -132,6 +132,9 @@ def _plans(
 ) -> dict[str, DronePlan]:
     """Every drone's plan (its program and config); the operator keeps a copy of each config."""
     keys = targets.ground.keys
+    # As eamos run: the fleet's ground_telemetry_hz, the peers' rate for drones others read.
+    drones = [n for n in compiled.programs if n != GROUND_STATION]
+    links = telemetry_links(compiled.programs, drones, fleet)
     plans: dict[str, DronePlan] = {}
     for name in compiled.programs:
         if name == GROUND_STATION:
@@ -150,6 +153,7 @@ def _plans(
             targets.ground.ready_timeout_s,
             keys is not None,
             fleet.safety.battery_reserve_pct,
+            links[name],
         )
         plans[name] = DronePlan(
             drone=name,

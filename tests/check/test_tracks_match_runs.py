@@ -1,5 +1,5 @@
 """The simulated tracks match real runs: what ``eamos check`` predicts at each action's end is
-where ``eamos run`` (one process per drone, the simulated adapter) reports the drone then."""
+where ``eamos run`` (drone processes, the simulated adapter) reports the drone then."""
 
 from __future__ import annotations
 

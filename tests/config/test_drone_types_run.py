@@ -3,7 +3,7 @@
 The fleet file gives DroneType1 a 60 % battery at start; bound to the mission
 (:meth:`FleetConfig.for_mission`), every DroneType1 drone, and the custom type
 that embeds it, take a battery ``If``'s Else branch while the Quadcopter takes
-Then, in one process per drone over the CURVE links.
+Then, in drone processes over the CURVE links.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""End to end through ``eamos run``: one process per drone, real sockets, simulated drones."""
+"""End to end through ``eamos run``: drone processes, real sockets, simulated drones."""
 
 from __future__ import annotations
 

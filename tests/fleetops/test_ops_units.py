@@ -12,6 +12,7 @@ from eamos import __version__
 from eamos.compiler import compile_file
 from eamos.config import ConfigError, FleetConfig, NodeConfig
 from eamos.net.keys import create_fleet_keys
+from eamos.net.link import LinkSettings
 from eamos.ops.identity import execution_digest, fleet_mission_id, restamp
 from eamos.ops.plan import DronePlan, decide, drone_config
 from eamos.ops.probe import Probe, check_version, parse_probe
@@ -307,6 +308,12 @@ def test_drone_config_has_peers_and_security(tmp_path):
     )
     plain = tomllib.loads(drone_config("Drone1", tmp_path, endpoints, "x", {}, 30, False).to_toml())
     assert plain["net"]["plain"] is True and "keys" not in plain["net"]
+    assert plain["net"]["telemetry_max_hz"] == LinkSettings().telemetry_max_hz
+    # The telemetry rate the roll-out computes (as eamos run: telemetry_links) is written.
+    slow = drone_config(
+        "Drone1", tmp_path, endpoints, "x", {}, 30, False, link=LinkSettings(telemetry_max_hz=2.0)
+    )
+    assert tomllib.loads(slow.to_toml())["net"]["telemetry_max_hz"] == 2.0
     # The text is one eamos-node reads back (keys from the fleet's folder, as on a drone).
     keys = create_fleet_keys(tmp_path / "keys", ["GCS", "Drone1", "Drone2"], force=True)
     assert NodeConfig.load(path).keys_dir == keys / "Drone1"

@@ -1,6 +1,6 @@
 """The virtual-time driver and real processes agree: same per-drone action order.
 
-Each mission runs twice: through ``eamos run`` (one process per drone, real
+Each mission runs twice: through ``eamos run`` (drone processes, real
 sockets, simulated drones at a speed-up) and through :func:`eamos.virtual.run_virtual`.
 The missions' conditions have thresholds between the points where drones
 stop, so the order of actions does not depend on timing.
