@@ -33,6 +33,10 @@ from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
 
+# First: structlog without rich and pygments (see there); the rest imports structlog.
+import eamos.cli.node_imports  # noqa: F401
+
+# isort: split
 from eamos import __version__
 from eamos.actors.drone import DroneEnd, load_node_program, run_drone
 from eamos.actors.runtime import DroneRuntimeError

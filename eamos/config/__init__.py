@@ -9,11 +9,18 @@
 - :mod:`.toml_text`: TOML literals for writing a config back.
 
 Every error names the file and the field.
+
+:mod:`.fleet` and :mod:`.types` load on first use of their names: a drone's
+``eamos-node`` reads a node config only, and need not pay for fleet files, drone
+types and the simulator's settings at start-up (docs/performance.md).
 """
 
-from .fleet import HOME_SPACING_M, FleetConfig, SafetySettings, fleet_order
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from .node import NET_FIELDS, NodeConfig
-from .types import merge_hal, type_lineage
 from .validation import (
     END_POLICIES,
     MAX_SPEEDUP,
@@ -26,6 +33,20 @@ from .validation import (
     in_range,
     read_toml,
 )
+
+if TYPE_CHECKING:
+    from .fleet import HOME_SPACING_M, FleetConfig, SafetySettings, fleet_order
+    from .types import merge_hal, type_lineage
+
+#: The names loaded on first use -> their module.
+_LAZY = {
+    "HOME_SPACING_M": "fleet",
+    "FleetConfig": "fleet",
+    "SafetySettings": "fleet",
+    "fleet_order": "fleet",
+    "merge_hal": "types",
+    "type_lineage": "types",
+}
 
 __all__ = [
     "END_POLICIES",
@@ -47,3 +68,14 @@ __all__ = [
     "read_toml",
     "type_lineage",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """A name of :mod:`.fleet` or :mod:`.types`, imported on first use."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

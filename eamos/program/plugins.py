@@ -20,8 +20,8 @@ See docs/plugins.md.
 from __future__ import annotations
 
 import importlib
-import importlib.metadata
 import re
+import threading
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -104,12 +104,55 @@ class PluginRegistry:
     ``problems`` lists the entry points that could not be used (a broken plugin
     must not stop a mission that does not call it).  Implementations are
     imported on first use and cached in this object.
+
+    A registry made by :func:`discover_plugins` looks the entry points up on the
+    first use of :attr:`plugins` or :attr:`problems` (any method), once, and then
+    tells each problem to ``on_problem``: a drone whose program calls no plugin
+    action need not scan the installed distributions at start-up.
     """
 
-    def __init__(self, plugins: Iterable[ActionPlugin] = (), problems: Iterable[str] = ()) -> None:
-        self.plugins: Mapping[str, ActionPlugin] = MappingProxyType({p.name: p for p in plugins})
-        self.problems: tuple[str, ...] = tuple(problems)
+    def __init__(
+        self,
+        plugins: Iterable[ActionPlugin] = (),
+        problems: Iterable[str] = (),
+        *,
+        find: Callable[[], tuple[list[ActionPlugin], list[str]]] | None = None,
+        on_problem: Callable[[str], None] | None = None,
+    ) -> None:
+        self._plugins: Mapping[str, ActionPlugin] = MappingProxyType({p.name: p for p in plugins})
+        self._problems: tuple[str, ...] = tuple(problems)
+        self._find = find  # None once found (or when given the plugins)
+        self._on_problem = on_problem
+        self._finding = threading.Lock()
         self._loaded: dict[tuple[str, str], Callable[..., Any]] = {}
+
+    @property
+    def plugins(self) -> Mapping[str, ActionPlugin]:
+        """The usable plugins by action name."""
+        self._look_up()
+        return self._plugins
+
+    @property
+    def problems(self) -> tuple[str, ...]:
+        """The entry points that could not be used, one sentence each."""
+        self._look_up()
+        return self._problems
+
+    def _look_up(self) -> None:
+        """Find the plugins, once (the first caller finds, the others wait for it)."""
+        if self._find is None:
+            return
+        with self._finding:
+            find = self._find
+            if find is None:
+                return
+            plugins, problems = find()
+            self._plugins = MappingProxyType({p.name: p for p in plugins})
+            self._problems = tuple(problems)
+            self._find = None  # last: a reader that sees None sees the plugins
+        if self._on_problem is not None:
+            for problem in self._problems:
+                self._on_problem(problem)
 
     def __repr__(self) -> str:
         return f"PluginRegistry({sorted(self.plugins)})"
@@ -164,17 +207,30 @@ class PluginRegistry:
 EMPTY_PLUGINS = PluginRegistry()
 
 
-def discover_plugins(group: str = ENTRY_POINT_GROUP) -> PluginRegistry:
+def discover_plugins(
+    group: str = ENTRY_POINT_GROUP, on_problem: Callable[[str], None] | None = None
+) -> PluginRegistry:
     """The plugins installed through entry points in ``group`` (importlib.metadata).
 
     Loads each entry point's :class:`ActionPlugin`; an entry point that does not
     load, is not an :class:`ActionPlugin`, is named differently from its action,
     declares itself badly or repeats another's name goes to ``problems`` instead.
+    The lookup happens on the registry's first use (:class:`PluginRegistry`);
+    ``on_problem`` is then told each problem.
     """
+    return PluginRegistry(find=lambda: _find_plugins(group), on_problem=on_problem)
+
+
+def _find_plugins(group: str) -> tuple[list[ActionPlugin], list[str]]:
+    """The usable plugins of the entry points in ``group``, and the problems of the others."""
+    # Imported here, not at the top: importlib.metadata (with email, zipfile, csv) costs
+    # eamos-node's start-up tens of ms, and only adapters that look plugins up need it.
+    from importlib import metadata
+
     plugins: dict[str, ActionPlugin] = {}
     problems: list[str] = []
     seen: set[tuple[str, str]] = set()
-    for ep in importlib.metadata.entry_points(group=group):
+    for ep in metadata.entry_points(group=group):
         if (ep.name, ep.value) in seen:
             continue  # one distribution found twice on the path
         seen.add((ep.name, ep.value))
@@ -198,7 +254,7 @@ def discover_plugins(group: str = ENTRY_POINT_GROUP) -> PluginRegistry:
             problems.append(f"{where}: action {plugin.name!r} is provided twice")
             continue
         plugins[plugin.name] = plugin
-    return PluginRegistry(plugins.values(), problems)
+    return list(plugins.values()), problems
 
 
 __all__ = [

@@ -1,16 +1,41 @@
 """The simulated drone adapter: a kinematic quadcopter in this process.
 
 :class:`SimCore` is the vehicle with no thread and no clock (``step()`` advances it
-one :data:`SIM_DT_S`); :class:`SimAdapter` paces a core in (scaled) real time for
+one :data:`SIM_DT_S`); :class:`SimAdapter` paces it in (scaled) real time for
 ``eamos-node``; the virtual-time driver (:mod:`eamos.virtual`) steps cores itself.
 Plugin actions' simulator implementations see a :class:`SimView` and return a
 :class:`SimOutcome` (docs/plugins.md).
+
+Names load on first use: the configs read :mod:`.settings` alone, and must not pay
+for the adapter's thread, its logs (structlog) and the core's action rules
+(``eamos-node`` start-up, docs/performance.md).
 """
 
-from eamos.hal.sim.adapter import SimAdapter, paced_ticks, sim_adapter_from_settings
-from eamos.hal.sim.core import PAYLOAD_DELAY_S, SIM_DT_S, Finished, SimCore
-from eamos.hal.sim.plugin_api import SimOutcome, SimView
-from eamos.hal.sim.settings import SimSettings, Waypoint
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .adapter import SimAdapter, paced_ticks, sim_adapter_from_settings
+    from .core import PAYLOAD_DELAY_S, SIM_DT_S, Finished, SimCore
+    from .plugin_api import SimOutcome, SimView
+    from .settings import SimSettings, Waypoint
+
+#: Each public name -> the module defining it.
+_WHERE = {
+    "SimAdapter": "adapter",
+    "paced_ticks": "adapter",
+    "sim_adapter_from_settings": "adapter",
+    "PAYLOAD_DELAY_S": "core",
+    "SIM_DT_S": "core",
+    "Finished": "core",
+    "SimCore": "core",
+    "SimOutcome": "plugin_api",
+    "SimView": "plugin_api",
+    "SimSettings": "settings",
+    "Waypoint": "settings",
+}
 
 __all__ = [
     "PAYLOAD_DELAY_S",
@@ -25,3 +50,14 @@ __all__ = [
     "paced_ticks",
     "sim_adapter_from_settings",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """A public name, imported from its module on first use."""
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

@@ -1,0 +1,80 @@
+"""eamos-node's import set stays lean: its start-up is mostly imports (scripts/bench_startup.py).
+
+One fresh interpreter imports what a simulated drone's node imports (``eamos.cli.node``,
+then the simulated adapter it builds) and reports which heavy modules came with them.
+Each of these was on the node's path once and cost it tens of ms; the test fails if one
+comes back.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+#: Never on a drone's node: the console renderer's extras (structlog would pull them in,
+#: see eamos/cli/node_imports.py), the compiler's graph and parser libraries.
+NOT_ON_THE_NODE = ("rich", "pygments", "networkx", "tree_sitter", "eamos.compiler", "eamos.ground")
+#: Not loaded by importing the configs, the HAL or the plugin registry (plugin discovery
+#: imports importlib.metadata when it runs; the simulator's adapter and logs come with
+#: the adapter, not with its settings).
+NOT_ON_IMPORT = ("importlib.metadata", "email", "eamos.hal.sim.adapter", "eamos.hal.sim.core")
+
+#: A fresh interpreter: the node's imports (with the simulated adapter it builds), rich
+#: still importable after them (the ground station's live table), and a log line with
+#: a traceback written by structlog loaded without rich.
+NODE = r"""
+import json, pathlib, sys
+import eamos.cli.node
+import eamos.hal.sim.adapter
+node = sorted(sys.modules)
+import rich.table
+from eamos.logs import close_logger, make_logger
+log = make_logger(pathlib.Path(sys.argv[1]), drone="D1")
+try:
+    raise ValueError("boom")
+except ValueError:
+    log.exception("test.crash")
+close_logger(log)
+print(json.dumps(node))
+"""
+#: A fresh interpreter importing the configs, the HAL and the plugin registry, and making
+#: a registry of the installed plugins that nothing has used yet.
+LAYERS = r"""
+import json, sys
+import eamos.config, eamos.hal, eamos.program.plugins
+registry = eamos.program.plugins.discover_plugins()
+print(json.dumps(sorted(sys.modules)))
+"""
+
+
+def loaded(code: str, *args: str) -> list[str]:
+    """The modules loaded by ``code`` in a fresh interpreter (it prints them as JSON)."""
+    out = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120, check=True
+    )
+    result: list[str] = json.loads(out.stdout)
+    return result
+
+
+def present(modules: list[str], names: tuple[str, ...]) -> list[str]:
+    """The names of ``names`` in ``modules`` (a package counts with its submodules)."""
+    return [n for n in names if any(m == n or m.startswith(n + ".") for m in modules)]
+
+
+def test_the_node_imports_no_heavy_module_and_still_logs(tmp_path: Path) -> None:
+    assert present(loaded(NODE, str(tmp_path / "x.log")), NOT_ON_THE_NODE) == []
+    line = json.loads((tmp_path / "x.log").read_text().splitlines()[0])
+    assert line["event"] == "test.crash"
+    assert "ValueError: boom" in line["exception"]
+
+
+def test_configs_hal_and_an_unused_plugin_registry_load_no_metadata_and_no_adapter() -> None:
+    assert present(loaded(LAYERS), NOT_ON_IMPORT) == []
+
+
+def test_the_check_sees_a_heavy_module() -> None:
+    # The check above must be able to fail.
+    assert present(["rich.table", "zmq"], NOT_ON_THE_NODE) == ["rich"]
+    assert present(["importlib.metadata"], NOT_ON_IMPORT) == ["importlib.metadata"]
