@@ -14,6 +14,7 @@ import zmq
 
 from eamos.logs import make_logger
 from eamos.net.sockets import (
+    CMD_HURRY,
     CMD_STOP,
     CMD_SUB,
     DEFAULT_HEARTBEAT_MS,
@@ -211,6 +212,29 @@ class InBridge(BridgeThread):
                 self._ctrl_tx.send_multipart([CMD_SUB, topic])
         return True
 
+    def hurry(self, peer: str) -> None:
+        """``peer`` is up (it subscribed to our Out-Bridge): connect to it now if we never
+        did, instead of at libzmq's next, backed-off, retry (0.1, 0.3, 0.7 s...: a drone
+        that binds after the ground station tried would wait that long for its Ready).
+        Any thread."""
+        with self._lock:
+            if self._closed or not self._tx_open or not self._started:
+                return
+            self._ctrl_tx.send_multipart([CMD_HURRY, peer.encode()])
+
+    def _hurry(self, peer: str) -> None:
+        sub = self._by_peer.get(peer)
+        if sub is None:
+            return
+        monitor = self._monitors[list(self._by_peer).index(peer)]
+        monitor.drain()
+        if monitor.connections:
+            return  # connected once: libzmq's own reconnection (or ours) handles it
+        endpoint = self.peers[peer]
+        sub.disconnect(endpoint)
+        sub.connect(endpoint)
+        self._reconnected_at[peer] = time.monotonic()
+
     def _subscribe(self, topic: bytes) -> None:
         for sub in self._subs:
             sub.setsockopt(zmq.SUBSCRIBE, topic)
@@ -367,6 +391,8 @@ class InBridge(BridgeThread):
                 return False
             if frames[0] == CMD_SUB:
                 self._subscribe(frames[1])
+            elif frames[0] == CMD_HURRY:
+                self._hurry(frames[1].decode("utf-8", "replace"))
 
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
         batch = read_batch(sub)

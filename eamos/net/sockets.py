@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
 
 __all__ = [
+    "CMD_HURRY",
     "CMD_STOP",
     "CMD_SUB",
     "CMD_WAKE",
@@ -93,6 +94,8 @@ POLLIN_BIT: Final = int(zmq.POLLIN)
 
 # Control-pipe commands (first frame).  Never on the network.
 CMD_SUB: Final = b"sub"
+#: In-Bridge command: this peer is up (it subscribed to us); connect now if never connected.
+CMD_HURRY: Final = b"hurry"
 CMD_WAKE: Final = b"wake"  # the Out-Bridge's socket has something to read
 CMD_STOP: Final = b"stop"
 

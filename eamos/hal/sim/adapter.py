@@ -373,10 +373,12 @@ def sim_adapter_from_settings(
     It runs the plugin actions installed through entry points (``eamos.actions``);
     broken plugins are logged (``adapter.plugin_problem``) and left out.
     """
-    plugins = discover_plugins()
     log = adapter_log if adapter_log is not None else make_logger(None)
-    for problem in plugins.problems:
-        log.warning("adapter.plugin_problem", problem=problem)
+    # Looked up on first use (a mission without plugin actions never reads the entry
+    # points: importlib.metadata costs a node's start-up 20 ms); problems logged then.
+    plugins = discover_plugins(
+        on_problem=lambda problem: log.warning("adapter.plugin_problem", problem=problem)
+    )
     return SimAdapter(drone, SimSettings.from_mapping(settings), log, plugins)
 
 
