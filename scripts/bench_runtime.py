@@ -7,7 +7,8 @@ Measures, each in fresh processes:
   paper's stress test: 733 ms, 4.2 MB heap in Go) and build its runtime (every
   node actor, the HAL actor, both bridges), up to "runtime started".
 * ``local_trigger``: cost per node of a one-drone chain of zero-duration actions
-  (node actor -> uniform API -> adapter -> next node).
+  (node actor -> uniform API -> adapter -> next node): the span per node, the
+  median and p90 gap between action starts, and the drone's log lines per node.
 * ``cross_drone``: latency of a trigger between two drone processes over
   loopback TCP (end of an action on one drone to the start of the next action on
   the other), p50 and p99, from an ``eamos run`` with zero-duration actions.
@@ -169,10 +170,22 @@ def eamos_run(tmp: Path, name: str, source: str, timeout_s: float = 900) -> dict
 
 
 def bench_local(tmp: Path, n: int) -> dict:
+    """The chain's span per node; also the median and p90 of the start-to-start gaps
+    (robust to a busy machine's stalls) and the log lines the drone wrote per node."""
     data = eamos_run(tmp, "chain", chain_mission(n))
     acts = sorted(data["drones"]["D1"]["actions"], key=lambda a: a["start"])
     span = acts[-1]["end"] - acts[0]["start"]
-    return {"nodes": n, "seconds": round(span, 4), "per_node_us": round(span / (n - 1) * 1e6, 1)}
+    gaps = sorted((b["start"] - a["start"]) * 1e6 for a, b in itertools.pairwise(acts))
+    logs = [p for p in (tmp / "chain").rglob("*.log") if p.parent.name == "D1"]
+    lines = sum(len(p.read_text(encoding="utf-8").splitlines()) for p in logs)
+    return {
+        "nodes": n,
+        "seconds": round(span, 4),
+        "per_node_us": round(span / (n - 1) * 1e6, 1),
+        "gap_p50_us": round(statistics.median(gaps), 1),
+        "gap_p90_us": round(gaps[int(0.9 * (len(gaps) - 1))], 1),
+        "log_lines_per_node": round(lines / n, 2),
+    }
 
 
 def bench_cross(tmp: Path, hops: int) -> dict:
@@ -566,9 +579,10 @@ def main() -> int:
             out[name] = step()
     refs = out.get("reference_hops")
     if refs and "local_trigger" in out:
-        out["local_trigger"]["x_pykka_tell"] = round(
-            out["local_trigger"]["per_node_us"] / refs["pykka_tell"]["per_hop_us"], 1
-        )
+        hop = refs["pykka_tell"]["per_hop_us"]
+        local = out["local_trigger"]
+        local["x_pykka_tell"] = round(local["per_node_us"] / hop, 1)
+        local["gap_p50_x_pykka_tell"] = round(local["gap_p50_us"] / hop, 1)
     if refs and "cross_drone" in out:
         out["cross_drone"]["x_zmq_curve_p50"] = round(
             out["cross_drone"]["p50_ms"] / refs["zmq_curve"]["p50_ms"], 1

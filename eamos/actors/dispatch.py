@@ -35,20 +35,53 @@ from .pykka_seam import ExcInfo, ExternalLoopActor
 if TYPE_CHECKING:
     from .pykka_seam import Envelope
 
-__all__ = ["Dispatcher", "PooledActor"]
+__all__ = ["Dispatcher", "LazyMail", "PooledActor"]
 
 logger = logging.getLogger(__name__)
 
 _BATCH = 64  # messages one actor may handle before others get a turn
 
 
+#: Turns a worker may take from its next-actor slot before it looks at the shared queue.
+_SLOT_STREAK = 16
+
+
+class _Worker(threading.local):
+    """Per worker thread: is this thread a worker, and the actor it runs next."""
+
+    def __init__(self) -> None:
+        self.is_worker = False
+        self.next: PooledActor | None = None
+
+
+class LazyMail:
+    """A message that may wait until a worker of the receiver's dispatcher is free.
+
+    Sent from one of that dispatcher's workers, it wakes no other thread: the
+    receiver runs on this worker when it next has nothing in its slot, or after
+    :data:`_SLOT_STREAK` slot turns (news for the executive, which nobody waits
+    for while a chain of nodes runs).  From any other thread it is ordinary mail.
+    """
+
+
 class Dispatcher:
-    """A few worker threads running every :class:`PooledActor` of one runtime."""
+    """A few worker threads running every :class:`PooledActor` of one runtime.
+
+    An actor that a worker's own actor gives mail to (a trigger along a chain of
+    nodes) goes to that worker's *next* slot instead of the shared queue: the
+    worker runs it right after the current slice, with no other thread woken
+    (a thread hop costs more than most nodes' work).  Only one actor fits in the
+    slot; others go to the shared queue and wake a worker, and after
+    :data:`_SLOT_STREAK` slot turns in a row a worker serves the shared queue
+    first, so nothing waits behind a long chain.
+    """
 
     def __init__(self, workers: int = 2, name: str = "eamos") -> None:
         self._ready: deque[PooledActor] = deque()
+        self._lazy: deque[PooledActor] = deque()  # scheduled by LazyMail: no worker woken
         self._cond = threading.Condition()
         self._stopping = False
+        self._local = _Worker()
         self._threads = [
             threading.Thread(target=self._work, name=f"{name}-worker-{i}", daemon=True)
             for i in range(workers)
@@ -58,18 +91,48 @@ class Dispatcher:
 
     def schedule(self, actor: PooledActor) -> None:
         """Queue ``actor`` for a worker (it has mail, or has not started yet)."""
+        local = self._local
+        if local.is_worker and local.next is None:
+            local.next = actor  # this worker runs it next: no thread woken
+            return
         with self._cond:
             self._ready.append(actor)
             self._cond.notify()
 
+    def schedule_lazy(self, actor: PooledActor) -> None:
+        """Queue ``actor`` for this worker's next free moment (see :class:`LazyMail`)."""
+        if not self._local.is_worker:
+            self.schedule(actor)
+            return
+        with self._cond:
+            self._lazy.append(actor)
+
+    def _take(self, streak: int) -> tuple[PooledActor | None, bool]:
+        """The next actor for this worker (None: stopping), and whether it came from
+        the slot; may wait for one."""
+        local = self._local
+        actor, local.next = local.next, None
+        if actor is not None and (streak < _SLOT_STREAK or not (self._ready or self._lazy)):
+            return actor, True
+        with self._cond:
+            self._ready.extend(self._lazy)  # lazy mail's turn: this worker is free
+            self._lazy.clear()
+            if actor is not None:  # its turn comes after those waiting in the queue
+                self._ready.append(actor)
+            while not self._ready and not self._stopping:
+                self._cond.wait()
+            if not self._ready:
+                return None, False
+            return self._ready.popleft(), False
+
     def _work(self) -> None:
+        self._local.is_worker = True
+        streak = 0
         while True:
-            with self._cond:
-                while not self._ready and not self._stopping:
-                    self._cond.wait()
-                if not self._ready:
-                    return
-                actor = self._ready.popleft()
+            actor, from_slot = self._take(streak)
+            if actor is None:
+                return
+            streak = streak + 1 if from_slot else 0
             try:
                 actor._run_slice()
             except BaseException:  # a worker serves every actor: it must survive any one
@@ -100,7 +163,10 @@ class _Inbox:
             if self._scheduled:
                 return
             self._scheduled = True
-        self._actor._dispatcher.schedule(self._actor)
+        if isinstance(item.message, LazyMail):
+            self._actor._dispatcher.schedule_lazy(self._actor)
+        else:
+            self._actor._dispatcher.schedule(self._actor)
 
     def get(self, block: bool = True, timeout: float | None = None) -> Envelope[Any]:
         with self._lock:

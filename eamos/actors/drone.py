@@ -16,7 +16,7 @@ import time
 
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
-from eamos.logs import close_logger, make_logger, report_write_error
+from eamos.logs import LogWriter, close_logger, make_logger, report_write_error
 from eamos.net.reports import report_messages
 from eamos.net.wire import WireError
 from eamos.program.format import DroneProgram, load_program
@@ -64,14 +64,22 @@ def net_settings(config: NodeConfig) -> NetSettings:
     return NetSettings(config.bind, config.peers, keys=config.keys, link=config.link)
 
 
-def run_drone(config: NodeConfig, program: DroneProgram, stop: threading.Event) -> DroneEnd:
+def run_drone(
+    config: NodeConfig,
+    program: DroneProgram,
+    stop: threading.Event,
+    log_writer: LogWriter | None = None,
+) -> DroneEnd:
     """Run one drone until the mission completes or is aborted, or it must end on its own.
 
     A drone stranded by a lost peer, or left without ``Complete`` by a silent
     ground station, ends after ``peer_wait_limit_s`` (see :mod:`.stranded`).
+    ``log_writer``: the process's writer when several drones share a process
+    (without one, this drone's logs get their own).
     """
     config.log_dir.mkdir(parents=True, exist_ok=True)
-    adapter_log = make_logger(config.log_dir / "adapter.log", drone=config.drone)
+    writer = log_writer if log_writer is not None else LogWriter()
+    adapter_log = make_logger(config.log_dir / "adapter.log", writer=writer, drone=config.drone)
     adapter = make_adapter(config.drone, config.hal, adapter_log)
     runtime = DroneRuntime(
         program,
@@ -79,6 +87,7 @@ def run_drone(config: NodeConfig, program: DroneProgram, stop: threading.Event) 
         net_settings(config),
         config.log_dir,
         battery_reserve_pct=config.battery_reserve_pct,
+        log_writer=writer,
     )
     policy = end_policy(config)
     try:
@@ -125,6 +134,8 @@ def run_drone(config: NodeConfig, program: DroneProgram, stop: threading.Event) 
     finally:
         runtime.stop()
         close_logger(adapter_log)
+        if log_writer is None:
+            writer.close()
 
 
 def peer_wait_limit(config: NodeConfig) -> float:

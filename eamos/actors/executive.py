@@ -17,7 +17,8 @@ from ..program.uniform import MOTION_ACTIONS
 from .dispatch import Dispatcher
 from .failure import FailureSink, RuntimePart
 from .messages import ActionRecord, Interrupt, NodeEvent, NodeResolved, SendInterrupt
-from .node import BroadcastInterrupt
+from .node import BroadcastInterrupt, ExecutiveNews
+from .state import Iteration
 from .stranded import Activity
 
 __all__ = [
@@ -35,7 +36,7 @@ __all__ = [
 
 PROGRESS_INTERVAL_S = 0.1
 #: A batch of progress events is sent at once when it holds this many.
-PROGRESS_BATCH_MAX = 64
+PROGRESS_BATCH_MAX = 256
 
 #: Actions after which the vehicle's reported state (position, armed) may differ.
 STATE_ACTIONS = MOTION_ACTIONS | {"Arm", "Disarm"}
@@ -141,7 +142,8 @@ class DroneExecutive(RuntimePart):
         self.finished_actions = 0
         self.running: set[tuple[str, tuple[int, ...]]] = set()  # (node, iteration) running now
         self.idle_since: float | None = time.monotonic()
-        self._pending_progress: list[ProgressEvent] = []
+        # (state, node, action, iteration, detail, finished, at), oldest first
+        self._pending_progress: list[tuple[str, str, str, Iteration, str, int, float]] = []
         self._last_progress = float("-inf")
         self._flush_timer: threading.Timer | None = None
         self.resolved_event = threading.Event()
@@ -153,6 +155,13 @@ class DroneExecutive(RuntimePart):
             self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
     def on_receive(self, message: Any) -> Any:
+        if isinstance(message, ExecutiveNews):
+            for item in message.items:
+                self._news(item)
+            return None
+        return self._news(message)
+
+    def _news(self, message: Any) -> Any:
         if isinstance(message, NodeResolved):
             self._node_resolved(message)
         elif isinstance(message, ActionRecord):
@@ -257,18 +266,9 @@ class DroneExecutive(RuntimePart):
         """
         if state in ("ok", "failed", "cancelled"):
             self.finished_actions += 1
+        # Kept raw: the wire form is built once per batch, at flush time.
         self._pending_progress.append(
-            (
-                state,
-                node,
-                action,
-                {
-                    "iteration": list(iteration),
-                    "detail": detail,
-                    "finished": self.finished_actions,
-                    "at": time.time(),  # when it changed, to show events of all drones in order
-                },
-            )
+            (state, node, action, iteration, detail, self.finished_actions, time.time())
         )
         now = time.monotonic()
         if (
@@ -285,7 +285,17 @@ class DroneExecutive(RuntimePart):
 
     def _flush_progress(self) -> None:
         if self._pending_progress:
-            batch = progress_batch(self.program.mission_id, self.drone, self._pending_progress)
+            events: list[ProgressEvent] = [
+                (
+                    state,
+                    node,
+                    action,
+                    # "at": when it changed, to show events of all drones in order
+                    {"iteration": list(it), "detail": detail, "finished": done, "at": at},
+                )
+                for state, node, action, it, detail, done, at in self._pending_progress
+            ]
+            batch = progress_batch(self.program.mission_id, self.drone, events)
             self.to_ground(batch)
             self._pending_progress = []
             self._last_progress = time.monotonic()

@@ -18,6 +18,7 @@ had running, and from then on answers every message with a no-op.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -26,7 +27,7 @@ from typing import Any
 import pykka
 
 from ..program.format import ProgramNode
-from .dispatch import Dispatcher, PooledActor
+from .dispatch import Dispatcher, LazyMail, PooledActor
 from .failure import tell_operator
 from .logic import (
     CONDITION_KINDS,
@@ -67,7 +68,7 @@ from .messages import (
 )
 from .pykka_seam import ExcInfo
 from .state import Iteration
-from .uniform_api import ActionFinished
+from .uniform_api import ActionFinished, UniformSpace
 from .uniform_api import CancelAction as HalCancel
 from .uniform_api import RunAction as HalRun
 
@@ -94,6 +95,7 @@ __all__ = [
     "LOOP_KINDS",
     "WAIT_KINDS",
     "BroadcastInterrupt",
+    "ExecutiveNews",
     "Links",
     "MissionNode",
     "Route",
@@ -110,6 +112,9 @@ class Links:
     board: Any
     out_bridge: Any
     executive: Any
+    #: The uniform API's bookkeeping, called directly when the adapter does not
+    #: block (:func:`~.uniform_api.answers_at_once`); None: through the ``hal`` actor.
+    uniform: UniformSpace | None = None
 
 
 @dataclass(frozen=True)
@@ -125,6 +130,19 @@ class BroadcastInterrupt:
 
     interrupt: Interrupt
     drones: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class ExecutiveNews(LazyMail):
+    """What one message to a node meant for the executive, in order, as one message.
+
+    Items: :class:`~.messages.NodeEvent`, :class:`~.messages.ActionRecord`,
+    :class:`~.messages.NodeResolved`, :class:`BroadcastInterrupt`.  An action that
+    starts and ends in one turn of its node (an adapter that answers at once) is
+    one message, not three.
+    """
+
+    items: tuple[Any, ...]
 
 
 class MissionNode(PooledActor):
@@ -158,6 +176,12 @@ class MissionNode(PooledActor):
         self.links: Links | None = None
         self.crashed = False
         self._current: Any = None  # the message being handled (for the failure policy)
+        enabled = getattr(self.log, "is_enabled_for", None)
+        self._debug = enabled is None or bool(enabled(logging.DEBUG))
+        if not self._debug:
+            self.logic.debug_notes = False  # filtered anyway: not made at all
+        self._news: list[Any] = []  # for the executive, sent once per message handled
+        self._inline: list[ActionFinished] = []  # actions the adapter ended inside run()
 
     # -- messages -> logic inputs ---------------------------------------------------
 
@@ -166,7 +190,16 @@ class MissionNode(PooledActor):
             return None  # a failed node stays failed: later messages change nothing
         self._current = message
         self._apply(self._input(message))
+        while self._inline:  # handled after the effects that started them, in order
+            self._current = finished = self._inline.pop(0)
+            self._apply(self._input(finished))
+        self._send_news()
         return None
+
+    def _send_news(self) -> None:
+        if self._news and self.links is not None:
+            news, self._news = tuple(self._news), []
+            self._tell(self.links.executive, ExecutiveNews(news))
 
     def on_failure(
         self,
@@ -226,6 +259,10 @@ class MissionNode(PooledActor):
             self.links.out_bridge.tell(SendTrigger(route.drone, trigger))
         else:
             self._tell(self.links.nodes[route.dst], trigger)
+        if self._debug:
+            self._trigger_note(fx, route)
+
+    def _trigger_note(self, fx: Emit, route: Route) -> None:
         self.log.debug(
             "mission.trigger.out",
             dst=route.dst,
@@ -237,13 +274,21 @@ class MissionNode(PooledActor):
 
     def _start_action(self, fx: StartAction) -> None:
         assert self.links is not None
-        self._tell(
-            self.links.hal, HalRun((self.key, fx.iteration), fx.action, fx.args, self.actor_ref)
-        )
+        request = HalRun((self.key, fx.iteration), fx.action, fx.args, self.actor_ref)
+        if self.links.uniform is None:
+            self._tell(self.links.hal, request)
+            return
+        finished = self.links.uniform.run(request)  # on this thread: no hop
+        if finished is not None:
+            self._inline.append(finished)
 
     def _cancel_action(self, fx: CancelAction) -> None:
         assert self.links is not None
-        self._tell(self.links.hal, HalCancel((self.key, fx.iteration)))
+        token = (self.key, fx.iteration)
+        if self.links.uniform is None:
+            self._tell(self.links.hal, HalCancel(token))
+        else:
+            self.links.uniform.cancel(token)
 
     def _watch(self, fx: WatchTelemetry) -> None:
         assert self.links is not None
@@ -255,20 +300,17 @@ class MissionNode(PooledActor):
 
     def _resolve(self, fx: Resolve) -> None:
         self.log.info("mission.node.finished", iteration=list(fx.iteration), status=fx.status)
-        if fx.top_level and self.links is not None:
-            self._tell(self.links.executive, NodeResolved(self.key, fx.status))
+        if fx.top_level:
+            self._news.append(NodeResolved(self.key, fx.status))
 
     def _broadcast(self, fx: Broadcast) -> None:
-        assert self.links is not None
-        self._tell(self.links.executive, BroadcastInterrupt(fx.interrupt, fx.drones))
+        self._news.append(BroadcastInterrupt(fx.interrupt, fx.drones))
 
     def _progress(self, fx: Progress) -> None:
-        if self.links is not None:
-            self._tell(self.links.executive, fx.event)
+        self._news.append(fx.event)
 
     def _record(self, fx: Record) -> None:
-        assert self.links is not None
-        self._tell(self.links.executive, fx.record)
+        self._news.append(fx.record)
 
     def _release_begin(self, fx: ReleaseBegin) -> None:
         assert self.links is not None
@@ -284,6 +326,7 @@ class MissionNode(PooledActor):
     def _crash(self, message: Any, exc_info: ExcInfo) -> None:
         """Log once, resolve ``failed`` for what the node was doing, then ignore messages."""
         self.crashed = True
+        self._inline.clear()
         exc = exc_info[1]
         self.log.error(
             "mission.node.crashed",
@@ -309,6 +352,7 @@ class MissionNode(PooledActor):
             effects.append(Resolve(act, "failed", top_level and act == ()))
         try:
             self._apply(effects)
+            self._send_news()
         except Exception:
             self.log.exception("mission.node.crash_unreported")
 

@@ -28,7 +28,7 @@ import pykka
 import zmq
 
 from ..hal.api import Adapter, AdapterError
-from ..logs import DroneLogs
+from ..logs import DroneLogs, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
 from ..net.keys import FleetKeys, KeysError, plain_refusal
@@ -50,7 +50,7 @@ from .outbox import Outbox
 from .readiness import wait_listening
 from .report import DroneReport
 from .uniform_api import Abort as HalAbort
-from .uniform_api import UniformAPI
+from .uniform_api import UniformSpace, answers_at_once, start_uniform_api
 from .wiring import destinations, released_arcs, subscriptions, watched_peers
 
 # Outbox, TelemetryBoard, DroneExecutive, the telemetry-values functions and
@@ -118,7 +118,9 @@ class DroneRuntime:
         ground_handler: Callable[[Any], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
+        log_writer: LogWriter | None = None,
     ) -> None:
+        """``log_writer``: the process's log writer when several runtimes share a process."""
         self.program = program
         self.battery_reserve_pct = battery_reserve_pct  # a Try's Body fails below it
         self.drone = program.drone
@@ -129,7 +131,7 @@ class DroneRuntime:
         self.context = context if context is not None else zmq.Context()
         self.ground_handler = ground_handler  # set on the ground station: receives drone reports
         self.extra_topics = extra_topics
-        self.logs = DroneLogs.open(log_dir, self.drone)
+        self.logs = DroneLogs.open(log_dir, self.drone, log_writer)
         self.log = self.logs.mission
         self.failures = FailurePolicy(self.log, self._fail_safe, self.drone)
         self.link: Link | None = None
@@ -138,11 +140,12 @@ class DroneRuntime:
         self.outbox: Outbox | None = None
         self.board: Any = None
         self.hal: Any = None
+        self.uniform: UniformSpace | None = None
         self.executive: Any = None
         self.nodes: dict[str, Any] = {}
         self.router: InRouter | None = None  # the in-bridge's callback, once connected
         self.dispatcher: Dispatcher | None = None  # the node actors'
-        self.services: Dispatcher | None = None  # the board's and the executive's
+        self.services: Dispatcher | None = None  # the telemetry board's (one actor: one worker)
         self.completed = threading.Event()
         self.aborted = threading.Event()
         self.abort_reason = ""
@@ -202,30 +205,21 @@ class DroneRuntime:
         self.outbox = Outbox(self.link, self.drone, self.program.mission_id, self.logs.mission)
 
     def _start_board(self) -> None:
-        self.services = Dispatcher(workers=2, name=f"eamos-{self.drone}-services")
+        self.services = Dispatcher(workers=1, name=f"eamos-{self.drone}-services")
         self.board = TelemetryBoard.start(
             self.services, self.drone, self.outbox, self.program.mission_id, self.failures
         )
 
     def _start_uniform_api(self) -> None:
         """Start the adapter behind the uniform-API actor; an unusable one stops the start."""
-        start_error: list[AdapterError] = []
         board = self.board
-        self.hal = UniformAPI.start(
-            self.adapter,
-            self.logs.uniform,
-            lambda sample: board.tell(LocalSample(sample)),
-            start_error.append,
+        self.uniform = UniformSpace(self.adapter, self.logs.uniform)
+        self.hal, error = start_uniform_api(
+            self.uniform, lambda sample: board.tell(LocalSample(sample))
         )
-        try:
-            # Answered only after on_start ran: the adapter is up, or the actor died.
-            self.hal.proxy().drone.get(timeout=60)
-        except pykka.ActorDeadError:
-            pass
-        if start_error or not self.hal.is_alive():
-            reason = str(start_error[0]) if start_error else "the adapter did not start"
-            self.adapter_error = start_error[0] if start_error else AdapterError(reason)
-            raise DroneRuntimeError(f"{self.drone}: {reason}")
+        if error is not None:
+            self.adapter_error = error
+            raise DroneRuntimeError(f"{self.drone}: {error}")
 
     def _start_nodes(self) -> None:
         """One node actor per native node, on the node dispatcher (not started wired)."""
@@ -244,9 +238,10 @@ class DroneRuntime:
             )
 
     def _start_executive(self) -> None:
-        assert self.services is not None
+        assert self.dispatcher is not None
+        # On the nodes' dispatcher: their news (LazyMail) then wakes no other thread.
         self.executive = DroneExecutive.start(
-            self.services,
+            self.dispatcher,
             self.program,
             dict(self.nodes),
             self.outbox,
@@ -257,7 +252,9 @@ class DroneRuntime:
 
     def _wire_nodes(self) -> None:
         """Give every node its links: all the actors it talks to exist now."""
-        links = Links(dict(self.nodes), self.hal, self.board, self.outbox, self.executive)
+        # Nodes call an adapter that answers at once directly (no hop through the actor).
+        direct = self.uniform if answers_at_once(self.adapter) else None
+        links = Links(dict(self.nodes), self.hal, self.board, self.outbox, self.executive, direct)
         for ref in self.nodes.values():
             ref.tell(Wire(links))
 

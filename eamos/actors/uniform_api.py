@@ -16,14 +16,19 @@ policy: an exception raised by the adapter's ``run`` or ``cancel`` ends that
 action ``failed`` ("internal error in the adapter: ..."), logged once with its
 traceback in the uniform log, and the actor keeps serving.
 
-The adapter's completion callback runs on an adapter thread (or even inside
-``adapter.run``), so it only posts a private message back to this actor; all
-bookkeeping happens on the actor's thread.
+The bookkeeping (which actions run, one answer each) is :class:`UniformSpace`,
+safe to call from any thread: the adapter's completion callback (on an adapter
+thread, or inside ``adapter.run``) answers the asker directly, with no hop back
+through this actor.  With an adapter that answers at once (the simulator, the
+fake: :func:`answers_at_once`) node actors call the space themselves, so a
+zero-duration action costs no thread hop at all; an adapter that may block (a
+MAVLink autopilot) is called from this actor's thread only.
 """
 
 from __future__ import annotations
 
 import itertools
+import threading
 import time
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
@@ -76,21 +81,188 @@ class ActionFinished:
     end_s: float
 
 
-@dataclass(frozen=True)
-class _AdapterDone:
-    """Private: the adapter's done callback, posted back to the actor's own thread."""
-
-    token: Hashable
-    serial: int  # which run of this token (tokens may be reused after they finish)
-    result: ActionResult
-
-
 @dataclass
 class _Running:
     request: RunAction
     start_s: float
     serial: int
     handle: ActionHandle | None = None
+    # Set while adapter.run() runs on ``caller``: a done() inside it is kept here,
+    # and run() returns the reply instead of sending it (no message to itself).
+    caller: int = 0
+    inline: ActionResult | None = None
+
+
+#: Adapter families whose calls never block: ``run`` queues the action under a
+#: lock and returns, ``done`` comes later from the adapter's thread (or at once).
+NON_BLOCKING_FAMILIES = frozenset({"sim"})
+
+
+def answers_at_once(adapter: Any) -> bool:
+    """True if node actors may call ``adapter`` directly, without the uniform-API actor's hop.
+
+    An adapter says so with an ``answers_at_once`` attribute; otherwise its family
+    decides (:data:`NON_BLOCKING_FAMILIES`: the simulator and the fake).  A MAVLink
+    adapter waits for the autopilot: it keeps the actor.
+    """
+    declared = getattr(adapter, "answers_at_once", None)
+    if isinstance(declared, bool):
+        return declared
+    return getattr(adapter, "family", "") in NON_BLOCKING_FAMILIES
+
+
+class UniformSpace:
+    """The uniform API's bookkeeping over one adapter, safe to call from any thread.
+
+    The uniform-API actor calls it from its own thread; with an adapter that
+    :func:`answers_at_once`, node actors call :meth:`run` and :meth:`cancel`
+    directly (no hop through the actor).  Every :class:`RunAction` gets exactly
+    one :class:`ActionFinished`: returned by :meth:`run` when the adapter finished
+    it inside ``adapter.run`` on the calling thread (or it never reached the
+    adapter), else sent to ``reply_to`` when the adapter's ``done`` comes, or by
+    :meth:`finish_all` when the actor stops or fails.  The lock guards only the
+    table of running actions; the adapter is never called with it held.
+    """
+
+    def __init__(self, adapter: Adapter, uniform_log: Any) -> None:
+        self.adapter = adapter
+        self.drone = adapter.drone
+        self._log = self.log = uniform_log
+        self._lock = threading.Lock()
+        self._running: dict[Hashable, _Running] = {}
+        self._serials = itertools.count(1)
+        self._closed = False
+        # The plugin actions this adapter knows, with their parameter lists (an
+        # adapter without ``plugins`` knows none; docs/plugins.md).
+        plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
+        self._plugin_specs = plugins.specs()
+
+    def run(self, req: RunAction) -> ActionFinished | None:
+        """Start ``req`` on the adapter; its :class:`ActionFinished` if already known."""
+        start_s = time.time()
+        self._log.info(
+            "uniform.call", token=_jsonable(req.token), action=req.action, args=list(req.args)
+        )
+        with self._lock:
+            refusal = (
+                ActionResult("cancelled", "uniform API stopped")
+                if self._closed
+                # Never displace the running entry: its reply would be lost.
+                else ActionResult("failed", "duplicate token")
+                if req.token in self._running
+                else None
+            )
+        if refusal is not None:
+            return self._finished(req, start_s, refusal)
+        try:
+            # Decoded once, here: adapters dispatch on the command's class.
+            command = decode_command(req.action, req.args, self._plugin_specs)
+        except CommandError as exc:
+            return self._finished(req, start_s, ActionResult("failed", str(exc)))
+        running = _Running(req, start_s, next(self._serials), caller=threading.get_ident())
+        with self._lock:  # tokens are unique per asker: nobody took it since the check
+            self._running[req.token] = running
+        try:
+            handle = self.adapter.run(command, self._done_callback(req.token, running.serial))
+        except Exception as exc:  # an adapter bug must not kill the drone's actor
+            with self._lock:
+                self._running.pop(req.token, None)
+            running.caller = 0
+            return self._finished(req, start_s, self._internal_error(req.action, exc))
+        running.caller = 0
+        running.handle = handle
+        if running.inline is not None:
+            return self._finished(req, start_s, running.inline)
+        return None
+
+    def _done_callback(self, token: Hashable, serial: int) -> Callable[[ActionResult], None]:
+        def done(result: ActionResult) -> None:
+            # Runs on an adapter thread, or inside adapter.run() itself.
+            with self._lock:
+                running = self._running.get(token)
+                if running is None or running.serial != serial:
+                    stray = not self._closed
+                    running = None
+                else:
+                    del self._running[token]
+            if running is None:
+                if stray:  # a second done for one run (an adapter bug)
+                    self._log.warning("uniform.stray_result", token=_jsonable(token))
+                return  # else: late, after stop; finish_all already answered the caller
+            if running.caller == threading.get_ident():
+                running.inline = result  # run() returns it
+                return
+            self._send(running.request, running.start_s, result)
+
+        return done
+
+    def cancel(self, token: Hashable) -> None:
+        """Cancel the action started with ``token`` (unknown or finished: nothing happens)."""
+        with self._lock:
+            running = self._running.get(token)
+        self._log.info("uniform.cancel", token=_jsonable(token), running=running is not None)
+        if running is None or running.handle is None:
+            return  # unknown or finished: nothing to cancel
+        try:
+            self.adapter.cancel(running.handle)
+        except Exception as exc:  # the action's state is unknown: it ends failed, once
+            with self._lock:
+                mine = self._running.pop(token, None) is running
+            if mine:
+                self._send(running.request, running.start_s, self._internal_error("cancel", exc))
+
+    def abort(self) -> None:
+        """Cancel every running action and land (the adapter's ``abort``)."""
+        with self._lock:
+            count = len(self._running)
+        self._log.info("uniform.abort", running=count)
+        try:
+            self.adapter.abort()
+        except Exception as exc:
+            self._log.exception("uniform.adapter_error", action="abort", error=repr(exc))
+
+    def finish_all(self, result: ActionResult, close: bool) -> None:
+        """Answer every running action with ``result``; ``close``: close the adapter first
+        (its late done callbacks are then dropped, so each caller gets one answer)."""
+        if close:
+            with self._lock:
+                self._closed = True
+            self.close_adapter()
+        with self._lock:
+            running, self._running = list(self._running.values()), {}
+        for entry in running:
+            self._send(entry.request, entry.start_s, result)
+
+    def close_adapter(self) -> None:
+        """Close the adapter; an exception is logged, never raised."""
+        try:
+            self.adapter.close()
+        except Exception as exc:
+            self._log.exception("uniform.adapter_error", action="close", error=repr(exc))
+
+    def _internal_error(self, call: str, exc: Exception) -> ActionResult:
+        """Log an adapter's exception once, with its traceback; the action's failure."""
+        self._log.exception("uniform.adapter_error", call=call, error=repr(exc))
+        return ActionResult("failed", f"internal error in the adapter: {exc!r}")
+
+    def _finished(self, req: RunAction, start_s: float, result: ActionResult) -> ActionFinished:
+        end_s = time.time()
+        self._log.info(
+            "uniform.result",
+            token=_jsonable(req.token),
+            action=req.action,
+            args=list(req.args),
+            status=result.status,
+            reason=result.reason,
+            start_s=round(start_s, 6),
+            end_s=round(end_s, 6),
+            duration_s=round(end_s - start_s, 6),
+        )
+        return ActionFinished(req.token, req.action, req.args, result, start_s, end_s)
+
+    def _send(self, req: RunAction, start_s: float, result: ActionResult) -> None:
+        """Send the reply to the one who asked (a stopped asker is logged, not raised)."""
+        _tell_reply(req.reply_to, self._finished(req, start_s, result), self._log)
 
 
 class UniformAPI(pykka.ThreadingActor):
@@ -102,12 +274,14 @@ class UniformAPI(pykka.ThreadingActor):
         uniform_log: Any,
         on_telemetry: Callable[[Telemetry], None],
         on_start_error: Callable[[AdapterError], None] | None = None,
+        space: UniformSpace | None = None,
     ) -> None:
         """Own ``adapter``; ``on_telemetry`` receives every sample (on adapter threads).
 
         ``on_start_error`` (optional) is told when ``adapter.start`` fails, before
         the actor stops: pykka only logs exceptions raised in ``on_start``, so
-        this is how a runtime learns why the drone is unusable.
+        this is how a runtime learns why the drone is unusable.  ``space``: the
+        bookkeeping node actors also call directly (built here when not given).
         """
         super().__init__()
         self.adapter = adapter
@@ -115,12 +289,7 @@ class UniformAPI(pykka.ThreadingActor):
         self._log = uniform_log
         self._on_telemetry = on_telemetry
         self._on_start_error = on_start_error
-        self._running: dict[Hashable, _Running] = {}
-        self._serials = itertools.count(1)
-        # The plugin actions this adapter knows, with their parameter lists (an
-        # adapter without ``plugins`` knows none; docs/plugins.md).
-        plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
-        self._plugin_specs = plugins.specs()
+        self.space = space if space is not None else UniformSpace(adapter, uniform_log)
 
     # -- lifecycle -----------------------------------------------------------
 
@@ -136,12 +305,12 @@ class UniformAPI(pykka.ThreadingActor):
                     self._on_start_error(exc)
                 except Exception as cb_exc:
                     self._log.exception("uniform.callback_error", error=repr(cb_exc))
-            self._close_adapter()  # on_stop is not called when on_start fails
+            self.space.close_adapter()  # on_stop is not called when on_start fails
             raise
 
     def on_stop(self) -> None:
         """Close the adapter; answer actions still running with ``cancelled``."""
-        self._shutdown(ActionResult("cancelled", "uniform API stopped"))
+        self.space.finish_all(ActionResult("cancelled", "uniform API stopped"), close=True)
         self._log.info("uniform.stop", drone=self.drone)
 
     def on_failure(self, exception_type: Any, exception_value: Any, traceback: Any) -> None:
@@ -153,19 +322,11 @@ class UniformAPI(pykka.ThreadingActor):
         self._log.error("uniform.failure", error=repr(exception_value))
         tell_operator(self.drone, f"internal error in the uniform API: {exception_value!r}: lands")
         result = ActionResult("failed", f"uniform API crashed: {exception_value!r}")
-        for token, running in list(self._running.items()):
-            self._reply(token, running, result)
+        self.space.finish_all(result, close=False)
         try:
             self.adapter.abort()
         except Exception as exc:
             self._log.exception("uniform.adapter_error", action="abort", error=repr(exc))
-
-    def _shutdown(self, result: ActionResult) -> None:
-        # Close first: the adapter's late done callbacks then meet a dead actor
-        # and are dropped, so every caller gets exactly one answer (this one).
-        self._close_adapter()
-        for token, running in list(self._running.items()):
-            self._reply(token, running, result)
 
     # -- messages ------------------------------------------------------------
 
@@ -173,115 +334,45 @@ class UniformAPI(pykka.ThreadingActor):
         """Dispatch one of :class:`RunAction`, :class:`CancelAction`, :class:`Abort`."""
         match message:
             case RunAction():
-                self._run(message)
+                finished = self.space.run(message)
+                if finished is not None:
+                    # Told from the actor's thread: a reply that raises is a bug of
+                    # the actor (its failure policy lands the vehicle).
+                    _tell_reply(message.reply_to, finished, self._log)
             case CancelAction(token=token):
-                self._cancel(token)
+                self.space.cancel(token)
             case Abort():
-                self._abort()
-            case _AdapterDone():
-                self._done(message)
+                self.space.abort()
             case _:
                 self._log.warning("uniform.unknown_message", message=repr(message))
         return None
 
-    def _run(self, req: RunAction) -> None:
-        start_s = time.time()
-        self._log.info(
-            "uniform.call", token=_jsonable(req.token), action=req.action, args=list(req.args)
-        )
-        if req.token in self._running:
-            # Never displace the running entry: its reply would be lost.
-            self._reply_now(req, start_s, ActionResult("failed", "duplicate token"))
-            return
-        try:
-            # Decoded once, here: adapters dispatch on the command's class.
-            command = decode_command(req.action, req.args, self._plugin_specs)
-        except CommandError as exc:
-            self._reply_now(req, start_s, ActionResult("failed", str(exc)))
-            return
-        running = self._running[req.token] = _Running(req, start_s, next(self._serials))
-        try:
-            handle = self.adapter.run(command, self._done_callback(req.token, running.serial))
-        except Exception as exc:  # an adapter bug must not kill the drone's actor
-            self._running.pop(req.token, None)
-            self._reply_now(req, start_s, self._internal_error(req.action, exc))
-            return
-        running.handle = handle
 
-    def _done_callback(self, token: Hashable, serial: int) -> Callable[[ActionResult], None]:
-        actor_ref = self.actor_ref
+def start_uniform_api(
+    space: UniformSpace, on_telemetry: Callable[[Telemetry], None]
+) -> tuple[pykka.ActorRef[UniformAPI], AdapterError | None]:
+    """Start the uniform-API actor over ``space``'s adapter and wait until it started it.
 
-        def done(result: ActionResult) -> None:
-            # Runs on an adapter thread, or inside adapter.run() itself: either
-            # way the result is handled later, in order, on the actor's thread.
-            try:
-                actor_ref.tell(_AdapterDone(token, serial, result))
-            except pykka.ActorDeadError:
-                pass  # the actor stopped; on_stop already answered the caller
+    Returns the actor and, when the adapter could not start (the actor then
+    stopped), the adapter's error.
+    """
+    start_error: list[AdapterError] = []
+    ref = UniformAPI.start(space.adapter, space.log, on_telemetry, start_error.append, space=space)
+    try:
+        # Answered only after on_start ran: the adapter is up, or the actor died.
+        ref.proxy().drone.get(timeout=60)
+    except pykka.ActorDeadError:
+        pass
+    if start_error or not ref.is_alive():
+        return ref, start_error[0] if start_error else AdapterError("the adapter did not start")
+    return ref, None
 
-        return done
 
-    def _done(self, msg: _AdapterDone) -> None:
-        running = self._running.get(msg.token)
-        if running is None or running.serial != msg.serial:
-            # A second done for one run (an adapter bug) or a late one after stop.
-            self._log.warning("uniform.stray_result", token=_jsonable(msg.token))
-            return
-        self._reply(msg.token, running, msg.result)
-
-    def _cancel(self, token: Hashable) -> None:
-        running = self._running.get(token)
-        self._log.info("uniform.cancel", token=_jsonable(token), running=running is not None)
-        if running is None or running.handle is None:
-            return  # unknown or finished: nothing to cancel
-        try:
-            self.adapter.cancel(running.handle)
-        except Exception as exc:  # the action's state is unknown: it ends failed, once
-            self._reply(token, running, self._internal_error("cancel", exc))
-
-    def _abort(self) -> None:
-        self._log.info("uniform.abort", running=len(self._running))
-        try:
-            self.adapter.abort()
-        except Exception as exc:
-            self._log.exception("uniform.adapter_error", action="abort", error=repr(exc))
-
-    # -- helpers -------------------------------------------------------------
-
-    def _internal_error(self, call: str, exc: Exception) -> ActionResult:
-        """Log an adapter's exception once, with its traceback; the action's failure."""
-        self._log.exception("uniform.adapter_error", call=call, error=repr(exc))
-        return ActionResult("failed", f"internal error in the adapter: {exc!r}")
-
-    def _reply(self, token: Hashable, running: _Running, result: ActionResult) -> None:
-        self._running.pop(token, None)
-        self._reply_now(running.request, running.start_s, result)
-
-    def _reply_now(self, req: RunAction, start_s: float, result: ActionResult) -> None:
-        end_s = time.time()
-        self._log.info(
-            "uniform.result",
-            token=_jsonable(req.token),
-            action=req.action,
-            args=list(req.args),
-            status=result.status,
-            reason=result.reason,
-            start_s=round(start_s, 6),
-            end_s=round(end_s, 6),
-            duration_s=round(end_s - start_s, 6),
-        )
-        try:
-            req.reply_to.tell(
-                ActionFinished(req.token, req.action, req.args, result, start_s, end_s)
-            )
-        except pykka.ActorDeadError:
-            self._log.warning("uniform.reply_to_dead", token=_jsonable(req.token))
-
-    def _close_adapter(self) -> None:
-        try:
-            self.adapter.close()
-        except Exception as exc:
-            self._log.exception("uniform.adapter_error", action="close", error=repr(exc))
+def _tell_reply(reply_to: Any, finished: ActionFinished, log: Any) -> None:
+    try:
+        reply_to.tell(finished)
+    except pykka.ActorDeadError:
+        log.warning("uniform.reply_to_dead", token=_jsonable(finished.token))
 
 
 def _jsonable(token: Hashable) -> Any:

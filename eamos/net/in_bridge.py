@@ -6,13 +6,13 @@ See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import zmq
 
 from eamos.logs import make_logger
+from eamos.net.reconnect import Reconnector
 from eamos.net.sockets import (
     CMD_HURRY,
     CMD_STOP,
@@ -22,7 +22,6 @@ from eamos.net.sockets import (
     EVENTS_OPT,
     MAX_FRAME_BYTES,
     POLLIN_BIT,
-    RECONNECT_IVL_MAX_MS,
     BridgeThread,
     Monitor,
     connection_options,
@@ -36,11 +35,6 @@ if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
 
 __all__ = ["InBridge", "latest_telemetry", "read_batch"]
-
-#: After a disconnect, how long the bridge leaves libzmq to start its own
-#: reconnect (it retries within RECONNECT_IVL_MS after a normal disconnect)
-#: before it reconnects the socket itself.
-RECONNECT_GRACE_S = 0.5
 
 
 def latest_telemetry(batch: list[list[bytes]]) -> tuple[list[list[bytes]], int]:
@@ -100,7 +94,7 @@ class InBridge(BridgeThread):
     :data:`~eamos.net.sockets.MAX_FRAME_BYTES`, a failed handshake) is not
     reconnected by libzmq; the bridge reconnects the peer's socket itself
     (``net.in.reconnect``) when libzmq has not started its own retry within
-    :data:`RECONNECT_GRACE_S`, and then at most every
+    :data:`~eamos.net.reconnect.RECONNECT_GRACE_S`, and then at most every
     :data:`~eamos.net.sockets.RECONNECT_IVL_MAX_MS`, so one bad message never
     cuts a peer off for good.
     """
@@ -132,12 +126,8 @@ class InBridge(BridgeThread):
             if missing:
                 raise ValueError(f"no public key for peer(s) {', '.join(missing)}")
         self._subs: dict[zmq.Socket[Any], str] = {}
-        self._by_peer: dict[str, zmq.Socket[Any]] = {}
         self._monitors: list[Monitor] = []
-        # Reconnections the receive thread owes (peer -> when) and made (peer -> when).
-        self._reconnect_due: dict[str, float] = {}
-        self._reconnected_at: dict[str, float] = {}
-        self.reconnects = 0
+        self._reconnector = Reconnector(self.peers, self._log)
         self._ctrl_rx, self._ctrl_tx = control_pair(context, "in")
         # Owned by the receive thread once started; before that, by the caller
         # under _lock (the thread start is the hand-over).
@@ -148,7 +138,7 @@ class InBridge(BridgeThread):
             for peer, endpoint in self.peers.items():
                 sub = context.socket(zmq.SUB)
                 self._subs[sub] = peer
-                self._by_peer[peer] = sub
+                self._reconnector.sockets[peer] = sub
                 sub.setsockopt(zmq.LINGER, 0)
                 sub.setsockopt(zmq.RCVHWM, hwm)
                 # ZeroMQ refuses (and disconnects) peers sending frames larger than
@@ -158,15 +148,15 @@ class InBridge(BridgeThread):
                 connection_options(sub, heartbeat_ms)
                 if curve is not None:
                     curve_client(sub, curve, curve.fleet[peer])
-                self._monitors.append(
-                    Monitor(
-                        sub,
-                        self._log,
-                        peer,
-                        on_disconnect=self._disconnected(peer),
-                        on_retry=self._retrying(peer),
-                    )
+                monitor = Monitor(
+                    sub,
+                    self._log,
+                    peer,
+                    on_disconnect=self._reconnector.disconnected(peer),
+                    on_retry=self._reconnector.retrying(peer),
                 )
+                self._monitors.append(monitor)
+                self._reconnector.monitors[peer] = monitor
                 sub.connect(endpoint)
             for topic in topics:
                 self._subscribe(topic)
@@ -222,19 +212,6 @@ class InBridge(BridgeThread):
                 return
             self._ctrl_tx.send_multipart([CMD_HURRY, peer.encode()])
 
-    def _hurry(self, peer: str) -> None:
-        sub = self._by_peer.get(peer)
-        if sub is None:
-            return
-        monitor = self._monitors[list(self._by_peer).index(peer)]
-        monitor.drain()
-        if monitor.connections:
-            return  # connected once: libzmq's own reconnection (or ours) handles it
-        endpoint = self.peers[peer]
-        sub.disconnect(endpoint)
-        sub.connect(endpoint)
-        self._reconnected_at[peer] = time.monotonic()
-
     def _subscribe(self, topic: bytes) -> None:
         for sub in self._subs:
             sub.setsockopt(zmq.SUBSCRIBE, topic)
@@ -247,6 +224,11 @@ class InBridge(BridgeThread):
         return topic in self._exact or any(topic.startswith(p) for p in self._prefixes)
 
     # -- counters ----------------------------------------------------------
+
+    @property
+    def reconnects(self) -> int:
+        """How many times the bridge reconnected a peer's socket itself."""
+        return self._reconnector.reconnects
 
     @property
     def received(self) -> int:
@@ -295,10 +277,10 @@ class InBridge(BridgeThread):
             poller.register(mon, zmq.POLLIN)
         try:
             while True:
-                events = dict(poller.poll(self._poll_timeout_ms()))
+                events = dict(poller.poll(self._reconnector.poll_timeout_ms()))
                 if self._ctrl_rx in events and not self._drain_control():
                     return
-                self._reconnect_due_peers()
+                self._reconnector.reconnect_due()
                 delivered = False
                 for sock in events:
                     peer = self._subs.get(sock)
@@ -327,60 +309,6 @@ class InBridge(BridgeThread):
             for sub in self._subs:
                 sub.close()
 
-    # -- reconnection (receive thread) -------------------------------------
-
-    def _disconnected(self, peer: str) -> Callable[[], None]:
-        def schedule() -> None:
-            # After a normal disconnect libzmq reconnects by itself (it reports
-            # CONNECT_RETRIED, which cancels this); after a protocol error (an
-            # oversized frame) it never does.  So wait a little longer than
-            # libzmq would before its retry, and reconnect only if it did not;
-            # and not again within the maximum reconnect interval.  Cutting a
-            # connection libzmq is still using races its receive path.
-            now = time.monotonic()
-            last = self._reconnected_at.get(peer, float("-inf"))
-            due = max(now + RECONNECT_GRACE_S, last + RECONNECT_IVL_MAX_MS / 1e3)
-            self._reconnect_due.setdefault(peer, due)
-
-        return schedule
-
-    def _retrying(self, peer: str) -> Callable[[], None]:
-        def cancel() -> None:
-            self._reconnect_due.pop(peer, None)  # libzmq is on it
-
-        return cancel
-
-    def _poll_timeout_ms(self) -> int | None:
-        if not self._reconnect_due:
-            return None  # nothing owed: wait for messages only
-        wait = min(self._reconnect_due.values()) - time.monotonic()
-        return max(0, int(wait * 1e3) + 1)
-
-    def _reconnect_due_peers(self) -> None:
-        if not self._reconnect_due:
-            return
-        now = time.monotonic()
-        for peer, due in list(self._reconnect_due.items()):
-            if due > now:
-                continue
-            del self._reconnect_due[peer]
-            self._reconnected_at[peer] = now
-            endpoint = self.peers[peer]
-            sub = self._by_peer[peer]
-            # disconnect + connect: a fresh session whatever libzmq did with the
-            # old one (after a normal disconnect it would retry; after a protocol
-            # error it would not).  Subscriptions are resent on the new connection.
-            try:
-                sub.disconnect(endpoint)
-            except zmq.ZMQError:
-                pass  # already gone
-            sub.connect(endpoint)
-            self.reconnects += 1
-            if should_log(self.reconnects):
-                self._log.info(
-                    "net.in.reconnect", peer=peer, endpoint=endpoint, count=self.reconnects
-                )
-
     def _drain_control(self) -> bool:
         while True:
             try:
@@ -392,7 +320,7 @@ class InBridge(BridgeThread):
             if frames[0] == CMD_SUB:
                 self._subscribe(frames[1])
             elif frames[0] == CMD_HURRY:
-                self._hurry(frames[1].decode("utf-8", "replace"))
+                self._reconnector.hurry(frames[1].decode("utf-8", "replace"))
 
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
         batch = read_batch(sub)

@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterator
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
 import pykka
 import pytest
 
-from eamos.actors.dispatch import Dispatcher, PooledActor
+from eamos.actors.dispatch import Dispatcher, LazyMail, PooledActor
 from eamos.actors.pykka_seam import shape_problems
 
 WAIT_S = 30.0
@@ -140,3 +141,89 @@ def test_an_actor_that_fails_to_start_is_stopped(dispatcher: Dispatcher) -> None
         ref.ask("hello", timeout=WAIT_S)
     # The workers survive: other actors still run.
     assert Recorder.start(dispatcher).ask("x", timeout=WAIT_S) == 1
+
+
+@dataclass(frozen=True)
+class Hop:
+    left: int
+
+
+@dataclass(frozen=True)
+class News(LazyMail):
+    text: str
+
+
+class Relay(PooledActor):
+    """Passes a Hop on to ``nxt`` until it reaches 0; records the threads that ran it."""
+
+    def __init__(self, dispatcher: Dispatcher, log: Any, done: threading.Event) -> None:
+        super().__init__(dispatcher)
+        self.nxt: Any = None
+        self.log = log  # an actor ref: gets News (lazy) at each hop, or None
+        self.done = done
+        self.threads: set[str] = set()
+
+    def on_receive(self, message: Any) -> Any:
+        if isinstance(message, Hop):
+            self.threads.add(threading.current_thread().name)
+            if self.log is not None:
+                self.log.tell(News(f"hop {message.left}"))
+            if message.left == 0:
+                self.done.set()
+            else:
+                self.nxt.tell(Hop(message.left - 1))
+        elif callable(message):
+            message(self)
+        return None
+
+
+def _ring(dispatcher: Dispatcher, size: int, log: Any, done: threading.Event) -> list[Any]:
+    refs = [Relay.start(dispatcher, log, done) for _ in range(size)]
+    for ref, nxt in zip(refs, refs[1:] + refs[:1], strict=True):
+        ref.proxy().nxt = nxt
+    return refs
+
+
+def test_a_chain_of_tells_runs_on_one_worker_and_lazy_news_arrives_in_order(
+    dispatcher: Dispatcher,
+) -> None:
+    """The slot: a node's trigger wakes no other worker; LazyMail waits for a free moment."""
+    done = threading.Event()
+    log = Recorder.start(dispatcher)
+    refs = _ring(dispatcher, 10, log, done)
+    refs[0].tell(Hop(500))
+    assert done.wait(WAIT_S)
+    threads = set().union(*(r.proxy().threads.get(timeout=WAIT_S) for r in refs))
+    assert len(threads) == 1, threads
+    # Every piece of news arrives, in order, though it woke nobody.
+    texts = [n.text for n in log.proxy().seen_so_far().get(timeout=WAIT_S)]
+    assert texts == [f"hop {i}" for i in range(500, -1, -1)]
+    for ref in [*refs, log]:
+        ref.stop(block=True, timeout=WAIT_S)
+
+
+def test_a_long_chain_does_not_starve_other_actors_on_one_worker() -> None:
+    one = Dispatcher(workers=1, name="test-one")
+    try:
+        done = threading.Event()
+        refs = _ring(one, 2, None, done)
+        refs[0].tell(Hop(10**9))  # ping-pong for as long as the test lets it
+        other = Recorder.start(one)
+        assert other.ask("served", timeout=WAIT_S) == 1
+        stop = threading.Event()
+        # Ends the ping-pong: the next hop is dropped.
+        refs[0].tell(lambda relay: setattr(relay, "nxt", _Drop(stop)))
+        refs[1].tell(lambda relay: setattr(relay, "nxt", _Drop(stop)))
+        assert stop.wait(WAIT_S)
+        for ref in [*refs, other]:
+            ref.stop(block=True, timeout=WAIT_S)
+    finally:
+        one.shutdown()
+
+
+class _Drop:
+    def __init__(self, stop: threading.Event) -> None:
+        self.stop = stop
+
+    def tell(self, message: Any) -> None:
+        self.stop.set()

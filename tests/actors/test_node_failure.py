@@ -20,7 +20,7 @@ import pytest
 from eamos.actors.dispatch import Dispatcher
 from eamos.actors.logic import ActionLogic, PassThrough, Route
 from eamos.actors.messages import Fire, NodeEvent, NodeResolved, SendTrigger, Trigger
-from eamos.actors.node import Links, MissionNode, Wire
+from eamos.actors.node import ExecutiveNews, Links, MissionNode, Wire
 from eamos.actors.uniform_api import ActionFinished, CancelAction, RunAction
 from eamos.hal.api import ActionResult
 from eamos.logs import close_logger, make_logger
@@ -38,7 +38,11 @@ class Recorder:
 
     def tell(self, message: Any) -> None:
         with self.changed:
-            self.messages.append(message)
+            # A node sends the executive one ExecutiveNews per message it handles.
+            if isinstance(message, ExecutiveNews):
+                self.messages.extend(message.items)
+            else:
+                self.messages.append(message)
             self.changed.notify_all()
 
     def wait_for(self, kind: type, timeout_s: float = WAIT_S) -> Any:

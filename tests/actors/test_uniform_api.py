@@ -323,3 +323,52 @@ def test_ground_station_bad_calls_fail_at_the_actor(
         "failed", "the ground station cannot Takeoff"
     )
     assert r.call(4, "PauseFor", 0.5).result.ok
+
+
+# -- the space node actors call directly (adapters that answer at once) ------------------
+
+
+def test_direct_calls_answer_inline_or_later_once_each(rig: Callable[..., Rig]) -> None:
+    from eamos.actors.uniform_api import answers_at_once
+
+    fake = FakeAdapter("D1", results={"Land": ActionResult("failed", "gusts")})
+    r = rig(fake)
+    space = r.ref.proxy().space.get(timeout=WAIT_S)
+    assert answers_at_once(fake) and not answers_at_once(GroundAdapter("GCS", GroundSettings()))
+    fake.auto = True
+    # Finished inside adapter.run on this thread: returned, nothing sent.
+    inline = space.run(RunAction("a", "Arm", (), r.collector))
+    assert inline is not None and inline.result.ok and r.inbox.empty()
+    # Bad input never reaches the adapter, and is answered the same way.
+    refused = space.run(RunAction("b", "Teleport", (), r.collector))
+    assert refused is not None and refused.result.status == "failed"
+    fake.auto = False
+    # Finished later, on another thread: sent to reply_to, once.
+    assert space.run(RunAction("c", "FlyByX", (3.0,), r.collector)) is None
+    handle = fake.wait_started("FlyByX", WAIT_S)
+    threading.Thread(target=fake.finish, args=(handle, ActionResult("ok"))).start()
+    reply = r.finished()
+    assert (reply.token, reply.result.status) == ("c", "ok")
+    # A running one cancelled directly; a second cancel changes nothing.
+    assert space.run(RunAction("d", "FlyByY", (3.0,), r.collector)) is None
+    fake.wait_started("FlyByY", WAIT_S)
+    space.cancel("d")
+    space.cancel("d")
+    assert r.finished().result.status == "cancelled"
+    assert r.inbox.empty()
+
+
+def test_stopping_answers_a_directly_started_action_and_refuses_new_ones(
+    rig: Callable[..., Rig],
+) -> None:
+    fake = FakeAdapter("D1")
+    r = rig(fake)
+    space = r.ref.proxy().space.get(timeout=WAIT_S)
+    assert space.run(RunAction("fly", "FlyByX", (5.0,), r.collector)) is None
+    handle = fake.wait_started("FlyByX", WAIT_S)
+    r.ref.stop(timeout=WAIT_S)
+    assert r.finished().result == ActionResult("cancelled", "uniform API stopped")
+    fake.finish(handle, ActionResult("ok"))  # late: dropped, the caller had its answer
+    late = space.run(RunAction("late", "Arm", (), r.collector))
+    assert late is not None and late.result.status == "cancelled"
+    assert r.inbox.empty()

@@ -47,20 +47,26 @@ class NodeLogic:
         # True when nobody reads the node's log notes and progress events (a
         # virtual run without a log): they are then not made at all.
         self.quiet = False
+        # False when the host's log drops debug lines: debug notes are then not made.
+        self.debug_notes = True
 
     # -- inputs ------------------------------------------------------------------
 
     def trigger(self, src: str, iteration: Iteration, status: Status) -> list[Effect]:
         """A precondition arc from ``src`` delivered ``status`` for ``iteration``."""
-        self._note("debug", "mission.trigger.in", src=src, iteration=list(iteration), status=status)
+        if self.debug_notes:
+            self._note(
+                "debug", "mission.trigger.in", src=src, iteration=list(iteration), status=status
+            )
         fired = self.pre.receive(src, iteration, status)
         if fired is None:
-            self._note(
-                "debug",
-                "mission.precondition",
-                src=src,
-                waiting=sorted(map(str, self.pre.waiting())),
-            )
+            if self.debug_notes:
+                self._note(
+                    "debug",
+                    "mission.precondition",
+                    src=src,
+                    waiting=sorted(map(str, self.pre.waiting())),
+                )
         else:
             self._fired(fired)
         return self._take()
@@ -230,7 +236,7 @@ class NodeLogic:
             self._fx.append(Progress(NodeEvent(self.key, state, self.spec.label, act, detail)))
 
     def _note(self, level: str, event: str, **fields: Any) -> None:
-        if not self.quiet:
+        if not self.quiet and (self.debug_notes or level != "debug"):
             self._fx.append(Note(level, event, fields))
 
 
