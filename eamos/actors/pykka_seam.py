@@ -25,7 +25,6 @@ from __future__ import annotations
 import inspect
 import logging
 import sys
-from importlib import metadata
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
@@ -148,6 +147,8 @@ def _params(func: Any) -> list[str]:
 
 def shape_problems() -> list[str]:
     """What changed in Pykka's internals that this module relies on (empty: nothing)."""
+    from importlib import metadata  # here: a node's start-up never needs it (20 ms)
+
     problems: list[str] = []
     version = tuple(int(p) for p in metadata.version("pykka").split(".")[:2])
     low, high = PYKKA_TESTED

@@ -38,7 +38,7 @@ import pykka
 
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
-from eamos.program.uniform import CommandError, decode_command
+from eamos.program.uniform import ACTIONS, CommandError, decode_command
 
 from .failure import tell_operator
 
@@ -134,8 +134,9 @@ class UniformSpace:
         self._closed = False
         # The plugin actions this adapter knows, with their parameter lists (an
         # adapter without ``plugins`` knows none; docs/plugins.md).
-        plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
-        self._plugin_specs = plugins.specs()
+        # Read only when a plugin action comes (a registry looks entry points up on first
+        # use: a mission without plugin actions never pays for importlib.metadata).
+        self._plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
 
     def run(self, req: RunAction) -> ActionFinished | None:
         """Start ``req`` on the adapter; its :class:`ActionFinished` if already known."""
@@ -156,7 +157,8 @@ class UniformSpace:
             return self._finished(req, start_s, refusal)
         try:
             # Decoded once, here: adapters dispatch on the command's class.
-            command = decode_command(req.action, req.args, self._plugin_specs)
+            specs = None if req.action in ACTIONS else self._plugins.specs()
+            command = decode_command(req.action, req.args, specs)
         except CommandError as exc:
             return self._finished(req, start_s, ActionResult("failed", str(exc)))
         running = _Running(req, start_s, next(self._serials), caller=threading.get_ident())

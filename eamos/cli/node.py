@@ -49,6 +49,7 @@ from eamos.cli.exits import (
 )
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import AdapterError
+from eamos.logs import LogWriter
 from eamos.program.format import ProgramError
 from eamos.program.uniform import GROUND_STATION
 
@@ -104,15 +105,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run_node(config: NodeConfig, stop: threading.Event) -> int:
-    """Run the participant ``config`` names until the mission ends; return the exit code."""
+def run_node(config: NodeConfig, stop: threading.Event, log_writer: LogWriter | None = None) -> int:
+    """Run the participant ``config`` names until the mission ends; return the exit code.
+
+    ``log_writer``: the process's log writer when drones share the process.
+    """
     program = load_node_program(config)
     if program.drone == GROUND_STATION:
         from eamos.ground import run_ground_node
 
         summary = run_ground_node(config, program, stop)
         return EXIT_OK if summary.ok else EXIT_MISSION_FAILED
-    return EXITS[run_drone(config, program, stop)]
+    return EXITS[run_drone(config, program, stop, log_writer)]
 
 
 #: EXIT_CODE_FILE in a drone's log folder holds its exit code when it ran in a group.
@@ -134,9 +138,11 @@ def load_group(paths: list[Path]) -> list[NodeConfig]:
 def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -> int:
     """Run each drone of ``configs`` in its own thread; the worst exit code of them."""
     codes: dict[str, int] = {}
+    # One thread writes every drone's log lines, in batches (not one per drone).
+    writer = LogWriter()
 
     def one(config: NodeConfig) -> None:
-        code = guarded(lambda: run_node(config, stop), verbose, config.drone)
+        code = guarded(lambda: run_node(config, stop, writer), verbose, config.drone)
         codes[config.drone] = code
         try:
             (config.log_dir / EXIT_CODE_FILE).write_text(f"{code}\n")
@@ -150,6 +156,7 @@ def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -
         # Bounded waits so that the main thread still takes signals (they set ``stop``).
         while thread.is_alive():
             thread.join(0.5)
+    writer.close()
     return max(codes.values(), default=EXIT_INTERNAL)
 
 

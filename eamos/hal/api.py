@@ -1,9 +1,13 @@
 """The seam between the uniform API and the adapters (paper Figures 4 and 5).
 
 An *adapter* drives one vehicle (a simulated quadcopter, a MAVLink autopilot,
-a fake for unit tests).  The uniform-API actor (:mod:`eamos.actors.uniform_api`) owns
-exactly one adapter and is the only caller of these methods, always from its
-own thread; adapters call back from any thread they like.
+a fake for unit tests).  The uniform API (:mod:`eamos.actors.uniform_api`) owns
+exactly one adapter and is the only caller of these methods.  An adapter that
+may block (MAVLink, the ground adapter) is called from the uniform-API actor's
+own thread only; one that answers at once (``answers_at_once = True``, or the
+``"sim"`` family: the simulator and the fake) is called directly by the node
+actors, from any worker thread, so it must be thread-safe (both lock).
+Adapters call back from any thread they like.
 
 Contract every adapter keeps:
 

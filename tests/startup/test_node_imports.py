@@ -15,7 +15,16 @@ from pathlib import Path
 
 #: Never on a drone's node: the console renderer's extras (structlog would pull them in,
 #: see eamos/cli/node_imports.py), the compiler's graph and parser libraries.
-NOT_ON_THE_NODE = ("rich", "pygments", "networkx", "tree_sitter", "eamos.compiler", "eamos.ground")
+NOT_ON_THE_NODE = (
+    "rich",
+    "pygments",
+    "networkx",
+    "tree_sitter",
+    "eamos.compiler",
+    "eamos.ground",
+    "importlib.metadata",
+    "email",
+)
 #: Not loaded by importing the configs, the HAL or the plugin registry (plugin discovery
 #: imports importlib.metadata when it runs; the simulator's adapter and logs come with
 #: the adapter, not with its settings).
