@@ -35,7 +35,7 @@ from .pykka_seam import ExcInfo, ExternalLoopActor
 if TYPE_CHECKING:
     from .pykka_seam import Envelope
 
-__all__ = ["Dispatcher", "LazyMail", "PooledActor"]
+__all__ = ["Dispatcher", "LazyMail", "PooledActor", "RidesAlong"]
 
 logger = logging.getLogger(__name__)
 
@@ -61,6 +61,17 @@ class LazyMail:
     receiver runs on this worker when it next has nothing in its slot, or after
     :data:`_SLOT_STREAK` slot turns (news for the executive, which nobody waits
     for while a chain of nodes runs).  From any other thread it is ordinary mail.
+    """
+
+
+class RidesAlong:
+    """A message that wakes nobody: it waits in the receiver's inbox and is handled
+    just before the receiver's next ordinary message (or ask).
+
+    For a count that matters only when read (the executive's triggers received):
+    whoever reads it asks, and the ask is mail that comes after, so the reader
+    always sees every count told before.  Waking a worker for each would cost the
+    In-Bridge's thread and the node it hands the trigger to a thread switch.
     """
 
 
@@ -160,7 +171,7 @@ class _Inbox:
     def put(self, item: Envelope[Any], block: bool = True, timeout: float | None = None) -> None:
         with self._lock:
             self._queue.append(item)
-            if self._scheduled:
+            if self._scheduled or isinstance(item.message, RidesAlong):
                 return
             self._scheduled = True
         if isinstance(item.message, LazyMail):

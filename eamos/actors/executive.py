@@ -14,7 +14,7 @@ from ..net import wire
 from ..net.progress import ProgressEvent, progress_batch
 from ..program.format import DroneProgram
 from ..program.uniform import MOTION_ACTIONS
-from .dispatch import Dispatcher
+from .dispatch import Dispatcher, RidesAlong
 from .failure import FailureSink, RuntimePart
 from .messages import ActionRecord, Interrupt, NodeEvent, NodeResolved, SendInterrupt
 from .node import BroadcastInterrupt, ExecutiveNews
@@ -43,8 +43,9 @@ STATE_ACTIONS = MOTION_ACTIONS | {"Arm", "Disarm"}
 
 
 @dataclass(frozen=True)
-class TriggerReceived:
-    """The in-bridge delivered a trigger from ``src_drone`` (counted for Table 7)."""
+class TriggerReceived(RidesAlong):
+    """The in-bridge delivered a trigger from ``src_drone`` (counted for Table 7; the
+    count rides along with the executive's next mail: it wakes no thread)."""
 
     src_drone: str
 

@@ -14,7 +14,7 @@ from ..net.link import PeerStatus, TelemetryStale
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink
 from .logic.telemetry import stale_values, telemetry_values
-from .messages import Interrupt, RemoteTelemetry, Trigger
+from .messages import Interrupt, RemoteTelemetry, RemoteTrigger
 
 __all__ = ["InRouter"]
 
@@ -104,17 +104,18 @@ class InRouter:
         if ref is None or msg.dest != self.drone:
             self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
             return
-        self.executive.tell(TriggerReceived(msg.sender))
-        ref.tell(Trigger(msg.src_node, msg.dst_node, tuple(msg.iteration), msg.status))  # type: ignore[arg-type]
-        # Logged after the hand-over: the node starts while this thread writes the line.
-        self.log.info(
-            "mission.inbridge.received",
-            src_drone=msg.sender,
-            src=msg.src_node,
-            dst=msg.dst_node,
-            iteration=list(msg.iteration),
-            status=msg.status,
+        # The node first; the count rides along with the executive's next mail (no
+        # thread woken); the node writes the "received" line after its own work.
+        ref.tell(
+            RemoteTrigger(
+                msg.src_node,
+                msg.dst_node,
+                tuple(msg.iteration),
+                msg.status,  # type: ignore[arg-type]
+                msg.sender,
+            )
         )
+        self.executive.tell(TriggerReceived(msg.sender))
 
     def _interrupt(self, msg: wire.Interrupt) -> None:
         try:

@@ -23,6 +23,17 @@ class Trigger:
 
 
 @dataclass(frozen=True)
+class RemoteTrigger(Trigger):
+    """A :class:`Trigger` the In-Bridge delivered from drone ``src_drone``.
+
+    The node writes the ``mission.inbridge.received`` line after its own work, so
+    the line is off the trigger's path (the In-Bridge's thread writing it would hold
+    the interpreter while the node's thread wakes)."""
+
+    src_drone: str = ""
+
+
+@dataclass(frozen=True)
 class Fire:
     """Start the initial node (the ground station's start trigger)."""
 

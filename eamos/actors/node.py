@@ -60,6 +60,7 @@ from .messages import (
     NodeResolved,
     PeerLost,
     Release,
+    RemoteTrigger,
     SendTrigger,
     TelemetryChanged,
     Trigger,
@@ -186,15 +187,30 @@ class MissionNode(PooledActor):
     # -- messages -> logic inputs ---------------------------------------------------
 
     def on_receive(self, message: Any) -> Any:
-        if self.crashed:
-            return None  # a failed node stays failed: later messages change nothing
-        self._current = message
-        self._apply(self._input(message))
-        while self._inline:  # handled after the effects that started them, in order
-            self._current = finished = self._inline.pop(0)
-            self._apply(self._input(finished))
-        self._send_news()
+        try:
+            if self.crashed:
+                return None  # a failed node stays failed: later messages change nothing
+            self._current = message
+            self._apply(self._input(message))
+            while self._inline:  # handled after the effects that started them, in order
+                self._current = finished = self._inline.pop(0)
+                self._apply(self._input(finished))
+            self._send_news()
+        finally:
+            if isinstance(message, RemoteTrigger):
+                self._received_note(message)
         return None
+
+    def _received_note(self, t: RemoteTrigger) -> None:
+        # After the node's work (its action already started): off the trigger's path.
+        self.log.info(
+            "mission.inbridge.received",
+            src_drone=t.src_drone,
+            src=t.src,
+            dst=t.dst,
+            iteration=list(t.iteration),
+            status=t.status,
+        )
 
     def _send_news(self) -> None:
         if self._news and self.links is not None:
@@ -241,8 +257,14 @@ class MissionNode(PooledActor):
     # -- effects -> messages ------------------------------------------------------------
 
     def _apply(self, effects: Sequence[Effect]) -> None:
+        # Triggers to other drones first: a peer waits for them, and nothing of this
+        # drone is ordered against them (local effects keep their order).
         for effect in effects:
-            getattr(self, _APPLY[type(effect)])(effect)
+            if type(effect) is Emit and effect.route.external:
+                self._emit(effect)
+        for effect in effects:
+            if type(effect) is not Emit or not effect.route.external:
+                getattr(self, _APPLY[type(effect)])(effect)
 
     def _tell(self, ref: Any, message: Any) -> None:
         try:

@@ -14,7 +14,6 @@ import zmq
 from eamos.logs import make_logger
 from eamos.net.reconnect import Reconnector
 from eamos.net.sockets import (
-    CMD_HURRY,
     CMD_STOP,
     CMD_SUB,
     DEFAULT_HEARTBEAT_MS,
@@ -95,7 +94,7 @@ class InBridge(BridgeThread):
     reconnected by libzmq; the bridge reconnects the peer's socket itself
     (``net.in.reconnect``) when libzmq has not started its own retry within
     :data:`~eamos.net.reconnect.RECONNECT_GRACE_S`, and then at most every
-    :data:`~eamos.net.sockets.RECONNECT_IVL_MAX_MS`, so one bad message never
+    :data:`~eamos.net.reconnect.OWN_RECONNECT_EVERY_S`, so one bad message never
     cuts a peer off for good.
     """
 
@@ -156,7 +155,6 @@ class InBridge(BridgeThread):
                     on_retry=self._reconnector.retrying(peer),
                 )
                 self._monitors.append(monitor)
-                self._reconnector.monitors[peer] = monitor
                 sub.connect(endpoint)
             for topic in topics:
                 self._subscribe(topic)
@@ -201,16 +199,6 @@ class InBridge(BridgeThread):
             else:
                 self._ctrl_tx.send_multipart([CMD_SUB, topic])
         return True
-
-    def hurry(self, peer: str) -> None:
-        """``peer`` is up (it subscribed to our Out-Bridge): connect to it now if we never
-        did, instead of at libzmq's next, backed-off, retry (0.1, 0.3, 0.7 s...: a drone
-        that binds after the ground station tried would wait that long for its Ready).
-        Any thread."""
-        with self._lock:
-            if self._closed or not self._tx_open or not self._started:
-                return
-            self._ctrl_tx.send_multipart([CMD_HURRY, peer.encode()])
 
     def _subscribe(self, topic: bytes) -> None:
         for sub in self._subs:
@@ -319,8 +307,6 @@ class InBridge(BridgeThread):
                 return False
             if frames[0] == CMD_SUB:
                 self._subscribe(frames[1])
-            elif frames[0] == CMD_HURRY:
-                self._reconnector.hurry(frames[1].decode("utf-8", "replace"))
 
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
         batch = read_batch(sub)

@@ -244,10 +244,6 @@ class LinkDriver(Generic[OutT, InT]):
         # it missed meanwhile was dropped by the XPUB socket: resend it now.
         if not on:
             return
-        if topic.startswith(b"to/") and self.inb is not None:
-            # The peer connected to us, so it is up: our connection to it need not
-            # wait for libzmq's backed-off retry.
-            self.inb.hurry(topic[3:].decode("utf-8", "replace"))
         now = self.clock()
         with self._cond:
             self._execute(self.session.on_subscription(topic, now))

@@ -1,15 +1,10 @@
-"""Reconnecting an In-Bridge's peer sockets where libzmq would not, or not soon enough.
+"""Reconnecting an In-Bridge's peer sockets where libzmq would not.
 
 Owned by the In-Bridge's receive thread (every method runs there, as the
-sockets do).  Two cases:
-
-* after a protocol error (an oversized frame, a failed handshake) libzmq never
-  reconnects: :meth:`Reconnector.disconnected` schedules our own reconnect for
-  when libzmq has not started its own retry within :data:`RECONNECT_GRACE_S`,
-  and then at most every :data:`~eamos.net.sockets.RECONNECT_IVL_MAX_MS`;
-* a peer that subscribed to our Out-Bridge is up, but libzmq's backed-off
-  retry (0.1, 0.3, 0.7 s...) may be far off: :meth:`Reconnector.hurry`
-  connects now if the socket never connected.
+sockets do).  After a protocol error (an oversized frame, a failed handshake)
+libzmq never reconnects: :meth:`Reconnector.disconnected` schedules our own
+reconnect for when libzmq has not started its own retry within
+:data:`RECONNECT_GRACE_S`, and then at most every :data:`OWN_RECONNECT_EVERY_S`.
 """
 
 from __future__ import annotations
@@ -20,14 +15,17 @@ from typing import Any
 
 import zmq
 
-from eamos.net.sockets import RECONNECT_IVL_MAX_MS, Monitor, should_log
+from eamos.net.sockets import should_log
 
-__all__ = ["RECONNECT_GRACE_S", "Reconnector"]
+__all__ = ["OWN_RECONNECT_EVERY_S", "RECONNECT_GRACE_S", "Reconnector"]
 
 #: After a disconnect, how long the bridge leaves libzmq to start its own
 #: reconnect (it retries within RECONNECT_IVL_MS after a normal disconnect)
 #: before it reconnects the socket itself.
 RECONNECT_GRACE_S = 0.5
+#: Our own reconnects of one peer come at most this often (a peer sending oversized
+#: frames again and again is not reconnected in a tight loop).
+OWN_RECONNECT_EVERY_S = 1.0
 
 
 class Reconnector:
@@ -36,7 +34,6 @@ class Reconnector:
     def __init__(self, peers: Mapping[str, str], log: Any) -> None:
         self.peers = peers
         self.sockets: dict[str, zmq.Socket[Any]] = {}
-        self.monitors: dict[str, Monitor] = {}
         self._log = log
         self._due: dict[str, float] = {}
         self._at: dict[str, float] = {}
@@ -54,7 +51,7 @@ class Reconnector:
             # connection libzmq is still using races its receive path.
             now = time.monotonic()
             last = self._at.get(peer, float("-inf"))
-            due = max(now + RECONNECT_GRACE_S, last + RECONNECT_IVL_MAX_MS / 1e3)
+            due = max(now + RECONNECT_GRACE_S, last + OWN_RECONNECT_EVERY_S)
             self._due.setdefault(peer, due)
 
         return schedule
@@ -92,20 +89,6 @@ class Reconnector:
                     endpoint=self.peers[peer],
                     count=self.reconnects,
                 )
-
-    def hurry(self, peer: str) -> None:
-        """``peer`` is up (it subscribed to us): connect now if the socket never connected."""
-        sub, monitor = self.sockets.get(peer), self.monitors.get(peer)
-        if sub is None or monitor is None:
-            return
-        monitor.drain()
-        if monitor.connections:
-            return  # connected once: libzmq's own reconnection (or ours) handles it
-        if self.peers[peer].startswith("inproc://"):
-            # inproc connects at once (no retry to hurry) and its monitor reports no
-            # connection: cutting a live inproc session trips libzmq (fq.cpp !_more).
-            return
-        self._reconnect(peer, time.monotonic())
 
     def _reconnect(self, peer: str, now: float) -> None:
         # disconnect + connect: a fresh session whatever libzmq did with the old

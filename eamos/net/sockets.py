@@ -20,7 +20,6 @@ if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
 
 __all__ = [
-    "CMD_HURRY",
     "CMD_STOP",
     "CMD_SUB",
     "CMD_WAKE",
@@ -70,7 +69,12 @@ HANDSHAKE_IVL_MS: Final = 5000
 for at most this long.  A real handshake takes a few round trips."""
 
 RECONNECT_IVL_MS: Final = 100
-RECONNECT_IVL_MAX_MS: Final = 1000
+#: No back-off: libzmq retries a peer that is not up yet every RECONNECT_IVL_MS.  A drone
+#: that binds after its peers tried would otherwise wait for their backed-off retry
+#: (0.1, 0.3, 0.7, 1.5 s...) before it is ready; a refused connect on a LAN costs little.
+#: (Cutting and remaking the connection when the peer shows up raced libzmq's own
+#: retry and made peers resend what they had sent.)
+RECONNECT_IVL_MAX_MS: Final = RECONNECT_IVL_MS
 
 AUTH_FAILURES: Final[dict[int, str]] = {
     zmq.EVENT_HANDSHAKE_FAILED_AUTH: "auth",
@@ -94,8 +98,6 @@ POLLIN_BIT: Final = int(zmq.POLLIN)
 
 # Control-pipe commands (first frame).  Never on the network.
 CMD_SUB: Final = b"sub"
-#: In-Bridge command: this peer is up (it subscribed to us); connect now if never connected.
-CMD_HURRY: Final = b"hurry"
 CMD_WAKE: Final = b"wake"  # the Out-Bridge's socket has something to read
 CMD_STOP: Final = b"stop"
 

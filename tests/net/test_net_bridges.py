@@ -423,31 +423,3 @@ def test_bad_endpoint_raises_without_leaking(ctx: zmq.Context[Any]) -> None:
     term.start()
     term.join(WAIT_S)
     assert not term.is_alive()  # no socket left open
-
-
-def test_hurry_connects_a_peer_that_came_up_and_leaves_a_connected_one_alone(
-    bridges: Bridges,
-) -> None:
-    """A peer that subscribed to us is up: ``hurry`` connects to it at once (not at
-    libzmq's backed-off retry); a connected peer's connection is never cut by it."""
-    import socket
-
-    with socket.socket() as probe:  # a port nobody listens on yet
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    inbox = Collector()
-    inb = bridges.inb({"D1": f"tcp://127.0.0.1:{port}"}, [topic_to("D2")], inbox)
-    inb.hurry("D1")  # nobody there yet: one more attempt, harmless
-    inb.hurry("nobody")  # not a peer: ignored
-    out = bridges.out(f"tcp://127.0.0.1:{port}")
-    inb.hurry("D1")
-    assert out.wait_subscribed([topic_to("D2")], WAIT_S)
-    monitor = inb._monitors[0]  # the connection count is the point
-    for n in range(3):
-        inb.hurry("D1")  # connected now: nothing is cut
-        assert out.send(trig("D1", "D2", n))
-    assert inbox.wait_count(3)
-    out.send(trig("D1", "D2", 3))
-    assert inbox.wait_count(4)
-    assert monitor.connections == 1
-    assert [m.iteration[0] for m in inbox.messages] == [0, 1, 2, 3]  # type: ignore[union-attr]
