@@ -14,7 +14,7 @@ from typing import Any
 import pykka
 import pytest
 
-from eamos.actors.dispatch import Dispatcher, LazyMail, PooledActor
+from eamos.actors.dispatch import Dispatcher, LazyMail, PooledActor, RidesAlong
 from eamos.actors.pykka_seam import shape_problems
 
 WAIT_S = 30.0
@@ -227,3 +227,38 @@ class _Drop:
 
     def tell(self, message: Any) -> None:
         self.stop.set()
+
+
+@dataclass(frozen=True)
+class Count(RidesAlong):
+    n: int
+
+
+class Counter(Recorder):
+    """Sets ``counted`` when it handles a :class:`Count`."""
+
+    def __init__(self, dispatcher: Dispatcher) -> None:
+        super().__init__(dispatcher)
+        self.counted = threading.Event()
+
+    def on_receive(self, message: Any) -> Any:
+        if isinstance(message, Count):
+            self.counted.set()
+        return super().on_receive(message)
+
+
+def test_mail_that_rides_along_wakes_nobody_and_comes_before_the_next_mail(
+    dispatcher: Dispatcher,
+) -> None:
+    ref = Counter.start(dispatcher)
+    assert ref.ask("started", timeout=WAIT_S) == 1
+    counted = ref.proxy().counted.get(timeout=WAIT_S)
+    ref.tell(Count(1))
+    ref.tell(Count(2))
+    # Nobody was woken for them: a bounded wait for what must not happen.
+    assert not counted.wait(0.3)
+    # The next mail (here an ask: whoever reads a count asks) comes after them.
+    assert ref.ask("read", timeout=WAIT_S) == 4
+    assert counted.is_set()
+    assert ref.proxy().seen_so_far().get(timeout=WAIT_S) == ["started", Count(1), Count(2), "read"]
+    ref.stop(block=True, timeout=WAIT_S)
