@@ -310,29 +310,32 @@ class OutBridge(BridgeThread):
                     frames.append(self._xpub.recv(zmq.NOBLOCK))
                 except zmq.Again:
                     break
-        # The callbacks run without the lock: they send (the lock order is link, then bridge).
         changed: list[tuple[bytes, bool]] = []
         for frame in frames:
             if not frame or frame[0] not in (0, 1):
                 continue  # not a (un)subscription frame; SUB peers send nothing else
-            topic = frame[1:]
-            with self._cond:
-                if frame[0] == 1:
+            changed.append((frame[1:], frame[0] == 1))
+            self._log.debug(
+                "net.out.subscription", topic=frame[1:].decode("utf-8", "replace"), on=frame[0] == 1
+            )
+        if not changed:
+            return
+        # The callbacks first (without the lock: they send; the lock order is link, then
+        # bridge), and only then is a waiter told: a drone waiting for its peers to
+        # subscribe sends Ready after the callback resent what the socket had dropped,
+        # not before it (which made the callback resend the Ready itself).
+        if self._on_subscription is not None:
+            for topic, on in changed:
+                try:
+                    self._on_subscription(topic, on)
+                except Exception:  # the bridge thread must survive its callback
+                    self._log.exception("net.out.callback_error")
+        with self._cond:
+            for topic, on in changed:
+                if on:
                     self._subscriptions.add(topic)
                 else:
                     # Without XPUB_VERBOSER, an unsubscribe only arrives once the
                     # last subscriber of this topic is gone.
                     self._subscriptions.discard(topic)
-            changed.append((topic, frame[0] == 1))
-            self._log.debug(
-                "net.out.subscription", topic=topic.decode("utf-8", "replace"), on=frame[0] == 1
-            )
-        if changed:
-            with self._cond:
-                self._cond.notify_all()
-            if self._on_subscription is not None:
-                for topic, on in changed:
-                    try:
-                        self._on_subscription(topic, on)
-                    except Exception:  # the bridge thread must survive its callback
-                        self._log.exception("net.out.callback_error")
+            self._cond.notify_all()
