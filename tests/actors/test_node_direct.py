@@ -6,7 +6,6 @@ FakeAdapter (the HAL seam); the executive and the next node are recorders.
 
 from __future__ import annotations
 
-import threading
 from typing import Any
 
 from eamos.actors.dispatch import Dispatcher
@@ -19,25 +18,7 @@ from eamos.hal.fake import FakeAdapter
 from eamos.logs import make_logger
 from eamos.program.format import ProgramNode
 
-WAIT_S = 30.0
-
-
-class Recorder:
-    """Stands in for an actor: records what it is told, as it was told."""
-
-    def __init__(self) -> None:
-        self.messages: list[Any] = []
-        self.changed = threading.Condition()
-
-    def tell(self, message: Any) -> None:
-        with self.changed:
-            self.messages.append(message)
-            self.changed.notify_all()
-
-    def wait_count(self, count: int) -> list[Any]:
-        with self.changed:
-            assert self.changed.wait_for(lambda: len(self.messages) >= count, WAIT_S), self.messages
-            return list(self.messages)
+from .recorder import WAIT_S, Recorder
 
 
 def _node(fake: FakeAdapter) -> tuple[Any, dict[str, Recorder], Dispatcher]:

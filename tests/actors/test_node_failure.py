@@ -12,7 +12,6 @@ runs on a real dispatcher; its peers are recorders.
 from __future__ import annotations
 
 import json
-import threading
 from typing import Any
 
 import pytest
@@ -20,37 +19,13 @@ import pytest
 from eamos.actors.dispatch import Dispatcher
 from eamos.actors.logic import ActionLogic, PassThrough, Route
 from eamos.actors.messages import Fire, NodeEvent, NodeResolved, SendTrigger, Trigger
-from eamos.actors.node import ExecutiveNews, Links, MissionNode, Wire
+from eamos.actors.node import Links, MissionNode, Wire
 from eamos.actors.uniform_api import ActionFinished, CancelAction, RunAction
 from eamos.hal.api import ActionResult
 from eamos.logs import close_logger, make_logger
 from eamos.program.format import ProgramNode
 
-WAIT_S = 30.0
-
-
-class Recorder:
-    """Stands in for an actor: records what it is told."""
-
-    def __init__(self) -> None:
-        self.messages: list[Any] = []
-        self.changed = threading.Condition()
-
-    def tell(self, message: Any) -> None:
-        with self.changed:
-            # A node sends the executive one ExecutiveNews per message it handles.
-            if isinstance(message, ExecutiveNews):
-                self.messages.extend(message.items)
-            else:
-                self.messages.append(message)
-            self.changed.notify_all()
-
-    def wait_for(self, kind: type, timeout_s: float = WAIT_S) -> Any:
-        with self.changed:
-            assert self.changed.wait_for(
-                lambda: any(isinstance(m, kind) for m in self.messages), timeout_s
-            ), self.messages
-            return next(m for m in self.messages if isinstance(m, kind))
+from .recorder import WAIT_S, Recorder
 
 
 class Boom(RuntimeError):
@@ -75,7 +50,9 @@ def harness(tmp_path):
     dispatcher = Dispatcher(workers=1, name="test-failure")
     log = make_logger(tmp_path / "mission.log")
     refs = []
-    peers = {name: Recorder() for name in ("n8", "hal", "board", "out", "executive")}
+    peers = {
+        name: Recorder(unpack_news=True) for name in ("n8", "hal", "board", "out", "executive")
+    }
     links = Links(
         {"n8": peers["n8"]}, peers["hal"], peers["board"], peers["out"], peers["executive"]
     )
