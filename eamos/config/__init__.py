@@ -17,9 +17,9 @@ types and the simulator's settings at start-up (docs/performance.md).
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from ..lazy import lazy_exports
 from .node import NET_FIELDS, NodeConfig
 from .validation import (
     END_POLICIES,
@@ -69,13 +69,5 @@ __all__ = [
     "type_lineage",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    """A name of :mod:`.fleet` or :mod:`.types`, imported on first use."""
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+# The names of .fleet and .types, imported on first use.
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -13,8 +13,9 @@ for the adapter's thread, its logs (structlog) and the core's action rules
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from eamos.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .adapter import SimAdapter, paced_ticks, sim_adapter_from_settings
@@ -51,13 +52,5 @@ __all__ = [
     "sim_adapter_from_settings",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    """A public name, imported from its module on first use."""
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+# Each public name, imported from its module on first use.
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)
