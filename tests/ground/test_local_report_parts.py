@@ -19,19 +19,8 @@ from eamos.compiler import compile_mission, write_artifacts
 from eamos.config import FleetConfig
 from eamos.ground import Limits, LocalMission, fly_local, make_display
 
-ACTIONS = 20_000
-
-LONG = f"""\
-func SEQ_Long() {{
-	Drone1.Arm()
-	RepeatFor({ACTIONS - 2}, SEQ_Step)
-	Drone1.Disarm()
-}}
-
-func SEQ_Step() {{
-	Drone1.PauseFor(0.001)
-}}
-"""
+# The same 20 000-action mission as the report's folding tests.
+from .test_local_long_missions import ACTIONS, LONG
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timeout(900)]
 
