@@ -47,7 +47,7 @@ from eamos.cli.exits import (
     EXIT_MISSION_FAILED,
     EXIT_OK,
 )
-from eamos.config import ConfigError, NodeConfig
+from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
 from eamos.hal import AdapterError
 from eamos.logs import LogWriter
 from eamos.program.format import ProgramError
@@ -117,10 +117,6 @@ def run_node(config: NodeConfig, stop: threading.Event, log_writer: LogWriter | 
         summary = run_ground_node(config, program, stop)
         return EXIT_OK if summary.ok else EXIT_MISSION_FAILED
     return EXITS[run_drone(config, program, stop, log_writer)]
-
-
-#: EXIT_CODE_FILE in a drone's log folder holds its exit code when it ran in a group.
-EXIT_CODE_FILE = "exit_code"
 
 
 def load_group(paths: list[Path]) -> list[NodeConfig]:

@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from ..lazy import lazy_exports
-from .node import NET_FIELDS, NodeConfig
+from .node import EXIT_CODE_FILE, NET_FIELDS, NodeConfig
 from .validation import (
     END_POLICIES,
     MAX_SPEEDUP,
@@ -50,6 +50,7 @@ _LAZY = {
 
 __all__ = [
     "END_POLICIES",
+    "EXIT_CODE_FILE",
     "HOME_SPACING_M",
     "MAX_SPEEDUP",
     "NET_FIELDS",

@@ -70,6 +70,10 @@ from .validation import (
     read_toml,
 )
 
+#: In a drone's log folder: its exit code, written when it ran in a process shared
+#: with other drones (the process's own exit code is the worst of theirs).
+EXIT_CODE_FILE = "exit_code"
+
 
 @dataclass(frozen=True)
 class NodeConfig:

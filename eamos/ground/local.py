@@ -26,7 +26,14 @@ from typing import Any
 
 from eamos.actors.runtime import NetSettings
 from eamos.actors.wiring import connected_peers
-from eamos.config import ConfigError, FleetConfig, NodeConfig, fleet_order, in_range
+from eamos.config import (
+    EXIT_CODE_FILE,
+    ConfigError,
+    FleetConfig,
+    NodeConfig,
+    fleet_order,
+    in_range,
+)
 from eamos.hal import AdapterError, make_adapter
 from eamos.logs import make_logger
 from eamos.net.keys import FleetKeys, create_fleet_keys
@@ -301,7 +308,7 @@ class LocalFleet:
         out_path.parent.mkdir(parents=True, exist_ok=True)
         for name in names:
             log_dirs[name].mkdir(parents=True, exist_ok=True)
-            (log_dirs[name] / "exit_code").unlink(missing_ok=True)  # a run before's, if reused
+            (log_dirs[name] / EXIT_CODE_FILE).unlink(missing_ok=True)  # a run before's, if reused
             self.log_dirs[name] = log_dirs[name]
             self.outputs[name] = out_path
             self.groups[name] = tuple(names)
@@ -332,7 +339,7 @@ class LocalFleet:
             own = None
             if len(proc.drones) > 1:
                 try:
-                    own = int((self.log_dirs[name] / "exit_code").read_text().strip())
+                    own = int((self.log_dirs[name] / EXIT_CODE_FILE).read_text().strip())
                 except (OSError, ValueError):
                     own = None  # it never finished: the process's code says why
             self.on_exit(name, proc.exit_code if own is None else own)
