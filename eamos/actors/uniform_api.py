@@ -132,10 +132,10 @@ class UniformSpace:
         self._running: dict[Hashable, _Running] = {}
         self._serials = itertools.count(1)
         self._closed = False
-        # The plugin actions this adapter knows, with their parameter lists (an
-        # adapter without ``plugins`` knows none; docs/plugins.md).
-        # Read only when a plugin action comes (a registry looks entry points up on first
-        # use: a mission without plugin actions never pays for importlib.metadata).
+        # The plugin actions this adapter knows (an adapter without ``plugins`` knows
+        # none; docs/plugins.md), read only when a plugin action comes: a registry looks
+        # entry points up on first use, and a mission without plugin actions never pays
+        # for importlib.metadata.
         self._plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
 
     def run(self, req: RunAction) -> ActionFinished | None:
