@@ -48,6 +48,14 @@ inflates it), ``modules``: how many modules ``import eamos.cli.node`` loads, and
 whether any of ``rich``, ``pygments``, ``networkx``, ``importlib.metadata``,
 ``asyncio``, ``email`` is among them.
 
+``floor_ms``, in the same run and environment, the medians of a process doing
+nothing (``python -c pass``) and of one importing only the
+libraries a node cannot do without (pyzmq, pykka, msgpack, tomllib and structlog,
+the latter as the node imports it, without its console extras), each from
+``Popen`` to a stamp written as its last statement; and
+``node_beyond_libraries_ms``: ``ready_ms``'s median minus the latter, what this
+project's own code, configuration and start-up cost.
+
 Usage: ``python scripts/bench_startup.py --json [--runs 7]``.
 """
 
@@ -94,6 +102,11 @@ PHASES = (
 #: Modules the node should not load (the lean-import test in tests/startup checks the same).
 HEAVY = ("rich", "pygments", "networkx", "importlib.metadata", "asyncio", "email")
 READY_TIMEOUT_S = 60.0
+#: The floors (see the docstring): an empty process, and the libraries alone.
+FLOORS = {
+    "interpreter": "pass",
+    "libraries": "import eamos.cli.node_imports, zmq, pykka, msgpack, tomllib",
+}
 
 
 class Quiet:
@@ -247,6 +260,21 @@ def import_total_ms(stderr: str) -> float:
     return total_us / 1000
 
 
+def floor_ms(env: dict[str, str], runs: int) -> dict[str, float]:
+    """Median wall time (ms) from ``Popen`` to the last statement of each of :data:`FLOORS`."""
+    out = {}
+    for name, code in FLOORS.items():
+        argv = [sys.executable, "-c", f"{code}\nimport time; print(time.time())"]
+        subprocess.run(argv, env=env, check=True, timeout=120, capture_output=True)  # cache
+        times = []
+        for _ in range(runs):
+            wall0 = time.time()
+            done = subprocess.run(argv, env=env, check=True, timeout=120, capture_output=True)
+            times.append((float(done.stdout) - wall0) * 1000)
+        out[name] = round(statistics.median(times), 1)
+    return out
+
+
 def loaded_modules(env: dict[str, str]) -> list[str]:
     """The modules loaded by ``import eamos.cli.node`` in a fresh interpreter."""
     code = "import sys, json, eamos.cli.node; print(json.dumps(sorted(sys.modules)))"
@@ -273,6 +301,7 @@ def main() -> None:
         traced = one_run(Path(tmp) / "importtime", env, free_ports(2), ("-X", "importtime"))
         traced_ms = import_total_ms(traced["stderr"])
         modules = loaded_modules(env)
+        floors = floor_ms(env, args.runs)
     ok = [r for r in runs if r["held"] and r["exit_code"] == 0]
     for r in runs:
         r["stderr"] = r["stderr"].strip()[-500:]
@@ -295,6 +324,10 @@ def main() -> None:
             "min": round(cpu[0], 1) if cpu else None,
         },
         "phases_ms": phases,
+        "floor_ms": floors,
+        "node_beyond_libraries_ms": (
+            round(statistics.median(times) - floors["libraries"], 1) if times else None
+        ),
         "importtime_total_ms": round(traced_ms, 1),
         "modules": len(modules),
         "heavy_modules": [m for m in HEAVY if m in modules],

@@ -14,6 +14,7 @@ import zmq
 from eamos.logs import make_logger
 from eamos.net.reconnect import Reconnector
 from eamos.net.sockets import (
+    CMD_CONNECT,
     CMD_STOP,
     CMD_SUB,
     DEFAULT_HEARTBEAT_MS,
@@ -85,6 +86,10 @@ class InBridge(BridgeThread):
     on the receive thread after each batch of messages (the reliability layer
     acknowledges there, once per batch instead of once per message).
 
+    A peer in ``announced`` is connected only once it announces itself
+    (:meth:`announce`: it subscribed to this participant's Out-Bridge, so it
+    listens), not retried while it is not up yet (:mod:`eamos.net.reconnect`).
+
     One socket per peer (rather than one for all) is what lets a CURVE client
     know each peer's public key, and lets the bridge know which peer a message
     came from.
@@ -112,6 +117,7 @@ class InBridge(BridgeThread):
         check_sender: bool = False,
         heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
         on_batch_end: Callable[[], None] | None = None,
+        announced: Iterable[str] = (),
     ) -> None:
         self.mission = mission
         self.peers: dict[str, str] = dict(connect)
@@ -133,8 +139,9 @@ class InBridge(BridgeThread):
         self._exact: set[bytes] = set()
         self._prefixes: set[bytes] = set()
         topics = list(subscribe)
+        wait_for = set(announced)
         try:
-            for peer, endpoint in self.peers.items():
+            for peer in self.peers:
                 sub = context.socket(zmq.SUB)
                 self._subs[sub] = peer
                 self._reconnector.sockets[peer] = sub
@@ -155,7 +162,7 @@ class InBridge(BridgeThread):
                     on_retry=self._reconnector.retrying(peer),
                 )
                 self._monitors.append(monitor)
-                sub.connect(endpoint)
+                self._reconnector.connect(peer, announced=peer not in wait_for)
             for topic in topics:
                 self._subscribe(topic)
         except zmq.ZMQError:
@@ -199,6 +206,22 @@ class InBridge(BridgeThread):
             else:
                 self._ctrl_tx.send_multipart([CMD_SUB, topic])
         return True
+
+    def announce(self, peer: str) -> None:
+        """``peer`` listens now: connect to it if it is one of ``announced``; any thread."""
+        with self._lock:
+            if self._closed or not self._tx_open:
+                return
+            if not self._started:
+                self._reconnector.announced(peer)
+            else:
+                self._ctrl_tx.send_multipart([CMD_CONNECT, peer.encode("utf-8")])
+
+    @property
+    def unannounced(self) -> frozenset[str]:
+        """The ``announced`` peers not connected yet (they have not subscribed to us)."""
+        with self._lock:
+            return self._reconnector.unannounced
 
     def _subscribe(self, topic: bytes) -> None:
         for sub in self._subs:
@@ -307,6 +330,8 @@ class InBridge(BridgeThread):
                 return False
             if frames[0] == CMD_SUB:
                 self._subscribe(frames[1])
+            elif frames[0] == CMD_CONNECT:
+                self._reconnector.announced(frames[1].decode("utf-8"))
 
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
         batch = read_batch(sub)

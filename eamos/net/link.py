@@ -94,6 +94,7 @@ class LinkDriver(Generic[OutT, InT]):
         self._reports = ReportJoiner()  # ReportParts arrive on the receive thread only
         self.out: OutT = transport.open_out(self._on_subscription)
         self.inb: InT | None = None
+        self._listening: set[str] = set()  # subscribed to us before connect()
         self._thread = threading.Thread(
             target=self._run, name=f"eamos-link-{self.name}", daemon=True
         )
@@ -113,6 +114,7 @@ class LinkDriver(Generic[OutT, InT]):
         topics: Iterable[bytes],
         on_message: Callable[[Any], None],
         watch: Iterable[str] | None = None,
+        announced: Iterable[str] = (),
     ) -> None:
         """Connect to ``peers`` (name -> endpoint), subscribe, start receiving and the timer.
 
@@ -122,7 +124,10 @@ class LinkDriver(Generic[OutT, InT]):
         ``watch`` names the peers whose heartbeats to follow (reported lost,
         back, left); default all.  Heartbeats cost every receiver a wake-up,
         so a drone watches only the peers it works with, while the ground
-        station watches the whole fleet.
+        station watches the whole fleet.  The peers in ``announced`` are
+        connected when they subscribe to this participant (so they listen:
+        no refused connection to retry), as the ground station does with the
+        drones it waits for (:mod:`eamos.net.reconnect`).
         """
         names = [p for p in peers if p != self.name]
         watched = set(names) if watch is None else set(watch) & set(names)
@@ -132,12 +137,17 @@ class LinkDriver(Generic[OutT, InT]):
         with self._cond:
             self._on_message = on_message
             self.session.add_peers(names, watched)
-        self.inb = self.transport.open_in(
-            {p: e for p, e in peers.items() if p != self.name},
-            wanted,
-            self._receive,
-            self._flush_acks,
-        )
+        with self._cond:  # a subscription read meanwhile waits for self.inb
+            self.inb = self.transport.open_in(
+                {p: e for p, e in peers.items() if p != self.name},
+                wanted,
+                self._receive,
+                self._flush_acks,
+                announced=[p for p in announced if p in names],
+            )
+            listening, self._listening = self._listening, set()
+        for peer in listening:  # subscribed before the In-Bridge existed
+            self.inb.announce(peer)
         self.inb.start()
         self._thread.start()
 
@@ -247,6 +257,12 @@ class LinkDriver(Generic[OutT, InT]):
         now = self.clock()
         with self._cond:
             self._execute(self.session.on_subscription(topic, now))
+            inb = self.inb
+            peer = _addressee(topic)
+            if inb is None and peer:
+                self._listening.add(peer)
+        if inb is not None and peer:
+            inb.announce(peer)  # a peer connected to us: it listens, connect to it
 
     # -- timer thread --------------------------------------------------------------------
 
@@ -412,3 +428,11 @@ class Link(LinkDriver[OutBridge, InBridge]):
     def auth(self) -> FleetAuthenticator | None:
         """The ZAP authenticator (with keys and the default transport)."""
         return getattr(self.transport, "auth", None)
+
+
+def _addressee(topic: bytes) -> str:
+    """The participant a ``to/<participant>`` subscription comes from ("" for other topics)."""
+    prefix = wire.topic_to("")
+    if not topic.startswith(prefix):
+        return ""
+    return topic[len(prefix) :].decode("utf-8", "replace")

@@ -1,7 +1,17 @@
-"""Reconnecting an In-Bridge's peer sockets where libzmq would not.
+"""Connecting an In-Bridge's peer sockets when libzmq would not, or not yet.
 
 Owned by the In-Bridge's receive thread (every method runs there, as the
-sockets do).  After a protocol error (an oversized frame, a failed handshake)
+sockets do; before the thread starts, by the caller under the bridge's lock).
+
+A peer may be *announced*: its socket connects only when the peer is known to
+listen (:meth:`Reconnector.announced`).  The ground station starts first and
+waits for every drone; a connection to a drone that is not up yet is refused,
+and libzmq retries only every :data:`~eamos.net.sockets.RECONNECT_IVL_MS`, so a
+drone that came up just after a refusal waited up to that long for the ground
+station's connection, and so for its Ready to count.  Instead, the ground
+station connects to a drone when the drone's own connection subscribes to the
+ground station's Out-Bridge: then the drone has bound its socket, and the
+connection succeeds at once.  After a protocol error (an oversized frame, a failed handshake)
 libzmq never reconnects: :meth:`Reconnector.disconnected` schedules our own
 reconnect for when libzmq has not started its own retry within
 :data:`RECONNECT_GRACE_S`, and then at most every :data:`OWN_RECONNECT_EVERY_S`.
@@ -37,7 +47,37 @@ class Reconnector:
         self._log = log
         self._due: dict[str, float] = {}
         self._at: dict[str, float] = {}
+        self._unannounced: set[str] = set()  # connected when they announce themselves
         self.reconnects = 0
+
+    def connect(self, peer: str, announced: bool = True) -> None:
+        """Connect ``peer``'s socket now, or (``announced`` False) when :meth:`announced`."""
+        if announced:
+            self.sockets[peer].connect(self.peers[peer])
+        else:
+            self._unannounced.add(peer)
+
+    def announced(self, peer: str) -> None:
+        """``peer`` listens (it subscribed to us): connect its socket if it waited for that.
+
+        Later announcements (the peer reconnected) change nothing: libzmq
+        reconnects a socket that was connected once.
+        """
+        if peer not in self._unannounced:
+            return
+        self._unannounced.discard(peer)
+        endpoint = self.peers[peer]
+        try:
+            self.sockets[peer].connect(endpoint)
+        except zmq.ZMQError as exc:  # the receive thread must survive a bad endpoint
+            self._log.error("net.in.connect_failed", peer=peer, endpoint=endpoint, error=str(exc))
+            return
+        self._log.debug("net.in.announced", peer=peer, endpoint=endpoint)
+
+    @property
+    def unannounced(self) -> frozenset[str]:
+        """Peers whose socket waits for them to announce themselves."""
+        return frozenset(self._unannounced)
 
     def disconnected(self, peer: str) -> Callable[[], None]:
         """The monitor's callback for ``peer``'s disconnect."""

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
 
 __all__ = [
+    "CMD_CONNECT",
     "CMD_STOP",
     "CMD_SUB",
     "CMD_WAKE",
@@ -98,6 +99,7 @@ POLLIN_BIT: Final = int(zmq.POLLIN)
 
 # Control-pipe commands (first frame).  Never on the network.
 CMD_SUB: Final = b"sub"
+CMD_CONNECT: Final = b"connect"  # connect to a peer that announced itself
 CMD_WAKE: Final = b"wake"  # the Out-Bridge's socket has something to read
 CMD_STOP: Final = b"stop"
 

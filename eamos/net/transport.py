@@ -48,6 +48,7 @@ class InSide(Protocol):
 
     def start(self) -> None: ...
     def close(self) -> None: ...
+    def announce(self, peer: str) -> None: ...
 
     @property
     def dropped_by_reason(self) -> dict[str, int]: ...
@@ -82,8 +83,10 @@ class Transport(Protocol[OutT_co, InT_co]):
         topics: Iterable[bytes],
         on_message: Callable[[wire.Message], None],
         on_batch_end: Callable[[], None],
+        announced: Iterable[str] = (),
     ) -> InT_co:
-        """The incoming side, connected to ``peers`` (name -> endpoint), on ``topics``."""
+        """The incoming side, connected to ``peers`` (name -> endpoint), on ``topics``;
+        those in ``announced`` once they announce themselves (:meth:`InSide.announce`)."""
         ...
 
     def close(self) -> None:
@@ -152,8 +155,10 @@ class ZmqTransport:
         topics: Iterable[bytes],
         on_message: Callable[[wire.Message], None],
         on_batch_end: Callable[[], None],
+        announced: Iterable[str] = (),
     ) -> InBridge:
-        """Connect an In-Bridge (not started) to ``peers`` and subscribe it to ``topics``."""
+        """Connect an In-Bridge (not started) to ``peers`` and subscribe it to ``topics``
+        (``announced``: see :class:`InBridge`)."""
         return InBridge(
             self.context,
             peers,
@@ -165,6 +170,7 @@ class ZmqTransport:
             check_sender=True,
             heartbeat_ms=self.heartbeat_ms,
             on_batch_end=on_batch_end,
+            announced=announced,
         )
 
     def close(self) -> None:
