@@ -275,15 +275,9 @@ class DroneRuntime:
         topics = subscriptions(self.program, self.extra_topics)
         peers = {name: ep for name, ep in self.net.peers.items() if name != self.drone}
         try:
-            self.link.connect(
-                peers,
-                topics,
-                router,
-                watch=self.watched_peers(),
-                # The ground station, up first, connects to each drone when the drone
-                # subscribes to it: no refused connection waiting for libzmq's retry.
-                announced=peers if self.ground_handler is not None else (),
-            )
+            # The ground station, up first, connects to a drone when it subscribes (listens).
+            waits = peers if self.ground_handler is not None else ()
+            self.link.connect(peers, topics, router, watch=self.watched_peers(), announced=waits)
         except (zmq.ZMQError, ValueError) as exc:
             raise DroneRuntimeError(f"cannot connect the in-bridge to {peers}: {exc}") from exc
         self.inb = self.link.inb
