@@ -8,7 +8,7 @@ and a context switch per message.  :class:`PooledActor` keeps Pykka's contract
 semantics, the registry) but runs on the worker threads of one
 :class:`Dispatcher` per runtime: an actor with mail is *scheduled*; a worker
 takes it, handles a batch of its messages, and hands it back.  An actor is
-never run by two workers at once, so its messages are handled one at a time
+never run by two threads at once, so its messages are handled one at a time
 and in order, as with a thread of its own.
 
 Failures differ from Pykka on purpose: an exception raised by a ``tell``-ed
@@ -20,6 +20,21 @@ default hook does what Pykka does (log with the traceback, stop).  A
 Pykka's internals are used only through :mod:`.pykka_seam`.  Pooled actors
 must not block waiting for another pooled actor (no ``ask(...).get()`` between
 them): workers are few.  Node actors only ``tell``.
+
+*Caller runs* (:func:`tell_here`): a thread that is not a worker (the
+In-Bridge's receive thread handing a trigger to its node) may run the turn of
+the actor it just mailed itself, instead of queueing it and waking a worker: a
+thread wake-up and a hand-over of the interpreter lock cost more than most
+nodes' work.  The caller *hosts* the dispatcher for the length of one call: it
+gets a next-actor slot like a worker's, and its own list of lazy mail, and runs
+at most :data:`_HOST_TURNS` turns; what is left when it stops goes to the
+shared queue and wakes workers.  The actor's scheduled flag is the same, so an
+actor still runs on one thread at a time, its messages in order; one that is
+running or queued already only gets the mail.  The turns run inside the call,
+so they must not block (a node calls only adapters that answer at once, see
+:func:`~.uniform_api.answers_at_once`); a failure goes to the actor's
+:meth:`~PooledActor.on_failure` as on a worker, never to the caller.  Once the
+dispatcher stops, :func:`tell_here` only mails.
 """
 
 from __future__ import annotations
@@ -35,7 +50,7 @@ from .pykka_seam import ExcInfo, ExternalLoopActor
 if TYPE_CHECKING:
     from .pykka_seam import Envelope
 
-__all__ = ["Dispatcher", "LazyMail", "PooledActor", "RidesAlong"]
+__all__ = ["Dispatcher", "LazyMail", "PooledActor", "RidesAlong", "tell_here"]
 
 logger = logging.getLogger(__name__)
 
@@ -45,13 +60,20 @@ _BATCH = 64  # messages one actor may handle before others get a turn
 #: Turns a worker may take from its next-actor slot before it looks at the shared queue.
 _SLOT_STREAK = 16
 
+#: Turns a caller that hosts the dispatcher (:func:`tell_here`) may run in one call:
+#: the mailed actor, the few it mails in turn, and their lazy news; a longer local
+#: chain goes on on a worker (the caller is a receive thread with more to read).
+_HOST_TURNS = 4
+
 
 class _Worker(threading.local):
-    """Per worker thread: is this thread a worker, and the actor it runs next."""
+    """Per thread: is it a worker or a host, the actor it runs next, a host's lazy mail."""
 
     def __init__(self) -> None:
         self.is_worker = False
+        self.hosting = False  # a caller running the actors it mails (see tell_here)
         self.next: PooledActor | None = None
+        self.lazy: deque[PooledActor] = deque()  # a host's LazyMail receivers
 
 
 class LazyMail:
@@ -60,7 +82,10 @@ class LazyMail:
     Sent from one of that dispatcher's workers, it wakes no other thread: the
     receiver runs on this worker when it next has nothing in its slot, or after
     :data:`_SLOT_STREAK` slot turns (news for the executive, which nobody waits
-    for while a chain of nodes runs).  From any other thread it is ordinary mail.
+    for while a chain of nodes runs).  Sent by a caller hosting the dispatcher
+    (:func:`tell_here`), the caller runs the receiver once its slot is empty, or
+    hands it to the workers when its turns are spent.  From any other thread it
+    is ordinary mail.
     """
 
 
@@ -84,7 +109,9 @@ class Dispatcher:
     (a thread hop costs more than most nodes' work).  Only one actor fits in the
     slot; others go to the shared queue and wake a worker, and after
     :data:`_SLOT_STREAK` slot turns in a row a worker serves the shared queue
-    first, so nothing waits behind a long chain.
+    first, so nothing waits behind a long chain.  A thread that is not a worker
+    gets such a slot for the length of one :meth:`tell_here` call (it *hosts*
+    the dispatcher): see :func:`tell_here`.
     """
 
     def __init__(self, workers: int = 2, name: str = "eamos") -> None:
@@ -103,8 +130,8 @@ class Dispatcher:
     def schedule(self, actor: PooledActor) -> None:
         """Queue ``actor`` for a worker (it has mail, or has not started yet)."""
         local = self._local
-        if local.is_worker and local.next is None:
-            local.next = actor  # this worker runs it next: no thread woken
+        if (local.is_worker or local.hosting) and local.next is None:
+            local.next = actor  # this thread runs it next: no thread woken
             return
         with self._cond:
             self._ready.append(actor)
@@ -112,11 +139,50 @@ class Dispatcher:
 
     def schedule_lazy(self, actor: PooledActor) -> None:
         """Queue ``actor`` for this worker's next free moment (see :class:`LazyMail`)."""
-        if not self._local.is_worker:
+        local = self._local
+        if local.hosting:
+            local.lazy.append(actor)
+        elif not local.is_worker:
             self.schedule(actor)
+        else:
+            with self._cond:
+                self._lazy.append(actor)
+
+    def tell_here(self, ref: Any, message: Any) -> None:
+        """``ref.tell(message)``, then run the turns it made ready on this thread (see
+        :func:`tell_here`).  From a worker, or once stopping, only the tell."""
+        local = self._local
+        if local.is_worker or local.hosting or self._stopping:
+            ref.tell(message)  # a worker's slot does the same; a host does not nest
             return
-        with self._cond:
-            self._lazy.append(actor)
+        local.hosting = True
+        try:
+            ref.tell(message)  # an idle actor lands in this thread's slot
+            for _ in range(_HOST_TURNS):
+                actor = local.next
+                if actor is not None:
+                    local.next = None
+                elif local.lazy:
+                    actor = local.lazy.popleft()
+                else:
+                    return
+                self._run(actor)
+        finally:
+            local.hosting = False
+            if local.next is not None or local.lazy:
+                self._hand_over(local)
+
+    def _hand_over(self, local: _Worker) -> None:
+        """A host's slot and lazy mail to the workers (its turns are spent)."""
+        left = list(local.lazy)
+        local.lazy.clear()
+        if local.next is not None:
+            left.insert(0, local.next)
+            local.next = None
+        if left:
+            with self._cond:
+                self._ready.extend(left)
+                self._cond.notify(len(left))
 
     def _take(self, streak: int) -> tuple[PooledActor | None, bool]:
         """The next actor for this worker (None: stopping), and whether it came from
@@ -144,10 +210,14 @@ class Dispatcher:
             if actor is None:
                 return
             streak = streak + 1 if from_slot else 0
-            try:
-                actor._run_slice()
-            except BaseException:  # a worker serves every actor: it must survive any one
-                logger.exception("dispatcher: %s escaped its actor", actor)
+            self._run(actor)
+
+    @staticmethod
+    def _run(actor: PooledActor) -> None:
+        try:
+            actor._run_slice()
+        except BaseException:  # a worker serves every actor: it must survive any one
+            logger.exception("dispatcher: %s escaped its actor", actor)
 
     def shutdown(self, timeout_s: float = 10.0) -> None:
         """Finish the scheduled work, then stop the workers (stop the actors first)."""
@@ -159,11 +229,30 @@ class Dispatcher:
                 thread.join(timeout_s)
 
 
+def tell_here(ref: Any, message: Any) -> None:
+    """Tell ``ref`` ``message``; if that made its pooled actor ready, run its turn now,
+    on this thread (*caller runs*, see the module's docstring).
+
+    For a thread that is not a worker and must not wait long (the In-Bridge's):
+    the actor's turn, and the turns of the actors it mails, run before this
+    returns, at most :data:`_HOST_TURNS` of them; the rest goes to the workers.
+    An actor that is running or queued already just gets the mail.  Not a pooled
+    actor (or anything else with a ``tell``): a plain ``tell``.  Raises
+    :class:`pykka.ActorDeadError` as ``tell`` does.
+    """
+    inbox = getattr(ref, "actor_inbox", None)  # public on a Pykka ActorRef
+    if type(inbox) is _Inbox:
+        inbox.dispatcher.tell_here(ref, message)
+    else:
+        ref.tell(message)
+
+
 class _Inbox:
     """A Pykka actor inbox that schedules its actor when mail arrives."""
 
     def __init__(self, actor: PooledActor) -> None:
         self._actor = actor
+        self.dispatcher = actor._dispatcher
         self._queue: deque[Envelope[Any]] = deque()
         self._lock = threading.Lock()
         self._scheduled = False
@@ -193,9 +282,13 @@ class _Inbox:
             self._scheduled = True
 
     def take_batch(self) -> list[Envelope[Any]]:
+        queue = self._queue
         with self._lock:
-            n = min(_BATCH, len(self._queue))
-            return [self._queue.popleft() for _ in range(n)]
+            if len(queue) <= _BATCH:  # the usual case: all of it (one message, mostly)
+                batch = list(queue)
+                queue.clear()
+                return batch
+            return [queue.popleft() for _ in range(_BATCH)]
 
     def release(self) -> bool:
         """Done with a slice: True if more mail came and the actor must run again."""

@@ -11,6 +11,7 @@ import pykka
 
 from ..net import wire
 from ..net.link import PeerStatus, TelemetryStale
+from .dispatch import tell_here
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink
 from .logic.telemetry import stale_values, telemetry_values
@@ -25,10 +26,13 @@ _CONTROL = (wire.Start, wire.Abort, wire.Complete)
 class InRouter:
     """Called by the link (on its receive thread) with every message for this participant.
 
-    ``ground_handler`` is set on the ground station: it also sees reports,
-    progress, peer status and the fleet's telemetry.  An exception while routing
-    to the runtime's actors goes to the runtime's failure policy (``failure``);
-    one in the ground station's handler goes back to the link, which logs it.
+    A trigger's node, and an interrupt's executive, run their turn on that
+    thread when they are idle (:func:`~.dispatch.tell_here`: no worker woken on
+    the trigger's path).  ``ground_handler`` is set on the ground station: it
+    also sees reports, progress, peer status and the fleet's telemetry.  An
+    exception while routing to the runtime's actors goes to the runtime's
+    failure policy (``failure``); one in the ground station's handler goes back
+    to the link, which logs it.
     """
 
     drone: str
@@ -104,18 +108,22 @@ class InRouter:
         if ref is None or msg.dest != self.drone:
             self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
             return
-        # The node first; the count rides along with the executive's next mail (no
-        # thread woken); the node writes the "received" line after its own work.
-        ref.tell(
+        # The count first: it rides along with the executive's next mail (no thread
+        # woken), and is counted before anything the node's turn makes happen (the
+        # drone resolved, a report asked for).  Then the node's turn, on this thread
+        # if the node is idle (no worker woken); it writes the "received" line after
+        # its own work.
+        self.executive.tell(TriggerReceived(msg.sender))
+        tell_here(
+            ref,
             RemoteTrigger(
                 msg.src_node,
                 msg.dst_node,
                 tuple(msg.iteration),
                 msg.status,  # type: ignore[arg-type]
                 msg.sender,
-            )
+            ),
         )
-        self.executive.tell(TriggerReceived(msg.sender))
 
     def _interrupt(self, msg: wire.Interrupt) -> None:
         try:
@@ -123,4 +131,7 @@ class InRouter:
         except ValueError:
             self.log.warning("mission.inbridge.bad_interrupt", scope=msg.scope)
             return
-        self.executive.tell(DeliverInterrupt(Interrupt(scope, tuple(msg.iteration), msg.mode)))
+        # On this thread too if the executive is idle: it tells the nodes in the scope.
+        tell_here(
+            self.executive, DeliverInterrupt(Interrupt(scope, tuple(msg.iteration), msg.mode))
+        )

@@ -44,6 +44,8 @@ def latest_telemetry(batch: list[list[bytes]]) -> tuple[list[list[bytes]], int]:
     drone's newest sample.  Everything else stays, in order: control messages
     never wait behind a backlog of samples.
     """
+    if len(batch) < 2:
+        return batch, 0  # the usual batch (one message): nothing can be newer
     newest = {frames[0]: i for i, frames in enumerate(batch) if frames[0][:3] == b"tm/"}
     kept = [f for i, f in enumerate(batch) if f[0][:3] != b"tm/" or newest[f[0]] == i]
     return kept, len(batch) - len(kept)

@@ -72,3 +72,5 @@ def test_latest_telemetry_keeps_each_drones_newest_sample_and_everything_else() 
     assert kept == [[b"to/B", b"t1"], [b"tm/C", b"1"], [b"hb/A", b"h"], [b"tm/A", b"3"]]
     assert skipped == 2
     assert latest_telemetry([]) == ([], 0)
+    assert latest_telemetry([[b"tm/A", b"1"]]) == ([[b"tm/A", b"1"]], 0)
+    assert latest_telemetry([[b"tm/A", b"1"], [b"tm/A", b"2"]]) == ([[b"tm/A", b"2"]], 1)
