@@ -8,6 +8,12 @@ uniform-API actor, watches to the telemetry board, records, progress,
 resolutions and interrupt broadcasts to the executive, log lines to the
 mission log.
 
+A turn's mission-log lines (its own, and the Out-Bridge's ``mission.outbridge.sent``
+for the triggers it sends) are written in their order after the turn's triggers to
+other drones went out, and before anything is told to another actor of the drone:
+a peer waiting for a trigger does not wait for the lines, and a line a local actor
+writes because of this turn still comes after this turn's lines.
+
 Failure policy (:meth:`MissionNode.on_failure`, which the dispatcher calls
 when a ``tell``-ed message raises): the node logs the exception once (with its
 traceback) in the mission log, resolves ``failed`` (its
@@ -19,6 +25,7 @@ had running, and from then on answers every message with a no-op.
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -26,6 +33,7 @@ from typing import Any
 
 import pykka
 
+from ..logs import log_line
 from ..program.format import ProgramNode
 from .dispatch import Dispatcher, LazyMail, PooledActor
 from .failure import tell_operator
@@ -183,6 +191,9 @@ class MissionNode(PooledActor):
             self.logic.debug_notes = False  # filtered anyway: not made at all
         self._news: list[Any] = []  # for the executive, sent once per message handled
         self._inline: list[ActionFinished] = []  # actions the adapter ended inside run()
+        self._results_held = False  # the uniform space holds result lines of this turn
+        # This turn's mission-log lines (logger, method, event, fields, time), not written yet.
+        self._lines: list[tuple[Any, str, str, dict[str, Any], float]] = []
 
     # -- messages -> logic inputs ---------------------------------------------------
 
@@ -197,6 +208,13 @@ class MissionNode(PooledActor):
                 self._apply(self._input(finished))
             self._send_news()
         finally:
+            if self._lines:
+                self._write_lines()
+            if self._results_held:
+                # After the turn's work: its triggers to other drones went out first.
+                self._results_held = False
+                assert self.links is not None and self.links.uniform is not None
+                self.links.uniform.write_results()
             if isinstance(message, RemoteTrigger):
                 self._received_note(message)
         return None
@@ -211,6 +229,15 @@ class MissionNode(PooledActor):
             iteration=list(t.iteration),
             status=t.status,
         )
+
+    def _line(self, method: str, event: str, **fields: Any) -> None:
+        """A mission-log line of this turn (written by :meth:`_write_lines`)."""
+        self._lines.append((self.log, method, event, fields, time.time()))
+
+    def _write_lines(self) -> None:
+        lines, self._lines = self._lines, []
+        for log, method, event, fields, at in lines:
+            log_line(log, method, event, fields, at)  # stamped when it happened
 
     def _send_news(self) -> None:
         if self._news and self.links is not None:
@@ -267,6 +294,8 @@ class MissionNode(PooledActor):
                 getattr(self, _APPLY[type(effect)])(effect)
 
     def _tell(self, ref: Any, message: Any) -> None:
+        if self._lines:  # what the receiver writes because of it comes after them
+            self._write_lines()
         try:
             ref.tell(message)
         except pykka.ActorDeadError:
@@ -278,14 +307,22 @@ class MissionNode(PooledActor):
         route = fx.route
         trigger = Trigger(self.key, route.dst, fx.iteration, fx.status)
         if route.external:
-            self.links.out_bridge.tell(SendTrigger(route.drone, trigger))
+            out = self.links.out_bridge
+            send = getattr(out, "send_trigger", None)
+            if send is None:  # a stand-in taking messages only
+                out.tell(SendTrigger(route.drone, trigger))
+            else:
+                line = send(route.drone, trigger)  # its log line comes back, for later
+                if line is not None:
+                    self._lines.append(line)
         else:
             self._tell(self.links.nodes[route.dst], trigger)
         if self._debug:
             self._trigger_note(fx, route)
 
     def _trigger_note(self, fx: Emit, route: Route) -> None:
-        self.log.debug(
+        self._line(
+            "debug",
             "mission.trigger.out",
             dst=route.dst,
             drone=route.drone,
@@ -300,8 +337,10 @@ class MissionNode(PooledActor):
         if self.links.uniform is None:
             self._tell(self.links.hal, request)
             return
-        finished = self.links.uniform.run(request)  # on this thread: no hop
+        # On this thread: no hop.  Its result line waits for the end of the turn.
+        finished = self.links.uniform.run(request, later=True)
         if finished is not None:
+            self._results_held = True
             self._inline.append(finished)
 
     def _cancel_action(self, fx: CancelAction) -> None:
@@ -321,7 +360,7 @@ class MissionNode(PooledActor):
         self._tell(self.links.board, Unwatch(self.actor_ref))
 
     def _resolve(self, fx: Resolve) -> None:
-        self.log.info("mission.node.finished", iteration=list(fx.iteration), status=fx.status)
+        self._line("info", "mission.node.finished", iteration=list(fx.iteration), status=fx.status)
         if fx.top_level:
             self._news.append(NodeResolved(self.key, fx.status))
 
@@ -341,7 +380,7 @@ class MissionNode(PooledActor):
             self._tell(ref, Release(fx.iteration))
 
     def _note(self, fx: Note) -> None:
-        getattr(self.log, fx.level)(fx.event, **fx.fields)
+        self._lines.append((self.log, fx.level, fx.event, fx.fields, time.time()))
 
     # -- failure policy -----------------------------------------------------------------
 
@@ -349,6 +388,8 @@ class MissionNode(PooledActor):
         """Log once, resolve ``failed`` for what the node was doing, then ignore messages."""
         self.crashed = True
         self._inline.clear()
+        if self._lines:
+            self._write_lines()
         exc = exc_info[1]
         self.log.error(
             "mission.node.crashed",
@@ -375,6 +416,7 @@ class MissionNode(PooledActor):
         try:
             self._apply(effects)
             self._send_news()
+            self._write_lines()
         except Exception:
             self.log.exception("mission.node.crash_unreported")
 

@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterable
 from typing import Any
 
+from ..logs import log_line
 from ..net import wire
 from ..net.link import Link
+from ..net.trusted import trusted
 from .messages import SendInterrupt, SendTrigger, Trigger
 
-__all__ = ["Outbox"]
+__all__ = ["LogLine", "Outbox"]
+
+#: A log line not written yet: (logger, method, event, fields, its time.time()).
+LogLine = tuple[Any, str, str, dict[str, Any], float]
+
+
+def _write(line: LogLine) -> None:
+    log_line(*line)
 
 
 class Outbox:
@@ -35,11 +45,14 @@ class Outbox:
         self.sent_by_dest: dict[str, int] = {}
         self._sent: set[tuple[str, str, tuple[int, ...]]] = set()  # (src, dst, iteration)
         self._sealed = False
+        self._checked: set[str] = set()  # destinations whose first Trigger was checked
 
     def tell(self, message: Any) -> None:
         """Send ``message`` (a :class:`SendTrigger`, :class:`SendInterrupt` or wire message)."""
         if isinstance(message, SendTrigger):
-            self._send_trigger(message.dest, message.trigger, sealed_ok=False)
+            line = self.send_trigger(message.dest, message.trigger)
+            if line is not None:
+                _write(line)
         elif isinstance(message, SendInterrupt):
             if self._is_sealed():
                 return
@@ -68,34 +81,58 @@ class Outbox:
         with self._lock:
             return self._sealed
 
-    def _send_trigger(self, dest: str, t: Trigger, sealed_ok: bool) -> bool:
+    def send_trigger(self, dest: str, t: Trigger) -> LogLine | None:
+        """Send a node's trigger; its ``mission.outbridge.sent`` line, for the caller to write.
+
+        None: not sent (sealed).  A node writes the line with its turn's other lines,
+        after its triggers to other drones went out (:mod:`.node`).
+        """
+        return self._send_trigger(dest, t, sealed_ok=False)
+
+    def _send_trigger(self, dest: str, t: Trigger, sealed_ok: bool) -> LogLine | None:
         key = (t.src, t.dst, tuple(t.iteration))
         with self._lock:
             if (self._sealed and not sealed_ok) or (sealed_ok and key in self._sent):
-                return False
+                return None
             self._sent.add(key)
             self.triggers_sent += 1
             self.sent_by_dest[dest] = self.sent_by_dest.get(dest, 0) + 1
+        if dest not in self._checked:
+            # Checked once per destination; the rest the program and the logic made.
+            self._check(dest, t)
+            self._checked.add(dest)
         self.bridge.send(
-            wire.Trigger(
+            trusted(
+                wire.Trigger,
                 mission=self.mission_id,
                 sender=self.drone,
                 dest=dest,
                 src_node=t.src,
                 dst_node=t.dst,
-                iteration=t.iteration,
+                iteration=tuple(t.iteration),
                 status=t.status,
             )
         )
-        self.log.info(
-            "mission.outbridge.sent",
+        fields = {
+            "dest": dest,
+            "src": t.src,
+            "dst": t.dst,
+            "iteration": list(t.iteration),
+            "status": t.status,
+        }
+        return (self.log, "info", "mission.outbridge.sent", fields, time.time())
+
+    def _check(self, dest: str, t: Trigger) -> None:
+        """The checks of a wire Trigger, on the first one to ``dest`` (a WireError if bad)."""
+        wire.Trigger(
+            mission=self.mission_id,
+            sender=self.drone,
             dest=dest,
-            src=t.src,
-            dst=t.dst,
-            iteration=list(t.iteration),
+            src_node=t.src,
+            dst_node=t.dst,
+            iteration=t.iteration,
             status=t.status,
         )
-        return True
 
     def seal(self) -> None:
         """Drop node triggers and interrupts from now on (the drone's nodes no longer speak)."""
@@ -109,10 +146,13 @@ class Outbox:
         on other drones are blocked and finish, instead of waiting for ever.
         Returns how many triggers went out.
         """
-        return sum(
-            self._send_trigger(dest, Trigger(src, dst, (), "failed"), sealed_ok=True)
-            for dest, src, dst in arcs
-        )
+        sent = 0
+        for dest, src, dst in arcs:
+            line = self._send_trigger(dest, Trigger(src, dst, (), "failed"), sealed_ok=True)
+            if line is not None:
+                _write(line)
+                sent += 1
+        return sent
 
     def counts(self) -> dict[str, Any]:
         """Triggers sent (each once), in all and per destination."""

@@ -23,6 +23,11 @@ through this actor.  With an adapter that answers at once (the simulator, the
 fake: :func:`answers_at_once`) node actors call the space themselves, so a
 zero-duration action costs no thread hop at all; an adapter that may block (a
 MAVLink autopilot) is called from this actor's thread only.
+
+A node that calls the space directly may ask for the ``uniform.result`` line of an
+action answered inline to be written late (``run(..., later=True)``), once its
+triggers to other drones are out: the uniform log (:class:`UniformLog`) writes such
+held lines before any other line of its own, so the file keeps the order of events.
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ from typing import Any
 import pykka
 
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
+from eamos.logs import log_line
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import ACTIONS, CommandError, decode_command
 
@@ -111,6 +117,64 @@ def answers_at_once(adapter: Any) -> bool:
     return getattr(adapter, "family", "") in NON_BLOCKING_FAMILIES
 
 
+class UniformLog:
+    """A drone's uniform log whose ``uniform.result`` lines may be held back a little.
+
+    :meth:`hold` keeps the result line of an action answered inline; :meth:`write_held`
+    writes the held lines.  Every other line written through this object writes the
+    held ones first, under one lock, so the file's order is the order in which the
+    lines were logged or held: a line an action's end caused (the next action's
+    ``uniform.call``) never comes before that end's ``uniform.result``.
+    """
+
+    def __init__(self, log: Any) -> None:
+        self.log = log
+        self._lock = threading.Lock()
+        self._held: list[ActionFinished] = []
+
+    def hold(self, finished: ActionFinished) -> None:
+        """Keep ``finished``'s ``uniform.result`` line until :meth:`write_held` or another line."""
+        with self._lock:
+            self._held.append(finished)
+
+    def write_held(self) -> None:
+        """Write the held result lines, oldest first."""
+        with self._lock:
+            self._write_held()
+
+    def _write_held(self) -> None:
+        held, self._held = self._held, []
+        for finished in held:
+            # Stamped when the action ended, as if written then.
+            log_line(self.log, "info", "uniform.result", _result_fields(finished), finished.end_s)
+
+    def _line(self, method: str, event: str, fields: dict[str, Any]) -> None:
+        with self._lock:
+            if self._held:
+                self._write_held()
+            getattr(self.log, method)(event, **fields)
+
+    def debug(self, event: str, **fields: Any) -> None:
+        """Log at debug level (held result lines first)."""
+        self._line("debug", event, fields)
+
+    def info(self, event: str, **fields: Any) -> None:
+        """Log at info level (held result lines first)."""
+        self._line("info", event, fields)
+
+    def warning(self, event: str, **fields: Any) -> None:
+        """Log at warning level (held result lines first)."""
+        self._line("warning", event, fields)
+
+    def error(self, event: str, **fields: Any) -> None:
+        """Log at error level (held result lines first)."""
+        self._line("error", event, fields)
+
+    def exception(self, event: str, **fields: Any) -> None:
+        """Log at error level with the exception being handled (held result lines first)."""
+        self._line("exception", event, fields)
+
+
 class UniformSpace:
     """The uniform API's bookkeeping over one adapter, safe to call from any thread.
 
@@ -127,7 +191,9 @@ class UniformSpace:
     def __init__(self, adapter: Adapter, uniform_log: Any) -> None:
         self.adapter = adapter
         self.drone = adapter.drone
-        self._log = self.log = uniform_log
+        self._log = self.log = (
+            uniform_log if isinstance(uniform_log, UniformLog) else UniformLog(uniform_log)
+        )
         self._lock = threading.Lock()
         self._running: dict[Hashable, _Running] = {}
         self._serials = itertools.count(1)
@@ -138,8 +204,13 @@ class UniformSpace:
         # for importlib.metadata.
         self._plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
 
-    def run(self, req: RunAction) -> ActionFinished | None:
-        """Start ``req`` on the adapter; its :class:`ActionFinished` if already known."""
+    def run(self, req: RunAction, later: bool = False) -> ActionFinished | None:
+        """Start ``req`` on the adapter; its :class:`ActionFinished` if already known.
+
+        ``later``: the ``uniform.result`` line of an action answered here is held
+        until :meth:`write_results` (or the log's next line): the caller's urgent
+        work (triggers to other drones) goes first.
+        """
         start_s = time.time()
         self._log.info(
             "uniform.call", token=_jsonable(req.token), action=req.action, args=list(req.args)
@@ -174,8 +245,12 @@ class UniformSpace:
         running.caller = 0
         running.handle = handle
         if running.inline is not None:
-            return self._finished(req, start_s, running.inline)
+            return self._finished(req, start_s, running.inline, later)
         return None
+
+    def write_results(self) -> None:
+        """Write the ``uniform.result`` lines ``run(..., later=True)`` held."""
+        self._log.write_held()
 
     def _done_callback(self, token: Hashable, serial: int) -> Callable[[ActionResult], None]:
         def done(result: ActionResult) -> None:
@@ -247,20 +322,16 @@ class UniformSpace:
         self._log.exception("uniform.adapter_error", call=call, error=repr(exc))
         return ActionResult("failed", f"internal error in the adapter: {exc!r}")
 
-    def _finished(self, req: RunAction, start_s: float, result: ActionResult) -> ActionFinished:
+    def _finished(
+        self, req: RunAction, start_s: float, result: ActionResult, later: bool = False
+    ) -> ActionFinished:
         end_s = time.time()
-        self._log.info(
-            "uniform.result",
-            token=_jsonable(req.token),
-            action=req.action,
-            args=list(req.args),
-            status=result.status,
-            reason=result.reason,
-            start_s=round(start_s, 6),
-            end_s=round(end_s, 6),
-            duration_s=round(end_s - start_s, 6),
-        )
-        return ActionFinished(req.token, req.action, req.args, result, start_s, end_s)
+        finished = ActionFinished(req.token, req.action, req.args, result, start_s, end_s)
+        if later:
+            self._log.hold(finished)
+        else:
+            self._log.info("uniform.result", **_result_fields(finished))
+        return finished
 
     def _send(self, req: RunAction, start_s: float, result: ActionResult) -> None:
         """Send the reply to the one who asked (a stopped asker is logged, not raised)."""
@@ -288,10 +359,10 @@ class UniformAPI(pykka.ThreadingActor):
         super().__init__()
         self.adapter = adapter
         self.drone = adapter.drone
-        self._log = uniform_log
         self._on_telemetry = on_telemetry
         self._on_start_error = on_start_error
         self.space = space if space is not None else UniformSpace(adapter, uniform_log)
+        self._log = self.space.log  # one log object: held result lines keep their place
 
     # -- lifecycle -----------------------------------------------------------
 
@@ -375,6 +446,21 @@ def _tell_reply(reply_to: Any, finished: ActionFinished, log: Any) -> None:
         reply_to.tell(finished)
     except pykka.ActorDeadError:
         log.warning("uniform.reply_to_dead", token=_jsonable(finished.token))
+
+
+def _result_fields(finished: ActionFinished) -> dict[str, Any]:
+    """The fields of an action's ``uniform.result`` line (docs/logs.md)."""
+    start_s, end_s, result = finished.start_s, finished.end_s, finished.result
+    return {
+        "token": _jsonable(finished.token),
+        "action": finished.action,
+        "args": list(finished.args),
+        "status": result.status,
+        "reason": result.reason,
+        "start_s": round(start_s, 6),
+        "end_s": round(end_s, 6),
+        "duration_s": round(end_s - start_s, 6),
+    }
 
 
 def _jsonable(token: Hashable) -> Any:

@@ -552,6 +552,10 @@ _CHECK_OF: Final[dict[type[_Base], dict[str, tuple[Any, str]]]] = {
     cls: {name: (check, label) for _key, name, check, label in checks}
     for cls, checks in _DECODERS.items()
 }
+# Per type: (wire key, field name) in field order, for encode.
+_ENCODERS: Final[dict[type[_Base], tuple[tuple[str, str], ...]]] = {
+    cls: tuple(keys.items()) for cls, keys in _KEYS.items()
+}
 
 
 # ---------------------------------------------------------------------------
@@ -566,13 +570,13 @@ def encode(msg: Message) -> list[bytes]:
     does not fit in :data:`MAX_PAYLOAD_BYTES`.
     """
     cls = type(msg)
-    if cls not in _KEYS:
+    keys = _ENCODERS.get(cls)
+    if keys is None:
         raise WireError(f"not a wire message: {cls.__name__}")
+    values = msg.__dict__
     body: dict[str, Any] = {"v": WIRE_VERSION, "t": cls.CODE}
-    for key, name in _KEYS[cls].items():
-        value = getattr(msg, name)
-        # Tuples pack as arrays anyway; lists keep the packer on its fast path.
-        body[key] = list(value) if isinstance(value, tuple) else value
+    for key, name in keys:
+        body[key] = values[name]  # a tuple packs as an array, as a list does
     try:
         payload = msgpack.packb(body, use_bin_type=True)
     except (TypeError, ValueError, OverflowError) as exc:

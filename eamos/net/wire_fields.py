@@ -100,9 +100,27 @@ def _check_seq_map(value: Any, name: str) -> dict[str, int]:
     return value
 
 
+#: Exact types of plain scalars: checked by one set lookup (a progress batch or a
+#: report holds thousands of them); their subclasses take the isinstance tests below.
+_SCALARS: Final = frozenset({type(None), bool, int, float, str, bytes})
+
+
 def _check_plain(value: Any, name: str, depth: int) -> None:
     if depth > MAX_DEPTH:
         raise WireError(f"{name}: nested deeper than {MAX_DEPTH}")
+    kind = type(value)
+    if kind is dict:
+        for key, item in value.items():
+            if type(key) is not str and not isinstance(key, str):
+                raise WireError(f"{name}: map keys must be str, got {key!r}")
+            if type(item) not in _SCALARS or depth >= MAX_DEPTH:
+                _check_plain(item, name, depth + 1)
+        return
+    if kind is list or kind is tuple:
+        for item in value:
+            if type(item) not in _SCALARS or depth >= MAX_DEPTH:
+                _check_plain(item, name, depth + 1)
+        return
     if value is None or isinstance(value, bool | int | str | bytes):
         return
     if isinstance(value, float):

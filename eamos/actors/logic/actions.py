@@ -87,7 +87,7 @@ class ActionLogic(NodeLogic):
         self._resolved(act, status)
 
     def _start(self, act: Iteration) -> None:
-        if any(within(act, it) for _, it in self.held):
+        if self.held and any(within(act, it) for _, it in self.held):
             self.suspended[act] = None
             self._event(act, "waiting", SUSPENDED)
             return

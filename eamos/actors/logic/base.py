@@ -207,7 +207,8 @@ class NodeLogic:
         return out
 
     def _interrupted(self, act: Iteration) -> bool:
-        return any(within(act, it) for _, it in self.interrupts)
+        # Tested first: on every activation, and almost always empty.
+        return bool(self.interrupts) and any(within(act, it) for _, it in self.interrupts)
 
     def _emit(
         self,
