@@ -56,7 +56,11 @@ the latter as the node imports it, without its console extras), each from
 ``node_beyond_libraries_ms``: ``ready_ms``'s median minus the latter, what this
 project's own code, configuration and start-up cost.
 
-Usage: ``python scripts/bench_startup.py --json [--runs 7]``.
+``--python PATH`` runs the node (and the floors) with another interpreter: a
+venv where eamos is installed as on a drone (``pip install .``, not editable:
+an editable install adds its import finder to every start-up).
+
+Usage: ``python scripts/bench_startup.py --json [--runs 7] [--python PATH]``.
 """
 
 from __future__ import annotations
@@ -156,11 +160,15 @@ def log_event(path: Path, event: str) -> dict[str, Any] | None:
 
 
 def one_run(
-    work: Path, env: dict[str, str], ports: list[int], python_args: tuple[str, ...] = ()
+    work: Path,
+    env: dict[str, str],
+    ports: list[int],
+    python_args: tuple[str, ...] = (),
+    python: str = sys.executable,
 ) -> dict[str, Any]:
     """Start one node against a ground station here; its times (ms), exit code and stderr.
 
-    ``python_args`` go to the node's interpreter (``-X importtime``).
+    ``python_args`` go to the node's interpreter ``python`` (``-X importtime``).
     """
     from eamos.actors.drone import net_settings
     from eamos.compiler import compile_mission
@@ -184,7 +192,7 @@ def one_run(
     try:
         runtime.start()
         station.attach(runtime)
-        argv = [sys.executable, *python_args, "-c", ENTRY, "--config", str(files.configs["D1"])]
+        argv = [python, *python_args, "-c", ENTRY, "--config", str(files.configs["D1"])]
         with err_path.open("wb") as err_file:
             wall0 = time.time()
             t0 = time.monotonic()
@@ -260,11 +268,11 @@ def import_total_ms(stderr: str) -> float:
     return total_us / 1000
 
 
-def floor_ms(env: dict[str, str], runs: int) -> dict[str, float]:
+def floor_ms(env: dict[str, str], runs: int, python: str = sys.executable) -> dict[str, float]:
     """Median wall time (ms) from ``Popen`` to the last statement of each of :data:`FLOORS`."""
     out = {}
     for name, code in FLOORS.items():
-        argv = [sys.executable, "-c", f"{code}\nimport time; print(time.time())"]
+        argv = [python, "-c", f"{code}\nimport time; print(time.time())"]
         subprocess.run(argv, env=env, check=True, timeout=120, capture_output=True)  # cache
         times = []
         for _ in range(runs):
@@ -275,11 +283,11 @@ def floor_ms(env: dict[str, str], runs: int) -> dict[str, float]:
     return out
 
 
-def loaded_modules(env: dict[str, str]) -> list[str]:
+def loaded_modules(env: dict[str, str], python: str = sys.executable) -> list[str]:
     """The modules loaded by ``import eamos.cli.node`` in a fresh interpreter."""
     code = "import sys, json, eamos.cli.node; print(json.dumps(sorted(sys.modules)))"
     proc = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+        [python, "-c", code], env=env, capture_output=True, text=True, timeout=120
     )
     return list(json.loads(proc.stdout))
 
@@ -288,6 +296,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print JSON (the default)")
     parser.add_argument("--runs", type=int, default=7, help="timed runs (default 7)")
+    parser.add_argument(
+        "--python",
+        default=sys.executable,
+        help="the node's interpreter (default this one): e.g. a venv where eamos is "
+        "installed as a drone has it (pip install, not editable)",
+    )
     args = parser.parse_args()
     from eamos.ground import free_ports
 
@@ -295,13 +309,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bench_startup-") as tmp:
         env = child_env(Path(tmp) / "pycache")
         for i in range(args.runs + 1):  # run 0 fills the byte-code cache
-            result = one_run(Path(tmp) / f"run-{i}", env, free_ports(2))
+            result = one_run(Path(tmp) / f"run-{i}", env, free_ports(2), python=args.python)
             if i > 0:
                 runs.append(result)
-        traced = one_run(Path(tmp) / "importtime", env, free_ports(2), ("-X", "importtime"))
+        traced = one_run(
+            Path(tmp) / "importtime", env, free_ports(2), ("-X", "importtime"), args.python
+        )
         traced_ms = import_total_ms(traced["stderr"])
-        modules = loaded_modules(env)
-        floors = floor_ms(env, args.runs)
+        modules = loaded_modules(env, args.python)
+        floors = floor_ms(env, args.runs, args.python)
     ok = [r for r in runs if r["held"] and r["exit_code"] == 0]
     for r in runs:
         r["stderr"] = r["stderr"].strip()[-500:]
