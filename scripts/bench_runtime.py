@@ -29,7 +29,16 @@ Measures, each in fresh processes:
   msgpack payload), its acknowledgement, and the bytes on the wire (IP packets
   counted by iptables in a namespace, CURVE on and off; needs root).
 
-Usage: ``python scripts/bench_runtime.py --json`` (``--quick`` for a smaller run).
+``--rounds N`` runs the trigger-path sections (``local_trigger``, ``cross_drone``,
+``reference_hops``, those selected) N times, interleaved (local, cross, floors;
+local, cross, floors; ...), so each ratio is taken against floors measured
+minutes apart at most: on a shared machine the floors themselves move by 2x
+between runs (the CURVE hop measured 31-75 us within one hour).  The sections
+then hold the median figures, ``rounds`` each round's figures and ratios, and
+``ratios`` the median of the per-round ratios.
+
+Usage: ``python scripts/bench_runtime.py --json`` (``--quick`` for a smaller run,
+``--rounds 5`` for the trigger path's ratios).
 """
 
 from __future__ import annotations
@@ -541,6 +550,67 @@ def bench_net_bytes(tmp: Path, n: int) -> dict:
     return out
 
 
+#: The sections ``--rounds`` repeats (the trigger path and its floors).
+TRIGGER_PATH = ("local_trigger", "cross_drone", "reference_hops")
+#: Per round: the ratio's name, and where its numerator and denominator are.
+RATIOS = {
+    "local_trigger_x_pykka_tell": (("local_trigger", "per_node_us"), ("pykka_tell", "per_hop_us")),
+    "cross_drone_p50_x_zmq_curve_p50": (("cross_drone", "p50_ms"), ("zmq_curve", "p50_ms")),
+}
+
+
+def add_ratios(figures: dict) -> None:
+    """The trigger paths against their floors of the same round, in place."""
+    refs = figures.get("reference_hops")
+    if refs and "local_trigger" in figures:
+        hop = refs["pykka_tell"]["per_hop_us"]
+        local = figures["local_trigger"]
+        local["x_pykka_tell"] = round(local["per_node_us"] / hop, 1)
+        local["gap_p50_x_pykka_tell"] = round(local["gap_p50_us"] / hop, 1)
+    if refs and "cross_drone" in figures:
+        figures["cross_drone"]["x_zmq_curve_p50"] = round(
+            figures["cross_drone"]["p50_ms"] / refs["zmq_curve"]["p50_ms"], 1
+        )
+
+
+def merge_rounds(rounds: list[dict]) -> dict:
+    """Each trigger-path figure's median over ``rounds``, each round's figures, and the
+    median of the per-round ratios (each against its own round's floors)."""
+    merged: dict = {}
+    for section in TRIGGER_PATH:
+        per_round = [r[section] for r in rounds if section in r]
+        if per_round:
+            merged[section] = _median_tree(per_round)
+    per_round_ratios = []
+    for r in rounds:
+        refs = r.get("reference_hops", {})
+        ratios = {}
+        for name, ((sec, key), (ref, ref_key)) in RATIOS.items():
+            if sec in r and ref in refs:
+                ratios[name] = round(r[sec][key] / refs[ref][ref_key], 2)
+        per_round_ratios.append(ratios)
+    merged["rounds"] = [dict(r, ratios=x) for r, x in zip(rounds, per_round_ratios, strict=True)]
+    names = {n for x in per_round_ratios for n in x}
+    merged["ratios"] = {
+        n: {
+            "median": round(statistics.median(x[n] for x in per_round_ratios if n in x), 2),
+            "each": [x.get(n) for x in per_round_ratios],
+        }
+        for n in sorted(names)
+    }
+    return merged
+
+
+def _median_tree(items: list) -> object:
+    """The median of numbers at the same place in ``items`` (dicts nested alike)."""
+    first = items[0]
+    if isinstance(first, dict):
+        return {k: _median_tree([i[k] for i in items if k in i]) for k in first}
+    if isinstance(first, int | float) and not isinstance(first, bool):
+        return round(statistics.median(items), 4)
+    return first
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -549,6 +619,13 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="smaller sizes (a smoke run)")
     parser.add_argument(
         "--only", nargs="+", metavar="SECTION", help="run only these sections (default: all)"
+    )
+    parser.add_argument(
+        "--rounds",
+        type=int,
+        default=1,
+        metavar="N",
+        help="interleaved rounds of the trigger-path sections (see above; default 1)",
     )
     args = parser.parse_args()
     out: dict = {}
@@ -571,22 +648,21 @@ def main() -> int:
             ),
             ("net_bytes", lambda: bench_net_bytes(tmp, 50 if args.quick else 500)),
         ]
-        for name, step in steps:
-            if args.only and name not in args.only:
-                continue
-            if not args.json:
-                print(f"... {name}", file=sys.stderr, flush=True)
-            out[name] = step()
-    refs = out.get("reference_hops")
-    if refs and "local_trigger" in out:
-        hop = refs["pykka_tell"]["per_hop_us"]
-        local = out["local_trigger"]
-        local["x_pykka_tell"] = round(local["per_node_us"] / hop, 1)
-        local["gap_p50_x_pykka_tell"] = round(local["gap_p50_us"] / hop, 1)
-    if refs and "cross_drone" in out:
-        out["cross_drone"]["x_zmq_curve_p50"] = round(
-            out["cross_drone"]["p50_ms"] / refs["zmq_curve"]["p50_ms"], 1
-        )
+        chosen = [(n, s) for n, s in steps if not args.only or n in args.only]
+        rounds: list[dict] = []
+        for r in range(max(1, args.rounds)):
+            figures: dict = {}
+            for name, step in chosen:
+                if r > 0 and name not in TRIGGER_PATH:
+                    continue
+                if not args.json:
+                    print(f"... {name} (round {r + 1})", file=sys.stderr, flush=True)
+                figures[name] = step()
+            add_ratios(figures)
+            rounds.append(figures)
+        out.update(rounds[0])
+        if len(rounds) > 1:
+            out.update(merge_rounds(rounds))
     out["targets"] = {"startup_s": 0.2, "cross_drone_p99_ms": 2.0, "mission_5000_overhead_s": 5.0}
     print(json.dumps(out, indent=None if args.json else 1))
     return 0
