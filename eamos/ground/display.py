@@ -9,7 +9,7 @@ Every display uses it, so ``eamos run``, ``eamos start`` and ``eamos-node``
 :class:`PlainDisplay` prints those lines; :class:`LiveDisplay` draws a table
 (rich) on a terminal and prints the link changes above it.  Both are
 context managers with ``event``, ``refresh`` and ``say``; :func:`make_display`
-picks one.
+picks one.  :class:`HeldLines` is the plain display's ordering, pure.
 """
 
 from __future__ import annotations
@@ -95,6 +95,55 @@ def quiet_line(views: dict[str, DroneView], now: float, quiet_s: float) -> str:
     return f"{stamp(now)} no change for {quiet_s:.0f} s: " + "; ".join(parts)
 
 
+class HeldLines:
+    """Lines held :data:`HOLD_S` and let out in the order things happened; pure, not thread-safe.
+
+    A line's place is the time of its event (:func:`event_time`): a drone's
+    clock for its progress, the ground station's for the rest (ready,
+    resolved, link changes).  Lines of *one* participant also keep the order
+    the ground station was told them in, whatever the clocks say: a drone's
+    messages arrive in the order it sent them (one connection, one receive
+    thread), so its goodbye ("link left") or its "resolved" never comes out
+    before the progress it sent earlier, even when its clock runs ahead of
+    the ground station's.  Times are passed in (``now``: monotonic seconds).
+    """
+
+    def __init__(self, hold_s: float = HOLD_S) -> None:
+        self.hold_s = hold_s
+        # (place, arrival order, due monotonic time, line): a heap, earliest place first.
+        self._heap: list[tuple[float, int, float, str]] = []
+        self._order = 0
+        self._last: dict[str, float] = {}  # participant -> place of its latest line
+
+    def __len__(self) -> int:
+        return len(self._heap)
+
+    def add(self, at: float, line: str, now: float, who: str = "") -> None:
+        """Hold ``line`` (it happened at wall-clock ``at``; ``who``: whose line, "" for none)."""
+        if who:
+            at = max(at, self._last.get(who, at))
+            self._last[who] = at
+        self._order += 1
+        heapq.heappush(self._heap, (at, self._order, now + self.hold_s, line))
+
+    def next_due(self) -> float | None:
+        """When the first line may come out (monotonic); None when nothing is held."""
+        return self._heap[0][2] if self._heap else None
+
+    def due(self, now: float) -> list[str]:
+        """The lines that may come out at ``now``, in order (and no longer held)."""
+        out = []
+        while self._heap and self._heap[0][2] <= now:
+            out.append(heapq.heappop(self._heap)[3])
+        return out
+
+    def drain(self) -> list[str]:
+        """Every held line, in order (the display closes)."""
+        out = [line for _, _, _, line in sorted(self._heap)]
+        self._heap = []
+        return out
+
+
 class Display(Protocol):
     """What the run loop (:func:`eamos.ground.fly`) needs from a display."""
 
@@ -123,7 +172,9 @@ class PlainDisplay:
 
     Inside ``with``, lines are held :data:`HOLD_S` and printed in the order
     the changes happened on the drones (their clocks; one machine's clock for
-    ``eamos run``), not the order batches arrived; a quiet spell of
+    ``eamos run``), not the order batches arrived, each drone's lines in the
+    order it sent them (:class:`HeldLines`); what is still held when the
+    ``with`` ends comes out before any line shown later.  A quiet spell of
     :data:`QUIET_S` gets a line saying what every drone is doing.
     """
 
@@ -138,15 +189,13 @@ class PlainDisplay:
         self.lost_lines = 0  # lines the stream refused (a full disk)
         self._station: GroundStation | None = None
         self._last_line = clock()
-        # Held lines: (event time, order, due monotonic time, line); None: print at once.
-        self._held: list[tuple[float, int, float, str]] | None = None
-        self._order = 0
+        self._held: HeldLines | None = None  # None: print at once (outside ``with``)
         self._cond = threading.Condition(self._lock)
         self._printer: threading.Thread | None = None
 
     def __enter__(self) -> PlainDisplay:
         with self._cond:
-            self._held = []
+            self._held = HeldLines()
         self._printer = threading.Thread(target=self._print_held, name="plain-display", daemon=True)
         self._printer.start()
         return self
@@ -154,12 +203,15 @@ class PlainDisplay:
     def __exit__(self, *exc: object) -> None:
         with self._cond:
             held, self._held = self._held, None
+            # Written before the lock is let go: a line shown meanwhile (a drone's
+            # goodbye, arriving on the receive thread as the run ends) waits and
+            # comes after the held lines, not before them.
+            for line in held.drain() if held is not None else ():
+                self._write_locked(line)
             self._cond.notify_all()
         if self._printer is not None:
             self._printer.join()
             self._printer = None
-        for _, _, _, line in sorted(held or []):
-            self._write(line)
 
     def watch(self, station: GroundStation) -> None:
         """Keep ``station``: its views say what each drone does in a quiet spell."""
@@ -171,31 +223,31 @@ class PlainDisplay:
         at = event_time(msg, arrived)
         line = format_event(name, msg, at)
         if line is not None:
-            self._show(at, line)
+            self._show(at, line, name)
 
-    def _show(self, at: float, line: str) -> None:
-        """Hold ``line`` (happened at ``at``) for ordered printing, or print it now."""
+    def _show(self, at: float, line: str, who: str = "") -> None:
+        """Hold ``line`` (``who``'s, happened at ``at``) for ordered printing, or print it now."""
         with self._cond:
             if self._held is not None:
-                self._order += 1
-                heapq.heappush(self._held, (at, self._order, time.monotonic() + HOLD_S, line))
+                self._held.add(at, line, time.monotonic(), who)
                 self._cond.notify_all()
-                return
-        self._write(line)
+            else:
+                self._write_locked(line)
 
     def _print_held(self) -> None:
         """The printer thread: the earliest event's line once it has been held long enough."""
         with self._cond:
             while self._held is not None:
-                if not self._held:
+                due = self._held.next_due()
+                if due is None:
                     self._cond.wait()
                     continue
-                wait_s = self._held[0][2] - time.monotonic()
+                wait_s = due - time.monotonic()
                 if wait_s > 0:
                     self._cond.wait(wait_s)
                     continue
-                line = heapq.heappop(self._held)[3]
-                self._write_locked(line)
+                for line in self._held.due(time.monotonic()):
+                    self._write_locked(line)
 
     def refresh(self) -> None:
         """After :data:`QUIET_S` without a line, say what every drone is doing."""
@@ -207,10 +259,6 @@ class PlainDisplay:
     def say(self, text: str) -> None:
         """Print ``text`` on its own line, in order with the events around it."""
         self._show(self.clock(), text)
-
-    def _write(self, text: str) -> None:
-        with self._lock:
-            self._write_locked(text)
 
     def _write_locked(self, text: str) -> None:
         # A stream that cannot be written loses the line only: ``eamos-node``'s

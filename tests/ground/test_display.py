@@ -97,13 +97,16 @@ def test_a_batch_carries_every_change_in_order_and_unpacks_into_them() -> None:
 
 
 def test_lines_come_out_in_the_order_things_happened_not_as_they_arrived() -> None:
-    """A leader's "ok" arriving after its follower's "running" is still printed first."""
+    """A leader's "ok" arriving after its follower's "running" is still printed first.
+
+    (One drone's lines arrive in the order it sent them: tests/ground/test_display_order.py.)
+    """
     out = io.StringIO()
     view = DroneView("x")
     with PlainDisplay(out) as display:
         display.event("Drone2", view, event("Drone2", "running", "FlyByX(1)", AT + 0.2))
-        display.event("Drone1", view, event("Drone1", "ok", "Takeoff(2)", AT + 0.1))
         display.event("Drone1", view, event("Drone1", "running", "Arm()", AT))
+        display.event("Drone1", view, event("Drone1", "ok", "Takeoff(2)", AT + 0.1))
     lines = out.getvalue().splitlines()
     assert [line.split(None, 2)[2] for line in lines] == [
         "running   Arm()",
