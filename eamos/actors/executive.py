@@ -14,6 +14,7 @@ from ..net import wire
 from ..net.progress import ProgressEvent, progress_batch
 from ..program.format import DroneProgram
 from ..program.uniform import MOTION_ACTIONS
+from .alarm import Alarm
 from .dispatch import Dispatcher, RidesAlong
 from .failure import FailureSink, RuntimePart
 from .messages import ActionRecord, Interrupt, NodeEvent, NodeResolved, SendInterrupt
@@ -146,12 +147,16 @@ class DroneExecutive(RuntimePart):
         # (state, node, action, iteration, detail, finished, at), oldest first
         self._pending_progress: list[tuple[str, str, str, Iteration, str, int, float]] = []
         self._last_progress = float("-inf")
-        self._flush_timer: threading.Timer | None = None
+        # One thread for the executive's life, started in on_start (not a Timer, a
+        # new thread, per interval); it tells the executive to flush.
+        self._flush_alarm = Alarm(self._tell_flush, name=f"eamos-progress-{self.drone}")
+        self._flush_due = False
         self.resolved_event = threading.Event()
         if not self.top_level:
             self.resolved_event.set()
 
     def on_start(self) -> None:
+        self._flush_alarm.start()  # here, not in the first event's turn (on a trigger's path)
         if not self.top_level:
             self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
@@ -178,7 +183,7 @@ class DroneExecutive(RuntimePart):
                 urgent=message.state in ("failed", "blocked"),
             )
         elif isinstance(message, _FlushProgress):
-            self._flush_timer = None
+            self._flush_due = False
             self._flush_progress()
         elif isinstance(message, BroadcastInterrupt):
             for drone in message.drones:
@@ -197,8 +202,16 @@ class DroneExecutive(RuntimePart):
         return None
 
     def on_stop(self) -> None:
-        if self._flush_timer is not None:
-            self._flush_timer.cancel()
+        self._flush_alarm.stop()
+        # What a pending flush would have sent still goes (the send side closes
+        # after the actors stop).
+        self._flush_progress()
+
+    def _tell_flush(self) -> None:
+        try:
+            self.actor_ref.tell(_FlushProgress())
+        except pykka.ActorDeadError:
+            pass  # stopped meanwhile: on_stop sent what was pending
 
     def snapshot(self) -> ExecutiveSnapshot:
         """The records and counts so far."""
@@ -278,11 +291,9 @@ class DroneExecutive(RuntimePart):
             or len(self._pending_progress) >= PROGRESS_BATCH_MAX
         ):
             self._flush_progress()
-        elif self._flush_timer is None:
-            delay = PROGRESS_INTERVAL_S - (now - self._last_progress)
-            self._flush_timer = threading.Timer(delay, self.actor_ref.tell, (_FlushProgress(),))
-            self._flush_timer.daemon = True
-            self._flush_timer.start()
+        elif not self._flush_due:
+            self._flush_due = True
+            self._flush_alarm.arm(PROGRESS_INTERVAL_S - (now - self._last_progress))
 
     def _flush_progress(self) -> None:
         if self._pending_progress:
@@ -300,6 +311,9 @@ class DroneExecutive(RuntimePart):
             self.to_ground(batch)
             self._pending_progress = []
             self._last_progress = time.monotonic()
+        if self._flush_due:  # sent before the alarm: it need not fire
+            self._flush_due = False
+            self._flush_alarm.cancel()
 
     def _deliver(self, interrupt: Interrupt) -> None:
         for ref in self.scope_index.get(interrupt.scope, ()):

@@ -10,6 +10,7 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import zmq
+from zmq import zmq_poll
 
 from eamos.logs import make_logger
 from eamos.net.reconnect import Reconnector
@@ -27,6 +28,7 @@ from eamos.net.sockets import (
     connection_options,
     control_pair,
     curve_client,
+    recv_message,
     should_log,
 )
 from eamos.net.wire import Message, WireError, decode
@@ -61,7 +63,7 @@ def read_batch(sub: zmq.Socket[Any], limit: int = 256) -> list[list[bytes]]:
     batch: list[list[bytes]] = []
     for _ in range(limit):
         try:
-            batch.append(sub.recv_multipart(zmq.NOBLOCK))
+            batch.append(recv_message(sub))
         except zmq.Again:
             break
         if not sub.getsockopt(EVENTS_OPT) & POLLIN_BIT:  # type: ignore[operator]
@@ -281,25 +283,29 @@ class InBridge(BridgeThread):
     # -- receive thread ----------------------------------------------------
 
     def _run(self) -> None:
-        poller = zmq.Poller()
-        poller.register(self._ctrl_rx, zmq.POLLIN)
-        for sub in self._subs:
-            poller.register(sub, zmq.POLLIN)
+        ctrl = self._ctrl_rx
+        subs = self._subs
         monitors = {m.socket: m for m in self._monitors}
-        for mon in monitors:
-            poller.register(mon, zmq.POLLIN)
+        # One list of poll items for the thread's life (zmq.Poller builds one per
+        # call, and a dict of the result per wake-up); results come in this
+        # order, so the control pipe is seen first.
+        items: list[tuple[Any, int]] = [(ctrl, POLLIN_BIT)]
+        items += [(sub, POLLIN_BIT) for sub in subs]
+        items += [(mon, POLLIN_BIT) for mon in monitors]
+        reconnector = self._reconnector
         try:
             while True:
-                events = dict(poller.poll(self._reconnector.poll_timeout_ms()))
-                if self._ctrl_rx in events and not self._drain_control():
+                timeout = reconnector.poll_timeout_ms()
+                events = zmq_poll(items, -1 if timeout is None else timeout)
+                if events and events[0][0] is ctrl and not self._drain_control():
                     return
-                self._reconnector.reconnect_due()
+                reconnector.reconnect_due()
                 delivered = False
-                for sock in events:
-                    peer = self._subs.get(sock)
+                for sock, _ in events:
+                    peer = subs.get(sock)
                     if peer is not None:
                         delivered = self._drain_sub(sock, peer) or delivered
-                    elif sock in monitors:
+                    elif sock is not ctrl:
                         monitors[sock].drain()
                 if self._closed:
                     return  # close() was called from on_message

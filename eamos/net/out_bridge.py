@@ -27,6 +27,7 @@ from eamos.net.sockets import (
     connection_options,
     control_pair,
     curve_server,
+    send_message,
 )
 from eamos.net.wire import Message, encode
 
@@ -152,7 +153,7 @@ class OutBridge(BridgeThread):
                 return False
             # XPUB never blocks: it drops for a peer whose queue is at the HWM
             # (hence the large HWM).
-            self._xpub.send_multipart(frames)
+            send_message(self._xpub, frames)
             # The send may have consumed the socket's wake-up signal (ZMQ_FD is
             # edge-triggered) with a subscription waiting: hand it to the thread.
             if self._started and self._xpub.getsockopt(EVENTS_OPT) & POLLIN_BIT:

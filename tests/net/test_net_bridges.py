@@ -11,6 +11,7 @@ import msgpack
 import pytest
 import zmq
 
+import eamos.net.out_bridge as out_bridge_module
 from eamos.logs import close_logger, make_logger, read_log
 from eamos.net import (
     TOPIC_ALL,
@@ -108,7 +109,7 @@ def test_concurrent_senders_keep_per_sender_order(bridges: Bridges) -> None:
 
 
 def test_senders_write_the_socket_themselves_and_subscriptions_are_still_seen(
-    bridges: Bridges,
+    bridges: Bridges, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """No hand-over to the bridge thread, yet a subscriber joining mid-stream is noticed.
 
@@ -118,13 +119,14 @@ def test_senders_write_the_socket_themselves_and_subscriptions_are_still_seen(
     """
     out = bridges.out()
     sending_threads: set[str] = set()
-    real = out._xpub.send_multipart
+    real = out_bridge_module.send_message
 
-    def spy(frames: Any, *args: Any, **kw: Any) -> Any:
-        sending_threads.add(threading.current_thread().name)
-        return real(frames, *args, **kw)
+    def spy(sock: Any, frames: Any) -> None:
+        if sock is out._xpub:
+            sending_threads.add(threading.current_thread().name)
+        real(sock, frames)
 
-    out._xpub.send_multipart = spy  # type: ignore[method-assign]
+    monkeypatch.setattr(out_bridge_module, "send_message", spy)
     stop = threading.Event()
 
     def flood() -> None:
