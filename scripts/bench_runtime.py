@@ -51,6 +51,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -611,6 +612,22 @@ def _median_tree(items: list) -> object:
     return first
 
 
+def sections(tmp: Path, quick: bool) -> list[tuple[str, Callable[[], dict]]]:
+    """Every section's name and how to run it, writing into ``tmp``."""
+    return [
+        ("startup", lambda: bench_startup(tmp)),
+        ("local_trigger", lambda: bench_local(tmp, 200 if quick else 2000)),
+        ("cross_drone", lambda: bench_cross(tmp, 100 if quick else 1000)),
+        ("reference_hops", lambda: bench_reference_hops(200 if quick else 2000)),
+        ("mission_5000", lambda: bench_mission(tmp, 4 if quick else 20, 5 if quick else 10, 25)),
+        (
+            "net_latency",
+            lambda: bench_net_latency(tmp, 100 if quick else 1000, 50 if quick else 300),
+        ),
+        ("net_bytes", lambda: bench_net_bytes(tmp, 50 if quick else 500)),
+    ]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -630,30 +647,14 @@ def main() -> int:
     args = parser.parse_args()
     out: dict = {}
     with tempfile.TemporaryDirectory() as tmp_name:
-        tmp = Path(tmp_name)
-        steps = [
-            ("startup", lambda: bench_startup(tmp)),
-            ("local_trigger", lambda: bench_local(tmp, 200 if args.quick else 2000)),
-            ("cross_drone", lambda: bench_cross(tmp, 100 if args.quick else 1000)),
-            ("reference_hops", lambda: bench_reference_hops(200 if args.quick else 2000)),
-            (
-                "mission_5000",
-                lambda: bench_mission(tmp, 4 if args.quick else 20, 5 if args.quick else 10, 25),
-            ),
-            (
-                "net_latency",
-                lambda: bench_net_latency(
-                    tmp, 100 if args.quick else 1000, 50 if args.quick else 300
-                ),
-            ),
-            ("net_bytes", lambda: bench_net_bytes(tmp, 50 if args.quick else 500)),
-        ]
-        chosen = [(n, s) for n, s in steps if not args.only or n in args.only]
         rounds: list[dict] = []
         for r in range(max(1, args.rounds)):
+            # A folder per round: a run folder reused would append to the last round's logs.
+            tmp = Path(tmp_name) / f"round-{r + 1}"
+            tmp.mkdir()
             figures: dict = {}
-            for name, step in chosen:
-                if r > 0 and name not in TRIGGER_PATH:
+            for name, step in sections(tmp, args.quick):
+                if (args.only and name not in args.only) or (r > 0 and name not in TRIGGER_PATH):
                     continue
                 if not args.json:
                     print(f"... {name} (round {r + 1})", file=sys.stderr, flush=True)
