@@ -108,32 +108,20 @@ _SCALARS: Final = frozenset({type(None), bool, int, float, str, bytes})
 def _check_plain(value: Any, name: str, depth: int) -> None:
     if depth > MAX_DEPTH:
         raise WireError(f"{name}: nested deeper than {MAX_DEPTH}")
-    kind = type(value)
-    if kind is dict:
+    if type(value) in _SCALARS or isinstance(value, bool | int | float | str | bytes):
+        return
+    # A scalar item needs no call of its own (it is plain), unless at the depth limit.
+    if isinstance(value, list | tuple):
+        for item in value:
+            if type(item) not in _SCALARS or depth >= MAX_DEPTH:
+                _check_plain(item, name, depth + 1)
+        return
+    if isinstance(value, dict):
         for key, item in value.items():
             if type(key) is not str and not isinstance(key, str):
                 raise WireError(f"{name}: map keys must be str, got {key!r}")
             if type(item) not in _SCALARS or depth >= MAX_DEPTH:
                 _check_plain(item, name, depth + 1)
-        return
-    if kind is list or kind is tuple:
-        for item in value:
-            if type(item) not in _SCALARS or depth >= MAX_DEPTH:
-                _check_plain(item, name, depth + 1)
-        return
-    if value is None or isinstance(value, bool | int | str | bytes):
-        return
-    if isinstance(value, float):
-        return
-    if isinstance(value, list | tuple):
-        for item in value:
-            _check_plain(item, name, depth + 1)
-        return
-    if isinstance(value, dict):
-        for key, item in value.items():
-            if not isinstance(key, str):
-                raise WireError(f"{name}: map keys must be str, got {key!r}")
-            _check_plain(item, name, depth + 1)
         return
     raise WireError(f"{name}: {type(value).__name__} is not plain data")
 
