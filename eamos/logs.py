@@ -45,16 +45,27 @@ def _line_encoder() -> Callable[[Any], str]:
 _ENCODE = _line_encoder()
 
 
-def _render_line(logger: Any, method: str, event: MutableMapping[str, Any]) -> str:
+def _render_line(
+    logger: Any, method: str, event: MutableMapping[str, Any], at: float | None = None
+) -> str:
     """structlog's ``add_log_level``, the ``ts`` stamp, ``format_exc_info`` and
     ``JSONRenderer(sort_keys=False, default=str)`` in one step: same line, same key
-    order, a quarter of the calls (every trigger writes several lines)."""
+    order, a quarter of the calls (every trigger writes several lines).  ``at``:
+    the stamp of a line written after the moment it tells of (default now)."""
     event["level"] = _LEVEL_OF.get(method, method)
     if "ts" not in event:
-        event["ts"] = round(time.time(), 6)
+        event["ts"] = round(time.time() if at is None else at, 6)
     if "exc_info" in event:
         event = structlog.processors.format_exc_info(logger, method, event)
     return _ENCODE(event)
+
+
+def _event_dict(bound: Any, event: str, fields: dict[str, Any]) -> dict[str, Any]:
+    """What structlog hands its processors: the bound context, the fields, ``event``."""
+    event_dict: dict[str, Any] = bound._context.copy()
+    event_dict.update(fields)
+    event_dict["event"] = event
+    return event_dict
 
 
 def _fast_method(name: str, slow: Callable[..., Any]) -> Callable[..., Any]:
@@ -70,11 +81,8 @@ def _fast_method(name: str, slow: Callable[..., Any]) -> Callable[..., Any]:
     def method(self: Any, event: str, *args: Any, **kw: Any) -> Any:
         if args:
             return slow(self, event, *args, **kw)
-        event_dict = self._context.copy()
-        event_dict.update(kw)
-        event_dict["event"] = event
         sink = self._logger
-        return getattr(sink, name)(_render_line(sink, name, event_dict))
+        return getattr(sink, name)(_render_line(sink, name, _event_dict(self, event, kw)))
 
     return method
 
@@ -343,6 +351,11 @@ def make_logger(
     return logger.bind(**context)  # type: ignore[no-any-return]
 
 
+#: A log line held back by its caller: (logger, method, event, fields, its time.time()),
+#: written with :func:`log_line`.
+LogLine = tuple[Any, str, str, dict[str, Any], float]
+
+
 def log_line(
     logger: Any, method: str, event: str, fields: dict[str, Any], at: float | None = None
 ) -> None:
@@ -359,14 +372,8 @@ def log_line(
         return
     if not enabled(_LEVELS[method]):
         return
-    # What _render_line does, with the given time.
-    event_dict = logger._context.copy()
-    event_dict.update(fields)
-    event_dict["event"] = event
-    event_dict["level"] = method
-    if "ts" not in event_dict:
-        event_dict["ts"] = round(time.time() if at is None else at, 6)
-    getattr(logger._logger, method)(_ENCODE(event_dict))
+    sink = logger._logger
+    getattr(sink, method)(_render_line(sink, method, _event_dict(logger, event, fields), at))
 
 
 def close_logger(logger: Any) -> None:

@@ -33,7 +33,7 @@ from typing import Any
 
 import pykka
 
-from ..logs import log_line
+from ..logs import LogLine, log_line
 from ..program.format import ProgramNode
 from .dispatch import Dispatcher, LazyMail, PooledActor
 from .failure import tell_operator
@@ -193,7 +193,7 @@ class MissionNode(PooledActor):
         self._inline: list[ActionFinished] = []  # actions the adapter ended inside run()
         self._results_held = False  # the uniform space holds result lines of this turn
         # This turn's mission-log lines (logger, method, event, fields, time), not written yet.
-        self._lines: list[tuple[Any, str, str, dict[str, Any], float]] = []
+        self._lines: list[LogLine] = []
 
     # -- messages -> logic inputs ---------------------------------------------------
 
@@ -380,7 +380,7 @@ class MissionNode(PooledActor):
             self._tell(ref, Release(fx.iteration))
 
     def _note(self, fx: Note) -> None:
-        self._lines.append((self.log, fx.level, fx.event, fx.fields, time.time()))
+        self._line(fx.level, fx.event, **fx.fields)
 
     # -- failure policy -----------------------------------------------------------------
 

@@ -7,16 +7,13 @@ import time
 from collections.abc import Iterable
 from typing import Any
 
-from ..logs import log_line
+from ..logs import LogLine, log_line
 from ..net import wire
 from ..net.link import Link
 from ..net.trusted import trusted
 from .messages import SendInterrupt, SendTrigger, Trigger
 
-__all__ = ["LogLine", "Outbox"]
-
-#: A log line not written yet: (logger, method, event, fields, its time.time()).
-LogLine = tuple[Any, str, str, dict[str, Any], float]
+__all__ = ["Outbox"]
 
 
 def _write(line: LogLine) -> None:
@@ -97,22 +94,21 @@ class Outbox:
             self._sent.add(key)
             self.triggers_sent += 1
             self.sent_by_dest[dest] = self.sent_by_dest.get(dest, 0) + 1
-        if dest not in self._checked:
-            # Checked once per destination; the rest the program and the logic made.
-            self._check(dest, t)
+        values: dict[str, Any] = {
+            "mission": self.mission_id,
+            "sender": self.drone,
+            "dest": dest,
+            "src_node": t.src,
+            "dst_node": t.dst,
+            "iteration": tuple(t.iteration),
+            "status": t.status,
+        }
+        if dest in self._checked:  # the program and the node logic made the values
+            msg = trusted(wire.Trigger, **values)
+        else:  # the first Trigger to each destination checked in full (a WireError if bad)
+            msg = wire.Trigger(**values)
             self._checked.add(dest)
-        self.bridge.send(
-            trusted(
-                wire.Trigger,
-                mission=self.mission_id,
-                sender=self.drone,
-                dest=dest,
-                src_node=t.src,
-                dst_node=t.dst,
-                iteration=tuple(t.iteration),
-                status=t.status,
-            )
-        )
+        self.bridge.send(msg)
         fields = {
             "dest": dest,
             "src": t.src,
@@ -121,18 +117,6 @@ class Outbox:
             "status": t.status,
         }
         return (self.log, "info", "mission.outbridge.sent", fields, time.time())
-
-    def _check(self, dest: str, t: Trigger) -> None:
-        """The checks of a wire Trigger, on the first one to ``dest`` (a WireError if bad)."""
-        wire.Trigger(
-            mission=self.mission_id,
-            sender=self.drone,
-            dest=dest,
-            src_node=t.src,
-            dst_node=t.dst,
-            iteration=t.iteration,
-            status=t.status,
-        )
 
     def seal(self) -> None:
         """Drop node triggers and interrupts from now on (the drone's nodes no longer speak)."""
