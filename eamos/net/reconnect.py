@@ -11,10 +11,12 @@ drone that came up just after a refusal waited up to that long for the ground
 station's connection, and so for its Ready to count.  Instead, the ground
 station connects to a drone when the drone's own connection subscribes to the
 ground station's Out-Bridge: then the drone has bound its socket, and the
-connection succeeds at once.  After a protocol error (an oversized frame, a failed handshake)
-libzmq never reconnects: :meth:`Reconnector.disconnected` schedules our own
-reconnect for when libzmq has not started its own retry within
-:data:`RECONNECT_GRACE_S`, and then at most every :data:`OWN_RECONNECT_EVERY_S`.
+connection succeeds at once.
+
+After a protocol error (an oversized frame, a failed handshake) libzmq never
+reconnects: :meth:`Reconnector.disconnected` schedules our own reconnect for
+when libzmq has not started its own retry within :data:`RECONNECT_GRACE_S`, and
+then at most every :data:`OWN_RECONNECT_EVERY_S`.
 """
 
 from __future__ import annotations
