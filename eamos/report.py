@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from eamos.frozen import frozen
+
 from .ground.summary import ActionEntry, DroneReport, RunSummary
 from .hal.api import POSITION_LOG_HZ
 from .logs import LOG_NAMES, read_log
@@ -391,7 +393,7 @@ _GANTT_CHAR_PT = 0.6 * _GANTT_FONT_PT
 _GANTT_ROW_PT = 0.7 * 0.9 * 72
 
 
-@dataclass(frozen=True)
+@frozen
 class GanttLabel:
     """Where one bar's label goes: its bar's index, the x centre, upright or turned."""
 

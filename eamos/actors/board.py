@@ -15,10 +15,12 @@ import threading
 import time
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 import pykka
+
+from eamos.frozen import frozen
 
 from ..hal.api import Telemetry
 from ..net import wire
@@ -68,7 +70,7 @@ def shows_effect(action: str | None, sample: Telemetry) -> bool:
     )
 
 
-@dataclass(frozen=True)
+@frozen
 class LocalSample:
     """A sample of this drone's vehicle, stamped (monotonic) when the adapter handed it over."""
 
@@ -76,14 +78,14 @@ class LocalSample:
     received_s: float = field(default_factory=time.monotonic)
 
 
-@dataclass(frozen=True)
+@frozen
 class WhenLanded:
     """Set ``event`` once the vehicle reports it is on the ground (at once if it is)."""
 
     event: threading.Event
 
 
-@dataclass(frozen=True)
+@frozen
 class FinalSample:
     """Answer ``reply`` with the vehicle's state once its last action ended.
 
@@ -115,7 +117,7 @@ def ask_final_sample(
         return None
 
 
-@dataclass(frozen=True)
+@frozen
 class _FinalDeadline:
     request: FinalSample
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 import pykka
+
+from eamos.frozen import frozen
 
 from ..net import wire
 from ..net.progress import ProgressEvent, progress_batch
@@ -43,7 +45,7 @@ PROGRESS_BATCH_MAX = 256
 STATE_ACTIONS = MOTION_ACTIONS | {"Arm", "Disarm"}
 
 
-@dataclass(frozen=True)
+@frozen
 class TriggerReceived(RidesAlong):
     """The in-bridge delivered a trigger from ``src_drone`` (counted for Table 7; the
     count rides along with the executive's next mail: it wakes no thread)."""
@@ -51,24 +53,24 @@ class TriggerReceived(RidesAlong):
     src_drone: str
 
 
-@dataclass(frozen=True)
+@frozen
 class DeliverInterrupt:
     """An interrupt from another drone, for this drone's nodes in its scope."""
 
     interrupt: Interrupt
 
 
-@dataclass(frozen=True)
+@frozen
 class AskActivity:
     """Ask: the executive's :class:`~.stranded.Activity` (resolved? idle since when?)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Snapshot:
     """Ask: the executive's :class:`ExecutiveSnapshot`."""
 
 
-@dataclass(frozen=True)
+@frozen
 class ExecutiveSnapshot:
     """What the executive knows at one moment (for the drone's report)."""
 
@@ -102,7 +104,7 @@ def ask_activity(executive: Any, timeout_s: float) -> Activity:
     return answer
 
 
-@dataclass(frozen=True)
+@frozen
 class _FlushProgress:
     pass
 

@@ -16,9 +16,10 @@ import sys
 import threading
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass
 from types import TracebackType
 from typing import Any, ClassVar
+
+from eamos.frozen import frozen
 
 from .dispatch import PooledActor
 
@@ -40,7 +41,7 @@ def tell_operator(drone: str, text: str) -> None:
         pass
 
 
-@dataclass(frozen=True)
+@frozen
 class RuntimeFailure:
     """One exception in a part of a drone runtime."""
 

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import pykka
+
+from eamos.frozen import frozen
 
 from ..net import wire
 from ..net.link import PeerStatus, TelemetryStale
@@ -22,7 +23,7 @@ __all__ = ["InRouter"]
 _CONTROL = (wire.Start, wire.Abort, wire.Complete)
 
 
-@dataclass(frozen=True)
+@frozen
 class InRouter:
     """Called by the link (on its receive thread) with every message for this participant.
 

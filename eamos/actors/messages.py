@@ -6,13 +6,15 @@ these never leave the process.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
+
+from eamos.frozen import frozen
 
 from .state import Iteration, Status
 
 
-@dataclass(frozen=True)
+@frozen
 class Trigger:
     """A precondition arc delivers: node ``src`` finished ``iteration`` with ``status``."""
 
@@ -22,7 +24,7 @@ class Trigger:
     status: Status
 
 
-@dataclass(frozen=True)
+@frozen
 class RemoteTrigger(Trigger):
     """A :class:`Trigger` the In-Bridge delivered from drone ``src_drone``.
 
@@ -33,12 +35,12 @@ class RemoteTrigger(Trigger):
     src_drone: str = ""
 
 
-@dataclass(frozen=True)
+@frozen
 class Fire:
     """Start the initial node (the ground station's start trigger)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Interrupt:
     """The structure ``scope`` (a Do or Repeat begin node) interrupts its body."""
 
@@ -47,14 +49,14 @@ class Interrupt:
     mode: str  # "all", "waits", or a Whenever's "suspend"/"resume"
 
 
-@dataclass(frozen=True)
+@frozen
 class Release:
     """A Do's end node tells its begin node that Body is over: stop watching."""
 
     iteration: Iteration
 
 
-@dataclass(frozen=True)
+@frozen
 class PeerLost:
     """The drone hosting the nodes ``sources`` (keys) is lost for good (its link is gone).
 
@@ -65,7 +67,7 @@ class PeerLost:
     sources: frozenset[str]
 
 
-@dataclass(frozen=True)
+@frozen
 class TelemetryChanged:
     """New property values of one drone, for the nodes watching it."""
 
@@ -73,7 +75,7 @@ class TelemetryChanged:
     values: dict[str, Any] = field(hash=False)
 
 
-@dataclass(frozen=True)
+@frozen
 class Watch:
     """Ask the telemetry board for updates of these drones."""
 
@@ -81,19 +83,19 @@ class Watch:
     drones: tuple[str, ...]
 
 
-@dataclass(frozen=True)
+@frozen
 class Unwatch:
     watcher: Any
 
 
-@dataclass(frozen=True)
+@frozen
 class LocalTelemetry:
     """A sample of this drone's own state, from its adapter."""
 
     sample: Any  # eamos.hal.Telemetry
 
 
-@dataclass(frozen=True)
+@frozen
 class RemoteTelemetry:
     """A telemetry sample received from another drone."""
 
@@ -101,14 +103,14 @@ class RemoteTelemetry:
     values: dict[str, Any] = field(hash=False)
 
 
-@dataclass(frozen=True)
+@frozen
 class AbortMission:
     """Stop executing: no more actions, no more triggers."""
 
     reason: str = ""
 
 
-@dataclass(frozen=True)
+@frozen
 class SendTrigger:
     """Ask the out-bridge to deliver a trigger to another drone."""
 
@@ -116,7 +118,7 @@ class SendTrigger:
     trigger: Trigger
 
 
-@dataclass(frozen=True)
+@frozen
 class SendInterrupt:
     """Ask the out-bridge to deliver an interrupt to another drone."""
 
@@ -124,7 +126,7 @@ class SendInterrupt:
     interrupt: Interrupt
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionRecord:
     """One action a node ran, for the summary (times in epoch seconds)."""
 
@@ -138,7 +140,7 @@ class ActionRecord:
     reason: str = ""
 
 
-@dataclass(frozen=True)
+@frozen
 class NodeEvent:
     """A node started or finished something worth showing live."""
 
@@ -149,7 +151,7 @@ class NodeEvent:
     detail: str = ""
 
 
-@dataclass(frozen=True)
+@frozen
 class NodeResolved:
     """A top-level node (outside any loop) has finished for good."""
 

@@ -27,11 +27,12 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
 import pykka
+
+from eamos.frozen import frozen
 
 from ..logs import LogLine, log_line
 from ..program.format import ProgramNode
@@ -112,7 +113,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@frozen
 class Links:
     """Who a node talks to; handed over once all actors of the runtime exist."""
 
@@ -126,14 +127,14 @@ class Links:
     uniform: UniformSpace | None = None
 
 
-@dataclass(frozen=True)
+@frozen
 class Wire:
     """Give a node its links (first message every node receives)."""
 
     links: Links
 
 
-@dataclass(frozen=True)
+@frozen
 class BroadcastInterrupt:
     """A begin node asks the executive to interrupt its body on these drones."""
 
@@ -141,7 +142,7 @@ class BroadcastInterrupt:
     drones: tuple[str, ...]
 
 
-@dataclass(frozen=True)
+@frozen
 class ExecutiveNews(LazyMail):
     """What one message to a node meant for the executive, in order, as one message.
 

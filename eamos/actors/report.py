@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import TYPE_CHECKING, Any, Final
+
+from eamos.frozen import frozen
 
 if TYPE_CHECKING:  # the report itself needs only the standard library
     from ..hal.api import Telemetry
@@ -64,7 +66,7 @@ def _get(data: Mapping[str, Any], key: str, kind: type | tuple[type, ...], where
     return value
 
 
-@dataclass(frozen=True)
+@frozen
 class FinalState:
     """Where the vehicle was, and how, once its last action ended."""
 
@@ -94,7 +96,7 @@ class FinalState:
         )
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionEntry:
     """One action the drone ran (``reason`` only when there is one)."""
 
@@ -142,7 +144,7 @@ class ActionEntry:
         )
 
 
-@dataclass(frozen=True)
+@frozen
 class FoldedActions:
     """The oldest actions of a long mission, counted instead of listed (see the module doc)."""
 
@@ -244,7 +246,7 @@ def fold_actions(
     return listed, FoldedActions.of(actions[:keep]).merged(folded)
 
 
-@dataclass(frozen=True)
+@frozen
 class DroneReport:
     """One drone's part of the run summary (see the module docstring for its JSON)."""
 

@@ -24,6 +24,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Literal
 
+from eamos.frozen import frozen
+
 Status = Literal["done", "skipped", "failed"]
 Group = Literal["entry", "loop"]
 Iteration = tuple[int, ...]
@@ -47,7 +49,7 @@ def combine(statuses: Iterable[Status]) -> Status:
     return "skipped"
 
 
-@dataclass(frozen=True)
+@frozen
 class Fired:
     """A precondition group completed for one activation."""
 

@@ -20,8 +20,9 @@ the link's peer events); the drone's loop (:mod:`.drone`) applies the answer.
 from __future__ import annotations
 
 from collections.abc import Collection, Iterable, Mapping
-from dataclasses import dataclass
 from typing import Any
+
+from eamos.frozen import frozen
 
 from ..config import END_POLICIES, NodeConfig
 from ..program.format import DroneProgram
@@ -47,7 +48,7 @@ DEFAULT_PEER_WAIT_LIMIT_S: float = NodeConfig.peer_wait_limit_s
 _SILENT_STATES = ("lost", "left")
 
 
-@dataclass(frozen=True)
+@frozen
 class Activity:
     """What the executive says about the drone's progress, at one moment."""
 
@@ -55,7 +56,7 @@ class Activity:
     idle_since: float | None  # monotonic time no action has run since; None: one runs now
 
 
-@dataclass(frozen=True)
+@frozen
 class EndOnOwn:
     """The drone ends its part on its own: ``stranded`` or ``no_complete``, and why."""
 

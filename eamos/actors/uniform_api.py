@@ -41,6 +41,7 @@ from typing import Any
 
 import pykka
 
+from eamos.frozen import frozen
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
 from eamos.logs import log_line
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
@@ -49,7 +50,7 @@ from eamos.program.uniform import ACTIONS, CommandError, decode_command
 from .failure import tell_operator
 
 
-@dataclass(frozen=True)
+@frozen
 class RunAction:
     """Start ``action(*args)``; the answer goes to ``reply_to`` as :class:`ActionFinished`.
 
@@ -63,19 +64,19 @@ class RunAction:
     reply_to: pykka.ActorRef[Any]
 
 
-@dataclass(frozen=True)
+@frozen
 class CancelAction:
     """Cancel the action started with ``token``; unknown or finished tokens are ignored."""
 
     token: Hashable
 
 
-@dataclass(frozen=True)
+@frozen
 class Abort:
     """Cancel every running action and land the vehicle (the adapter's ``abort``)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionFinished:
     """The one reply to a :class:`RunAction`; times are epoch seconds (``time.time()``)."""
 

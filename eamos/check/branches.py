@@ -25,7 +25,8 @@ it met, so the explorer can queue each alternative as a new run.
 from __future__ import annotations
 
 from collections.abc import Collection
-from dataclasses import dataclass
+
+from eamos.frozen import frozen
 
 from ..actors.logic import ActionLogic, ConditionLogic, LoopLogic
 from ..actors.state import Iteration, holds
@@ -51,7 +52,7 @@ _NAMES = {
 _PURPOSES = frozenset({"if", "wait", "loop", "do", "whenever"})
 
 
-@dataclass(frozen=True)
+@frozen
 class ChoicePoint:
     """One decision of an unknowable condition, and which way this run took it."""
 

@@ -8,15 +8,17 @@ human one (``file:line:col: error|warning: ...`` and one summary line per run).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any, Literal
+
+from eamos.frozen import frozen
 
 Severity = Literal["error", "warning"]
 #: A point in the fleet frame: north, east, up (metres).
 Point = tuple[float, float, float]
 
 
-@dataclass(frozen=True)
+@frozen
 class Place:
     """Where in the mission text: a node's action (or condition) and its line and column."""
 
@@ -37,7 +39,7 @@ class Place:
         }
 
 
-@dataclass(frozen=True)
+@frozen
 class Finding:
     """One thing the check found, as an error (the mission would fail) or a warning.
 
@@ -85,7 +87,7 @@ class Finding:
         }
 
 
-@dataclass(frozen=True)
+@frozen
 class RunSummary:
     """One explored run: its branch label, how long it took, what was checked."""
 
@@ -108,7 +110,7 @@ class RunSummary:
         }
 
 
-@dataclass(frozen=True)
+@frozen
 class CheckReport:
     """The outcome of :func:`eamos.check.check_mission`."""
 

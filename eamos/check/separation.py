@@ -14,14 +14,15 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+
+from eamos.frozen import frozen
 
 from .tracks import Track
 
 _EPS = 1e-12
 
 
-@dataclass(frozen=True)
+@frozen
 class Conflict:
     """Two drones closer than the minimum: when, the closest point, the distances."""
 

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from eamos.frozen import frozen
+
 from .errors import BadInput, command
 from .exits import EXIT_OK
 from .options import add_verbose
@@ -25,7 +27,7 @@ if TYPE_CHECKING:
     from eamos.monitor.server import MonitorServer
 
 
-@dataclass(frozen=True)
+@frozen
 class MonitorOptions:
     """``--monitor``, ``--port``, ``--open``."""
 

@@ -13,6 +13,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
+from eamos.frozen import frozen
+
 from ..hints import closest
 from .source import display_line, split_lines
 
@@ -38,7 +40,7 @@ NOWHERE = SourceLocation(1, 1)
 _EXCERPT = 160
 
 
-@dataclass(frozen=True)
+@frozen
 class Diagnostic:
     """One finding about a mission, with where it is and how to fix it.
 

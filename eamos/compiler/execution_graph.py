@@ -62,9 +62,10 @@ Shapes per construct (C = begin, E = end, X = Exit block):
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 
 import networkx as nx
+
+from eamos.frozen import frozen
 
 from .errors import CompilerBug
 from .mission_tree import (
@@ -91,7 +92,7 @@ _CARRIED = (
 )
 
 
-@dataclass(frozen=True)
+@frozen
 class _Fragment:
     entries: tuple[int, ...]
     exits: tuple[int, ...]

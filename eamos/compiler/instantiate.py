@@ -17,7 +17,9 @@ calls, which are acyclic and whose expanded size is within
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import field
+
+from eamos.frozen import frozen
 
 from ..program.uniform import ACTIONS
 from .check import argument_problem
@@ -42,7 +44,7 @@ from .syntax import (
 )
 
 
-@dataclass(frozen=True)
+@frozen
 class _Binding:
     """What a copy's parameters stand for."""
 

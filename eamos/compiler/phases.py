@@ -12,10 +12,12 @@ from __future__ import annotations
 import dataclasses
 import gc
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 
 import networkx as nx
+
+from eamos.frozen import frozen
 
 from .. import __version__
 from ..program.format import DroneProgram
@@ -32,7 +34,7 @@ from .syntax import LibraryFile, Mission
 from .synthesis import synthesize_program
 
 
-@dataclass(frozen=True)
+@frozen
 class CompiledMission:
     """Everything one compilation produces (graphs are networkx graphs)."""
 

@@ -6,27 +6,29 @@ source locations, before any block is expanded into the mission tree.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Literal
+
+from eamos.frozen import frozen
 
 from .errors import SourceLocation
 
 # -- conditions ---------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@frozen
 class Num:
     value: float
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class Bool:
     value: bool
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class Prop:
     """A drone property read, ``D3.X()``."""
 
@@ -35,14 +37,14 @@ class Prop:
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class Unary:
     op: Literal["!", "-"]
     operand: Expr
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class Binary:
     op: str  # && || == != < <= > >= + - * /
     left: Expr
@@ -50,7 +52,7 @@ class Binary:
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class Name:
     """A block parameter read by name (``dist_m``, or a drone parameter ``d``)."""
 
@@ -64,7 +66,7 @@ Expr = Num | Bool | Prop | Unary | Binary | Name
 # -- statements ---------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionCall:
     """``Drone1.Takeoff(1.5)``; ``drone`` is None for a bare ``PauseFor(5)``."""
 
@@ -78,7 +80,7 @@ class ActionCall:
     exprs: tuple[Expr, ...] = ()
 
 
-@dataclass(frozen=True)
+@frozen
 class BlockCall:
     """``SEQ_Start()`` or ``lib.SEQ_Hop(D1, 5)``: run another block here.
 
@@ -123,7 +125,7 @@ CONTROL_KINDS: tuple[str, ...] = (
 )
 
 
-@dataclass(frozen=True)
+@frozen
 class BlockRef:
     """A block named as an argument of a control structure (Body, Then, Else, Exit).
 
@@ -135,7 +137,7 @@ class BlockRef:
     args: tuple[Expr, ...] = ()
 
 
-@dataclass(frozen=True)
+@frozen
 class Control:
     """A control structure of the paper's Table 3."""
 
@@ -154,7 +156,7 @@ class Control:
 Statement = ActionCall | BlockCall | Control
 
 
-@dataclass(frozen=True)
+@frozen
 class Param:
     """A block or action parameter: ``dist_m float64`` or ``d Quadcopter``."""
 
@@ -164,7 +166,7 @@ class Param:
     type_loc: SourceLocation | None = None
 
 
-@dataclass(frozen=True)
+@frozen
 class Block:
     """One ``func``: SEQ_ blocks run in order, PAR_ blocks in parallel."""
 
@@ -175,7 +177,7 @@ class Block:
     params: tuple[Param, ...] = ()
 
 
-@dataclass(frozen=True)
+@frozen
 class MethodDecl:
     """An action a declared drone type adds: ``Gimbal(pitch_deg float64)``."""
 
@@ -184,7 +186,7 @@ class MethodDecl:
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class TypeDecl:
     """``type Inspector interface { Quadcopter; TakePhoto() }``: a drone type."""
 
@@ -194,7 +196,7 @@ class TypeDecl:
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class Import:
     """``import "inspection"``: a library folder, and the package name it gives."""
 
@@ -202,7 +204,7 @@ class Import:
     loc: SourceLocation
 
 
-@dataclass(frozen=True)
+@frozen
 class LibraryFile:
     """A library file a mission was built from, and the SHA-256 of its bytes."""
 
@@ -211,7 +213,7 @@ class LibraryFile:
     sha256: str
 
 
-@dataclass(frozen=True)
+@frozen
 class DroneDecl:
     """``var Drone1 DroneType1``."""
 
@@ -221,7 +223,7 @@ class DroneDecl:
     type_loc: SourceLocation | None = None
 
 
-@dataclass(frozen=True)
+@frozen
 class Mission:
     """A whole parsed mission file."""
 

@@ -51,9 +51,11 @@ their range:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
+
+from eamos.frozen import frozen
 
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import LinkSettings
@@ -75,7 +77,7 @@ from .validation import (
 EXIT_CODE_FILE = "exit_code"
 
 
-@dataclass(frozen=True)
+@frozen
 class NodeConfig:
     """Everything ``eamos-node`` needs to run one drone."""
 

@@ -15,12 +15,12 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 from typing import Any
 
 from eamos.actors.runtime import DroneRuntime, NetSettings
+from eamos.frozen import frozen
 from eamos.hal import make_adapter
 from eamos.logs import make_logger
 from eamos.net import wire
@@ -36,7 +36,7 @@ REPORT_WAIT_OK_S = 60.0
 REPORT_WAIT_ABORTED_S = 180.0
 
 
-@dataclass(frozen=True)
+@frozen
 class Limits:
     """How long the ground station waits for each phase (seconds)."""
 
@@ -46,7 +46,7 @@ class Limits:
     report_aborted_s: float = REPORT_WAIT_ABORTED_S
 
 
-@dataclass(frozen=True)
+@frozen
 class Flight:
     """How the run loop ended."""
 

@@ -34,6 +34,7 @@ from eamos.config import (
     fleet_order,
     in_range,
 )
+from eamos.frozen import frozen
 from eamos.hal import AdapterError, make_adapter
 from eamos.logs import make_logger
 from eamos.net.keys import FleetKeys, create_fleet_keys
@@ -367,7 +368,7 @@ class LocalFleet:
             self.wait(10)
 
 
-@dataclass(frozen=True)
+@frozen
 class LocalMission:
     """A compiled mission to fly here: its programs are in ``run_dir/programs/``."""
 

@@ -31,6 +31,7 @@ from typing import Any
 
 from eamos.actors.report import DroneReport, ReportError
 from eamos.actors.runtime import DroneRuntime
+from eamos.frozen import frozen
 from eamos.net import wire
 from eamos.net.link import PeerStatus
 from eamos.net.progress import progress_events
@@ -39,7 +40,7 @@ from eamos.program.uniform import GROUND_STATION
 Clock = Callable[[], float]
 
 
-@dataclass(frozen=True)
+@frozen
 class ParticipantFailed:
     """Local event for the display: a participant is gone (its process died, ...), and why."""
 

@@ -18,11 +18,12 @@ from __future__ import annotations
 import contextlib
 import json
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.actors.report import ActionEntry, DroneReport, FinalState
+from eamos.frozen import frozen
 from eamos.logs import report_write_error
 from eamos.program.uniform import GROUND_STATION
 
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
 NO_REPORT = "no report"
 
 
-@dataclass(frozen=True)
+@frozen
 class DroneResult:
     """One drone's entry in the summary: its report, or why there is none."""
 
@@ -75,7 +76,7 @@ class DroneResult:
         return cls(DroneReport.from_json(data), exit_code, host)
 
 
-@dataclass(frozen=True)
+@frozen
 class RunSummary:
     """A whole run, as ``summary.json`` holds it."""
 

@@ -38,9 +38,10 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Literal, Protocol
 
+from eamos.frozen import frozen
 from eamos.program.plugins import PluginRegistry
 from eamos.program.uniform import Command
 
@@ -54,7 +55,7 @@ class AdapterError(Exception):
     """The vehicle behind an adapter cannot be used (unreachable, bad settings)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Telemetry:
     """One sample of a vehicle's state in the mission frame (X north, Y east, Z up)."""
 
@@ -89,7 +90,7 @@ class Telemetry:
         return getattr(self, field_name)  # type: ignore[no-any-return]
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionResult:
     """How an action ended; ``reason`` says why when it did not end ``"ok"``."""
 
@@ -104,7 +105,7 @@ class ActionResult:
 _handle_ids = itertools.count(1)
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionHandle:
     """Identifies one running action of one adapter."""
 

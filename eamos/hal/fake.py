@@ -19,9 +19,9 @@ import dataclasses
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
+from eamos.frozen import frozen
 from eamos.hal.api import (
     ActionHandle,
     ActionResult,
@@ -35,7 +35,7 @@ from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugin
 from eamos.program.uniform import Command
 
 
-@dataclass(frozen=True)
+@frozen
 class Call:
     """One recorded call: ``method`` is start/run/cancel/abort/close/finish."""
 

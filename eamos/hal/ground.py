@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from eamos.frozen import frozen
 from eamos.hal.api import (
     ActionHandle,
     ActionResult,
@@ -28,7 +29,7 @@ from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import Command, PauseFor
 
 
-@dataclass(frozen=True)
+@frozen
 class GroundSettings:
     """Settings of the ground station; build with :meth:`from_mapping`."""
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import Literal
 
+from eamos.frozen import frozen
+
 from ..compiler import CompilerBug, Diagnostic, MissionError, check_source, compile_mission
 from ..compiler.errors import SourceLocation
 from ..compiler.parse import parse_partial
@@ -46,7 +48,7 @@ class Span:
     end_col: int
 
 
-@dataclass(frozen=True)
+@frozen
 class Occurrence:
     """A block or drone name where it stands in the text, defined or used."""
 
@@ -56,7 +58,7 @@ class Occurrence:
     definition: bool
 
 
-@dataclass(frozen=True)
+@frozen
 class Finding:
     """A compiler diagnostic placed on the text: what the editor underlines."""
 

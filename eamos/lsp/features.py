@@ -7,7 +7,8 @@ Pure functions over a :class:`~.document.MissionIndex`, in the compiler's coordi
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+
+from eamos.frozen import frozen
 
 from ..compiler.syntax import ActionCall, BlockCall, Control, Mission
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, GROUND_STATION, PROPERTIES
@@ -16,7 +17,7 @@ from .libraries import LibraryBlock
 from .vocabulary import action_help, control_help, property_help, type_help
 
 
-@dataclass(frozen=True)
+@frozen
 class Symbol:
     """One entry of the document outline: a block (with its kind) or a drone."""
 
@@ -26,7 +27,7 @@ class Symbol:
     span: Span
 
 
-@dataclass(frozen=True)
+@frozen
 class Hover:
     """Markdown help about the name under the cursor, and the text it covers."""
 

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
+
+from eamos.frozen import frozen
 
 from ..compiler import MissionError
 from ..compiler.libraries import load_libraries, search_path
@@ -32,7 +33,7 @@ MAX_DEPTH = 3
 MAX_FOLDERS = 2000
 
 
-@dataclass(frozen=True)
+@frozen
 class Library:
     """A library an ``import`` can name: its name, its folder and where that was found."""
 
@@ -41,7 +42,7 @@ class Library:
     origin: Origin
 
 
-@dataclass(frozen=True)
+@frozen
 class LibraryBlock:
     """A block of an imported library: ``shapes.SEQ_Square(d fleet.Flyer, side_m float64)``."""
 

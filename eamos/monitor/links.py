@@ -29,8 +29,8 @@ drones held back can be counted as sent.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
 
+from eamos.frozen import frozen
 from eamos.program.format import DroneProgram
 
 #: Node kinds whose begin node counts iterations (their Body arcs carry the counter).
@@ -45,7 +45,7 @@ RESOLVED_STATES = frozenset(
 Iteration = tuple[int, ...]
 
 
-@dataclass(frozen=True)
+@frozen
 class LinkArc:
     """One MDG arc: ``src`` -> ``dst`` (node keys), its kind, whether it crosses drones."""
 
@@ -55,7 +55,7 @@ class LinkArc:
     external: bool
 
 
-@dataclass(frozen=True)
+@frozen
 class LinkGraph:
     """The whole mission's MDG as the link counts need it (every participant's arcs, once).
 
@@ -108,7 +108,7 @@ class LinkGraph:
         return dict(sorted(out.items()))
 
 
-@dataclass(frozen=True)
+@frozen
 class LinkCount:
     """One link's counts: its external arcs in the MDG, triggers sent and received so far."""
 

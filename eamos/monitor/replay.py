@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import bisect
 import json
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from eamos.frozen import frozen
 from eamos.ground.summary import RunSummary
 from eamos.net import wire
 from eamos.net.link import PeerStatus
@@ -34,7 +34,7 @@ from .setup import MissionSetup, MonitorError, load_setup
 from .state import MonitorState
 
 
-@dataclass(frozen=True)
+@frozen
 class ReplayEvent:
     """One thing that happened at wall time ``t`` to participant ``name``."""
 
@@ -43,7 +43,7 @@ class ReplayEvent:
     msg: Any  # a wire message or PeerStatus, or a NodeChange
 
 
-@dataclass(frozen=True)
+@frozen
 class NodeChange:
     """A node's state from a drone's own log (replays only)."""
 

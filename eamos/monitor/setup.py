@@ -12,10 +12,11 @@ by key.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
 
+from eamos.frozen import frozen
 from eamos.program.format import DroneProgram, ProgramError, load_program
 from eamos.program.uniform import GROUND_STATION
 
@@ -26,7 +27,7 @@ class MonitorError(ValueError):
     """A run folder the monitor cannot show (no programs, unreadable logs, a bad port)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class NodeInfo:
     """One node of a participant's MDG, as the page shows it."""
 
@@ -48,7 +49,7 @@ class NodeInfo:
         }
 
 
-@dataclass(frozen=True)
+@frozen
 class ParticipantSetup:
     """One participant (a drone or the ground station): colour, home, graph."""
 
@@ -71,7 +72,7 @@ class ParticipantSetup:
         }
 
 
-@dataclass(frozen=True)
+@frozen
 class MissionSetup:
     """Everything static the page shows: the mission and its participants."""
 
@@ -151,9 +152,9 @@ def build_setup(
         for arc in program.arcs:
             if arc.dst in native and arc.kind != "loop":
                 preds.setdefault(arc.dst, []).append(arc.src)
-    frozen = {k: tuple(dict.fromkeys(v)) for k, v in preds.items()}
+    unique_preds = {k: tuple(dict.fromkeys(v)) for k, v in preds.items()}
     links = LinkGraph.from_programs(programs.values())
-    return MissionSetup(first.mission, first.mission_id, tuple(parts), frozen, links)
+    return MissionSetup(first.mission, first.mission_id, tuple(parts), unique_preds, links)
 
 
 def _svg_of(graphs: Path, name: str) -> str:

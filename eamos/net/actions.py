@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import TypeAlias
 
 import eamos.net.wire as wire
+from eamos.frozen import frozen
 
 __all__ = ["Action", "Deliver", "PeerChanged", "PeerStatus", "Send", "TelemetryStale", "Wake"]
 
@@ -19,7 +20,7 @@ __all__ = ["Action", "Deliver", "PeerChanged", "PeerStatus", "Send", "TelemetryS
 # -- local events (handed to the application, never on the wire) ------------------
 
 
-@dataclass(frozen=True)
+@frozen
 class PeerStatus:
     """Local event: peer ``sender`` went silent (``lost``), came ``back``, or ``left``.
 
@@ -33,7 +34,7 @@ class PeerStatus:
     serial: int
 
 
-@dataclass(frozen=True)
+@frozen
 class TelemetryStale:
     """Local event: no telemetry from drone ``sender`` for ``age_s`` seconds."""
 

@@ -6,8 +6,9 @@ loader read it without loading ZeroMQ.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Final
+
+from eamos.frozen import frozen
 
 __all__ = ["DEFAULT_HEARTBEAT_MS", "LinkSettings"]
 
@@ -15,7 +16,7 @@ DEFAULT_HEARTBEAT_MS: Final = 1000
 """ZeroMQ (ZMTP) heartbeat interval; a connection silent for 5 of them is dropped."""
 
 
-@dataclass(frozen=True)
+@frozen
 class LinkSettings:
     """Timing of the reliability layer (every field is a ``[net]`` config key too)."""
 

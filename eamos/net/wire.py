@@ -150,11 +150,12 @@ size, in parts).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import field, fields
 from typing import Any, ClassVar, Final, TypeVar
 
 import msgpack
 
+from eamos.frozen import frozen
 from eamos.net.wire_fields import (
     _MAX_CONTAINER_LEN,
     MAX_DEPTH,
@@ -248,7 +249,7 @@ def topic_telemetry(drone: str) -> bytes:
 # Messages.
 
 
-@dataclass(frozen=True)
+@frozen
 class _Base:
     """Fields shared by every message; subclasses set ``CODE`` and ``KIND``."""
 
@@ -287,7 +288,7 @@ class _Base:
         return TOPIC_ALL
 
 
-@dataclass(frozen=True)
+@frozen
 class Trigger(_Base):
     """External arc: ``src_node`` on ``sender`` resolved; trigger ``dst_node`` on ``dest``."""
 
@@ -302,7 +303,7 @@ class Trigger(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class Interrupt(_Base):
     """Interrupt ``scope`` (at ``iteration``) on ``dest``; mode "all" or only its "waits"."""
 
@@ -316,7 +317,7 @@ class Interrupt(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class TelemetrySample(_Base):
     """Latest state of the sender drone, read by other drones' conditions."""
 
@@ -335,7 +336,7 @@ class TelemetrySample(_Base):
     landed: bool = field(metadata=_m("lnd", _check_bool))
 
 
-@dataclass(frozen=True)
+@frozen
 class Ready(_Base):
     """The sender loaded its program and every participant it sends to has subscribed."""
 
@@ -347,7 +348,7 @@ class Ready(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class Start(_Base):
     """Broadcast by the ground station: every drone starts its program."""
 
@@ -357,7 +358,7 @@ class Start(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class Abort(_Base):
     """Broadcast: stop the mission now (drones run their failsafe)."""
 
@@ -368,7 +369,7 @@ class Abort(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class Complete(_Base):
     """Broadcast by the ground station: the whole mission is over."""
 
@@ -378,7 +379,7 @@ class Complete(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class Progress(_Base):
     """A node/action event on the sender, for live display at the ground station."""
 
@@ -392,7 +393,7 @@ class Progress(_Base):
     dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
 
 
-@dataclass(frozen=True)
+@frozen
 class Resolved(_Base):
     """The sender's top-level nodes are all resolved."""
 
@@ -403,7 +404,7 @@ class Resolved(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class Report(_Base):
     """Final per-drone summary, sent to the ground station."""
 
@@ -415,7 +416,7 @@ class Report(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class ReportPart(_Base):
     """Part ``part`` of ``parts`` of a final report too large for one message.
 
@@ -437,7 +438,7 @@ class ReportPart(_Base):
             raise WireError(f"ReportPart.part: {self.part} of {self.parts} parts")
 
 
-@dataclass(frozen=True)
+@frozen
 class Ack(_Base):
     """Cumulative acknowledgement from ``sender`` to ``dest`` (the reliability layer).
 
@@ -458,7 +459,7 @@ class Ack(_Base):
     dest_incarnation: int = field(metadata=_m("di", _check_seq), default=0)
 
 
-@dataclass(frozen=True)
+@frozen
 class Heartbeat(_Base):
     """Periodic sign of life on ``hb/<sender>``, carrying the sender's acknowledgements.
 

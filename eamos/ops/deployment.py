@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import json
 import shlex
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
+
+from eamos.frozen import frozen
 
 from ..config import ConfigError, FleetConfig
 from ..program.uniform import GROUND_STATION
@@ -23,7 +25,7 @@ from .targets import SshTarget, ground_settings, ssh_target
 STAMP_TIMEOUT_S = 30.0
 
 
-@dataclass(frozen=True)
+@frozen
 class Deployment:
     """One mission as deployed on a fleet."""
 

@@ -16,9 +16,10 @@ from __future__ import annotations
 import subprocess
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
+
+from eamos.frozen import frozen
 
 from .targets import SshTarget
 
@@ -118,7 +119,7 @@ def _explain(target: SshTarget, text: str, fallback_kind: str) -> DroneError:
     )
 
 
-@dataclass(frozen=True)
+@frozen
 class Remote:
     """What a remote command printed and returned."""
 

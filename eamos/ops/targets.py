@@ -30,9 +30,11 @@ from __future__ import annotations
 
 import shlex
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path, PurePosixPath
 from typing import Any
+
+from eamos.frozen import frozen
 
 from ..config import ConfigError, FleetConfig, _check_keys
 
@@ -58,7 +60,7 @@ SSH_FIELDS = {
 GROUND_FIELDS = {"bind", "ready_timeout_s", "keys"}
 
 
-@dataclass(frozen=True)
+@frozen
 class SshTarget:
     """One drone as an SSH destination, with the folder EAMOS uses there."""
 
@@ -178,7 +180,7 @@ class SshTarget:
         )
 
 
-@dataclass(frozen=True)
+@frozen
 class GroundSettings:
     """The operator's machine as a participant: where the ground station binds."""
 
@@ -187,7 +189,7 @@ class GroundSettings:
     keys: Path | None = None
 
 
-@dataclass(frozen=True)
+@frozen
 class FleetTargets:
     """Everything the roll-out needs to reach one mission's drones."""
 

@@ -42,10 +42,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, field, fields
 from functools import cached_property
 from pathlib import Path
 from typing import Any
+
+from eamos.frozen import frozen
 
 from .conditions import ConditionError, validate
 
@@ -80,7 +82,7 @@ class ProgramError(Exception):
     """A drone program file is missing, damaged, or of an unsupported version."""
 
 
-@dataclass(frozen=True)
+@frozen
 class ProgramNode:
     """One MDG node (native, or a proxy for a node of another drone)."""
 
@@ -115,7 +117,7 @@ class ProgramNode:
     block: str = ""
 
 
-@dataclass(frozen=True)
+@frozen
 class ProgramArc:
     """One MDG arc; ``external`` when it crosses between drones."""
 
@@ -125,7 +127,7 @@ class ProgramArc:
     external: bool
 
 
-@dataclass(frozen=True)
+@frozen
 class DroneProgram:
     """The program one drone runs: its MDG and its place in the fleet."""
 

@@ -23,9 +23,11 @@ import importlib
 import re
 import threading
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from types import MappingProxyType
 from typing import Any
+
+from eamos.frozen import frozen
 
 from .uniform import ACTIONS, ActionSpec
 
@@ -43,7 +45,7 @@ class PluginError(Exception):
     """A plugin that cannot be used: a bad declaration or an implementation that does not load."""
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionPlugin:
     """One plugin action: name, unit-named number parameters, implementation per family.
 

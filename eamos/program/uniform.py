@@ -9,10 +9,12 @@ the drone's home (where it was when its adapter started).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import fields
+
+from eamos.frozen import frozen
 
 
-@dataclass(frozen=True)
+@frozen
 class ActionSpec:
     """One uniform action: its name, argument names with units, and meaning."""
 
@@ -23,7 +25,7 @@ class ActionSpec:
     payload: bool = False
 
 
-@dataclass(frozen=True)
+@frozen
 class PropertySpec:
     """One uniform property, read in conditions as ``Drone.Name()``."""
 
@@ -161,7 +163,7 @@ _ALL_ACTIONS = frozenset(ACTIONS)
 _ALL_PROPERTIES = frozenset(PROPERTIES)
 
 
-@dataclass(frozen=True)
+@frozen
 class DroneType:
     """What a kind of drone can do: the actions and properties it offers."""
 
@@ -223,7 +225,7 @@ class CommandError(ValueError):
     """An action name or argument list that no adapter can run."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Command:
     """One uniform action with its arguments, checked against :data:`ACTIONS`."""
 
@@ -247,29 +249,29 @@ class Command:
         return self.action in MOTION_ACTIONS
 
 
-@dataclass(frozen=True)
+@frozen
 class Arm(Command):
     """Arm the motors."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Disarm(Command):
     """Disarm the motors (on the ground only)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Takeoff(Command):
     """Climb vertically to ``height_m`` above home."""
 
     height_m: float
 
 
-@dataclass(frozen=True)
+@frozen
 class Land(Command):
     """Descend at the current X/Y until landed."""
 
 
-@dataclass(frozen=True)
+@frozen
 class FlyBy(Command):
     """A relative move: ``FlyByX``/``FlyByY``/``FlyByZ`` (one axis non-zero)."""
 
@@ -293,7 +295,7 @@ class FlyBy(Command):
         )
 
 
-@dataclass(frozen=True)
+@frozen
 class FlyToXYZ(Command):
     """Fly to a local point from home."""
 
@@ -302,7 +304,7 @@ class FlyToXYZ(Command):
     z_m: float
 
 
-@dataclass(frozen=True)
+@frozen
 class FlyToLLA(Command):
     """Fly to a WGS84 point at ``alt_m`` above home."""
 
@@ -311,40 +313,40 @@ class FlyToLLA(Command):
     alt_m: float
 
 
-@dataclass(frozen=True)
+@frozen
 class PauseFor(Command):
     """Hold position (or stay on the ground) for ``duration_s``."""
 
     duration_s: float
 
 
-@dataclass(frozen=True)
+@frozen
 class ReturnHome(Command):
     """Fly back above home at the current height, land and disarm (RTL)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Hold(Command):
     """Hover in the autopilot's hold mode for ``duration_s``."""
 
     duration_s: float
 
 
-@dataclass(frozen=True)
+@frozen
 class Yaw(Command):
     """Turn on the spot to the compass heading ``heading_deg`` (0 north, 90 east)."""
 
     heading_deg: float
 
 
-@dataclass(frozen=True)
+@frozen
 class SetSpeed(Command):
     """Fly later horizontal moves at ``speed_m_s``."""
 
     speed_m_s: float
 
 
-@dataclass(frozen=True)
+@frozen
 class Orbit(Command):
     """Circle ``turns`` times (clockwise) around the point ``radius_m`` ahead."""
 
@@ -352,7 +354,7 @@ class Orbit(Command):
     turns: float
 
 
-@dataclass(frozen=True)
+@frozen
 class Payload(Command):
     """A payload action (no motion): ``TurnOn``, ``Calibrate``, ``TurnOnCamera``, ..."""
 
@@ -367,7 +369,7 @@ class Payload(Command):
         return ()
 
 
-@dataclass(frozen=True)
+@frozen
 class PluginAction(Command):
     """An action provided by a plugin (:mod:`eamos.program.plugins`), with its arguments.
 
@@ -525,7 +527,7 @@ def param_unit(param: str) -> str:
     return param.rsplit("_", 1)[-1] if "_" in param else ""
 
 
-@dataclass(frozen=True)
+@frozen
 class ControlSpec:
     """A control structure of the paper's Table 3: how it is written and what it does.
 

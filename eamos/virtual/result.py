@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
+
+from eamos.frozen import frozen
 
 from ..actors.messages import ActionRecord
 
 
-@dataclass(frozen=True)
+@frozen
 class Waiting:
     """A node still unfinished when the virtual-time limit was reached, and why."""
 
@@ -19,7 +21,7 @@ class Waiting:
     why: str
 
 
-@dataclass(frozen=True)
+@frozen
 class DroneOutcome:
     """One participant's part of a virtual run (times are virtual seconds from start).
 
@@ -55,7 +57,7 @@ class DroneOutcome:
         return [a.action for a in self.actions]
 
 
-@dataclass(frozen=True)
+@frozen
 class VirtualRun:
     """The outcome of :func:`eamos.virtual.run_virtual`.
 

@@ -9,14 +9,16 @@ virtual-time driver (:mod:`eamos.virtual`), which routes them in one thread.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
+
+from eamos.frozen import frozen
 
 from ..messages import ActionRecord, Interrupt, NodeEvent
 from ..state import Iteration, Status
 
 
-@dataclass(frozen=True)
+@frozen
 class Route:
     """One outgoing arc of a node."""
 
@@ -26,7 +28,7 @@ class Route:
     external: bool
 
 
-@dataclass(frozen=True)
+@frozen
 class Emit:
     """Trigger the node at the end of ``route`` for ``iteration`` with ``status``."""
 
@@ -35,7 +37,7 @@ class Emit:
     status: Status
 
 
-@dataclass(frozen=True)
+@frozen
 class StartAction:
     """Run the node's uniform action for this activation (answer: ``action_finished``)."""
 
@@ -44,26 +46,26 @@ class StartAction:
     args: tuple[float, ...]
 
 
-@dataclass(frozen=True)
+@frozen
 class CancelAction:
     """Cancel the action the node runs for this activation (it answers ``cancelled``)."""
 
     iteration: Iteration
 
 
-@dataclass(frozen=True)
+@frozen
 class WatchTelemetry:
     """Push this node the property values of ``drones`` now and whenever they change."""
 
     drones: tuple[str, ...]
 
 
-@dataclass(frozen=True)
+@frozen
 class UnwatchTelemetry:
     """Stop pushing telemetry to this node."""
 
 
-@dataclass(frozen=True)
+@frozen
 class Resolve:
     """The node finished one activation; ``top_level``: for good (outside every loop)."""
 
@@ -72,7 +74,7 @@ class Resolve:
     top_level: bool
 
 
-@dataclass(frozen=True)
+@frozen
 class Broadcast:
     """Interrupt a structure's body on these drones (through the executive)."""
 
@@ -80,21 +82,21 @@ class Broadcast:
     drones: tuple[str, ...]
 
 
-@dataclass(frozen=True)
+@frozen
 class Progress:
     """Something worth showing live (the executive coalesces it for the ground station)."""
 
     event: NodeEvent
 
 
-@dataclass(frozen=True)
+@frozen
 class Record:
     """An action ended: its record for the summary (doubles as the "finished" progress)."""
 
     record: ActionRecord
 
 
-@dataclass(frozen=True)
+@frozen
 class ReleaseBegin:
     """A Do's end node tells its begin node (if it runs on the same drone) to stop watching."""
 
@@ -102,7 +104,7 @@ class ReleaseBegin:
     iteration: Iteration
 
 
-@dataclass(frozen=True)
+@frozen
 class Note:
     """A mission-log line (``level`` is a logger method name; see docs/logs.md)."""
 

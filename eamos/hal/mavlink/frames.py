@@ -11,12 +11,14 @@ vehicle's own origin never leaks into a mission.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
+
+from eamos.frozen import frozen
 
 Vector = tuple[float, float, float]
 
 
-@dataclass(frozen=True)
+@frozen
 class NedOrigin:
     """Where the mission frame's home is, in the vehicle's local NED frame (metres)."""
 

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
+from eamos.frozen import frozen
 from eamos.hal.mavlink.flight import RunControl
 from eamos.hal.mavlink.frames import Vector
 from eamos.hal.mavlink.link import LinkState
@@ -30,7 +30,7 @@ from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.hal.mavlink.waits import Run, Waiter
 
 
-@dataclass(frozen=True)
+@frozen
 class PayloadContext:
     """What a ``"mavlink"`` plugin implementation may do with the vehicle (module docstring)."""
 

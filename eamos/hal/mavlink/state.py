@@ -16,6 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from eamos.frozen import frozen
+
 #: MAVLink numbers the tracker reads (kept local: no pymavlink needed).
 MAV_TYPE_GCS = 6
 MAV_AUTOPILOT_INVALID = 8
@@ -61,7 +63,7 @@ class GlobalPosition:
     vd_mps: float
 
 
-@dataclass(frozen=True)
+@frozen
 class CapturedImage:
     """CAMERA_IMAGE_CAPTURED in SI units: where a photo was taken."""
 

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from eamos.frozen import frozen
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
 from eamos.hal.kinematics import GeoFrame, Quadcopter
 from eamos.hal.sim.motions import (
@@ -77,7 +78,7 @@ class SimAction:
     heading_deg: float = 0.0  # "yaw": the heading turned to
 
 
-@dataclass(frozen=True)
+@frozen
 class SimRequest:
     """A request queued for the next step: run an action, cancel one, or abort."""
 

@@ -14,15 +14,16 @@ by name, kept by the simulator and shown in ``adapter.action.end``) and what it 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 
+from eamos.frozen import frozen
 from eamos.program.uniform import PluginAction
 
 #: The default simulated duration of a plugin action.
 PLUGIN_DELAY_S = 0.2
 
 
-@dataclass(frozen=True)
+@frozen
 class SimView:
     """The simulated vehicle when a plugin action starts (mission frame, metres, degrees)."""
 
@@ -37,7 +38,7 @@ class SimView:
     payload: Mapping[str, float] = field(default_factory=dict)
 
 
-@dataclass(frozen=True)
+@frozen
 class SimOutcome:
     """What a plugin action does in the simulator: duration, failure, payload, log fields."""
 

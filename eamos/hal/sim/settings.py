@@ -7,10 +7,11 @@ pacer (:mod:`eamos.hal.sim.adapter`); see :mod:`eamos.hal.sim.adapter` for what 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from types import MappingProxyType
 from typing import Any
 
+from eamos.frozen import frozen
 from eamos.hal.kinematics import GeoFrame, Limits
 from eamos.hal.settings import (
     COMMON_KEYS,
@@ -25,7 +26,7 @@ from eamos.hal.settings import (
 from eamos.program.uniform import ACTIONS, DRONE_TYPES
 
 
-@dataclass(frozen=True)
+@frozen
 class BatteryModel:
     """How a simulated drone's battery drains (percent per minute), and its charge at start.
 
@@ -65,7 +66,7 @@ BATTERY_MODELS: Mapping[str, BatteryModel] = MappingProxyType(
 )
 
 
-@dataclass(frozen=True)
+@frozen
 class Waypoint:
     """One point of the scripted pilot's path (metres from home, hold in sim seconds)."""
 
@@ -75,7 +76,7 @@ class Waypoint:
     hold_s: float = 0.0
 
 
-@dataclass(frozen=True)
+@frozen
 class SimSettings:
     """Settings of one simulated vehicle; build with :meth:`from_mapping`."""
 

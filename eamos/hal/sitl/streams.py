@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
+from eamos.frozen import frozen
 from eamos.hal.kinematics import GeoFrame, VehicleState
 from eamos.hal.sitl.wire import (
     ACCEPTED,
@@ -58,7 +58,7 @@ Send = Callable[..., None]
 _GUIDED_MODES = frozenset({"OFFBOARD", "GUIDED", "HOLD", "LAND", "RTL"})
 
 
-@dataclass(frozen=True)
+@frozen
 class Status:
     """The vehicle as the streams see it at one send."""
 
@@ -76,7 +76,7 @@ class Status:
     heading_deg: float = 0.0
 
 
-@dataclass(frozen=True)
+@frozen
 class Identity:
     """What the vehicle says about itself: autopilot id, capabilities, firmware version."""
 

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Literal
 
+from eamos.frozen import frozen
 from eamos.hal.kinematics import Limits
 from eamos.hal.mavlink.link import load_mavutil
 
@@ -143,7 +144,7 @@ MAX_MESSAGES_PER_TICK = 200
 STATUSTEXT_LEN = 50
 
 
-@dataclass(frozen=True)
+@frozen
 class VehicleOptions:
     """How to build one :class:`SimVehicle` (the command line maps onto this)."""
 
