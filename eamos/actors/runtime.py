@@ -20,12 +20,14 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pykka
 import zmq
+
+from eamos.frozen import frozen
 
 from ..hal.api import Adapter, AdapterError
 from ..logs import DroneLogs, LogWriter
@@ -48,10 +50,12 @@ from .messages import AbortMission, Fire
 from .node import Links, MissionNode, Wire
 from .outbox import Outbox
 from .readiness import wait_listening
-from .report import DroneReport
 from .uniform_api import Abort as HalAbort
 from .uniform_api import UniformSpace, answers_at_once, start_uniform_api
 from .wiring import destinations, released_arcs, subscriptions, watched_peers
+
+if TYPE_CHECKING:
+    from .report import DroneReport
 
 # Outbox, TelemetryBoard, DroneExecutive, the telemetry-values functions and
 # PROGRESS_INTERVAL_S stay importable from here (their home before the split).
@@ -77,7 +81,7 @@ class DroneRuntimeError(Exception):
     """A drone runtime cannot start or run (bad program, adapter unusable, network)."""
 
 
-@dataclass(frozen=True)
+@frozen
 class NetSettings:
     """Where this participant binds its Out-Bridge, where its peers' are, and how to secure it.
 
@@ -405,10 +409,11 @@ class DroneRuntime:
     def drone_report(self, final_wait_s: float = FINAL_SAMPLE_WAIT_S) -> DroneReport:
         """This drone's part of the run summary.
 
-        The final state is the vehicle's once its last action ended: the first
-        sample after the last action that could change it (waiting up to
-        ``final_wait_s`` for it), never one taken before.
+        The final state is the vehicle's once its last action ended: the first sample after
+        the last action that could change it (waiting up to ``final_wait_s``), never one before.
         """
+        from .report import DroneReport  # loaded here, at a flight's end: not before Ready
+
         snap = ask_snapshot(self.executive, _ASK_TIMEOUT_S)
         counts = self.outbox.counts() if self.outbox else {"triggers_sent": 0}
         return DroneReport.build(

@@ -31,7 +31,7 @@ Pure: no clock (``now`` is passed in), no randomness but the draw at start.
 
 from __future__ import annotations
 
-import secrets
+import os
 import time
 
 from eamos.net.actions import Action, Wake
@@ -50,7 +50,9 @@ def new_incarnation() -> int:
     About 2**59 today: within the wire format's 63-bit sequence numbers.
     """
     micros = time.time_ns() // 1000
-    return (micros << _RANDOM_BITS) | secrets.randbits(_RANDOM_BITS) | 1
+    # The source ``secrets`` draws from, without importing it (and hmac, hashlib) at start.
+    drawn = int.from_bytes(os.urandom(_RANDOM_BITS // 8), "big")
+    return (micros << _RANDOM_BITS) | drawn | 1
 
 
 def admit(

@@ -30,16 +30,16 @@ from __future__ import annotations
 
 import ipaddress
 import os
-import shutil
 import threading
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any, Final
 
 import zmq
 import zmq.auth
 
+from eamos.frozen import frozen
 from eamos.logs import make_logger
 from eamos.net.zap import ZapHandler
 
@@ -95,6 +95,9 @@ def create_fleet_keys(out_dir: Path, names: Iterable[str], *, force: bool = Fals
             f"{out_dir}: keys already exist ({', '.join(existing)}); "
             "use --force to replace them (then ship the new folders to every drone)"
         )
+    # Here, not at the top: a drone's node loads this module at start and never makes keys.
+    import shutil
+
     public = out_dir / PUBLIC_DIR
     for path in [public, *(out_dir / n for n in wanted)]:
         if path.exists():
@@ -127,7 +130,7 @@ def participants_of_compiled(mission_dir: Path) -> list[str]:
     return [p.name.removesuffix(".program.json") for p in programs]
 
 
-@dataclass(frozen=True)
+@frozen
 class FleetKeys:
     """One participant's key pair and the fleet's public keys (raw z85 bytes)."""
 

@@ -9,12 +9,15 @@ comes back.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
-#: Never on a drone's node: the console renderer's extras (structlog would pull them in,
-#: see eamos/cli/node_imports.py), the compiler's graph and parser libraries.
+#: Never on a drone's node at start: the console renderer's extras (structlog would pull
+#: them in, see eamos/cli/node_imports.py), the compiler's graph and parser libraries; what
+#: only a wrong name (difflib, eamos/hints.py) or the end of a flight (the report) needs;
+#: secrets (with hmac and hashlib's OpenSSL bindings) for one random byte.
 NOT_ON_THE_NODE = (
     "rich",
     "pygments",
@@ -24,6 +27,9 @@ NOT_ON_THE_NODE = (
     "eamos.ground",
     "importlib.metadata",
     "email",
+    "difflib",
+    "secrets",
+    "eamos.actors.report",
 )
 #: Not loaded by importing the configs, the HAL or the plugin registry (plugin discovery
 #: imports importlib.metadata when it runs; the simulator's adapter and logs come with
@@ -87,3 +93,34 @@ def test_the_check_sees_a_heavy_module() -> None:
     # The check above must be able to fail.
     assert present(["rich.table", "zmq"], NOT_ON_THE_NODE) == ["rich"]
     assert present(["importlib.metadata"], NOT_ON_IMPORT) == ["importlib.metadata"]
+
+
+#: A fresh interpreter: how many collections the cyclic garbage collector ran while
+#: ``eamos.cli.node`` loaded, and whether it runs again afterwards.
+COLLECTIONS = r"""
+import gc, json
+runs = []
+gc.callbacks.append(lambda phase, info: runs.append(phase) if phase == "start" else None)
+import eamos.cli.node
+print(json.dumps({"collections": len(runs), "enabled": gc.isenabled()}))
+"""
+
+
+def test_the_node_loads_with_the_collector_paused_and_resumes_it(tmp_path: Path) -> None:
+    # Byte-code read from a cache, as installed: compiling a module's source (this
+    # environment may forbid writing byte-code) allocates before the module can pause.
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(tmp_path / "pycache")
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", COLLECTIONS],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=True,
+            env=env,
+        )
+        for _ in range(2)  # the first fills the cache
+    ]
+    # Without the pause the collector runs dozens of times over the new modules.
+    assert json.loads(runs[1].stdout) == {"collections": 0, "enabled": True}
