@@ -51,7 +51,8 @@ whether any of ``rich``, ``pygments``, ``networkx``, ``importlib.metadata``,
 ``floor_ms``, in the same run and environment, the medians of a process doing
 nothing (``python -c pass``) and of one importing only the
 libraries a node cannot do without (pyzmq, pykka, msgpack, tomllib and structlog,
-the latter as the node imports it, without its console extras), each from
+as the node imports them: structlog without its console extras, and with the cyclic
+garbage collector paused), each from
 ``Popen`` to a stamp written as its last statement; and
 ``node_beyond_libraries_ms``: ``ready_ms``'s median minus the latter, what this
 project's own code, configuration and start-up cost.
@@ -109,7 +110,10 @@ READY_TIMEOUT_S = 60.0
 #: The floors (see the docstring): an empty process, and the libraries alone.
 FLOORS = {
     "interpreter": "pass",
-    "libraries": "import eamos.cli.node_imports, zmq, pykka, msgpack, tomllib",
+    # As the node imports them: with the cyclic collector paused (eamos/cli/node.py).
+    "libraries": (
+        "import gc; gc.disable(); import eamos.cli.node_imports, zmq, pykka, msgpack, tomllib"
+    ),
 }
 
 

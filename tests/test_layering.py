@@ -20,56 +20,29 @@ PACKAGE = REPO / "eamos"
 
 #: Package -> the eamos packages it may import (besides itself).  Top-level modules
 #: (``eamos/logs.py``, ``eamos/hints.py``, ...) count as packages of their own name.
+_LAYERS: dict[str, set[str]] = {
+    "hints": set(),
+    "logs": set(),
+    "lazy": set(),
+    "program": set(),
+    "compiler": {"program", "hints"},
+    "hal": {"program", "hints", "logs", "lazy"},
+    "net": {"program", "logs"},
+    "config": {"program", "hints", "hal", "net", "lazy"},
+    "actors": {"program", "hints", "logs", "hal", "net", "config"},
+    "ground": {"program", "hints", "logs", "hal", "net", "config", "actors"},
+    "virtual": {"program", "hints", "logs", "hal", "actors"},
+    "report": {"program", "logs", "ground", "hal"},
+    "ops": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
+    "lsp": {"program", "hints", "compiler"},
+    "check": {"program", "hints", "logs", "hal", "actors", "virtual", "compiler", "config"},
+    "monitor": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
+}
+#: Modules every package may import: the decorator of its frozen dataclasses (stdlib only).
+EVERYWHERE = {"frozen"}
 ALLOWED: dict[str, set[str]] = {
     "frozen": set(),
-    "hints": {"frozen"},
-    "logs": {"frozen"},
-    "lazy": {"frozen"},
-    "program": {"frozen"},
-    "compiler": {"program", "hints", "frozen"},
-    "hal": {"program", "hints", "logs", "lazy", "frozen"},
-    "net": {"program", "logs", "frozen"},
-    "config": {"program", "hints", "hal", "net", "lazy", "frozen"},
-    "actors": {"program", "hints", "logs", "hal", "net", "config", "frozen"},
-    "ground": {"program", "hints", "logs", "hal", "net", "config", "actors", "frozen"},
-    "virtual": {"program", "hints", "logs", "hal", "actors", "frozen"},
-    "report": {"program", "logs", "ground", "hal", "frozen"},
-    "ops": {
-        "program",
-        "hints",
-        "logs",
-        "hal",
-        "net",
-        "config",
-        "actors",
-        "ground",
-        "compiler",
-        "frozen",
-    },
-    "lsp": {"program", "hints", "compiler", "frozen"},
-    "check": {
-        "program",
-        "hints",
-        "logs",
-        "hal",
-        "actors",
-        "virtual",
-        "compiler",
-        "config",
-        "frozen",
-    },
-    "monitor": {
-        "program",
-        "hints",
-        "logs",
-        "hal",
-        "net",
-        "config",
-        "actors",
-        "ground",
-        "compiler",
-        "frozen",
-    },
+    **{package: deps | EVERYWHERE for package, deps in _LAYERS.items()},
 }
 #: Packages only command-line code may import; nothing imports the CLI.
 TOP = {"cli"}
