@@ -8,7 +8,6 @@ handed to the application with the messages, never on the wire.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TypeAlias
 
 import eamos.net.wire as wire
@@ -45,28 +44,28 @@ class TelemetryStale:
 # -- actions (what the driver must do) -----------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class Send:
     """Put ``message`` on the network, in the order the actions are given."""
 
     message: wire.Message
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class Deliver:
     """Hand ``item`` to the application (exactly once, in order per link)."""
 
     item: wire.Message | TelemetryStale
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class PeerChanged:
     """A peer went lost, came back or left; the application gets ``status`` too."""
 
     status: PeerStatus
 
 
-@dataclass(frozen=True, slots=True)
+@frozen
 class Wake:
     """Call ``on_tick`` at ``at`` at the latest: a new deadline, maybe earlier than any known."""
 
