@@ -149,6 +149,21 @@ def test_vehicle_that_disarmed_itself_while_waiting_is_rearmed(flight, autopilot
     f.ok("Disarm")
 
 
+def test_takeoff_sent_as_the_vehicle_disarms_itself_rearms(flight, tmp_path):
+    # The armed flag comes only with the 1 Hz HEARTBEAT, and arming follows one: a delay of
+    # n + 0.5 s disarms half a period before the HEARTBEAT showing it.  A Takeoff sent then
+    # was refused (MAV_CMD_NAV_TAKEOFF FAILED) and that was the result; now the adapter
+    # reads the next HEARTBEAT, re-arms and takes off.
+    f = flight("ardupilot", vehicle={"disarm_after_s": 3.5, "speedup": 2.0})
+    f.ok("Arm")
+    f.wait_vehicle(lambda v: not v.armed)
+    f.ok("Takeoff", 1.5)
+    assert f.vehicle.armed and f.vehicle.position[2] > 1.0
+    rearm = next(e for e in adapter_events(tmp_path) if e["event"] == "adapter.rearm")
+    assert rearm["level"] == "warning"
+    f.ok("Land")
+
+
 def test_takeoff_without_our_arm_still_fails(flight):
     f = flight("ardupilot")
     result = f.do("Takeoff", 1.5)

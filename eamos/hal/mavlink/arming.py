@@ -1,4 +1,5 @@
-"""Before arming: wait for a settled position estimate (``adapter.estimator.*`` in the log).
+"""Before arming: wait for a settled position estimate (``adapter.estimator.*`` in the log);
+before re-arming: see that the vehicle really disarmed itself.
 
 PX4 main accepts arming long before its estimate settles (the notes), so the
 adapter's Arm waits, after the pre-arm checks, for the estimator's flags
@@ -6,6 +7,12 @@ adapter's Arm waits, after the pre-arm checks, for the estimator's flags
 ESTIMATOR_STATUS nor EKF_STATUS_REPORT within
 :data:`~eamos.hal.mavlink.estimator.REPORT_GRACE_S` (older firmware, other
 stacks) is not waited for.
+
+The armed flag comes only with a HEARTBEAT (1 Hz), so the adapter's view may
+lag an auto-disarm (DISARM_DELAY, COM_DISARM_PRFLT) by up to a period: a
+Takeoff sent in that moment is refused (ArduCopter: MAV_CMD_NAV_TAKEOFF
+FAILED), and :func:`disarmed_on_ground` asks a newer HEARTBEAT before the
+adapter re-arms.
 """
 
 from __future__ import annotations
@@ -67,4 +74,26 @@ def await_settled(waiter: Waiter, v: MavlinkVehicle, run: Run, deadline: float) 
     v.log.info("adapter.estimator.settled", waited_s=round(time.monotonic() - began, 2))
 
 
-__all__ = ["await_settled"]
+def disarmed_on_ground(waiter: Waiter, v: MavlinkVehicle, run: Run) -> bool:
+    """After a refused or failed take-off: is the vehicle disarmed on the ground?
+
+    While the latest HEARTBEAT still shows it armed, waits (at most
+    ``waiter.confirm_s()``) for one that arrives after the refusal: it was sent
+    after the vehicle refused, so it shows the state the vehicle refused in.
+    """
+    with v.cond:
+        armed, seen = v.state.armed, v.state.heartbeats
+    if armed:
+        waiter.wait(
+            run,
+            lambda st: st.heartbeats > seen,
+            time.monotonic() + waiter.confirm_s(),
+            lambda st: "",
+            quiet_timeout=True,
+        )
+    with v.cond:
+        st = v.state
+        return not st.armed and v.on_ground(st)
+
+
+__all__ = ["await_settled", "disarmed_on_ground"]

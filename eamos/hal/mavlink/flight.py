@@ -20,7 +20,7 @@ import threading
 import time
 
 from eamos.hal.api import ActionResult
-from eamos.hal.mavlink.arming import await_settled
+from eamos.hal.mavlink.arming import await_settled, disarmed_on_ground
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.braking import brake_to_rest
 from eamos.hal.mavlink.frames import Vector, mission_to_ned
@@ -333,7 +333,9 @@ class Flight:
 
         The mission armed this drone and may have kept it waiting: when the
         autopilot disarmed itself meanwhile (COM_DISARM_PRFLT, DISARM_DELAY),
-        before or just as the take-off starts, it is armed again (``rearm``).
+        before or just as the take-off starts (even before a HEARTBEAT showed
+        it: :func:`~eamos.hal.mavlink.arming.disarmed_on_ground`), it is armed
+        again (``rearm``), once.
         """
         if height <= 0:
             raise Failed("height_m must be > 0")
@@ -347,11 +349,9 @@ class Flight:
                 self._rearm(run, ctl)
             try:
                 return self._climb(run, ctl, height)
-            except Failed:
-                with self.v.cond:
-                    st = self.v.state
-                    again = not st.armed and self.v.on_ground(st) and self.armed_by_us
-                if attempt or not again or not self.s.rearm:
+            except (Failed, CommandRejected):  # ArduCopter: NAV_TAKEOFF FAILED when disarmed
+                again = self.armed_by_us and self.s.rearm and not attempt
+                if not again or not disarmed_on_ground(self.waiter, self.v, run):
                     raise
         raise AssertionError("unreachable")
 
