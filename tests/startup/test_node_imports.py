@@ -13,6 +13,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 #: Never on a drone's node at start: the console renderer's extras (structlog would pull
 #: them in, see eamos/cli/node_imports.py), the compiler's graph and parser libraries; what
@@ -64,12 +65,22 @@ print(json.dumps(sorted(sys.modules)))
 """
 
 
+def printed(code: str, *args: str, env: dict[str, str] | None = None) -> Any:
+    """What ``code`` prints as JSON, run in a fresh interpreter (``env``: its environment)."""
+    out = subprocess.run(
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+        env=env,
+    )
+    return json.loads(out.stdout)
+
+
 def loaded(code: str, *args: str) -> list[str]:
     """The modules loaded by ``code`` in a fresh interpreter (it prints them as JSON)."""
-    out = subprocess.run(
-        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120, check=True
-    )
-    result: list[str] = json.loads(out.stdout)
+    result: list[str] = printed(code, *args)
     return result
 
 
@@ -111,16 +122,6 @@ def test_the_node_loads_with_the_collector_paused_and_resumes_it(tmp_path: Path)
     # environment may forbid writing byte-code) allocates before the module can pause.
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["PYTHONPYCACHEPREFIX"] = str(tmp_path / "pycache")
-    runs = [
-        subprocess.run(
-            [sys.executable, "-c", COLLECTIONS],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=True,
-            env=env,
-        )
-        for _ in range(2)  # the first fills the cache
-    ]
+    printed(COLLECTIONS, env=env)  # fills the cache
     # Without the pause the collector runs dozens of times over the new modules.
-    assert json.loads(runs[1].stdout) == {"collections": 0, "enabled": True}
+    assert printed(COLLECTIONS, env=env) == {"collections": 0, "enabled": True}
