@@ -1,38 +1,71 @@
-"""``@frozen``: a frozen dataclass whose value methods are shared, for start-up's sake.
+"""``@frozen``: a frozen dataclass that compiles nothing per class, for start-up's sake.
 
-``@frozen`` is ``@dataclass(frozen=True)``: the same ``__init__``, fields, immutability,
-``dataclasses.replace`` / ``fields`` / ``asdict``, pickling and ``__match_args__``; a
-type checker treats it as one (:func:`typing.dataclass_transform`).  It differs in how
-three methods come about.  On Python 3.11, ``dataclass`` writes the source of six
-methods per frozen class (``__init__``, ``__repr__``, ``__eq__``, ``__hash__``,
-``__setattr__``, ``__delattr__``) and compiles each with ``exec``: about 0.3 ms a
-class, and a drone's ``eamos-node`` defines over a hundred of them before it is ready.
-Here ``__repr__``, ``__eq__`` and ``__hash__`` are one shared function each, reading
-the fields the class names once at decoration (C-level getters), so each class
-compiles three methods instead of six.
+``@frozen`` behaves as ``@dataclass(frozen=True)``: the same ``__init__`` (signature,
+defaults, ``default_factory``, ``kw_only``, ``__post_init__``), fields, immutability
+(:class:`dataclasses.FrozenInstanceError`), ``dataclasses.replace`` / ``fields`` /
+``asdict``, pickling, ``__match_args__``, ``repr``, ``==`` and ``hash``; a type checker
+treats it as one (:func:`typing.dataclass_transform`).  ``tests/test_frozen.py``
+compares the two, class shape by class shape.
 
-Their results are those of the generated methods (``tests/test_frozen.py`` compares
-them): ``repr`` shows the fields with ``repr=True`` as ``Class(a=1, b='x')`` (``...``
-for a value that contains itself); ``==`` holds between instances of the very same
-class whose ``compare=True`` fields are equal (otherwise ``NotImplemented``);
-``hash`` hashes the tuple of the fields ``dataclasses`` would hash.  A method the class
-body defines itself is kept, as ``dataclass`` keeps it.
+Why it exists: on Python 3.11, ``dataclass`` writes the source of six methods per
+frozen class and compiles each with ``exec``, about 0.3 ms a class, and a drone's
+``eamos-node`` defines over a hundred such classes before it is ready
+(docs/performance.md).  Here nothing is compiled per class:
 
-Only the plain form exists: a class that needs ``order``, ``slots`` or other options
-stays a ``@dataclass(frozen=True, ...)``.
+* ``__repr__``, ``__eq__``, ``__hash__``, ``__setattr__`` and ``__delattr__`` are one
+  shared function each, reading what the class names once at decoration
+  (``__frozen_values__``: C-level getters of the compared and hashed fields, the names
+  ``repr`` shows);
+* ``__init__`` is compiled once per *form* of field list (how many fields, which take
+  a ``default_factory``, which are keyword-only, whether ``__post_init__`` is called),
+  with placeholder names; each class gets a copy of that code object with its own field
+  names (:meth:`types.CodeType.replace`) and its own defaults, so its signature, its
+  errors (``missing 1 required positional argument: 'x'``) and its speed are those of the
+  ``__init__`` ``dataclass`` would have written.
+
+``dataclass`` itself still collects the fields (``init=False, repr=False, eq=False``,
+not ``frozen``: ``__dataclass_params__.frozen`` is False, since the immutability is this
+module's).  So a ``@dataclass(frozen=True)`` cannot inherit from a ``@frozen`` class nor
+the reverse (``dataclasses``' own rule about mixing); within this package every plain
+frozen value class is ``@frozen``.  A method the class body defines itself
+(``__repr__``, ``__eq__``, ``__hash__``) is kept, as ``dataclass`` keeps it; one that
+defines ``__setattr__`` or ``__delattr__`` is refused, as ``dataclass`` refuses it.
+
+Only the plain form exists: a class that needs ``order``, ``slots``, ``InitVar`` or
+other options stays a ``@dataclass(frozen=True, ...)``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from collections.abc import Callable
+from functools import cache
 from operator import attrgetter
 from reprlib import recursive_repr
+from types import CodeType, FunctionType
 from typing import Any, TypeVar, dataclass_transform
 
 __all__ = ["frozen"]
 
 C = TypeVar("C", bound=type)
+
+#: How a field reaches ``__init__``'s body (see :func:`_init_code`).
+_ARGUMENT = "argument"  # set from its parameter
+_FACTORY_ARGUMENT = "factory argument"  # its parameter, or its factory's value if omitted
+_FACTORY_ONLY = "factory only"  # ``init=False`` with a factory: always the factory's value
+#: ``init=False`` without a factory: not set (the class attribute is the default).
+_NOT_SET = "not set"
+
+
+class _FactoryDefault:
+    """The default of a parameter whose field has a ``default_factory`` (shown ``<factory>``)."""
+
+    def __repr__(self) -> str:
+        return "<factory>"
+
+
+_FACTORY = _FactoryDefault()
 
 
 def _tuple_of(names: tuple[str, ...]) -> Callable[[Any], tuple[Any, ...]]:
@@ -63,6 +96,121 @@ def _repr(self: Any) -> str:
     return f"{self.__class__.__qualname__}({fields})"
 
 
+def _is_frozen_here(self: Any, name: str) -> bool:
+    """``dataclasses``' rule: an instance of a frozen class itself, or one of its fields."""
+    cls = type(self)
+    return "__frozen_values__" in cls.__dict__ or name in cls.__dataclass_fields__
+
+
+def _setattr(self: Any, name: str, value: Any) -> None:
+    if _is_frozen_here(self, name):
+        raise dataclasses.FrozenInstanceError(f"cannot assign to field {name!r}")
+    object.__setattr__(self, name, value)
+
+
+def _delattr(self: Any, name: str) -> None:
+    if _is_frozen_here(self, name):
+        raise dataclasses.FrozenInstanceError(f"cannot delete field {name!r}")
+    object.__delattr__(self, name)
+
+
+def _placeholder(index: int) -> str:
+    """The name field ``index`` has in a compiled form (no field is called so)."""
+    return f"_frozen_field_{index}_"
+
+
+@cache  # one compilation per form; a class's __init__ is a renamed copy of it
+def _init_code(self_name: str, forms: tuple[tuple[str, bool], ...], post_init: bool) -> CodeType:
+    """The code of ``__init__`` for fields of ``forms`` ((how set, keyword-only) each).
+
+    Field ``i`` is called :func:`_placeholder` ``(i)``, both as its parameter and in the
+    constant naming the attribute it sets; ``_set`` is ``object.__setattr__``, ``_FACTORY``
+    the factory default, ``_factory_i`` field ``i``'s factory (all from the globals).
+    """
+    positional: list[str] = []
+    keyword: list[str] = []
+    body: list[str] = []
+    for index, (how, kw_only) in enumerate(forms):
+        name = _placeholder(index)
+        if how in (_ARGUMENT, _FACTORY_ARGUMENT):
+            (keyword if kw_only else positional).append(name)
+        if how == _ARGUMENT:
+            body.append(f"_set({self_name}, {name!r}, {name})")
+        elif how == _FACTORY_ARGUMENT:
+            value = f"_factory_{index}() if {name} is _FACTORY else {name}"
+            body.append(f"_set({self_name}, {name!r}, {value})")
+        elif how == _FACTORY_ONLY:
+            body.append(f"_set({self_name}, {name!r}, _factory_{index}())")
+    if post_init:
+        body.append(f"{self_name}.__post_init__()")
+    params = [self_name, *positional, *(["*", *keyword] if keyword else [])]
+    lines = "\n    ".join(body or ["pass"])
+    source = f"def __init__({', '.join(params)}):\n    {lines}\n"
+    namespace: dict[str, Any] = {}
+    exec(compile(source, "<frozen __init__>", "exec"), namespace)  # our own text
+    code: CodeType = namespace["__init__"].__code__
+    return code
+
+
+def _how(f: dataclasses.Field[Any]) -> str:
+    """How field ``f`` reaches ``__init__``'s body (the forms of :func:`_init_code`)."""
+    has_factory = f.default_factory is not dataclasses.MISSING
+    if f.init:
+        return _FACTORY_ARGUMENT if has_factory else _ARGUMENT
+    return _FACTORY_ONLY if has_factory else _NOT_SET
+
+
+def _check_defaults_order(fields: tuple[dataclasses.Field[Any], ...]) -> None:
+    """``dataclasses``' error for a positional field without default after one with."""
+    seen_default = False
+    for f in fields:
+        if not f.init or f.kw_only is True:
+            continue
+        if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING:
+            seen_default = True
+        elif seen_default:
+            raise TypeError(f"non-default argument {f.name!r} follows default argument")
+
+
+def _make_init(cls: type, fields: tuple[dataclasses.Field[Any], ...]) -> Callable[..., None]:
+    """``cls``'s ``__init__``: the compiled form of its fields, renamed and given defaults."""
+    _check_defaults_order(fields)
+    names = [f.name for f in fields]
+    self_name = "__dataclass_self__" if "self" in names else "self"
+    forms = tuple((_how(f), f.kw_only is True) for f in fields)
+    code = _init_code(self_name, forms, hasattr(cls, "__post_init__"))
+    renamed = {_placeholder(i): name for i, name in enumerate(names)}
+    code = code.replace(
+        co_varnames=tuple(renamed.get(n, n) for n in code.co_varnames),
+        co_consts=tuple(renamed.get(c, c) if isinstance(c, str) else c for c in code.co_consts),
+        co_name="__init__",
+        co_qualname=f"{cls.__qualname__}.__init__",
+    )
+    scope: dict[str, Any] = {"_set": object.__setattr__, "_FACTORY": _FACTORY}
+    defaults, kw_defaults = [], {}
+    for index, f in enumerate(fields):
+        if f.default_factory is not dataclasses.MISSING:
+            scope[f"_factory_{index}"] = f.default_factory
+        if not f.init:
+            continue
+        if f.default_factory is not dataclasses.MISSING:
+            default = _FACTORY
+        elif f.default is not dataclasses.MISSING:
+            default = f.default
+        else:
+            continue
+        if f.kw_only is True:
+            kw_defaults[f.name] = default
+        else:
+            defaults.append(default)
+    init = FunctionType(code, scope, "__init__", tuple(defaults) or None)
+    init.__kwdefaults__ = kw_defaults or None
+    init.__qualname__ = f"{cls.__qualname__}.__init__"
+    init.__module__ = cls.__module__
+    init.__annotations__ = {f.name: f.type for f in fields if f.init} | {"return": None}
+    return init
+
+
 def _explicit_hash(cls: type) -> bool:
     """Whether the class body defines ``__hash__`` itself (``dataclasses``' own rule)."""
     body = cls.__dict__
@@ -72,23 +220,45 @@ def _explicit_hash(cls: type) -> bool:
     return not (body["__hash__"] is None and "__eq__" in body)
 
 
+def _refuse(cls: type) -> None:
+    """``dataclass(frozen=True)``'s refusals, and what this plain form does not take."""
+    for name in ("__setattr__", "__delattr__"):
+        if name in cls.__dict__:
+            raise TypeError(f"Cannot overwrite attribute {name} in class {cls.__name__}")
+    for f in getattr(cls, "__dataclass_fields__", {}).values():
+        if "InitVar" in str(f.type):
+            raise TypeError(f"@frozen takes no InitVar ({cls.__name__}.{f.name})")
+
+
 @dataclass_transform(frozen_default=True, field_specifiers=(dataclasses.field, dataclasses.Field))
 def frozen(cls: C) -> C:
-    """``cls`` as a frozen dataclass with shared ``__repr__``, ``__eq__`` and ``__hash__``."""
+    """``cls`` as a frozen dataclass whose methods are shared or copied, never compiled."""
     explicit_hash = _explicit_hash(cls)
-    made: Any = dataclasses.dataclass(frozen=True, repr=False, eq=False)(cls)
+    documented = bool(cls.__dict__.get("__doc__"))
+    if not documented:
+        # Else dataclass writes one from inspect.signature of object.__init__ (init=False
+        # here), which parses its text signature with tokenize: ~2 ms the first time.
+        cls.__doc__ = "(written below)"
+    made: Any = dataclasses.dataclass(init=False, repr=False, eq=False)(cls)
+    _refuse(made)  # after dataclass: InitVar pseudo-fields are known once it read the body
     fields = dataclasses.fields(made)
+    body = made.__dict__
+    if "__init__" not in body:
+        made.__init__ = _make_init(made, fields)
     compared = tuple(f.name for f in fields if f.compare)
     hashed = tuple(f.name for f in fields if (f.compare if f.hash is None else f.hash))
     shown = tuple(f.name for f in fields if f.repr)
     # What the shared methods read: getters of the compared and the hashed fields, the
     # names shown by repr.
     made.__frozen_values__ = (_tuple_of(compared), _tuple_of(hashed), shown)
-    body = made.__dict__
     if "__repr__" not in body:
-        made.__repr__ = _repr  # type: ignore[assignment]
+        made.__repr__ = _repr
     if "__eq__" not in body:
-        made.__eq__ = _eq  # type: ignore[assignment]
+        made.__eq__ = _eq
     if not explicit_hash:
-        made.__hash__ = _hash  # type: ignore[assignment]
+        made.__hash__ = _hash
+    made.__setattr__ = _setattr
+    made.__delattr__ = _delattr
+    if not documented:  # as dataclass writes it, from the __init__ made above
+        made.__doc__ = made.__name__ + str(inspect.signature(made)).replace(" -> None", "")
     return made

@@ -1,12 +1,14 @@
 """``@frozen`` behaves as ``@dataclass(frozen=True)``: each class shape defined both ways.
 
-The pairs differ only in the decorator; every observable result of the value methods
-(repr, ==, hash, immutability, replace, pickling, match) must be the same.
+The pairs differ only in the decorator; every observable result (``__init__``'s
+signature, values and errors, repr, ==, hash, immutability, replace, pickling, match)
+must be the same.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import pickle
 from dataclasses import dataclass, field
 from typing import Any
@@ -14,6 +16,7 @@ from typing import Any
 import pytest
 
 import eamos
+from eamos import frozen as frozen_module
 from eamos.frozen import frozen
 
 
@@ -111,7 +114,36 @@ def own_hash(deco: Any) -> type:
     return Hashed
 
 
-SHAPES = [plain, options, empty, one, derived, own_methods, own_hash]
+def factories(deco: Any) -> type:
+    @deco
+    class Made:
+        """Fields with factories, one not in __init__, and a keyword-only one in between."""
+
+        a: int
+        items: list[int] = field(default_factory=list, hash=False)
+        count: int = field(default=0, kw_only=True)
+        seen: set[str] = field(default_factory=set, init=False, hash=False)
+        b: str = "b"
+
+    return Made
+
+
+def checked(deco: Any) -> type:
+    @deco
+    class Checked:
+        """Checks itself in __post_init__ (and a field may be called self)."""
+
+        self: int
+        low: int = 0
+
+        def __post_init__(self) -> None:
+            if self.self < self.low:
+                raise ValueError(f"{self.self} < {self.low}")
+
+    return Checked
+
+
+SHAPES = [plain, options, empty, one, derived, own_methods, own_hash, factories, checked]
 #: Arguments to build two instances per shape (equal-or-not varies by shape).
 ARGS: dict[Any, list[tuple[tuple[Any, ...], dict[str, Any]]]] = {
     plain: [((1,), {}), ((1, 0.0, ()), {}), ((1, 2.5, ("a",)), {}), ((2,), {})],
@@ -126,24 +158,141 @@ ARGS: dict[Any, list[tuple[tuple[Any, ...], dict[str, Any]]]] = {
     derived: [((1,), {}), ((1,), {"b": 2}), ((1,), {"b": 3})],
     own_methods: [((1,), {}), ((2,), {}), ((5,), {})],
     own_hash: [((1,), {}), ((2,), {})],
+    factories: [((1,), {}), ((1, [2]), {"count": 3}), ((1,), {"b": "c", "items": [2]})],
+    checked: [((1,), {}), ((2,), {"low": 1}), ((), {"self": 3, "low": 3})],
+}
+#: Calls each shape's ``__init__`` refuses (same exception, same message, both ways).
+BAD_CALLS: dict[Any, list[tuple[tuple[Any, ...], dict[str, Any]]]] = {
+    plain: [((), {}), ((1, 2, 3, 4), {}), ((1,), {"z": 1}), ((1,), {"x": 2})],
+    options: [((), {"secret": "s"})],
+    empty: [((1,), {})],
+    one: [((), {}), ((1,), {"value": 1})],
+    derived: [((1, 2), {})],
+    own_methods: [((), {})],
+    own_hash: [((), {})],
+    factories: [((), {}), ((1, [], "b", 4), {}), ((1,), {"seen": set()})],
+    checked: [((0,), {"low": 1}), ((), {})],
 }
 
 
 @pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.__name__)
 def test_value_methods_match_dataclass(shape: Any) -> None:
     reference, ours = _pair(shape)
-    assert dataclasses.is_dataclass(ours) and ours.__dataclass_params__.frozen  # type: ignore[attr-defined]
+    assert dataclasses.is_dataclass(ours)
     assert [f.name for f in dataclasses.fields(ours)] == [
         f.name for f in dataclasses.fields(reference)
     ]
+    assert str(inspect.signature(ours)) == str(inspect.signature(reference))
+    our_init, reference_init = vars(ours)["__init__"], vars(reference)["__init__"]
+    assert our_init.__annotations__ == reference_init.__annotations__
+    assert our_init.__qualname__ == reference_init.__qualname__
+    assert ours.__doc__ == reference.__doc__
+    assert ours.__match_args__ == reference.__match_args__  # type: ignore[attr-defined]
     made = [(reference(*a, **k), ours(*a, **k)) for a, k in ARGS[shape]]
     for ref_x, our_x in made:
+        assert vars(our_x) == vars(ref_x)
         assert repr(our_x) == repr(ref_x)
         for ref_y, our_y in made:
             assert (our_x == our_y) is (ref_x == ref_y)
             assert (our_x != our_y) is (ref_x != ref_y)
         # Both hash the tuple of the same fields: the very same number.
         assert hash(our_x) == hash(ref_x)
+
+
+@pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.__name__)
+def test_init_refuses_what_dataclass_refuses_with_its_message(shape: Any) -> None:
+    for args, kwargs in BAD_CALLS[shape]:
+        errors = []
+        for cls in _pair(shape):
+            with pytest.raises((TypeError, ValueError)) as caught:
+                cls(*args, **kwargs)
+            errors.append((type(caught.value), str(caught.value)))
+        assert errors[0] == errors[1], (args, kwargs)
+
+
+@pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.__name__)
+def test_every_field_is_immutable_as_in_dataclass(shape: Any) -> None:
+    for cls in _pair(shape):
+        args, kwargs = ARGS[shape][0]
+        value = cls(*args, **kwargs)
+        for name in [*(f.name for f in dataclasses.fields(value)), "other"]:
+            with pytest.raises(dataclasses.FrozenInstanceError, match=f"assign to field '{name}'"):
+                setattr(value, name, 1)
+            with pytest.raises(dataclasses.FrozenInstanceError, match=f"delete field '{name}'"):
+                delattr(value, name)
+
+
+def test_factories_give_each_instance_its_own_value() -> None:
+    _, made = _pair(factories)
+    first, second = made(1), made(1)
+    assert first.items == [] and first.items is not second.items
+    assert first.seen == set() and first.seen is not second.seen
+
+
+def test_a_plain_subclass_may_set_what_is_not_a_field() -> None:
+    for cls in _pair(plain):
+
+        class Marked(cls):  # type: ignore[valid-type, misc]
+            def __init__(self, x: int) -> None:
+                super().__init__(x)
+                self.mark = "set"
+
+        assert Marked(1).mark == "set"
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            Marked(1).x = 2
+
+
+def test_class_definitions_dataclass_refuses_are_refused() -> None:
+    for deco in (dataclass(frozen=True), frozen):
+        with pytest.raises(TypeError, match="non-default argument 'b' follows default argument"):
+
+            @deco
+            class Order:
+                a: int = 1
+                b: int  # type: ignore[misc]
+
+        with pytest.raises(TypeError, match="Cannot overwrite attribute __setattr__"):
+
+            @deco
+            class Own:
+                a: int
+
+                def __setattr__(self, name: str, value: Any) -> None:
+                    pass
+
+        with pytest.raises(ValueError, match="mutable default"):
+
+            @deco
+            class Mutable:
+                a: list[int] = []
+
+    with pytest.raises(TypeError, match="InitVar"):
+
+        @frozen
+        class Initialised:
+            a: dataclasses.InitVar[int]
+
+
+def test_init_is_compiled_once_per_form_of_field_list() -> None:
+    @frozen
+    class First:
+        """Two fields, the second with a default."""
+
+        a: int
+        b: str = ""
+
+    @frozen
+    class Second:
+        """Other names, the same form."""
+
+        x: float
+        y: bytes = b""
+
+    # One compiled body, two names each: the code differs only in the names it holds.
+    assert First.__init__.__code__.co_code == Second.__init__.__code__.co_code
+    assert First.__init__.__code__.co_varnames == ("self", "a", "b")
+    assert Second.__init__.__code__.co_varnames == ("self", "x", "y")
+    assert vars(Second(1.0)) == {"x": 1.0, "y": b""}
 
 
 def test_hash_reads_the_fields_dataclass_hashes() -> None:
@@ -204,7 +353,7 @@ def test_repr_of_an_instance_inside_itself_is_dots() -> None:
 
 
 def test_every_frozen_class_of_eamos_keeps_dataclass_behaviour() -> None:
-    """Each ``@frozen`` class in the package is a frozen dataclass with the shared methods."""
+    """Each ``@frozen`` class in the package is a dataclass made immutable here."""
     import importlib
     import pkgutil
 
@@ -216,5 +365,6 @@ def test_every_frozen_class_of_eamos_keeps_dataclass_behaviour() -> None:
         for value in vars(module).values():
             if isinstance(value, type) and "__frozen_values__" in value.__dict__:
                 found += 1
-                assert value.__dataclass_params__.frozen, value  # type: ignore[attr-defined]
+                assert dataclasses.is_dataclass(value), value
+                assert value.__setattr__ is frozen_module._setattr, value
     assert found > 150

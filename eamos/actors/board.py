@@ -119,6 +119,8 @@ def ask_final_sample(
 
 @frozen
 class _FinalDeadline:
+    """The time a final sample may wait for a fresher frame is up."""
+
     request: FinalSample
 
 

@@ -106,7 +106,7 @@ def ask_activity(executive: Any, timeout_s: float) -> Activity:
 
 @frozen
 class _FlushProgress:
-    pass
+    """Send the progress events held since the last flush (the executive to itself)."""
 
 
 class DroneExecutive(RuntimePart):

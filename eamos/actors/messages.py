@@ -85,6 +85,8 @@ class Watch:
 
 @frozen
 class Unwatch:
+    """Stop the telemetry board's updates to this watcher."""
+
     watcher: Any
 
 

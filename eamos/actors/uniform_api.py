@@ -90,6 +90,8 @@ class ActionFinished:
 
 @dataclass
 class _Running:
+    """An action the adapter runs: its request, start, serial number and handle."""
+
     request: RunAction
     start_s: float
     serial: int

@@ -10,36 +10,66 @@ structlog is imported, a ``None`` in :data:`sys.modules` makes ``import rich`` f
 the entry is removed afterwards, so rich stays importable in this process (the ground
 station, run by ``eamos-node`` too, may still show a live table).
 
+structlog also imports ``asyncio`` (with ``ssl``, ``socket`` and ``subprocess``:
+~25 ms of a node's start-up) for its ``async`` log methods (``ainfo``, ...), which read
+``asyncio`` only when called; a node never calls them.  So while structlog is imported,
+``asyncio`` in :data:`sys.modules` is a :class:`Deferred` stand-in: structlog's modules
+keep it as their ``asyncio`` and the real module is imported the first time one of
+them reads an attribute of it.  The stand-in is removed from :data:`sys.modules` right
+after, so anything else that imports ``asyncio`` gets the real one.  (A lazy module,
+:class:`importlib.util.LazyLoader`, cannot serve: on Python 3.11 the very next ``import
+asyncio`` reads its ``__spec__`` and so loads it.)
+
 Nothing happens when structlog is already imported (a test process, ``eamos run``):
 only the node's own process start is affected.
-
-(structlog also imports ``asyncio``, with ``ssl`` and ``socket``, ~20 ms, for its
-``async`` methods.  It cannot be deferred here: a lazy module,
-:class:`importlib.util.LazyLoader`, is loaded by the very next ``import asyncio``
-on Python 3.11, which reads its ``__spec__``.)
 """
 
 from __future__ import annotations
 
+import importlib
 import sys
+import types
+from typing import Any
 
 #: Packages structlog imports only for console rendering (``structlog.dev``,
 #: ``structlog.tracebacks``); each is optional there (``except ImportError``).
 CONSOLE_EXTRAS = ("rich", "better_exceptions", "colorama")
+#: Modules structlog imports but reads only when an ``async`` log method runs.
+DEFERRED = ("asyncio",)
+
+
+class Deferred(types.ModuleType):
+    """Stands for module ``name``: imports it on the first attribute read, then reads there."""
+
+    def __getattr__(self, attribute: str) -> Any:
+        # Only attributes a plain module lacks get here; __spec__ is None (not a lazy
+        # module's trigger), so ``import asyncio`` while this stands in returns it as is.
+        if sys.modules.get(self.__name__) is self:  # read while standing in: make way
+            del sys.modules[self.__name__]
+        return getattr(importlib.import_module(self.__name__), attribute)
 
 
 def import_structlog_without_console_extras() -> None:
-    """Import structlog with :data:`CONSOLE_EXTRAS` hidden, unless it is imported already."""
+    """Import structlog with :data:`CONSOLE_EXTRAS` hidden and :data:`DEFERRED` deferred.
+
+    Does nothing if structlog is imported already.
+    """
     if "structlog" in sys.modules:
         return
     hidden = [name for name in CONSOLE_EXTRAS if name not in sys.modules]
+    deferred = [name for name in DEFERRED if name not in sys.modules]
     for name in hidden:
         sys.modules[name] = None  # type: ignore[assignment]  # the import system's "not found"
+    for name in deferred:
+        sys.modules[name] = Deferred(name)
     try:
         import structlog  # noqa: F401
     finally:
         for name in hidden:
             if name in sys.modules and sys.modules[name] is None:
+                del sys.modules[name]
+        for name in deferred:
+            if isinstance(sys.modules.get(name), Deferred):
                 del sys.modules[name]
 
 

@@ -66,6 +66,8 @@ def report_messages(
 
 @dataclass
 class _Partial:
+    """One sender's report so far: how many parts it has, and those received."""
+
     parts: int
     incarnation: int
     chunks: list[bytes] = field(default_factory=list)

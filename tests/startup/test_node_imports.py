@@ -18,8 +18,13 @@ from typing import Any
 #: Never on a drone's node at start: the console renderer's extras (structlog would pull
 #: them in, see eamos/cli/node_imports.py), the compiler's graph and parser libraries; what
 #: only a wrong name (difflib, eamos/hints.py) or the end of a flight (the report) needs;
-#: secrets (with hmac and hashlib's OpenSSL bindings) for one random byte.
+#: secrets (with hmac and hashlib's OpenSSL bindings) for one random byte; asyncio (with
+#: ssl), which structlog reads only in its async log methods (deferred, node_imports.py);
+#: shutil (with bz2, lzma), which argparse's help formatter imports for the terminal width.
 NOT_ON_THE_NODE = (
+    "asyncio",
+    "ssl",
+    "shutil",
     "rich",
     "pygments",
     "networkx",
@@ -44,6 +49,7 @@ NODE = r"""
 import json, pathlib, sys
 import eamos.cli.node
 import eamos.hal.sim.adapter
+eamos.cli.node.build_parser().parse_args(["--config", "d1.toml"])
 node = sorted(sys.modules)
 import rich.table
 from eamos.logs import close_logger, make_logger
@@ -100,6 +106,21 @@ def test_configs_hal_and_an_unused_plugin_registry_load_no_metadata_and_no_adapt
     assert present(loaded(LAYERS), NOT_ON_IMPORT) == []
 
 
+def test_the_help_is_as_wide_as_the_terminal_argparse_would_find(monkeypatch: Any) -> None:
+    import argparse
+
+    from eamos.cli.node import build_parser
+
+    for columns in ("50", "120", "0", "wide"):  # "0" and "wide": as argparse, the fallback
+        monkeypatch.setenv("COLUMNS", columns)
+        ours = build_parser()
+        # The same parser with argparse left to find the width itself (through shutil).
+        reference = build_parser()
+        reference.formatter_class = argparse.RawDescriptionHelpFormatter
+        assert ours.format_help() == reference.format_help(), columns
+        assert ours.format_usage() == reference.format_usage(), columns
+
+
 def test_the_check_sees_a_heavy_module() -> None:
     # The check above must be able to fail.
     assert present(["rich.table", "zmq"], NOT_ON_THE_NODE) == ["rich"]
@@ -125,3 +146,34 @@ def test_the_node_loads_with_the_collector_paused_and_resumes_it(tmp_path: Path)
     printed(COLLECTIONS, env=env)  # fills the cache
     # Without the pause the collector runs dozens of times over the new modules.
     assert printed(COLLECTIONS, env=env) == {"collections": 0, "enabled": True}
+
+
+#: A fresh interpreter: the node's imports, then structlog's async log method (the one
+#: reader of asyncio there) called under asyncio, through the stand-in it kept.
+ASYNC_LOG = r"""
+import io, json, sys
+import eamos.cli.node
+before = "asyncio" in sys.modules
+import structlog, structlog._native
+standing_in = type(structlog._native.asyncio).__name__
+import asyncio
+out = io.StringIO()
+render = structlog.processors.JSONRenderer()
+log = structlog.make_filtering_bound_logger(20)(structlog.PrintLogger(out), [render], {})
+asyncio.run(log.ainfo("async.line"))
+print(json.dumps({
+    "before": before,
+    "standing_in": standing_in,
+    "same": structlog._native.asyncio.run is asyncio.run,
+    "logged": out.getvalue().strip(),
+}))
+"""
+
+
+def test_structlog_reads_asyncio_through_its_stand_in_only_when_an_async_method_runs() -> None:
+    assert printed(ASYNC_LOG) == {
+        "before": False,  # deferred while structlog loaded (node_imports.py)
+        "standing_in": "Deferred",
+        "same": True,  # the stand-in reads the real module
+        "logged": '{"event": "async.line"}',
+    }
