@@ -15,11 +15,12 @@ import sys
 import threading
 import time
 from collections.abc import Callable, MutableMapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 import structlog
+
+from eamos.records import record
 
 LOG_NAMES = ("mission", "uniform", "adapter")
 
@@ -383,7 +384,7 @@ def close_logger(logger: Any) -> None:
         sink.close()
 
 
-@dataclass
+@record
 class DroneLogs:
     """The three logs of one drone (paper Table 5), written by one :class:`LogWriter`."""
 

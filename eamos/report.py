@@ -27,11 +27,11 @@ import html
 import io
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen, record
 
 from .ground.summary import ActionEntry, DroneReport, RunSummary
 from .hal.api import POSITION_LOG_HZ
@@ -47,7 +47,7 @@ class ReportError(Exception):
     """The folder is not a run folder (no readable ``summary.json``)."""
 
 
-@dataclass
+@record
 class Table:
     """Rows of plain values; shows as HTML in a notebook and as text elsewhere."""
 
@@ -94,7 +94,7 @@ def _fmt(value: Any) -> str:
     return "" if value is None else str(value)
 
 
-@dataclass
+@record
 class RunData:
     """One run folder, read once."""
 

@@ -38,10 +38,10 @@ _LAYERS: dict[str, set[str]] = {
     "check": {"program", "hints", "logs", "hal", "actors", "virtual", "compiler", "config"},
     "monitor": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
 }
-#: Modules every package may import: the decorator of its frozen dataclasses (stdlib only).
-EVERYWHERE = {"frozen"}
+#: Modules every package may import: the decorators of its dataclasses (stdlib only).
+EVERYWHERE = {"records"}
 ALLOWED: dict[str, set[str]] = {
-    "frozen": set(),
+    "records": set(),
     **{package: deps | EVERYWHERE for package, deps in _LAYERS.items()},
 }
 #: Packages only command-line code may import; nothing imports the CLI.

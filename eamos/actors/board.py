@@ -20,7 +20,7 @@ from typing import Any
 
 import pykka
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..hal.api import Telemetry
 from ..net import wire

@@ -10,7 +10,7 @@ from typing import Any
 
 import pykka
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..net import wire
 from ..net.progress import ProgressEvent, progress_batch

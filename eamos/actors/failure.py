@@ -19,7 +19,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any, ClassVar
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .dispatch import PooledActor
 

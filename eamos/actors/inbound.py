@@ -8,7 +8,7 @@ from typing import Any
 
 import pykka
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..net import wire
 from ..net.link import PeerStatus, TelemetryStale

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import field
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .state import Iteration, Status
 

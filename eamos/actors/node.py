@@ -32,7 +32,7 @@ from typing import Any
 
 import pykka
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..logs import LogLine, log_line
 from ..program.format import ProgramNode

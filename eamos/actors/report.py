@@ -20,7 +20,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import field
 from typing import TYPE_CHECKING, Any, Final
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 if TYPE_CHECKING:  # the report itself needs only the standard library
     from ..hal.api import Telemetry

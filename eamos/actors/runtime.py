@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import pykka
 import zmq
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..hal.api import Adapter, AdapterError
 from ..logs import DroneLogs, LogWriter

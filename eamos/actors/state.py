@@ -21,10 +21,10 @@ and tests drive it directly.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Literal
 
-from eamos.frozen import frozen
+from eamos.records import frozen, record
 
 Status = Literal["done", "skipped", "failed"]
 Group = Literal["entry", "loop"]
@@ -62,7 +62,7 @@ class Fired:
         return combine(self.statuses.values())
 
 
-@dataclass
+@record
 class Preconditions:
     """Counts the triggers one node received, per group and activation."""
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Collection, Iterable, Mapping
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..config import END_POLICIES, NodeConfig
 from ..program.format import DroneProgram

@@ -36,16 +36,15 @@ import itertools
 import threading
 import time
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass
 from typing import Any
 
 import pykka
 
-from eamos.frozen import frozen
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
 from eamos.logs import log_line
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import ACTIONS, CommandError, decode_command
+from eamos.records import frozen, record
 
 from .failure import tell_operator
 
@@ -88,7 +87,7 @@ class ActionFinished:
     end_s: float
 
 
-@dataclass
+@record
 class _Running:
     """An action the adapter runs: its request, start, serial number and handle."""
 

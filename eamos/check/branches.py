@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Collection
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..actors.logic import ActionLogic, ConditionLogic, LoopLogic
 from ..actors.state import Iteration, holds

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from dataclasses import field
 from typing import Any, Literal
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 Severity = Literal["error", "warning"]
 #: A point in the fleet frame: north, east, up (metres).

@@ -15,7 +15,7 @@ from __future__ import annotations
 import itertools
 import math
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .tracks import Track
 

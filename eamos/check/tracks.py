@@ -12,7 +12,7 @@ from __future__ import annotations
 import bisect
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..hal.api import ActionHandle, DoneCallback, Telemetry
 from ..hal.sim import SimCore

@@ -12,11 +12,10 @@ import argparse
 import contextlib
 import threading
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen, record
 
 from .errors import BadInput, command
 from .exits import EXIT_OK
@@ -75,7 +74,7 @@ def add_monitor_options(parser: argparse.ArgumentParser) -> None:
     add_port_options(parser)
 
 
-@dataclass
+@record
 class Monitored:
     """What a run gets from :func:`live_monitor`: its display and the end of the run."""
 

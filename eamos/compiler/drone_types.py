@@ -23,7 +23,7 @@ from __future__ import annotations
 import functools
 from dataclasses import field
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from ..program.uniform import ACTIONS, DRONE_TYPES, ActionSpec, DroneType

@@ -13,7 +13,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..hints import closest
 from .source import display_line, split_lines

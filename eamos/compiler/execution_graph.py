@@ -65,7 +65,7 @@ import itertools
 
 import networkx as nx
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .errors import CompilerBug
 from .mission_tree import (

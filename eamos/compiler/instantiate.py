@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import field
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..program.uniform import ACTIONS
 from .check import argument_problem

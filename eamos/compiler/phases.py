@@ -17,7 +17,7 @@ from pathlib import Path
 
 import networkx as nx
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .. import __version__
 from ..program.format import DroneProgram

@@ -11,8 +11,10 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import field
 from xml.sax.saxutils import escape as _xml_escape
+
+from eamos.records import record
 
 # -- built-in renderer: a tiny DOT reader and a layered layout --------------------------
 
@@ -23,7 +25,7 @@ _TOKEN = re.compile(
 )
 
 
-@dataclass
+@record
 class _DotGraph:
     name: str = ""
     graph: dict[str, str] = field(default_factory=dict)
@@ -131,7 +133,7 @@ def parse_dot(text: str) -> _DotGraph:
     return g
 
 
-@dataclass
+@record
 class _Box:
     x: float = 0.0
     y: float = 0.0

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import field
 from typing import Literal
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .errors import SourceLocation
 

@@ -36,7 +36,7 @@ from dataclasses import field
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..hal.kinematics import GeoFrame
 from ..hal.settings import did_you_mean

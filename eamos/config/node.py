@@ -55,7 +55,7 @@ from dataclasses import field
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import LinkSettings

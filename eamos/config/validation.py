@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..hal.settings import did_you_mean
 

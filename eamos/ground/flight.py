@@ -20,12 +20,12 @@ from types import FrameType
 from typing import Any
 
 from eamos.actors.runtime import DroneRuntime, NetSettings
-from eamos.frozen import frozen
 from eamos.hal import make_adapter
 from eamos.logs import make_logger
 from eamos.net import wire
 from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
+from eamos.records import frozen
 
 from .display import Display
 from .station import GroundStation

@@ -20,7 +20,6 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -34,13 +33,13 @@ from eamos.config import (
     fleet_order,
     in_range,
 )
-from eamos.frozen import frozen
 from eamos.hal import AdapterError, make_adapter
 from eamos.logs import make_logger
 from eamos.net.keys import FleetKeys, create_fleet_keys
 from eamos.net.settings import LinkSettings
 from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
+from eamos.records import frozen, record
 
 from .display import Display, make_display
 from .flight import Limits, fly, ground_runtime, hurried
@@ -274,7 +273,7 @@ def exit_reason(code: int, group: tuple[str, ...], why: str = "") -> str:
     return f"process exited with code {code}{shared}" + (f": {why}" if why else "")
 
 
-@dataclass
+@record
 class _Proc:
     name: str  # the process's first drone
     popen: subprocess.Popen[bytes]

@@ -26,16 +26,16 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
 from eamos.actors.report import DroneReport, ReportError
 from eamos.actors.runtime import DroneRuntime
-from eamos.frozen import frozen
 from eamos.net import wire
 from eamos.net.link import PeerStatus
 from eamos.net.progress import progress_events
 from eamos.program.uniform import GROUND_STATION
+from eamos.records import frozen, record
 
 Clock = Callable[[], float]
 
@@ -48,7 +48,7 @@ class ParticipantFailed:
     reason: str
 
 
-@dataclass
+@record
 class DroneView:
     """What the ground station knows of one drone, for display and the summary."""
 

@@ -23,9 +23,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.actors.report import ActionEntry, DroneReport, FinalState
-from eamos.frozen import frozen
 from eamos.logs import report_write_error
 from eamos.program.uniform import GROUND_STATION
+from eamos.records import frozen
 
 __all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
 

@@ -41,9 +41,9 @@ from collections.abc import Callable
 from dataclasses import field
 from typing import Literal, Protocol
 
-from eamos.frozen import frozen
 from eamos.program.plugins import PluginRegistry
 from eamos.program.uniform import Command
+from eamos.records import frozen
 
 ActionStatus = Literal["ok", "failed", "cancelled"]
 

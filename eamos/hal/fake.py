@@ -21,7 +21,6 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from eamos.frozen import frozen
 from eamos.hal.api import (
     ActionHandle,
     ActionResult,
@@ -33,6 +32,7 @@ from eamos.hal.api import (
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, require_mapping
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
+from eamos.records import frozen
 
 
 @frozen

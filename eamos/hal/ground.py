@@ -13,7 +13,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from eamos.frozen import frozen
 from eamos.hal.api import (
     ActionHandle,
     ActionResult,
@@ -27,6 +26,7 @@ from eamos.hal.settings import COMMON_KEYS, check_keys, number, require_mapping
 from eamos.logs import make_logger
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import Command, PauseFor
+from eamos.records import frozen
 
 
 @frozen

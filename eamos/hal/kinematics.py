@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 #: Mean equatorial Earth radius used by the flat-earth approximation (WGS84 a).
 EARTH_RADIUS_M = 6_378_137.0

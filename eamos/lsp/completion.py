@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from typing import Literal
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, PROPERTIES
 from .document import MissionIndex, blank_comments

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import Literal
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..compiler import CompilerBug, Diagnostic, MissionError, check_source, compile_mission
 from ..compiler.errors import SourceLocation

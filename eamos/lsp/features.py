@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..compiler.syntax import ActionCall, BlockCall, Control, Mission
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, GROUND_STATION, PROPERTIES

@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Literal
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..compiler import MissionError
 from ..compiler.libraries import load_libraries, search_path

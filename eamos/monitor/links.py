@@ -30,8 +30,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
-from eamos.frozen import frozen
 from eamos.program.format import DroneProgram
+from eamos.records import frozen
 
 #: Node kinds whose begin node counts iterations (their Body arcs carry the counter).
 LOOP_KINDS = frozenset({"repeat_while", "repeat_until", "repeat_for"})

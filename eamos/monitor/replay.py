@@ -22,11 +22,11 @@ import json
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
 from eamos.ground.summary import RunSummary
 from eamos.net import wire
 from eamos.net.link import PeerStatus
 from eamos.program.uniform import GROUND_STATION
+from eamos.records import frozen
 
 from .hub import Hub
 from .server import MonitorServer

@@ -16,9 +16,9 @@ from dataclasses import field
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
 from eamos.program.format import DroneProgram, ProgramError, load_program
 from eamos.program.uniform import GROUND_STATION
+from eamos.records import frozen
 
 from .links import LinkGraph
 

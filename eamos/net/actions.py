@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import TypeAlias
 
 import eamos.net.wire as wire
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 __all__ = ["Action", "Deliver", "PeerChanged", "PeerStatus", "Send", "TelemetryStale", "Wake"]
 

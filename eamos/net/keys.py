@@ -39,9 +39,9 @@ from typing import Any, Final
 import zmq
 import zmq.auth
 
-from eamos.frozen import frozen
 from eamos.logs import make_logger
 from eamos.net.zap import ZapHandler
+from eamos.records import frozen
 
 __all__ = [
     "ZAP_DOMAIN",

@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import random
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any, Final
 
 import eamos.net.wire as wire
 from eamos.net.settings import LinkSettings
+from eamos.records import record
 
 __all__ = [
     "HEARTBEAT_ACK_REPEATS",
@@ -34,7 +35,7 @@ HEARTBEAT_ACK_REPEATS: Final = 3
 timeout is at least two heartbeats, so the sender normally has one of them first."""
 
 
-@dataclass
+@record
 class SessionCounters:
     """What the protocol did, for the run summary (``report()["net"]``)."""
 
@@ -53,7 +54,7 @@ class SessionCounters:
     stalled_s: float = 0.0  # their lateness, summed: not counted as the peers' silence
 
 
-@dataclass
+@record
 class _Out:
     """One reliable message waiting for its acknowledgement."""
 
@@ -63,7 +64,7 @@ class _Out:
     tries: int = 0  # retransmissions so far
 
 
-@dataclass
+@record
 class Sending:
     """The sending side of one link (or of this participant's broadcasts)."""
 
@@ -146,7 +147,7 @@ class Sending:
         self.due = now + self.backoff * rng.uniform(0.8, 1.2)
 
 
-@dataclass
+@record
 class Receiving:
     """The receiving side of one sequence: a link's, or one peer's broadcasts."""
 
@@ -175,7 +176,7 @@ class Receiving:
         return got
 
 
-@dataclass
+@record
 class Peer:
     """Everything this participant knows about one peer."""
 

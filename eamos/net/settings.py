@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Final
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 __all__ = ["DEFAULT_HEARTBEAT_MS", "LinkSettings"]
 

@@ -155,7 +155,6 @@ from typing import Any, ClassVar, Final, TypeVar
 
 import msgpack
 
-from eamos.frozen import frozen
 from eamos.net.wire_fields import (
     _MAX_CONTAINER_LEN,
     MAX_DEPTH,
@@ -178,6 +177,7 @@ from eamos.net.wire_fields import (
     _m,
 )
 from eamos.program.uniform import GROUND_STATION as _GCS
+from eamos.records import frozen
 
 __all__ = [
     "GROUND_STATION",

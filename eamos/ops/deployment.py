@@ -14,7 +14,7 @@ from dataclasses import field
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..config import ConfigError, FleetConfig
 from ..program.uniform import GROUND_STATION

@@ -30,9 +30,11 @@ import subprocess
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
+
+from eamos.records import record
 
 from ..actors.runtime import DroneRuntimeError, NetSettings
 from ..ground import (
@@ -167,7 +169,7 @@ class NodeWatcher:
 # -- eamos start ---------------------------------------------------------------------------------
 
 
-@dataclass
+@record
 class StartOptions:
     """What ``eamos start`` was asked to do."""
 
@@ -345,7 +347,7 @@ def wait_pid_exit(pid: int, timeout_s: float) -> bool:
         os.close(fd)
 
 
-@dataclass
+@record
 class AbortResult:
     """How an abort went, per drone."""
 

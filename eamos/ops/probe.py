@@ -12,7 +12,7 @@ import re
 import shlex
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .. import __version__
 from .ssh import DroneError, remote_error, run_remote

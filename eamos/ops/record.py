@@ -10,9 +10,11 @@ import json
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
+
+from eamos.records import record
 
 from .. import __version__
 from .plan import DronePlan
@@ -26,7 +28,7 @@ ROLLOUT_VERSION = 1
 Say = Callable[[str], None]
 
 
-@dataclass
+@record
 class Steps:
     """Prints each step and each drone's part with its duration; keeps the durations."""
 
@@ -60,7 +62,7 @@ def paper_table(durations: dict[str, float]) -> list[tuple[str, float]]:
     return rows
 
 
-@dataclass
+@record
 class Rollout:
     """The result of a roll-out (also ``rollout.json`` in the run folder)."""
 

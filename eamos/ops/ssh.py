@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TypeVar
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .targets import SshTarget
 

@@ -21,9 +21,11 @@ import shlex
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import Any
+
+from eamos.records import record
 
 from ..net import wire
 from ..program.format import ProgramError, load_program
@@ -39,7 +41,7 @@ FETCH_TIMEOUT_S = 600.0
 LOG_TAIL_LINES = 200
 
 
-@dataclass
+@record
 class DroneStatus:
     """One row of ``eamos status``."""
 
@@ -302,7 +304,7 @@ def format_status(dep: Deployment, rows: list[DroneStatus]) -> str:
     return "\n".join(text)
 
 
-@dataclass
+@record
 class FetchResult:
     """What ``eamos logs fetch`` collected."""
 

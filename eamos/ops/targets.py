@@ -34,7 +34,7 @@ from dataclasses import field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..config import ConfigError, FleetConfig, _check_keys
 

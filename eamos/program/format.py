@@ -47,7 +47,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .conditions import ConditionError, validate
 

@@ -27,7 +27,7 @@ from dataclasses import field
 from types import MappingProxyType
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from .uniform import ACTIONS, ActionSpec
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import fields
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 
 @frozen

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from dataclasses import field
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..actors.messages import ActionRecord
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import field
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ..messages import ActionRecord, Interrupt, NodeEvent
 from ..state import Iteration, Status

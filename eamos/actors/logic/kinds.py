@@ -7,7 +7,7 @@ the same way for the actor runtime and the virtual-time driver.
 
 from __future__ import annotations
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 from ...program.format import DroneProgram, ProgramNode
 from .actions import ActionLogic

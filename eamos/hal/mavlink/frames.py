@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 Vector = tuple[float, float, float]
 

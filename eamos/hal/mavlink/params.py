@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import struct
 
-from eamos.frozen import frozen
+from eamos.records import frozen
 
 #: MAV_PARAM_TYPE values.
 MAV_PARAM_TYPE_UINT8, MAV_PARAM_TYPE_INT8 = 1, 2

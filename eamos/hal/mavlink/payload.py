@@ -22,12 +22,12 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from eamos.frozen import frozen
 from eamos.hal.mavlink.flight import RunControl
 from eamos.hal.mavlink.frames import Vector
 from eamos.hal.mavlink.link import LinkState
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.hal.mavlink.waits import Run, Waiter
+from eamos.records import frozen
 
 
 @frozen

@@ -10,10 +10,10 @@ from collections.abc import Mapping
 from dataclasses import fields
 from typing import Any, Literal
 
-from eamos.frozen import frozen
 from eamos.hal.mavlink.autopilots import TakeoffMode
 from eamos.hal.mavlink.link import check_connection
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, number, require_mapping
+from eamos.records import frozen
 
 
 @frozen

@@ -13,10 +13,10 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any
 
-from eamos.frozen import frozen
+from eamos.records import frozen, record
 
 #: MAVLink numbers the tracker reads (kept local: no pymavlink needed).
 MAV_TYPE_GCS = 6
@@ -50,7 +50,7 @@ def result_name(result: int | None) -> str:
     return MAV_RESULT_NAMES.get(result, f"MAV_RESULT({result})")
 
 
-@dataclass
+@record
 class GlobalPosition:
     """GLOBAL_POSITION_INT in SI units."""
 
@@ -75,7 +75,7 @@ class CapturedImage:
     ok: bool  # capture_result == 1
 
 
-@dataclass
+@record
 class LinkState:
     """What the reader knows about the vehicle; read and written under ``MavlinkLink.cond``."""
 

@@ -14,7 +14,6 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from eamos.frozen import frozen
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
 from eamos.hal.kinematics import GeoFrame, Quadcopter
 from eamos.hal.sim.motions import (
@@ -46,6 +45,7 @@ from eamos.program.uniform import (
     Yaw,
     target_xyz,
 )
+from eamos.records import frozen
 
 #: Simulated seconds per model step.
 SIM_DT_S = 0.02

@@ -16,8 +16,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import field
 
-from eamos.frozen import frozen
 from eamos.program.uniform import PluginAction
+from eamos.records import frozen
 
 #: The default simulated duration of a plugin action.
 PLUGIN_DELAY_S = 0.2

@@ -11,7 +11,6 @@ from dataclasses import fields
 from types import MappingProxyType
 from typing import Any
 
-from eamos.frozen import frozen
 from eamos.hal.kinematics import GeoFrame, Limits
 from eamos.hal.settings import (
     COMMON_KEYS,
@@ -24,6 +23,7 @@ from eamos.hal.settings import (
     string_list,
 )
 from eamos.program.uniform import ACTIONS, DRONE_TYPES
+from eamos.records import frozen
 
 
 @frozen

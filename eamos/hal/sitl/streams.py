@@ -13,7 +13,6 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from eamos.frozen import frozen
 from eamos.hal.kinematics import GeoFrame, VehicleState
 from eamos.hal.sitl.wire import (
     ACCEPTED,
@@ -50,6 +49,7 @@ from eamos.hal.sitl.wire import (
     UNSUPPORTED,
     VehicleOptions,
 )
+from eamos.records import frozen
 
 #: ``send(message, *fields)``: send one MAVLink message by its pymavlink name.
 Send = Callable[..., None]

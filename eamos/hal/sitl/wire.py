@@ -15,9 +15,9 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, Literal
 
-from eamos.frozen import frozen
 from eamos.hal.kinematics import Limits
 from eamos.hal.mavlink.link import load_mavutil
+from eamos.records import frozen
 
 AutopilotName = Literal["px4", "ardupilot"]
 

@@ -1,38 +1,41 @@
-"""``@frozen``: a frozen dataclass that compiles nothing per class, for start-up's sake.
+"""``@frozen`` and ``@record``: dataclasses that compile nothing per class, for start-up's sake.
 
-``@frozen`` behaves as ``@dataclass(frozen=True)``: the same ``__init__`` (signature,
-defaults, ``default_factory``, ``kw_only``, ``__post_init__``), fields, immutability
-(:class:`dataclasses.FrozenInstanceError`), ``dataclasses.replace`` / ``fields`` /
-``asdict``, pickling, ``__match_args__``, ``repr``, ``==`` and ``hash``; a type checker
-treats it as one (:func:`typing.dataclass_transform`).  ``tests/test_frozen.py``
-compares the two, class shape by class shape.
+``@frozen`` behaves as ``@dataclass(frozen=True)`` and ``@record`` as ``@dataclass``:
+the same ``__init__`` (signature, defaults, ``default_factory``, ``kw_only``,
+``__post_init__``), fields, ``dataclasses.replace`` / ``fields`` / ``asdict``, pickling,
+``__match_args__``, ``repr`` and ``==``; a ``@frozen`` value is immutable
+(:class:`dataclasses.FrozenInstanceError`) and hashable, a ``@record`` is neither
+(``__hash__`` is None), as with ``dataclass``.  A type checker treats them as
+``dataclass`` (:func:`typing.dataclass_transform`).  ``tests/test_records.py`` compares
+them with ``dataclass``, class shape by class shape.
 
-Why it exists: on Python 3.11, ``dataclass`` writes the source of six methods per
-frozen class and compiles each with ``exec``, about 0.3 ms a class, and a drone's
-``eamos-node`` defines over a hundred such classes before it is ready
+Why they exist: on Python 3.11, ``dataclass`` writes the source of three methods per
+class (six when frozen) and compiles each with ``exec``: 0.2-0.4 ms a class, and a
+drone's ``eamos-node`` defines about 130 such classes before it is ready
 (docs/performance.md).  Here nothing is compiled per class:
 
 * ``__repr__``, ``__eq__``, ``__hash__``, ``__setattr__`` and ``__delattr__`` are one
   shared function each, reading what the class names once at decoration
-  (``__frozen_values__``: C-level getters of the compared and hashed fields, the names
+  (``__record_values__``: C-level getters of the compared and hashed fields, the names
   ``repr`` shows);
 * ``__init__`` is compiled once per *form* of field list (how many fields, which take
-  a ``default_factory``, which are keyword-only, whether ``__post_init__`` is called),
-  with placeholder names; each class gets a copy of that code object with its own field
-  names (:meth:`types.CodeType.replace`) and its own defaults, so its signature, its
-  errors (``missing 1 required positional argument: 'x'``) and its speed are those of the
-  ``__init__`` ``dataclass`` would have written.
+  a ``default_factory``, which are keyword-only, whether ``__post_init__`` is called,
+  frozen or not), with placeholder names; each class gets a copy of that code object
+  with its own field names (:meth:`types.CodeType.replace`) and its own defaults, so its
+  signature, its errors (``missing 1 required positional argument: 'x'``) and its speed
+  are those of the ``__init__`` ``dataclass`` would have written.
 
 ``dataclass`` itself still collects the fields (``init=False, repr=False, eq=False``,
-not ``frozen``: ``__dataclass_params__.frozen`` is False, since the immutability is this
-module's).  So a ``@dataclass(frozen=True)`` cannot inherit from a ``@frozen`` class nor
-the reverse (``dataclasses``' own rule about mixing); within this package every plain
-frozen value class is ``@frozen``.  A method the class body defines itself
-(``__repr__``, ``__eq__``, ``__hash__``) is kept, as ``dataclass`` keeps it; one that
-defines ``__setattr__`` or ``__delattr__`` is refused, as ``dataclass`` refuses it.
+never ``frozen``: ``__dataclass_params__`` describes what ``dataclass`` generated, and
+a ``@frozen`` class's immutability is this module's).  As with ``dataclass``, a
+``@frozen`` class cannot inherit from a ``@record`` one nor the reverse; nor can either
+mix with a ``@dataclass`` of the other kind.  A method the class body defines itself
+(``__repr__``, ``__eq__``, ``__hash__``) is kept, as ``dataclass`` keeps it; a
+``@frozen`` body that defines ``__setattr__`` or ``__delattr__`` is refused, as
+``dataclass(frozen=True)`` refuses it.
 
-Only the plain form exists: a class that needs ``order``, ``slots``, ``InitVar`` or
-other options stays a ``@dataclass(frozen=True, ...)``.
+Only the plain form exists: a class that needs ``order``, ``slots``, ``eq=False``,
+``InitVar`` or other options stays a ``@dataclass(...)``.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from reprlib import recursive_repr
 from types import CodeType, FunctionType
 from typing import Any, TypeVar, dataclass_transform
 
-__all__ = ["frozen"]
+__all__ = ["frozen", "record"]
 
 C = TypeVar("C", bound=type)
 
@@ -80,18 +83,18 @@ def _tuple_of(names: tuple[str, ...]) -> Callable[[Any], tuple[Any, ...]]:
 
 def _eq(self: Any, other: Any) -> Any:
     if other.__class__ is self.__class__:
-        compared = self.__frozen_values__[0]
+        compared = self.__record_values__[0]
         return compared(self) == compared(other)
     return NotImplemented
 
 
 def _hash(self: Any) -> int:
-    return hash(self.__frozen_values__[1](self))
+    return hash(self.__record_values__[1](self))
 
 
 @recursive_repr()  # as ``dataclasses``' own: an instance met again inside itself is "..."
 def _repr(self: Any) -> str:
-    shown = self.__frozen_values__[2]
+    shown = self.__record_values__[2]
     fields = ", ".join(f"{name}={getattr(self, name)!r}" for name in shown)
     return f"{self.__class__.__qualname__}({fields})"
 
@@ -99,7 +102,7 @@ def _repr(self: Any) -> str:
 def _is_frozen_here(self: Any, name: str) -> bool:
     """``dataclasses``' rule: an instance of a frozen class itself, or one of its fields."""
     cls = type(self)
-    return "__frozen_values__" in cls.__dict__ or name in cls.__dataclass_fields__
+    return "__record_values__" in cls.__dict__ or name in cls.__dataclass_fields__
 
 
 def _setattr(self: Any, name: str, value: Any) -> None:
@@ -116,17 +119,35 @@ def _delattr(self: Any, name: str) -> None:
 
 def _placeholder(index: int) -> str:
     """The name field ``index`` has in a compiled form (no field is called so)."""
-    return f"_frozen_field_{index}_"
+    return f"_record_field_{index}_"
+
+
+def _is_frozen(cls: type) -> bool:
+    """Whether ``cls`` (or the dataclass it derives from) is frozen, by this module or not."""
+    if getattr(cls, "__setattr__", None) is _setattr:
+        return True
+    params = getattr(cls, "__dataclass_params__", None)
+    return bool(params is not None and params.frozen)
 
 
 @cache  # one compilation per form; a class's __init__ is a renamed copy of it
-def _init_code(self_name: str, forms: tuple[tuple[str, bool], ...], post_init: bool) -> CodeType:
+def _init_code(
+    self_name: str, forms: tuple[tuple[str, bool], ...], post_init: bool, frozen: bool
+) -> CodeType:
     """The code of ``__init__`` for fields of ``forms`` ((how set, keyword-only) each).
 
-    Field ``i`` is called :func:`_placeholder` ``(i)``, both as its parameter and in the
-    constant naming the attribute it sets; ``_set`` is ``object.__setattr__``, ``_FACTORY``
-    the factory default, ``_factory_i`` field ``i``'s factory (all from the globals).
+    Field ``i`` is called :func:`_placeholder` ``(i)``: its parameter, and the attribute
+    it sets, as ``dataclass`` sets it: ``_set(self, name, value)`` (``_set`` is
+    ``object.__setattr__``) when ``frozen``, ``self.name = value`` otherwise.
+    ``_FACTORY`` is the factory default, ``_factory_i`` field ``i``'s factory (both
+    from the globals).
     """
+
+    def assign(name: str, value: str) -> str:
+        if frozen:
+            return f"_set({self_name}, {name!r}, {value})"
+        return f"{self_name}.{name} = {value}"
+
     positional: list[str] = []
     keyword: list[str] = []
     body: list[str] = []
@@ -135,19 +156,18 @@ def _init_code(self_name: str, forms: tuple[tuple[str, bool], ...], post_init: b
         if how in (_ARGUMENT, _FACTORY_ARGUMENT):
             (keyword if kw_only else positional).append(name)
         if how == _ARGUMENT:
-            body.append(f"_set({self_name}, {name!r}, {name})")
+            body.append(assign(name, name))
         elif how == _FACTORY_ARGUMENT:
-            value = f"_factory_{index}() if {name} is _FACTORY else {name}"
-            body.append(f"_set({self_name}, {name!r}, {value})")
+            body.append(assign(name, f"_factory_{index}() if {name} is _FACTORY else {name}"))
         elif how == _FACTORY_ONLY:
-            body.append(f"_set({self_name}, {name!r}, _factory_{index}())")
+            body.append(assign(name, f"_factory_{index}()"))
     if post_init:
         body.append(f"{self_name}.__post_init__()")
     params = [self_name, *positional, *(["*", *keyword] if keyword else [])]
     lines = "\n    ".join(body or ["pass"])
     source = f"def __init__({', '.join(params)}):\n    {lines}\n"
     namespace: dict[str, Any] = {}
-    exec(compile(source, "<frozen __init__>", "exec"), namespace)  # our own text
+    exec(compile(source, "<record __init__>", "exec"), namespace)  # our own text
     code: CodeType = namespace["__init__"].__code__
     return code
 
@@ -172,16 +192,19 @@ def _check_defaults_order(fields: tuple[dataclasses.Field[Any], ...]) -> None:
             raise TypeError(f"non-default argument {f.name!r} follows default argument")
 
 
-def _make_init(cls: type, fields: tuple[dataclasses.Field[Any], ...]) -> Callable[..., None]:
+def _make_init(
+    cls: type, fields: tuple[dataclasses.Field[Any], ...], frozen: bool
+) -> Callable[..., None]:
     """``cls``'s ``__init__``: the compiled form of its fields, renamed and given defaults."""
     _check_defaults_order(fields)
     names = [f.name for f in fields]
     self_name = "__dataclass_self__" if "self" in names else "self"
     forms = tuple((_how(f), f.kw_only is True) for f in fields)
-    code = _init_code(self_name, forms, hasattr(cls, "__post_init__"))
+    code = _init_code(self_name, forms, hasattr(cls, "__post_init__"), frozen)
     renamed = {_placeholder(i): name for i, name in enumerate(names)}
     code = code.replace(
         co_varnames=tuple(renamed.get(n, n) for n in code.co_varnames),
+        co_names=tuple(renamed.get(n, n) for n in code.co_names),  # ``self.name = ...``
         co_consts=tuple(renamed.get(c, c) if isinstance(c, str) else c for c in code.co_consts),
         co_name="__init__",
         co_qualname=f"{cls.__qualname__}.__init__",
@@ -220,19 +243,26 @@ def _explicit_hash(cls: type) -> bool:
     return not (body["__hash__"] is None and "__eq__" in body)
 
 
-def _refuse(cls: type) -> None:
-    """``dataclass(frozen=True)``'s refusals, and what this plain form does not take."""
-    for name in ("__setattr__", "__delattr__"):
-        if name in cls.__dict__:
-            raise TypeError(f"Cannot overwrite attribute {name} in class {cls.__name__}")
-    for f in getattr(cls, "__dataclass_fields__", {}).values():
-        if "InitVar" in str(f.type):
-            raise TypeError(f"@frozen takes no InitVar ({cls.__name__}.{f.name})")
+def _refuse_before(cls: type, frozen: bool) -> None:
+    """``dataclass``' refusals about the class body and its bases, before it runs."""
+    for base in cls.__mro__[1:]:
+        if "__dataclass_fields__" not in base.__dict__:
+            continue
+        if _is_frozen(base) and not frozen:
+            raise TypeError("cannot inherit non-frozen dataclass from a frozen one")
+        if frozen and not _is_frozen(base):
+            raise TypeError("cannot inherit frozen dataclass from a non-frozen one")
+        if frozen and base.__dataclass_params__.frozen:  # type: ignore[attr-defined]
+            raise TypeError(f"@frozen cannot extend @dataclass(frozen=True) {base.__name__}")
+    if frozen:
+        for name in ("__setattr__", "__delattr__"):
+            if name in cls.__dict__:
+                raise TypeError(f"Cannot overwrite attribute {name} in class {cls.__name__}")
 
 
-@dataclass_transform(frozen_default=True, field_specifiers=(dataclasses.field, dataclasses.Field))
-def frozen(cls: C) -> C:
-    """``cls`` as a frozen dataclass whose methods are shared or copied, never compiled."""
+def _decorate(cls: Any, frozen: bool) -> Any:
+    """``cls`` made a dataclass with this module's methods (see the module's docstring)."""
+    _refuse_before(cls, frozen)
     explicit_hash = _explicit_hash(cls)
     documented = bool(cls.__dict__.get("__doc__"))
     if not documented:
@@ -240,25 +270,43 @@ def frozen(cls: C) -> C:
         # here), which parses its text signature with tokenize: ~2 ms the first time.
         cls.__doc__ = "(written below)"
     made: Any = dataclasses.dataclass(init=False, repr=False, eq=False)(cls)
-    _refuse(made)  # after dataclass: InitVar pseudo-fields are known once it read the body
+    for f in made.__dataclass_fields__.values():  # pseudo-fields are known only now
+        if "InitVar" in str(f.type):
+            raise TypeError(f"@frozen and @record take no InitVar ({cls.__name__}.{f.name})")
     fields = dataclasses.fields(made)
     body = made.__dict__
     if "__init__" not in body:
-        made.__init__ = _make_init(made, fields)
+        made.__init__ = _make_init(made, fields, frozen)
     compared = tuple(f.name for f in fields if f.compare)
     hashed = tuple(f.name for f in fields if (f.compare if f.hash is None else f.hash))
     shown = tuple(f.name for f in fields if f.repr)
     # What the shared methods read: getters of the compared and the hashed fields, the
     # names shown by repr.
-    made.__frozen_values__ = (_tuple_of(compared), _tuple_of(hashed), shown)
+    made.__record_values__ = (_tuple_of(compared), _tuple_of(hashed), shown)
     if "__repr__" not in body:
         made.__repr__ = _repr
     if "__eq__" not in body:
         made.__eq__ = _eq
     if not explicit_hash:
-        made.__hash__ = _hash
-    made.__setattr__ = _setattr
-    made.__delattr__ = _delattr
+        # dataclass: a frozen class hashes its fields; a mutable one is not hashable.
+        made.__hash__ = _hash if frozen else None
+    if frozen:
+        made.__setattr__ = _setattr
+        made.__delattr__ = _delattr
     if not documented:  # as dataclass writes it, from the __init__ made above
         made.__doc__ = made.__name__ + str(inspect.signature(made)).replace(" -> None", "")
+    return made
+
+
+@dataclass_transform(frozen_default=True, field_specifiers=(dataclasses.field, dataclasses.Field))
+def frozen(cls: C) -> C:
+    """``cls`` as ``@dataclass(frozen=True)`` makes it, with nothing compiled for it."""
+    made: C = _decorate(cls, frozen=True)
+    return made
+
+
+@dataclass_transform(field_specifiers=(dataclasses.field, dataclasses.Field))
+def record(cls: C) -> C:
+    """``cls`` as ``@dataclass`` makes it (mutable, not hashable), with nothing compiled for it."""
+    made: C = _decorate(cls, frozen=False)
     return made

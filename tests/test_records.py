@@ -1,8 +1,8 @@
-"""``@frozen`` behaves as ``@dataclass(frozen=True)``: each class shape defined both ways.
+"""``@frozen`` behaves as ``@dataclass(frozen=True)``, ``@record`` as ``@dataclass``.
 
-The pairs differ only in the decorator; every observable result (``__init__``'s
-signature, values and errors, repr, ==, hash, immutability, replace, pickling, match)
-must be the same.
+Each class shape is defined both ways; the pairs differ only in the decorator, and every
+observable result (``__init__``'s signature, values and errors, repr, ==, hash,
+immutability, replace, pickling, match) must be the same.
 """
 
 from __future__ import annotations
@@ -16,13 +16,28 @@ from typing import Any
 import pytest
 
 import eamos
-from eamos import frozen as frozen_module
-from eamos.frozen import frozen
+from eamos import records as records_module
+from eamos.records import frozen, record
+
+#: Each kind: the ``dataclass`` decorator, and this package's that behaves as it.
+KINDS: dict[str, tuple[Any, Any]] = {
+    "frozen": (dataclass(frozen=True), frozen),
+    "record": (dataclass, record),
+}
 
 
-def _pair(decorate_body: Any) -> tuple[type, type]:
-    """The same class body decorated by ``dataclass(frozen=True)`` and by ``frozen``."""
-    return decorate_body(dataclass(frozen=True)), decorate_body(frozen)
+def _pair(decorate_body: Any, kind: str = "frozen") -> tuple[type, type]:
+    """The same class body decorated by ``dataclass`` and by ours, of ``kind``."""
+    reference, ours = KINDS[kind]
+    return decorate_body(reference), decorate_body(ours)
+
+
+def _hash_or_error(value: Any) -> Any:
+    """``hash(value)``, or the error's type and message (a record is not hashable)."""
+    try:
+        return hash(value)
+    except TypeError as error:
+        return (TypeError, str(error))
 
 
 def plain(deco: Any) -> type:
@@ -175,9 +190,10 @@ BAD_CALLS: dict[Any, list[tuple[tuple[Any, ...], dict[str, Any]]]] = {
 }
 
 
+@pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.__name__)
-def test_value_methods_match_dataclass(shape: Any) -> None:
-    reference, ours = _pair(shape)
+def test_value_methods_match_dataclass(shape: Any, kind: str) -> None:
+    reference, ours = _pair(shape, kind)
     assert dataclasses.is_dataclass(ours)
     assert [f.name for f in dataclasses.fields(ours)] == [
         f.name for f in dataclasses.fields(reference)
@@ -195,15 +211,16 @@ def test_value_methods_match_dataclass(shape: Any) -> None:
         for ref_y, our_y in made:
             assert (our_x == our_y) is (ref_x == ref_y)
             assert (our_x != our_y) is (ref_x != ref_y)
-        # Both hash the tuple of the same fields: the very same number.
-        assert hash(our_x) == hash(ref_x)
+        # Both hash the tuple of the same fields: the very same number (or neither can).
+        assert _hash_or_error(our_x) == _hash_or_error(ref_x)
 
 
+@pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.__name__)
-def test_init_refuses_what_dataclass_refuses_with_its_message(shape: Any) -> None:
+def test_init_refuses_what_dataclass_refuses_with_its_message(shape: Any, kind: str) -> None:
     for args, kwargs in BAD_CALLS[shape]:
         errors = []
-        for cls in _pair(shape):
+        for cls in _pair(shape, kind):
             with pytest.raises((TypeError, ValueError)) as caught:
                 cls(*args, **kwargs)
             errors.append((type(caught.value), str(caught.value)))
@@ -222,8 +239,24 @@ def test_every_field_is_immutable_as_in_dataclass(shape: Any) -> None:
                 delattr(value, name)
 
 
-def test_factories_give_each_instance_its_own_value() -> None:
-    _, made = _pair(factories)
+@pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.__name__)
+def test_a_record_changes_as_a_dataclass_does(shape: Any) -> None:
+    changed = []
+    for cls in _pair(shape, "record"):
+        args, kwargs = ARGS[shape][0]
+        value = cls(*args, **kwargs)
+        for f in dataclasses.fields(value):
+            setattr(value, f.name, "new")
+        value.other = 1
+        changed.append((vars(value), repr(value)))
+        for f in dataclasses.fields(value):
+            delattr(value, f.name)
+    assert changed[0] == changed[1]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_factories_give_each_instance_its_own_value(kind: str) -> None:
+    _, made = _pair(factories, kind)
     first, second = made(1), made(1)
     assert first.items == [] and first.items is not second.items
     assert first.seen == set() and first.seen is not second.seen
@@ -243,7 +276,7 @@ def test_a_plain_subclass_may_set_what_is_not_a_field() -> None:
 
 
 def test_class_definitions_dataclass_refuses_are_refused() -> None:
-    for deco in (dataclass(frozen=True), frozen):
+    for deco in (dataclass(frozen=True), frozen, dataclass, record):
         with pytest.raises(TypeError, match="non-default argument 'b' follows default argument"):
 
             @deco
@@ -251,6 +284,13 @@ def test_class_definitions_dataclass_refuses_are_refused() -> None:
                 a: int = 1
                 b: int  # type: ignore[misc]
 
+        with pytest.raises(ValueError, match="mutable default"):
+
+            @deco
+            class Mutable:
+                a: list[int] = []
+
+    for deco in (dataclass(frozen=True), frozen):
         with pytest.raises(TypeError, match="Cannot overwrite attribute __setattr__"):
 
             @deco
@@ -260,17 +300,46 @@ def test_class_definitions_dataclass_refuses_are_refused() -> None:
                 def __setattr__(self, name: str, value: Any) -> None:
                     pass
 
-        with pytest.raises(ValueError, match="mutable default"):
+    for deco in (frozen, record):
+        with pytest.raises(TypeError, match="InitVar"):
 
             @deco
-            class Mutable:
-                a: list[int] = []
+            class Initialised:
+                a: dataclasses.InitVar[int]
 
-    with pytest.raises(TypeError, match="InitVar"):
 
-        @frozen
-        class Initialised:
-            a: dataclasses.InitVar[int]
+def test_frozen_and_mutable_do_not_mix_as_in_dataclass() -> None:
+    for frozen_deco, mutable_deco in ((dataclass(frozen=True), dataclass), (frozen, record)):
+
+        @frozen_deco
+        class Fixed:
+            a: int
+
+        @mutable_deco
+        class Loose:
+            a: int
+
+        with pytest.raises(TypeError, match="cannot inherit non-frozen dataclass from a frozen"):
+            mutable_deco(type("Child", (Fixed,), {"__annotations__": {"b": "int"}}))
+        with pytest.raises(TypeError, match="cannot inherit frozen dataclass from a non-frozen"):
+            frozen_deco(type("Child", (Loose,), {"__annotations__": {"b": "int"}}))
+    with pytest.raises(TypeError, match="cannot extend @dataclass"):
+        frozen(type("Child", (_pair(plain)[0],), {"__annotations__": {"b": "int"}}))
+
+
+def test_a_record_honours_its_own_setattr_in_init() -> None:
+    seen = []
+
+    @record
+    class Watched:
+        a: int
+        b: str = "b"
+
+        def __setattr__(self, name: str, value: Any) -> None:
+            seen.append(name)  # as ``self.a = a`` in dataclass' __init__ would call it
+            object.__setattr__(self, name, value)
+
+    assert vars(Watched(1)) == {"a": 1, "b": "b"} and seen == ["a", "b"]
 
 
 def test_init_is_compiled_once_per_form_of_field_list() -> None:
@@ -288,11 +357,21 @@ def test_init_is_compiled_once_per_form_of_field_list() -> None:
         x: float
         y: bytes = b""
 
+    @record
+    class Third:
+        """A record of the same form."""
+
+        m: int
+        n: int = 0
+
     # One compiled body, two names each: the code differs only in the names it holds.
     assert First.__init__.__code__.co_code == Second.__init__.__code__.co_code
     assert First.__init__.__code__.co_varnames == ("self", "a", "b")
     assert Second.__init__.__code__.co_varnames == ("self", "x", "y")
     assert vars(Second(1.0)) == {"x": 1.0, "y": b""}
+    # A record sets its fields as ``self.name = value``: the names are the code's own.
+    assert Third.__init__.__code__.co_names == ("m", "n")
+    assert vars(Third(1)) == {"m": 1, "n": 0}
 
 
 def test_hash_reads_the_fields_dataclass_hashes() -> None:
@@ -342,9 +421,10 @@ def test_frozen_replace_pickle_and_match() -> None:
             pytest.fail("no match")
 
 
-def test_repr_of_an_instance_inside_itself_is_dots() -> None:
+@pytest.mark.parametrize("kind", KINDS)
+def test_repr_of_an_instance_inside_itself_is_dots(kind: str) -> None:
     shown = []
-    for holder_cls in _pair(one):
+    for holder_cls in _pair(one, kind):
         box: list[Any] = []
         holder = holder_cls(box)
         box.append(holder)
@@ -352,19 +432,20 @@ def test_repr_of_an_instance_inside_itself_is_dots() -> None:
     assert shown[0] == shown[1] and shown[1].endswith("One(value=[...])")
 
 
-def test_every_frozen_class_of_eamos_keeps_dataclass_behaviour() -> None:
-    """Each ``@frozen`` class in the package is a dataclass made immutable here."""
+def test_every_record_class_of_eamos_keeps_dataclass_behaviour() -> None:
+    """Each ``@frozen`` and ``@record`` class in the package is a dataclass, frozen or not."""
     import importlib
     import pkgutil
 
-    found = 0
+    found = {True: 0, False: 0}
     for info in pkgutil.walk_packages(eamos.__path__, "eamos."):
         if ".lsp" in info.name or ".monitor" in info.name or info.name.endswith("__main__"):
             continue  # optional server libraries; their classes are checked by their tests
         module = importlib.import_module(info.name)
         for value in vars(module).values():
-            if isinstance(value, type) and "__frozen_values__" in value.__dict__:
-                found += 1
+            if isinstance(value, type) and "__record_values__" in value.__dict__:
+                frozen_here = value.__setattr__ is records_module._setattr
+                found[frozen_here] += 1
                 assert dataclasses.is_dataclass(value), value
-                assert value.__setattr__ is frozen_module._setattr, value
-    assert found > 150
+                assert (value.__hash__ is None) is not frozen_here, value
+    assert found[True] > 150 and found[False] > 20
