@@ -180,13 +180,20 @@ def _how(f: dataclasses.Field[Any]) -> str:
     return _FACTORY_ONLY if has_factory else _NOT_SET
 
 
+def _init_default(f: dataclasses.Field[Any]) -> Any:
+    """The default of ``f``'s ``__init__`` parameter: ``_FACTORY``, its value, or MISSING."""
+    if f.default_factory is not dataclasses.MISSING:
+        return _FACTORY
+    return f.default
+
+
 def _check_defaults_order(fields: tuple[dataclasses.Field[Any], ...]) -> None:
     """``dataclasses``' error for a positional field without default after one with."""
     seen_default = False
     for f in fields:
         if not f.init or f.kw_only is True:
             continue
-        if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING:
+        if _init_default(f) is not dataclasses.MISSING:
             seen_default = True
         elif seen_default:
             raise TypeError(f"non-default argument {f.name!r} follows default argument")
@@ -214,13 +221,8 @@ def _make_init(
     for index, f in enumerate(fields):
         if f.default_factory is not dataclasses.MISSING:
             scope[f"_factory_{index}"] = f.default_factory
-        if not f.init:
-            continue
-        if f.default_factory is not dataclasses.MISSING:
-            default = _FACTORY
-        elif f.default is not dataclasses.MISSING:
-            default = f.default
-        else:
+        default = _init_default(f)
+        if not f.init or default is dataclasses.MISSING:
             continue
         if f.kw_only is True:
             kw_defaults[f.name] = default

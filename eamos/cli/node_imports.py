@@ -56,20 +56,16 @@ def import_structlog_without_console_extras() -> None:
     """
     if "structlog" in sys.modules:
         return
-    hidden = [name for name in CONSOLE_EXTRAS if name not in sys.modules]
-    deferred = [name for name in DEFERRED if name not in sys.modules]
-    for name in hidden:
-        sys.modules[name] = None  # type: ignore[assignment]  # the import system's "not found"
-    for name in deferred:
-        sys.modules[name] = Deferred(name)
+    # None is the import system's "not found"; a Deferred imports the module when read.
+    stand_ins: dict[str, Any] = {name: None for name in CONSOLE_EXTRAS}
+    stand_ins |= {name: Deferred(name) for name in DEFERRED}
+    stand_ins = {name: it for name, it in stand_ins.items() if name not in sys.modules}
+    sys.modules.update(stand_ins)
     try:
         import structlog  # noqa: F401
     finally:
-        for name in hidden:
-            if name in sys.modules and sys.modules[name] is None:
-                del sys.modules[name]
-        for name in deferred:
-            if isinstance(sys.modules.get(name), Deferred):
+        for name, stand_in in stand_ins.items():
+            if name in sys.modules and sys.modules[name] is stand_in:
                 del sys.modules[name]
 
 
