@@ -15,12 +15,11 @@ import sys
 import threading
 import time
 from collections.abc import Callable, MutableMapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 import structlog
-
-from eamos.records import record
 
 LOG_NAMES = ("mission", "uniform", "adapter")
 
@@ -384,7 +383,7 @@ def close_logger(logger: Any) -> None:
         sink.close()
 
 
-@record
+@dataclass
 class DroneLogs:
     """The three logs of one drone (paper Table 5), written by one :class:`LogWriter`."""
 

@@ -27,11 +27,9 @@ import html
 import io
 import json
 from collections.abc import Sequence
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from eamos.records import frozen, record
 
 from .ground.summary import ActionEntry, DroneReport, RunSummary
 from .hal.api import POSITION_LOG_HZ
@@ -47,7 +45,7 @@ class ReportError(Exception):
     """The folder is not a run folder (no readable ``summary.json``)."""
 
 
-@record
+@dataclass
 class Table:
     """Rows of plain values; shows as HTML in a notebook and as text elsewhere."""
 
@@ -94,7 +92,7 @@ def _fmt(value: Any) -> str:
     return "" if value is None else str(value)
 
 
-@record
+@dataclass
 class RunData:
     """One run folder, read once."""
 
@@ -393,7 +391,7 @@ _GANTT_CHAR_PT = 0.6 * _GANTT_FONT_PT
 _GANTT_ROW_PT = 0.7 * 0.9 * 72
 
 
-@frozen
+@dataclass(frozen=True)
 class GanttLabel:
     """Where one bar's label goes: its bar's index, the x centre, upright or turned."""
 

@@ -38,12 +38,7 @@ _LAYERS: dict[str, set[str]] = {
     "check": {"program", "hints", "logs", "hal", "actors", "virtual", "compiler", "config"},
     "monitor": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
 }
-#: Modules every package may import: the decorators of its dataclasses (stdlib only).
-EVERYWHERE = {"records"}
-ALLOWED: dict[str, set[str]] = {
-    "records": set(),
-    **{package: deps | EVERYWHERE for package, deps in _LAYERS.items()},
-}
+ALLOWED: dict[str, set[str]] = dict(_LAYERS)
 #: Packages only command-line code may import; nothing imports the CLI.
 TOP = {"cli"}
 

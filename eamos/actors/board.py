@@ -15,12 +15,10 @@ import threading
 import time
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
 
 import pykka
-
-from eamos.records import frozen
 
 from ..hal.api import Telemetry
 from ..net import wire
@@ -70,7 +68,7 @@ def shows_effect(action: str | None, sample: Telemetry) -> bool:
     )
 
 
-@frozen
+@dataclass(frozen=True)
 class LocalSample:
     """A sample of this drone's vehicle, stamped (monotonic) when the adapter handed it over."""
 
@@ -78,14 +76,14 @@ class LocalSample:
     received_s: float = field(default_factory=time.monotonic)
 
 
-@frozen
+@dataclass(frozen=True)
 class WhenLanded:
     """Set ``event`` once the vehicle reports it is on the ground (at once if it is)."""
 
     event: threading.Event
 
 
-@frozen
+@dataclass(frozen=True)
 class FinalSample:
     """Answer ``reply`` with the vehicle's state once its last action ended.
 
@@ -117,7 +115,7 @@ def ask_final_sample(
         return None
 
 
-@frozen
+@dataclass(frozen=True)
 class _FinalDeadline:
     """The time a final sample may wait for a fresher frame is up."""
 

@@ -5,12 +5,10 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
 
 import pykka
-
-from eamos.records import frozen
 
 from ..net import wire
 from ..net.progress import ProgressEvent, progress_batch
@@ -45,7 +43,7 @@ PROGRESS_BATCH_MAX = 256
 STATE_ACTIONS = MOTION_ACTIONS | {"Arm", "Disarm"}
 
 
-@frozen
+@dataclass(frozen=True)
 class TriggerReceived(RidesAlong):
     """The in-bridge delivered a trigger from ``src_drone`` (counted for Table 7; the
     count rides along with the executive's next mail: it wakes no thread)."""
@@ -53,24 +51,24 @@ class TriggerReceived(RidesAlong):
     src_drone: str
 
 
-@frozen
+@dataclass(frozen=True)
 class DeliverInterrupt:
     """An interrupt from another drone, for this drone's nodes in its scope."""
 
     interrupt: Interrupt
 
 
-@frozen
+@dataclass(frozen=True)
 class AskActivity:
     """Ask: the executive's :class:`~.stranded.Activity` (resolved? idle since when?)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Snapshot:
     """Ask: the executive's :class:`ExecutiveSnapshot`."""
 
 
-@frozen
+@dataclass(frozen=True)
 class ExecutiveSnapshot:
     """What the executive knows at one moment (for the drone's report)."""
 
@@ -104,7 +102,7 @@ def ask_activity(executive: Any, timeout_s: float) -> Activity:
     return answer
 
 
-@frozen
+@dataclass(frozen=True)
 class _FlushProgress:
     """Send the progress events held since the last flush (the executive to itself)."""
 

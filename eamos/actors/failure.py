@@ -16,10 +16,9 @@ import sys
 import threading
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any, ClassVar
-
-from eamos.records import frozen
 
 from .dispatch import PooledActor
 
@@ -41,7 +40,7 @@ def tell_operator(drone: str, text: str) -> None:
         pass
 
 
-@frozen
+@dataclass(frozen=True)
 class RuntimeFailure:
     """One exception in a part of a drone runtime."""
 

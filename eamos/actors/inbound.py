@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import pykka
-
-from eamos.records import frozen
 
 from ..net import wire
 from ..net.link import PeerStatus, TelemetryStale
@@ -23,7 +22,7 @@ __all__ = ["InRouter"]
 _CONTROL = (wire.Start, wire.Abort, wire.Complete)
 
 
-@frozen
+@dataclass(frozen=True)
 class InRouter:
     """Called by the link (on its receive thread) with every message for this participant.
 

@@ -6,15 +6,13 @@ these never leave the process.
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
-
-from eamos.records import frozen
 
 from .state import Iteration, Status
 
 
-@frozen
+@dataclass(frozen=True)
 class Trigger:
     """A precondition arc delivers: node ``src`` finished ``iteration`` with ``status``."""
 
@@ -24,7 +22,7 @@ class Trigger:
     status: Status
 
 
-@frozen
+@dataclass(frozen=True)
 class RemoteTrigger(Trigger):
     """A :class:`Trigger` the In-Bridge delivered from drone ``src_drone``.
 
@@ -35,12 +33,12 @@ class RemoteTrigger(Trigger):
     src_drone: str = ""
 
 
-@frozen
+@dataclass(frozen=True)
 class Fire:
     """Start the initial node (the ground station's start trigger)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Interrupt:
     """The structure ``scope`` (a Do or Repeat begin node) interrupts its body."""
 
@@ -49,14 +47,14 @@ class Interrupt:
     mode: str  # "all", "waits", or a Whenever's "suspend"/"resume"
 
 
-@frozen
+@dataclass(frozen=True)
 class Release:
     """A Do's end node tells its begin node that Body is over: stop watching."""
 
     iteration: Iteration
 
 
-@frozen
+@dataclass(frozen=True)
 class PeerLost:
     """The drone hosting the nodes ``sources`` (keys) is lost for good (its link is gone).
 
@@ -67,7 +65,7 @@ class PeerLost:
     sources: frozenset[str]
 
 
-@frozen
+@dataclass(frozen=True)
 class TelemetryChanged:
     """New property values of one drone, for the nodes watching it."""
 
@@ -75,7 +73,7 @@ class TelemetryChanged:
     values: dict[str, Any] = field(hash=False)
 
 
-@frozen
+@dataclass(frozen=True)
 class Watch:
     """Ask the telemetry board for updates of these drones."""
 
@@ -83,21 +81,21 @@ class Watch:
     drones: tuple[str, ...]
 
 
-@frozen
+@dataclass(frozen=True)
 class Unwatch:
     """Stop the telemetry board's updates to this watcher."""
 
     watcher: Any
 
 
-@frozen
+@dataclass(frozen=True)
 class LocalTelemetry:
     """A sample of this drone's own state, from its adapter."""
 
     sample: Any  # eamos.hal.Telemetry
 
 
-@frozen
+@dataclass(frozen=True)
 class RemoteTelemetry:
     """A telemetry sample received from another drone."""
 
@@ -105,14 +103,14 @@ class RemoteTelemetry:
     values: dict[str, Any] = field(hash=False)
 
 
-@frozen
+@dataclass(frozen=True)
 class AbortMission:
     """Stop executing: no more actions, no more triggers."""
 
     reason: str = ""
 
 
-@frozen
+@dataclass(frozen=True)
 class SendTrigger:
     """Ask the out-bridge to deliver a trigger to another drone."""
 
@@ -120,7 +118,7 @@ class SendTrigger:
     trigger: Trigger
 
 
-@frozen
+@dataclass(frozen=True)
 class SendInterrupt:
     """Ask the out-bridge to deliver an interrupt to another drone."""
 
@@ -128,7 +126,7 @@ class SendInterrupt:
     interrupt: Interrupt
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionRecord:
     """One action a node ran, for the summary (times in epoch seconds)."""
 
@@ -142,7 +140,7 @@ class ActionRecord:
     reason: str = ""
 
 
-@frozen
+@dataclass(frozen=True)
 class NodeEvent:
     """A node started or finished something worth showing live."""
 
@@ -153,7 +151,7 @@ class NodeEvent:
     detail: str = ""
 
 
-@frozen
+@dataclass(frozen=True)
 class NodeResolved:
     """A top-level node (outside any loop) has finished for good."""
 

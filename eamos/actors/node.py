@@ -27,12 +27,11 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
 import pykka
-
-from eamos.records import frozen
 
 from ..logs import LogLine, log_line
 from ..program.format import ProgramNode
@@ -113,7 +112,7 @@ __all__ = [
 ]
 
 
-@frozen
+@dataclass(frozen=True)
 class Links:
     """Who a node talks to; handed over once all actors of the runtime exist."""
 
@@ -127,14 +126,14 @@ class Links:
     uniform: UniformSpace | None = None
 
 
-@frozen
+@dataclass(frozen=True)
 class Wire:
     """Give a node its links (first message every node receives)."""
 
     links: Links
 
 
-@frozen
+@dataclass(frozen=True)
 class BroadcastInterrupt:
     """A begin node asks the executive to interrupt its body on these drones."""
 
@@ -142,7 +141,7 @@ class BroadcastInterrupt:
     drones: tuple[str, ...]
 
 
-@frozen
+@dataclass(frozen=True)
 class ExecutiveNews(LazyMail):
     """What one message to a node meant for the executive, in order, as one message.
 

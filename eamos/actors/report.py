@@ -17,10 +17,8 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
-
-from eamos.records import frozen
 
 if TYPE_CHECKING:  # the report itself needs only the standard library
     from ..hal.api import Telemetry
@@ -66,7 +64,7 @@ def _get(data: Mapping[str, Any], key: str, kind: type | tuple[type, ...], where
     return value
 
 
-@frozen
+@dataclass(frozen=True)
 class FinalState:
     """Where the vehicle was, and how, once its last action ended."""
 
@@ -96,7 +94,7 @@ class FinalState:
         )
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionEntry:
     """One action the drone ran (``reason`` only when there is one)."""
 
@@ -144,7 +142,7 @@ class ActionEntry:
         )
 
 
-@frozen
+@dataclass(frozen=True)
 class FoldedActions:
     """The oldest actions of a long mission, counted instead of listed (see the module doc)."""
 
@@ -246,7 +244,7 @@ def fold_actions(
     return listed, FoldedActions.of(actions[:keep]).merged(folded)
 
 
-@frozen
+@dataclass(frozen=True)
 class DroneReport:
     """One drone's part of the run summary (see the module docstring for its JSON)."""
 

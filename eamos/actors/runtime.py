@@ -20,14 +20,12 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pykka
 import zmq
-
-from eamos.records import frozen
 
 from ..hal.api import Adapter, AdapterError
 from ..logs import DroneLogs, LogWriter
@@ -81,7 +79,7 @@ class DroneRuntimeError(Exception):
     """A drone runtime cannot start or run (bad program, adapter unusable, network)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class NetSettings:
     """Where this participant binds its Out-Bridge, where its peers' are, and how to secure it.
 

@@ -21,10 +21,8 @@ and tests drive it directly.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Literal
-
-from eamos.records import frozen, record
 
 Status = Literal["done", "skipped", "failed"]
 Group = Literal["entry", "loop"]
@@ -49,7 +47,7 @@ def combine(statuses: Iterable[Status]) -> Status:
     return "skipped"
 
 
-@frozen
+@dataclass(frozen=True)
 class Fired:
     """A precondition group completed for one activation."""
 
@@ -62,7 +60,7 @@ class Fired:
         return combine(self.statuses.values())
 
 
-@record
+@dataclass
 class Preconditions:
     """Counts the triggers one node received, per group and activation."""
 

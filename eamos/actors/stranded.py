@@ -20,9 +20,8 @@ the link's peer events); the drone's loop (:mod:`.drone`) applies the answer.
 from __future__ import annotations
 
 from collections.abc import Collection, Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
-
-from eamos.records import frozen
 
 from ..config import END_POLICIES, NodeConfig
 from ..program.format import DroneProgram
@@ -48,7 +47,7 @@ DEFAULT_PEER_WAIT_LIMIT_S: float = NodeConfig.peer_wait_limit_s
 _SILENT_STATES = ("lost", "left")
 
 
-@frozen
+@dataclass(frozen=True)
 class Activity:
     """What the executive says about the drone's progress, at one moment."""
 
@@ -56,7 +55,7 @@ class Activity:
     idle_since: float | None  # monotonic time no action has run since; None: one runs now
 
 
-@frozen
+@dataclass(frozen=True)
 class EndOnOwn:
     """The drone ends its part on its own: ``stranded`` or ``no_complete``, and why."""
 

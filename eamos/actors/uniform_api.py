@@ -36,6 +36,7 @@ import itertools
 import threading
 import time
 from collections.abc import Callable, Hashable
+from dataclasses import dataclass
 from typing import Any
 
 import pykka
@@ -44,12 +45,11 @@ from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Tel
 from eamos.logs import log_line
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import ACTIONS, CommandError, decode_command
-from eamos.records import frozen, record
 
 from .failure import tell_operator
 
 
-@frozen
+@dataclass(frozen=True)
 class RunAction:
     """Start ``action(*args)``; the answer goes to ``reply_to`` as :class:`ActionFinished`.
 
@@ -63,19 +63,19 @@ class RunAction:
     reply_to: pykka.ActorRef[Any]
 
 
-@frozen
+@dataclass(frozen=True)
 class CancelAction:
     """Cancel the action started with ``token``; unknown or finished tokens are ignored."""
 
     token: Hashable
 
 
-@frozen
+@dataclass(frozen=True)
 class Abort:
     """Cancel every running action and land the vehicle (the adapter's ``abort``)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionFinished:
     """The one reply to a :class:`RunAction`; times are epoch seconds (``time.time()``)."""
 
@@ -87,7 +87,7 @@ class ActionFinished:
     end_s: float
 
 
-@record
+@dataclass
 class _Running:
     """An action the adapter runs: its request, start, serial number and handle."""
 

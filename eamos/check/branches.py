@@ -25,8 +25,7 @@ it met, so the explorer can queue each alternative as a new run.
 from __future__ import annotations
 
 from collections.abc import Collection
-
-from eamos.records import frozen
+from dataclasses import dataclass
 
 from ..actors.logic import ActionLogic, ConditionLogic, LoopLogic
 from ..actors.state import Iteration, holds
@@ -52,7 +51,7 @@ _NAMES = {
 _PURPOSES = frozenset({"if", "wait", "loop", "do", "whenever"})
 
 
-@frozen
+@dataclass(frozen=True)
 class ChoicePoint:
     """One decision of an unknowable condition, and which way this run took it."""
 

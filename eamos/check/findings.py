@@ -8,17 +8,15 @@ human one (``file:line:col: error|warning: ...`` and one summary line per run).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any, Literal
-
-from eamos.records import frozen
 
 Severity = Literal["error", "warning"]
 #: A point in the fleet frame: north, east, up (metres).
 Point = tuple[float, float, float]
 
 
-@frozen
+@dataclass(frozen=True)
 class Place:
     """Where in the mission text: a node's action (or condition) and its line and column."""
 
@@ -39,7 +37,7 @@ class Place:
         }
 
 
-@frozen
+@dataclass(frozen=True)
 class Finding:
     """One thing the check found, as an error (the mission would fail) or a warning.
 
@@ -87,7 +85,7 @@ class Finding:
         }
 
 
-@frozen
+@dataclass(frozen=True)
 class RunSummary:
     """One explored run: its branch label, how long it took, what was checked."""
 
@@ -110,7 +108,7 @@ class RunSummary:
         }
 
 
-@frozen
+@dataclass(frozen=True)
 class CheckReport:
     """The outcome of :func:`eamos.check.check_mission`."""
 

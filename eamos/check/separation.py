@@ -14,15 +14,14 @@ from __future__ import annotations
 
 import itertools
 import math
-
-from eamos.records import frozen
+from dataclasses import dataclass
 
 from .tracks import Track
 
 _EPS = 1e-12
 
 
-@frozen
+@dataclass(frozen=True)
 class Conflict:
     """Two drones closer than the minimum: when, the closest point, the distances."""
 

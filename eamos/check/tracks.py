@@ -10,9 +10,8 @@ hovering for a minute costs two points, not three thousand.
 from __future__ import annotations
 
 import bisect
+from dataclasses import dataclass
 from typing import Any
-
-from eamos.records import frozen
 
 from ..hal.api import ActionHandle, DoneCallback, Telemetry
 from ..hal.sim import SimCore
@@ -27,7 +26,7 @@ _Raw = tuple[float, float, float, float, bool, bool, float]
 _STRAIGHT_M = 1e-9
 
 
-@frozen
+@dataclass(frozen=True)
 class TrackPoint:
     """A drone at a virtual time: fleet-frame position, flags, battery."""
 
@@ -45,7 +44,7 @@ class TrackPoint:
         return (self.north_m, self.east_m, self.up_m)
 
 
-@frozen
+@dataclass(frozen=True)
 class Track:
     """A drone's piecewise-linear track: its points in time order."""
 

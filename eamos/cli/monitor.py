@@ -12,10 +12,9 @@ import argparse
 import contextlib
 import threading
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-from eamos.records import frozen, record
 
 from .errors import BadInput, command
 from .exits import EXIT_OK
@@ -26,7 +25,7 @@ if TYPE_CHECKING:
     from eamos.monitor.server import MonitorServer
 
 
-@frozen
+@dataclass(frozen=True)
 class MonitorOptions:
     """``--monitor``, ``--port``, ``--open``."""
 
@@ -74,7 +73,7 @@ def add_monitor_options(parser: argparse.ArgumentParser) -> None:
     add_port_options(parser)
 
 
-@record
+@dataclass
 class Monitored:
     """What a run gets from :func:`live_monitor`: its display and the end of the run."""
 

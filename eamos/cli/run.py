@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import threading
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,7 +23,6 @@ from eamos.cli.options import (
     add_verbose,
 )
 from eamos.config import FleetConfig, fleet_order
-from eamos.records import record
 
 if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `eamos compile`)
     from eamos.ground import Display, RunSummary
@@ -103,7 +102,7 @@ def drones_per_process(text: str) -> int | None:
     return value
 
 
-@record
+@dataclass
 class RunOptions:
     """What ``eamos run`` was asked to do."""
 

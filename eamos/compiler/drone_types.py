@@ -21,9 +21,7 @@ never imports an adapter.
 from __future__ import annotations
 
 import functools
-from dataclasses import field
-
-from eamos.records import frozen
+from dataclasses import dataclass, field
 
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from ..program.uniform import ACTIONS, DRONE_TYPES, ActionSpec, DroneType
@@ -69,7 +67,7 @@ def plugin_argument_problem(vocab: Vocabulary, action: str, param: str, value: f
     return f"{action}'s {param} must be within {bounds[0]:g}..{bounds[1]:g}, got {value:g}"
 
 
-@frozen
+@dataclass(frozen=True)
 class Vocabulary:
     """Every drone type and action a mission may name, by name; the plugins it was checked with."""
 

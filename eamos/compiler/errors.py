@@ -13,8 +13,6 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
-from eamos.records import frozen
-
 from ..hints import closest
 from .source import display_line, split_lines
 
@@ -40,7 +38,7 @@ NOWHERE = SourceLocation(1, 1)
 _EXCERPT = 160
 
 
-@frozen
+@dataclass(frozen=True)
 class Diagnostic:
     """One finding about a mission, with where it is and how to fix it.
 

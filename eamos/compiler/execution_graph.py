@@ -62,10 +62,9 @@ Shapes per construct (C = begin, E = end, X = Exit block):
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import networkx as nx
-
-from eamos.records import frozen
 
 from .errors import CompilerBug
 from .mission_tree import (
@@ -92,7 +91,7 @@ _CARRIED = (
 )
 
 
-@frozen
+@dataclass(frozen=True)
 class _Fragment:
     entries: tuple[int, ...]
     exits: tuple[int, ...]

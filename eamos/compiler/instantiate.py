@@ -17,9 +17,7 @@ calls, which are acyclic and whose expanded size is within
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import field
-
-from eamos.records import frozen
+from dataclasses import dataclass, field
 
 from ..program.uniform import ACTIONS
 from .check import argument_problem
@@ -44,7 +42,7 @@ from .syntax import (
 )
 
 
-@frozen
+@dataclass(frozen=True)
 class _Binding:
     """What a copy's parameters stand for."""
 

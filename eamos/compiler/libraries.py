@@ -21,10 +21,8 @@ import hashlib
 import os
 import re
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
-
-from eamos.records import record
 
 from .errors import Diagnostic, MissionError, SourceLocation
 from .limits import MAX_LIBRARIES, MAX_LIBRARY_FILES
@@ -45,7 +43,7 @@ def search_path(mission_dir: Path | None, environ: Mapping[str, str] | None = No
     return [*out, STANDARD_LIBRARY]
 
 
-@record
+@dataclass
 class Loaded:
     """A mission with its libraries merged in, the problems found, and the files' text."""
 

@@ -42,11 +42,9 @@ the AMT is a tree except for such shared Exit subtrees.
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import field
+from dataclasses import dataclass, field
 
 import networkx as nx
-
-from eamos.records import record
 
 from ..program.conditions import Condition, to_text
 from ..program.uniform import GROUND_STATION
@@ -121,7 +119,7 @@ def host_of_condition(expr: Expr | None) -> str | None:
     return next(d for d in reads if counts[d] == best)
 
 
-@record
+@dataclass
 class _Builder:
     mission: Mission
     tree: nx.DiGraph = field(default_factory=nx.DiGraph)

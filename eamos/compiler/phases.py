@@ -12,12 +12,10 @@ from __future__ import annotations
 import dataclasses
 import gc
 import hashlib
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import networkx as nx
-
-from eamos.records import frozen
 
 from .. import __version__
 from ..program.format import DroneProgram
@@ -34,7 +32,7 @@ from .syntax import LibraryFile, Mission
 from .synthesis import synthesize_program
 
 
-@frozen
+@dataclass(frozen=True)
 class CompiledMission:
     """Everything one compilation produces (graphs are networkx graphs)."""
 

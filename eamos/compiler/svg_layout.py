@@ -11,10 +11,8 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from dataclasses import field
+from dataclasses import dataclass, field
 from xml.sax.saxutils import escape as _xml_escape
-
-from eamos.records import record
 
 # -- built-in renderer: a tiny DOT reader and a layered layout --------------------------
 
@@ -25,7 +23,7 @@ _TOKEN = re.compile(
 )
 
 
-@record
+@dataclass
 class _DotGraph:
     name: str = ""
     graph: dict[str, str] = field(default_factory=dict)
@@ -133,7 +131,7 @@ def parse_dot(text: str) -> _DotGraph:
     return g
 
 
-@record
+@dataclass
 class _Box:
     x: float = 0.0
     y: float = 0.0

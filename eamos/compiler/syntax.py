@@ -6,29 +6,27 @@ source locations, before any block is expanded into the mission tree.
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Literal
-
-from eamos.records import frozen
 
 from .errors import SourceLocation
 
 # -- conditions ---------------------------------------------------------------
 
 
-@frozen
+@dataclass(frozen=True)
 class Num:
     value: float
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class Bool:
     value: bool
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class Prop:
     """A drone property read, ``D3.X()``."""
 
@@ -37,14 +35,14 @@ class Prop:
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class Unary:
     op: Literal["!", "-"]
     operand: Expr
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class Binary:
     op: str  # && || == != < <= > >= + - * /
     left: Expr
@@ -52,7 +50,7 @@ class Binary:
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class Name:
     """A block parameter read by name (``dist_m``, or a drone parameter ``d``)."""
 
@@ -66,7 +64,7 @@ Expr = Num | Bool | Prop | Unary | Binary | Name
 # -- statements ---------------------------------------------------------------
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionCall:
     """``Drone1.Takeoff(1.5)``; ``drone`` is None for a bare ``PauseFor(5)``."""
 
@@ -80,7 +78,7 @@ class ActionCall:
     exprs: tuple[Expr, ...] = ()
 
 
-@frozen
+@dataclass(frozen=True)
 class BlockCall:
     """``SEQ_Start()`` or ``lib.SEQ_Hop(D1, 5)``: run another block here.
 
@@ -125,7 +123,7 @@ CONTROL_KINDS: tuple[str, ...] = (
 )
 
 
-@frozen
+@dataclass(frozen=True)
 class BlockRef:
     """A block named as an argument of a control structure (Body, Then, Else, Exit).
 
@@ -137,7 +135,7 @@ class BlockRef:
     args: tuple[Expr, ...] = ()
 
 
-@frozen
+@dataclass(frozen=True)
 class Control:
     """A control structure of the paper's Table 3."""
 
@@ -156,7 +154,7 @@ class Control:
 Statement = ActionCall | BlockCall | Control
 
 
-@frozen
+@dataclass(frozen=True)
 class Param:
     """A block or action parameter: ``dist_m float64`` or ``d Quadcopter``."""
 
@@ -166,7 +164,7 @@ class Param:
     type_loc: SourceLocation | None = None
 
 
-@frozen
+@dataclass(frozen=True)
 class Block:
     """One ``func``: SEQ_ blocks run in order, PAR_ blocks in parallel."""
 
@@ -177,7 +175,7 @@ class Block:
     params: tuple[Param, ...] = ()
 
 
-@frozen
+@dataclass(frozen=True)
 class MethodDecl:
     """An action a declared drone type adds: ``Gimbal(pitch_deg float64)``."""
 
@@ -186,7 +184,7 @@ class MethodDecl:
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class TypeDecl:
     """``type Inspector interface { Quadcopter; TakePhoto() }``: a drone type."""
 
@@ -196,7 +194,7 @@ class TypeDecl:
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class Import:
     """``import "inspection"``: a library folder, and the package name it gives."""
 
@@ -204,7 +202,7 @@ class Import:
     loc: SourceLocation
 
 
-@frozen
+@dataclass(frozen=True)
 class LibraryFile:
     """A library file a mission was built from, and the SHA-256 of its bytes."""
 
@@ -213,7 +211,7 @@ class LibraryFile:
     sha256: str
 
 
-@frozen
+@dataclass(frozen=True)
 class DroneDecl:
     """``var Drone1 DroneType1``."""
 
@@ -223,7 +221,7 @@ class DroneDecl:
     type_loc: SourceLocation | None = None
 
 
-@frozen
+@dataclass(frozen=True)
 class Mission:
     """A whole parsed mission file."""
 

@@ -32,11 +32,9 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from eamos.records import frozen
 
 from ..hal.kinematics import GeoFrame
 from ..hal.settings import did_you_mean
@@ -73,7 +71,7 @@ def fleet_order(programs: Mapping[str, Any]) -> list[str]:
     return names + sorted(d for d in programs if d not in names and d != GROUND_STATION)
 
 
-@frozen
+@dataclass(frozen=True)
 class SafetySettings:
     """The fleet's ``[safety]`` section, checked by ``eamos check`` (docs/safety.md).
 
@@ -136,7 +134,7 @@ def _ground_telemetry_hz(w: str, table: Any) -> float:
     return hz
 
 
-@frozen
+@dataclass(frozen=True)
 class FleetConfig:
     """Per-drone hardware settings for a run: defaults merged with each drone's table."""
 

@@ -51,11 +51,9 @@ their range:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from eamos.records import frozen
 
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import LinkSettings
@@ -77,7 +75,7 @@ from .validation import (
 EXIT_CODE_FILE = "exit_code"
 
 
-@frozen
+@dataclass(frozen=True)
 class NodeConfig:
     """Everything ``eamos-node`` needs to run one drone."""
 

@@ -10,10 +10,9 @@ import math
 import os
 import tomllib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-from eamos.records import frozen
 
 from ..hal.settings import did_you_mean
 
@@ -54,7 +53,7 @@ def endpoint(where: str, value: Any) -> str:
 _check_keys = check_keys
 
 
-@frozen
+@dataclass(frozen=True)
 class Range:
     """The values a numeric field accepts: ``low < value <= high`` (``low <= ...`` if closed)."""
 

@@ -15,6 +15,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -25,7 +26,6 @@ from eamos.logs import make_logger
 from eamos.net import wire
 from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
-from eamos.records import frozen
 
 from .display import Display
 from .station import GroundStation
@@ -36,7 +36,7 @@ REPORT_WAIT_OK_S = 60.0
 REPORT_WAIT_ABORTED_S = 180.0
 
 
-@frozen
+@dataclass(frozen=True)
 class Limits:
     """How long the ground station waits for each phase (seconds)."""
 
@@ -46,7 +46,7 @@ class Limits:
     report_aborted_s: float = REPORT_WAIT_ABORTED_S
 
 
-@frozen
+@dataclass(frozen=True)
 class Flight:
     """How the run loop ended."""
 

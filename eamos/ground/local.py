@@ -20,6 +20,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,6 @@ from eamos.net.keys import FleetKeys, create_fleet_keys
 from eamos.net.settings import LinkSettings
 from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
-from eamos.records import frozen, record
 
 from .display import Display, make_display
 from .flight import Limits, fly, ground_runtime, hurried
@@ -273,7 +273,7 @@ def exit_reason(code: int, group: tuple[str, ...], why: str = "") -> str:
     return f"process exited with code {code}{shared}" + (f": {why}" if why else "")
 
 
-@record
+@dataclass
 class _Proc:
     name: str  # the process's first drone
     popen: subprocess.Popen[bytes]
@@ -367,7 +367,7 @@ class LocalFleet:
             self.wait(10)
 
 
-@frozen
+@dataclass(frozen=True)
 class LocalMission:
     """A compiled mission to fly here: its programs are in ``run_dir/programs/``."""
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
 
 from eamos.actors.report import DroneReport, ReportError
@@ -35,12 +35,11 @@ from eamos.net import wire
 from eamos.net.link import PeerStatus
 from eamos.net.progress import progress_events
 from eamos.program.uniform import GROUND_STATION
-from eamos.records import frozen, record
 
 Clock = Callable[[], float]
 
 
-@frozen
+@dataclass(frozen=True)
 class ParticipantFailed:
     """Local event for the display: a participant is gone (its process died, ...), and why."""
 
@@ -48,7 +47,7 @@ class ParticipantFailed:
     reason: str
 
 
-@record
+@dataclass
 class DroneView:
     """What the ground station knows of one drone, for display and the summary."""
 

@@ -18,14 +18,13 @@ from __future__ import annotations
 import contextlib
 import json
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.actors.report import ActionEntry, DroneReport, FinalState
 from eamos.logs import report_write_error
 from eamos.program.uniform import GROUND_STATION
-from eamos.records import frozen
 
 __all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
 
@@ -35,7 +34,7 @@ if TYPE_CHECKING:
 NO_REPORT = "no report"
 
 
-@frozen
+@dataclass(frozen=True)
 class DroneResult:
     """One drone's entry in the summary: its report, or why there is none."""
 
@@ -76,7 +75,7 @@ class DroneResult:
         return cls(DroneReport.from_json(data), exit_code, host)
 
 
-@frozen
+@dataclass(frozen=True)
 class RunSummary:
     """A whole run, as ``summary.json`` holds it."""
 

@@ -25,14 +25,13 @@ import socket
 import subprocess
 import sys
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from eamos.config import ConfigError
 from eamos.hal.api import AdapterError
 from eamos.hal.mavlink.settings import MavlinkSettings
-from eamos.records import record
 
 SIM_VEHICLE_KEYS = frozenset(
     {
@@ -60,7 +59,7 @@ def free_port(kind: int) -> int:
         return int(sock.getsockname()[1])
 
 
-@record
+@dataclass
 class SimVehicleFleet:
     """The simulated vehicles of one run and the node ``hal`` settings that reach them."""
 

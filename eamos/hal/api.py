@@ -38,12 +38,11 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
 from eamos.program.plugins import PluginRegistry
 from eamos.program.uniform import Command
-from eamos.records import frozen
 
 ActionStatus = Literal["ok", "failed", "cancelled"]
 
@@ -55,7 +54,7 @@ class AdapterError(Exception):
     """The vehicle behind an adapter cannot be used (unreachable, bad settings)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Telemetry:
     """One sample of a vehicle's state in the mission frame (X north, Y east, Z up)."""
 
@@ -90,7 +89,7 @@ class Telemetry:
         return getattr(self, field_name)  # type: ignore[no-any-return]
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionResult:
     """How an action ended; ``reason`` says why when it did not end ``"ok"``."""
 
@@ -105,7 +104,7 @@ class ActionResult:
 _handle_ids = itertools.count(1)
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionHandle:
     """Identifies one running action of one adapter."""
 

@@ -19,6 +19,7 @@ import dataclasses
 import threading
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from eamos.hal.api import (
@@ -32,10 +33,9 @@ from eamos.hal.api import (
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, require_mapping
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
-from eamos.records import frozen
 
 
-@frozen
+@dataclass(frozen=True)
 class Call:
     """One recorded call: ``method`` is start/run/cancel/abort/close/finish."""
 

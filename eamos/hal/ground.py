@@ -26,10 +26,9 @@ from eamos.hal.settings import COMMON_KEYS, check_keys, number, require_mapping
 from eamos.logs import make_logger
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import Command, PauseFor
-from eamos.records import frozen
 
 
-@frozen
+@dataclass(frozen=True)
 class GroundSettings:
     """Settings of the ground station; build with :meth:`from_mapping`."""
 

@@ -19,8 +19,7 @@ Frame: X north, Y east, Z up, metres from home; the ground is ``z == 0``.
 from __future__ import annotations
 
 import math
-
-from eamos.records import frozen
+from dataclasses import dataclass
 
 #: Mean equatorial Earth radius used by the flat-earth approximation (WGS84 a).
 EARTH_RADIUS_M = 6_378_137.0
@@ -30,7 +29,7 @@ _SNAP_DISTANCE_M = 1e-4
 _REST_SPEED_MPS = 1e-6
 
 
-@frozen
+@dataclass(frozen=True)
 class Limits:
     """Physical limits of the simulated quadcopter (defaults: a small survey drone)."""
 
@@ -60,7 +59,7 @@ class Limits:
                 raise ValueError(f"{name} must be >= 0")
 
 
-@frozen
+@dataclass(frozen=True)
 class VehicleState:
     """A snapshot of the model (positions in metres, velocities in m/s)."""
 
@@ -328,7 +327,7 @@ class Quadcopter:
             self._vx = self._vy = 0.0
 
 
-@frozen
+@dataclass(frozen=True)
 class GeoFrame:
     """Converts the local frame (X north, Y east, Z up from home) to WGS84 and back.
 

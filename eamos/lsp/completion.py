@@ -8,9 +8,8 @@ index and the vocabulary (:mod:`eamos.program.uniform`).
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from typing import Literal
-
-from eamos.records import frozen
 
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, PROPERTIES
 from .document import MissionIndex, blank_comments
@@ -27,7 +26,7 @@ from .vocabulary import (
 ItemKind = Literal["action", "property", "control", "block", "drone", "type", "keyword", "library"]
 
 
-@frozen
+@dataclass(frozen=True)
 class Item:
     """One completion: its label, what it is, a short detail, help, and a snippet to insert."""
 

@@ -15,8 +15,6 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import Literal
 
-from eamos.records import frozen
-
 from ..compiler import CompilerBug, Diagnostic, MissionError, check_source, compile_mission
 from ..compiler.errors import SourceLocation
 from ..compiler.parse import parse_partial
@@ -48,7 +46,7 @@ class Span:
     end_col: int
 
 
-@frozen
+@dataclass(frozen=True)
 class Occurrence:
     """A block or drone name where it stands in the text, defined or used."""
 
@@ -58,7 +56,7 @@ class Occurrence:
     definition: bool
 
 
-@frozen
+@dataclass(frozen=True)
 class Finding:
     """A compiler diagnostic placed on the text: what the editor underlines."""
 

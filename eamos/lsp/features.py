@@ -7,8 +7,7 @@ Pure functions over a :class:`~.document.MissionIndex`, in the compiler's coordi
 from __future__ import annotations
 
 import re
-
-from eamos.records import frozen
+from dataclasses import dataclass
 
 from ..compiler.syntax import ActionCall, BlockCall, Control, Mission
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, GROUND_STATION, PROPERTIES
@@ -17,7 +16,7 @@ from .libraries import LibraryBlock
 from .vocabulary import action_help, control_help, property_help, type_help
 
 
-@frozen
+@dataclass(frozen=True)
 class Symbol:
     """One entry of the document outline: a block (with its kind) or a drone."""
 
@@ -27,7 +26,7 @@ class Symbol:
     span: Span
 
 
-@frozen
+@dataclass(frozen=True)
 class Hover:
     """Markdown help about the name under the cursor, and the text it covers."""
 

@@ -13,10 +13,9 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
-
-from eamos.records import frozen
 
 from ..compiler import MissionError
 from ..compiler.libraries import load_libraries, search_path
@@ -33,7 +32,7 @@ MAX_DEPTH = 3
 MAX_FOLDERS = 2000
 
 
-@frozen
+@dataclass(frozen=True)
 class Library:
     """A library an ``import`` can name: its name, its folder and where that was found."""
 
@@ -42,7 +41,7 @@ class Library:
     origin: Origin
 
 
-@frozen
+@dataclass(frozen=True)
 class LibraryBlock:
     """A block of an imported library: ``shapes.SEQ_Square(d fleet.Flyer, side_m float64)``."""
 

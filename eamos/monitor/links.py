@@ -29,9 +29,9 @@ drones held back can be counted as sent.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 
 from eamos.program.format import DroneProgram
-from eamos.records import frozen
 
 #: Node kinds whose begin node counts iterations (their Body arcs carry the counter).
 LOOP_KINDS = frozenset({"repeat_while", "repeat_until", "repeat_for"})
@@ -45,7 +45,7 @@ RESOLVED_STATES = frozenset(
 Iteration = tuple[int, ...]
 
 
-@frozen
+@dataclass(frozen=True)
 class LinkArc:
     """One MDG arc: ``src`` -> ``dst`` (node keys), its kind, whether it crosses drones."""
 
@@ -55,7 +55,7 @@ class LinkArc:
     external: bool
 
 
-@frozen
+@dataclass(frozen=True)
 class LinkGraph:
     """The whole mission's MDG as the link counts need it (every participant's arcs, once).
 
@@ -108,7 +108,7 @@ class LinkGraph:
         return dict(sorted(out.items()))
 
 
-@frozen
+@dataclass(frozen=True)
 class LinkCount:
     """One link's counts: its external arcs in the MDG, triggers sent and received so far."""
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import bisect
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,6 @@ from eamos.ground.summary import RunSummary
 from eamos.net import wire
 from eamos.net.link import PeerStatus
 from eamos.program.uniform import GROUND_STATION
-from eamos.records import frozen
 
 from .hub import Hub
 from .server import MonitorServer
@@ -34,7 +34,7 @@ from .setup import MissionSetup, MonitorError, load_setup
 from .state import MonitorState
 
 
-@frozen
+@dataclass(frozen=True)
 class ReplayEvent:
     """One thing that happened at wall time ``t`` to participant ``name``."""
 
@@ -43,7 +43,7 @@ class ReplayEvent:
     msg: Any  # a wire message or PeerStatus, or a NodeChange
 
 
-@frozen
+@dataclass(frozen=True)
 class NodeChange:
     """A node's state from a drone's own log (replays only)."""
 

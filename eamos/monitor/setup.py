@@ -12,13 +12,12 @@ by key.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from eamos.program.format import DroneProgram, ProgramError, load_program
 from eamos.program.uniform import GROUND_STATION
-from eamos.records import frozen
 
 from .links import LinkGraph
 
@@ -27,7 +26,7 @@ class MonitorError(ValueError):
     """A run folder the monitor cannot show (no programs, unreadable logs, a bad port)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class NodeInfo:
     """One node of a participant's MDG, as the page shows it."""
 
@@ -49,7 +48,7 @@ class NodeInfo:
         }
 
 
-@frozen
+@dataclass(frozen=True)
 class ParticipantSetup:
     """One participant (a drone or the ground station): colour, home, graph."""
 
@@ -72,7 +71,7 @@ class ParticipantSetup:
         }
 
 
-@frozen
+@dataclass(frozen=True)
 class MissionSetup:
     """Everything static the page shows: the mission and its participants."""
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
 
 from eamos.ground.display import format_event
@@ -44,7 +44,6 @@ from eamos.ground.summary import DroneReport, RunSummary
 from eamos.net import wire
 from eamos.net.link import PeerStatus
 from eamos.program.uniform import GROUND_STATION
-from eamos.records import record
 
 from .links import LinkCount, LinkCounts
 from .setup import MissionSetup
@@ -109,7 +108,7 @@ def final_node_states(setup: MissionSetup, name: str, report: DroneReport | None
     return out
 
 
-@record
+@dataclass
 class DroneLive:
     """One drone's live panel."""
 

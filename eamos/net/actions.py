@@ -8,10 +8,10 @@ handed to the application with the messages, never on the wire.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TypeAlias
 
 import eamos.net.wire as wire
-from eamos.records import frozen
 
 __all__ = ["Action", "Deliver", "PeerChanged", "PeerStatus", "Send", "TelemetryStale", "Wake"]
 
@@ -19,7 +19,7 @@ __all__ = ["Action", "Deliver", "PeerChanged", "PeerStatus", "Send", "TelemetryS
 # -- local events (handed to the application, never on the wire) ------------------
 
 
-@frozen
+@dataclass(frozen=True)
 class PeerStatus:
     """Local event: peer ``sender`` went silent (``lost``), came ``back``, or ``left``.
 
@@ -33,7 +33,7 @@ class PeerStatus:
     serial: int
 
 
-@frozen
+@dataclass(frozen=True)
 class TelemetryStale:
     """Local event: no telemetry from drone ``sender`` for ``age_s`` seconds."""
 
@@ -44,28 +44,28 @@ class TelemetryStale:
 # -- actions (what the driver must do) -----------------------------------------------
 
 
-@frozen
+@dataclass(frozen=True)
 class Send:
     """Put ``message`` on the network, in the order the actions are given."""
 
     message: wire.Message
 
 
-@frozen
+@dataclass(frozen=True)
 class Deliver:
     """Hand ``item`` to the application (exactly once, in order per link)."""
 
     item: wire.Message | TelemetryStale
 
 
-@frozen
+@dataclass(frozen=True)
 class PeerChanged:
     """A peer went lost, came back or left; the application gets ``status`` too."""
 
     status: PeerStatus
 
 
-@frozen
+@dataclass(frozen=True)
 class Wake:
     """Call ``on_tick`` at ``at`` at the latest: a new deadline, maybe earlier than any known."""
 

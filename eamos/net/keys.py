@@ -32,7 +32,7 @@ import ipaddress
 import os
 import threading
 from collections.abc import Iterable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
@@ -41,7 +41,6 @@ import zmq.auth
 
 from eamos.logs import make_logger
 from eamos.net.zap import ZapHandler
-from eamos.records import frozen
 
 __all__ = [
     "ZAP_DOMAIN",
@@ -130,7 +129,7 @@ def participants_of_compiled(mission_dir: Path) -> list[str]:
     return [p.name.removesuffix(".program.json") for p in programs]
 
 
-@frozen
+@dataclass(frozen=True)
 class FleetKeys:
     """One participant's key pair and the fleet's public keys (raw z85 bytes)."""
 

@@ -9,13 +9,13 @@ rate cap, coalescing, refresh).  Both are pure: time is passed in.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any, Final
 
 import eamos.net.wire as wire
 from eamos.net.actions import Action, Deliver, PeerChanged, PeerStatus, Send, TelemetryStale, Wake
 from eamos.net.sequence import Peer, Sending, SessionCounters
 from eamos.net.settings import LinkSettings
-from eamos.records import record
 
 __all__ = ["LATE_TICK_S", "Liveness", "TelemetryOut"]
 
@@ -142,7 +142,7 @@ class Liveness:
         return deadline
 
 
-@record
+@dataclass
 class TelemetryOut:
     """Latest-value telemetry going out: at most one sample per ``interval``, the
     latest always (a burst is coalesced), repeated every ``refresh`` when idle."""

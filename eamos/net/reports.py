@@ -15,13 +15,12 @@ retransmitted on its own: no single message is large.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any, Final
 
 import msgpack
 
 import eamos.net.wire as wire
-from eamos.records import record
 
 __all__ = ["MAX_REPORT_BYTES", "SINGLE_REPORT_BYTES", "ReportJoiner", "report_messages"]
 
@@ -65,7 +64,7 @@ def report_messages(
     ]
 
 
-@record
+@dataclass
 class _Partial:
     """One sender's report so far: how many parts it has, and those received."""
 

@@ -13,12 +13,11 @@ from __future__ import annotations
 
 import random
 from collections.abc import Iterable
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any, Final
 
 import eamos.net.wire as wire
 from eamos.net.settings import LinkSettings
-from eamos.records import record
 
 __all__ = [
     "HEARTBEAT_ACK_REPEATS",
@@ -35,7 +34,7 @@ HEARTBEAT_ACK_REPEATS: Final = 3
 timeout is at least two heartbeats, so the sender normally has one of them first."""
 
 
-@record
+@dataclass
 class SessionCounters:
     """What the protocol did, for the run summary (``report()["net"]``)."""
 
@@ -54,7 +53,7 @@ class SessionCounters:
     stalled_s: float = 0.0  # their lateness, summed: not counted as the peers' silence
 
 
-@record
+@dataclass
 class _Out:
     """One reliable message waiting for its acknowledgement."""
 
@@ -64,7 +63,7 @@ class _Out:
     tries: int = 0  # retransmissions so far
 
 
-@record
+@dataclass
 class Sending:
     """The sending side of one link (or of this participant's broadcasts)."""
 
@@ -147,7 +146,7 @@ class Sending:
         self.due = now + self.backoff * rng.uniform(0.8, 1.2)
 
 
-@record
+@dataclass
 class Receiving:
     """The receiving side of one sequence: a link's, or one peer's broadcasts."""
 
@@ -176,7 +175,7 @@ class Receiving:
         return got
 
 
-@record
+@dataclass
 class Peer:
     """Everything this participant knows about one peer."""
 

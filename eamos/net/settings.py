@@ -6,9 +6,8 @@ loader read it without loading ZeroMQ.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Final
-
-from eamos.records import frozen
 
 __all__ = ["DEFAULT_HEARTBEAT_MS", "LinkSettings"]
 
@@ -16,7 +15,7 @@ DEFAULT_HEARTBEAT_MS: Final = 1000
 """ZeroMQ (ZMTP) heartbeat interval; a connection silent for 5 of them is dropped."""
 
 
-@frozen
+@dataclass(frozen=True)
 class LinkSettings:
     """Timing of the reliability layer (every field is a ``[net]`` config key too)."""
 

@@ -150,7 +150,7 @@ size, in parts).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import field, fields
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar, Final, TypeVar
 
 import msgpack
@@ -177,7 +177,6 @@ from eamos.net.wire_fields import (
     _m,
 )
 from eamos.program.uniform import GROUND_STATION as _GCS
-from eamos.records import frozen
 
 __all__ = [
     "GROUND_STATION",
@@ -249,7 +248,7 @@ def topic_telemetry(drone: str) -> bytes:
 # Messages.
 
 
-@frozen
+@dataclass(frozen=True)
 class _Base:
     """Fields shared by every message; subclasses set ``CODE`` and ``KIND``."""
 
@@ -288,7 +287,7 @@ class _Base:
         return TOPIC_ALL
 
 
-@frozen
+@dataclass(frozen=True)
 class Trigger(_Base):
     """External arc: ``src_node`` on ``sender`` resolved; trigger ``dst_node`` on ``dest``."""
 
@@ -303,7 +302,7 @@ class Trigger(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class Interrupt(_Base):
     """Interrupt ``scope`` (at ``iteration``) on ``dest``; mode "all" or only its "waits"."""
 
@@ -317,7 +316,7 @@ class Interrupt(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class TelemetrySample(_Base):
     """Latest state of the sender drone, read by other drones' conditions."""
 
@@ -336,7 +335,7 @@ class TelemetrySample(_Base):
     landed: bool = field(metadata=_m("lnd", _check_bool))
 
 
-@frozen
+@dataclass(frozen=True)
 class Ready(_Base):
     """The sender loaded its program and every participant it sends to has subscribed."""
 
@@ -348,7 +347,7 @@ class Ready(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class Start(_Base):
     """Broadcast by the ground station: every drone starts its program."""
 
@@ -358,7 +357,7 @@ class Start(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class Abort(_Base):
     """Broadcast: stop the mission now (drones run their failsafe)."""
 
@@ -369,7 +368,7 @@ class Abort(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class Complete(_Base):
     """Broadcast by the ground station: the whole mission is over."""
 
@@ -379,7 +378,7 @@ class Complete(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class Progress(_Base):
     """A node/action event on the sender, for live display at the ground station."""
 
@@ -393,7 +392,7 @@ class Progress(_Base):
     dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
 
 
-@frozen
+@dataclass(frozen=True)
 class Resolved(_Base):
     """The sender's top-level nodes are all resolved."""
 
@@ -404,7 +403,7 @@ class Resolved(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class Report(_Base):
     """Final per-drone summary, sent to the ground station."""
 
@@ -416,7 +415,7 @@ class Report(_Base):
     seq: int = field(metadata=_m("q", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class ReportPart(_Base):
     """Part ``part`` of ``parts`` of a final report too large for one message.
 
@@ -438,7 +437,7 @@ class ReportPart(_Base):
             raise WireError(f"ReportPart.part: {self.part} of {self.parts} parts")
 
 
-@frozen
+@dataclass(frozen=True)
 class Ack(_Base):
     """Cumulative acknowledgement from ``sender`` to ``dest`` (the reliability layer).
 
@@ -459,7 +458,7 @@ class Ack(_Base):
     dest_incarnation: int = field(metadata=_m("di", _check_seq), default=0)
 
 
-@frozen
+@dataclass(frozen=True)
 class Heartbeat(_Base):
     """Periodic sign of life on ``hb/<sender>``, carrying the sender's acknowledgements.
 

@@ -10,11 +10,9 @@ from __future__ import annotations
 
 import json
 import shlex
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from eamos.records import frozen
 
 from ..config import ConfigError, FleetConfig
 from ..program.uniform import GROUND_STATION
@@ -25,7 +23,7 @@ from .targets import SshTarget, ground_settings, ssh_target
 STAMP_TIMEOUT_S = 30.0
 
 
-@frozen
+@dataclass(frozen=True)
 class Deployment:
     """One mission as deployed on a fleet."""
 

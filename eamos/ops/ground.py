@@ -30,11 +30,9 @@ import subprocess
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
-
-from eamos.records import record
 
 from ..actors.runtime import DroneRuntimeError, NetSettings
 from ..ground import (
@@ -169,7 +167,7 @@ class NodeWatcher:
 # -- eamos start ---------------------------------------------------------------------------------
 
 
-@record
+@dataclass
 class StartOptions:
     """What ``eamos start`` was asked to do."""
 
@@ -347,7 +345,7 @@ def wait_pid_exit(pid: int, timeout_s: float) -> bool:
         os.close(fd)
 
 
-@record
+@dataclass
 class AbortResult:
     """How an abort went, per drone."""
 

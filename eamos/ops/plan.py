@@ -11,11 +11,9 @@ import json
 import shlex
 import socket
 import time
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from eamos.records import record
 
 from .. import __version__
 from ..config import ConfigError, NodeConfig
@@ -30,7 +28,7 @@ from .targets import FleetTargets, SshTarget
 STOP_OLD_NODE_S = 150  # an old node lands before it exits (its land timeout is 120 s)
 
 
-@record
+@dataclass
 class DronePlan:
     """What the roll-out does on one drone."""
 

@@ -10,9 +10,8 @@ from __future__ import annotations
 import json
 import re
 import shlex
+from dataclasses import dataclass
 from typing import Any
-
-from eamos.records import frozen
 
 from .. import __version__
 from .ssh import DroneError, remote_error, run_remote
@@ -21,7 +20,7 @@ from .targets import SshTarget
 PROBE_TIMEOUT_S = 60.0
 
 
-@frozen
+@dataclass(frozen=True)
 class Probe:
     """What a drone told about itself before the roll-out touched anything."""
 

@@ -10,11 +10,9 @@ import json
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from eamos.records import record
 
 from .. import __version__
 from .plan import DronePlan
@@ -28,7 +26,7 @@ ROLLOUT_VERSION = 1
 Say = Callable[[str], None]
 
 
-@record
+@dataclass
 class Steps:
     """Prints each step and each drone's part with its duration; keeps the durations."""
 
@@ -62,7 +60,7 @@ def paper_table(durations: dict[str, float]) -> list[tuple[str, float]]:
     return rows
 
 
-@record
+@dataclass
 class Rollout:
     """The result of a roll-out (also ``rollout.json`` in the run folder)."""
 

@@ -47,9 +47,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-
-from eamos.records import record
 
 from ..compiler import CompiledMission, compile_file, write_artifacts
 from ..config import FleetConfig
@@ -82,7 +81,7 @@ COPY_TIMEOUT_S = 300.0
 LAUNCH_TIMEOUT_S = 200.0
 
 
-@record
+@dataclass
 class RolloutOptions:
     """What ``eamos rollout`` was asked to do."""
 

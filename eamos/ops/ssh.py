@@ -16,10 +16,9 @@ from __future__ import annotations
 import subprocess
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
-
-from eamos.records import frozen
 
 from .targets import SshTarget
 
@@ -119,7 +118,7 @@ def _explain(target: SshTarget, text: str, fallback_kind: str) -> DroneError:
     )
 
 
-@frozen
+@dataclass(frozen=True)
 class Remote:
     """What a remote command printed and returned."""
 

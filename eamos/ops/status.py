@@ -21,11 +21,9 @@ import shlex
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from eamos.records import record
 
 from ..net import wire
 from ..program.format import ProgramError, load_program
@@ -41,7 +39,7 @@ FETCH_TIMEOUT_S = 600.0
 LOG_TAIL_LINES = 200
 
 
-@record
+@dataclass
 class DroneStatus:
     """One row of ``eamos status``."""
 
@@ -304,7 +302,7 @@ def format_status(dep: Deployment, rows: list[DroneStatus]) -> str:
     return "\n".join(text)
 
 
-@record
+@dataclass
 class FetchResult:
     """What ``eamos logs fetch`` collected."""
 

@@ -30,11 +30,9 @@ from __future__ import annotations
 
 import shlex
 from collections.abc import Iterable
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
-
-from eamos.records import frozen
 
 from ..config import ConfigError, FleetConfig, _check_keys
 
@@ -60,7 +58,7 @@ SSH_FIELDS = {
 GROUND_FIELDS = {"bind", "ready_timeout_s", "keys"}
 
 
-@frozen
+@dataclass(frozen=True)
 class SshTarget:
     """One drone as an SSH destination, with the folder EAMOS uses there."""
 
@@ -180,7 +178,7 @@ class SshTarget:
         )
 
 
-@frozen
+@dataclass(frozen=True)
 class GroundSettings:
     """The operator's machine as a participant: where the ground station binds."""
 
@@ -189,7 +187,7 @@ class GroundSettings:
     keys: Path | None = None
 
 
-@frozen
+@dataclass(frozen=True)
 class FleetTargets:
     """Everything the roll-out needs to reach one mission's drones."""
 

@@ -42,12 +42,10 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import MISSING, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from functools import cached_property
 from pathlib import Path
 from typing import Any
-
-from eamos.records import frozen
 
 from .conditions import ConditionError, validate
 
@@ -82,7 +80,7 @@ class ProgramError(Exception):
     """A drone program file is missing, damaged, or of an unsupported version."""
 
 
-@frozen
+@dataclass(frozen=True)
 class ProgramNode:
     """One MDG node (native, or a proxy for a node of another drone)."""
 
@@ -117,7 +115,7 @@ class ProgramNode:
     block: str = ""
 
 
-@frozen
+@dataclass(frozen=True)
 class ProgramArc:
     """One MDG arc; ``external`` when it crosses between drones."""
 
@@ -127,7 +125,7 @@ class ProgramArc:
     external: bool
 
 
-@frozen
+@dataclass(frozen=True)
 class DroneProgram:
     """The program one drone runs: its MDG and its place in the fleet."""
 

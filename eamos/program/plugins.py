@@ -23,11 +23,9 @@ import importlib
 import re
 import threading
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
-
-from eamos.records import frozen
 
 from .uniform import ACTIONS, ActionSpec
 
@@ -45,7 +43,7 @@ class PluginError(Exception):
     """A plugin that cannot be used: a bad declaration or an implementation that does not load."""
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionPlugin:
     """One plugin action: name, unit-named number parameters, implementation per family.
 

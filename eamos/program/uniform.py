@@ -9,12 +9,10 @@ the drone's home (where it was when its adapter started).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import fields
-
-from eamos.records import frozen
+from dataclasses import dataclass, fields
 
 
-@frozen
+@dataclass(frozen=True)
 class ActionSpec:
     """One uniform action: its name, argument names with units, and meaning."""
 
@@ -25,7 +23,7 @@ class ActionSpec:
     payload: bool = False
 
 
-@frozen
+@dataclass(frozen=True)
 class PropertySpec:
     """One uniform property, read in conditions as ``Drone.Name()``."""
 
@@ -163,7 +161,7 @@ _ALL_ACTIONS = frozenset(ACTIONS)
 _ALL_PROPERTIES = frozenset(PROPERTIES)
 
 
-@frozen
+@dataclass(frozen=True)
 class DroneType:
     """What a kind of drone can do: the actions and properties it offers."""
 
@@ -225,7 +223,7 @@ class CommandError(ValueError):
     """An action name or argument list that no adapter can run."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Command:
     """One uniform action with its arguments, checked against :data:`ACTIONS`."""
 
@@ -249,29 +247,29 @@ class Command:
         return self.action in MOTION_ACTIONS
 
 
-@frozen
+@dataclass(frozen=True)
 class Arm(Command):
     """Arm the motors."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Disarm(Command):
     """Disarm the motors (on the ground only)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Takeoff(Command):
     """Climb vertically to ``height_m`` above home."""
 
     height_m: float
 
 
-@frozen
+@dataclass(frozen=True)
 class Land(Command):
     """Descend at the current X/Y until landed."""
 
 
-@frozen
+@dataclass(frozen=True)
 class FlyBy(Command):
     """A relative move: ``FlyByX``/``FlyByY``/``FlyByZ`` (one axis non-zero)."""
 
@@ -295,7 +293,7 @@ class FlyBy(Command):
         )
 
 
-@frozen
+@dataclass(frozen=True)
 class FlyToXYZ(Command):
     """Fly to a local point from home."""
 
@@ -304,7 +302,7 @@ class FlyToXYZ(Command):
     z_m: float
 
 
-@frozen
+@dataclass(frozen=True)
 class FlyToLLA(Command):
     """Fly to a WGS84 point at ``alt_m`` above home."""
 
@@ -313,40 +311,40 @@ class FlyToLLA(Command):
     alt_m: float
 
 
-@frozen
+@dataclass(frozen=True)
 class PauseFor(Command):
     """Hold position (or stay on the ground) for ``duration_s``."""
 
     duration_s: float
 
 
-@frozen
+@dataclass(frozen=True)
 class ReturnHome(Command):
     """Fly back above home at the current height, land and disarm (RTL)."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Hold(Command):
     """Hover in the autopilot's hold mode for ``duration_s``."""
 
     duration_s: float
 
 
-@frozen
+@dataclass(frozen=True)
 class Yaw(Command):
     """Turn on the spot to the compass heading ``heading_deg`` (0 north, 90 east)."""
 
     heading_deg: float
 
 
-@frozen
+@dataclass(frozen=True)
 class SetSpeed(Command):
     """Fly later horizontal moves at ``speed_m_s``."""
 
     speed_m_s: float
 
 
-@frozen
+@dataclass(frozen=True)
 class Orbit(Command):
     """Circle ``turns`` times (clockwise) around the point ``radius_m`` ahead."""
 
@@ -354,7 +352,7 @@ class Orbit(Command):
     turns: float
 
 
-@frozen
+@dataclass(frozen=True)
 class Payload(Command):
     """A payload action (no motion): ``TurnOn``, ``Calibrate``, ``TurnOnCamera``, ..."""
 
@@ -369,7 +367,7 @@ class Payload(Command):
         return ()
 
 
-@frozen
+@dataclass(frozen=True)
 class PluginAction(Command):
     """An action provided by a plugin (:mod:`eamos.program.plugins`), with its arguments.
 
@@ -527,7 +525,7 @@ def param_unit(param: str) -> str:
     return param.rsplit("_", 1)[-1] if "_" in param else ""
 
 
-@frozen
+@dataclass(frozen=True)
 class ControlSpec:
     """A control structure of the paper's Table 3: how it is written and what it does.
 

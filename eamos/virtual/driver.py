@@ -20,10 +20,8 @@ import contextlib
 import gc
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
-
-from eamos.records import record
 
 from ..actors.logic import (
     ActionLogic,
@@ -67,7 +65,7 @@ TIME_LIMIT_S = 1800.0
 NodeId = tuple[str, str]  # (drone, node key)
 
 
-@record
+@dataclass
 class _Participant:
     """One drone (or the ground station) of the run."""
 

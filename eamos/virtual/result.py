@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
-
-from eamos.records import frozen
 
 from ..actors.messages import ActionRecord
 
 
-@frozen
+@dataclass(frozen=True)
 class Waiting:
     """A node still unfinished when the virtual-time limit was reached, and why."""
 
@@ -21,7 +19,7 @@ class Waiting:
     why: str
 
 
-@frozen
+@dataclass(frozen=True)
 class DroneOutcome:
     """One participant's part of a virtual run (times are virtual seconds from start).
 
@@ -57,7 +55,7 @@ class DroneOutcome:
         return [a.action for a in self.actions]
 
 
-@frozen
+@dataclass(frozen=True)
 class VirtualRun:
     """The outcome of :func:`eamos.virtual.run_virtual`.
 

@@ -9,16 +9,14 @@ virtual-time driver (:mod:`eamos.virtual`), which routes them in one thread.
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
-
-from eamos.records import frozen
 
 from ..messages import ActionRecord, Interrupt, NodeEvent
 from ..state import Iteration, Status
 
 
-@frozen
+@dataclass(frozen=True)
 class Route:
     """One outgoing arc of a node."""
 
@@ -28,7 +26,7 @@ class Route:
     external: bool
 
 
-@frozen
+@dataclass(frozen=True)
 class Emit:
     """Trigger the node at the end of ``route`` for ``iteration`` with ``status``."""
 
@@ -37,7 +35,7 @@ class Emit:
     status: Status
 
 
-@frozen
+@dataclass(frozen=True)
 class StartAction:
     """Run the node's uniform action for this activation (answer: ``action_finished``)."""
 
@@ -46,26 +44,26 @@ class StartAction:
     args: tuple[float, ...]
 
 
-@frozen
+@dataclass(frozen=True)
 class CancelAction:
     """Cancel the action the node runs for this activation (it answers ``cancelled``)."""
 
     iteration: Iteration
 
 
-@frozen
+@dataclass(frozen=True)
 class WatchTelemetry:
     """Push this node the property values of ``drones`` now and whenever they change."""
 
     drones: tuple[str, ...]
 
 
-@frozen
+@dataclass(frozen=True)
 class UnwatchTelemetry:
     """Stop pushing telemetry to this node."""
 
 
-@frozen
+@dataclass(frozen=True)
 class Resolve:
     """The node finished one activation; ``top_level``: for good (outside every loop)."""
 
@@ -74,7 +72,7 @@ class Resolve:
     top_level: bool
 
 
-@frozen
+@dataclass(frozen=True)
 class Broadcast:
     """Interrupt a structure's body on these drones (through the executive)."""
 
@@ -82,21 +80,21 @@ class Broadcast:
     drones: tuple[str, ...]
 
 
-@frozen
+@dataclass(frozen=True)
 class Progress:
     """Something worth showing live (the executive coalesces it for the ground station)."""
 
     event: NodeEvent
 
 
-@frozen
+@dataclass(frozen=True)
 class Record:
     """An action ended: its record for the summary (doubles as the "finished" progress)."""
 
     record: ActionRecord
 
 
-@frozen
+@dataclass(frozen=True)
 class ReleaseBegin:
     """A Do's end node tells its begin node (if it runs on the same drone) to stop watching."""
 
@@ -104,7 +102,7 @@ class ReleaseBegin:
     iteration: Iteration
 
 
-@frozen
+@dataclass(frozen=True)
 class Note:
     """A mission-log line (``level`` is a logger method name; see docs/logs.md)."""
 

@@ -19,7 +19,7 @@ while a Handler still runs.
 
 from __future__ import annotations
 
-from eamos.records import record
+from dataclasses import dataclass
 
 from ..messages import Interrupt
 from ..state import Fired, Iteration, Status
@@ -28,7 +28,7 @@ from .conditions import ConditionLogic
 from .effects import Broadcast, Effect, Emit, ReleaseBegin
 
 
-@record
+@dataclass
 class _Watch:
     """One activation of a Whenever."""
 

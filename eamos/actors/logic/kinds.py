@@ -7,7 +7,7 @@ the same way for the actor runtime and the virtual-time driver.
 
 from __future__ import annotations
 
-from eamos.records import frozen
+from dataclasses import dataclass
 
 from ...program.format import DroneProgram, ProgramNode
 from .actions import ActionLogic
@@ -64,7 +64,7 @@ def node_logic(
     return logic_class(spec.kind, begin_kind)(spec, routes, entry, loop)
 
 
-@frozen
+@dataclass(frozen=True)
 class NodeWiring:
     """What one native node needs besides its spec: arcs out, arcs in, its begin's kind."""
 

@@ -10,7 +10,7 @@ counts.  An enclosing Do's interrupt makes the loop leave with ``skipped``.
 
 from __future__ import annotations
 
-from eamos.records import record
+from dataclasses import dataclass
 
 from ...program.format import ProgramNode
 from ..state import Fired, Iteration, Status, holds, within
@@ -18,7 +18,7 @@ from .conditions import ConditionLogic
 from .effects import Route
 
 
-@record
+@dataclass
 class LoopState:
     """One activation of a loop."""
 

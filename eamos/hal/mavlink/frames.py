@@ -11,14 +11,12 @@ vehicle's own origin never leaks into a mission.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
-from eamos.records import frozen
+from dataclasses import dataclass, replace
 
 Vector = tuple[float, float, float]
 
 
-@frozen
+@dataclass(frozen=True)
 class NedOrigin:
     """Where the mission frame's home is, in the vehicle's local NED frame (metres)."""
 

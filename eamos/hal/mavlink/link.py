@@ -27,6 +27,7 @@ import re
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
@@ -41,7 +42,6 @@ from eamos.hal.mavlink.state import (
     StateTracker,
     result_name,
 )
-from eamos.records import record
 
 #: MAVLink ids used by the link (numbers rather than pymavlink attributes keep
 #: this module importable without touching pymavlink's dialect machinery).
@@ -180,7 +180,7 @@ def _tcp_client(
 EventCallback = Callable[[str, dict[str, Any]], None]
 
 
-@record
+@dataclass
 class _Periodic:
     period_s: float
     job: Callable[[], None]

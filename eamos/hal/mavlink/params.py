@@ -28,8 +28,7 @@ This module is pure: :func:`speed_plan` says what to set;
 from __future__ import annotations
 
 import struct
-
-from eamos.records import frozen
+from dataclasses import dataclass
 
 #: MAV_PARAM_TYPE values.
 MAV_PARAM_TYPE_UINT8, MAV_PARAM_TYPE_INT8 = 1, 2
@@ -37,7 +36,7 @@ MAV_PARAM_TYPE_INT32, MAV_PARAM_TYPE_REAL32 = 6, 9
 _INT_TYPES = frozenset(range(1, 9))  # UINT8 .. INT64
 
 
-@frozen
+@dataclass(frozen=True)
 class ParamChange:
     """One parameter the adapter set: its name, the value it found and the value it wrote."""
 

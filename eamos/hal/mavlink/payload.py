@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from eamos.hal.mavlink.flight import RunControl
@@ -27,10 +28,9 @@ from eamos.hal.mavlink.frames import Vector
 from eamos.hal.mavlink.link import LinkState
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.hal.mavlink.waits import Run, Waiter
-from eamos.records import frozen
 
 
-@frozen
+@dataclass(frozen=True)
 class PayloadContext:
     """What a ``"mavlink"`` plugin implementation may do with the vehicle (module docstring)."""
 

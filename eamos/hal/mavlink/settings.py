@@ -7,16 +7,15 @@ checks can read them without importing the adapter.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from typing import Any, Literal
 
 from eamos.hal.mavlink.autopilots import TakeoffMode
 from eamos.hal.mavlink.link import check_connection
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, number, require_mapping
-from eamos.records import frozen
 
 
-@frozen
+@dataclass(frozen=True)
 class MavlinkSettings:
     """Settings of the MAVLink adapter; build with :meth:`from_mapping`."""
 

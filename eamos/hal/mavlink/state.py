@@ -13,10 +13,8 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any
-
-from eamos.records import frozen, record
 
 #: MAVLink numbers the tracker reads (kept local: no pymavlink needed).
 MAV_TYPE_GCS = 6
@@ -50,7 +48,7 @@ def result_name(result: int | None) -> str:
     return MAV_RESULT_NAMES.get(result, f"MAV_RESULT({result})")
 
 
-@record
+@dataclass
 class GlobalPosition:
     """GLOBAL_POSITION_INT in SI units."""
 
@@ -63,7 +61,7 @@ class GlobalPosition:
     vd_mps: float
 
 
-@frozen
+@dataclass(frozen=True)
 class CapturedImage:
     """CAMERA_IMAGE_CAPTURED in SI units: where a photo was taken."""
 
@@ -75,7 +73,7 @@ class CapturedImage:
     ok: bool  # capture_result == 1
 
 
-@record
+@dataclass
 class LinkState:
     """What the reader knows about the vehicle; read and written under ``MavlinkLink.cond``."""
 

@@ -45,7 +45,6 @@ from eamos.program.uniform import (
     Yaw,
     target_xyz,
 )
-from eamos.records import frozen
 
 #: Simulated seconds per model step.
 SIM_DT_S = 0.02
@@ -78,7 +77,7 @@ class SimAction:
     heading_deg: float = 0.0  # "yaw": the heading turned to
 
 
-@frozen
+@dataclass(frozen=True)
 class SimRequest:
     """A request queued for the next step: run an action, cancel one, or abort."""
 

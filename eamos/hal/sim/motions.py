@@ -18,6 +18,7 @@ a little every step instead of setting it once:
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from eamos.hal.kinematics import Quadcopter
 from eamos.hal.sim.settings import SimSettings
@@ -32,7 +33,6 @@ from eamos.program.uniform import (
     SetSpeed,
     Takeoff,
 )
-from eamos.records import record
 
 #: How fast the simulated vehicle turns on the spot (degrees per second).
 YAW_RATE_DEG_S = 90.0
@@ -100,7 +100,7 @@ def orbit_speed_mps(cruise_mps: float, accel_mps2: float, radius_m: float) -> fl
     return min(cruise_mps, math.sqrt(ORBIT_ACCEL_SHARE * accel_mps2 * radius_m))
 
 
-@record
+@dataclass
 class OrbitGuide:
     """The moving setpoint of one orbit (see module doc); bearings in radians from north."""
 

@@ -14,16 +14,15 @@ by name, kept by the simulator and shown in ``adapter.action.end``) and what it 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 
 from eamos.program.uniform import PluginAction
-from eamos.records import frozen
 
 #: The default simulated duration of a plugin action.
 PLUGIN_DELAY_S = 0.2
 
 
-@frozen
+@dataclass(frozen=True)
 class SimView:
     """The simulated vehicle when a plugin action starts (mission frame, metres, degrees)."""
 
@@ -38,7 +37,7 @@ class SimView:
     payload: Mapping[str, float] = field(default_factory=dict)
 
 
-@frozen
+@dataclass(frozen=True)
 class SimOutcome:
     """What a plugin action does in the simulator: duration, failure, payload, log fields."""
 

@@ -7,7 +7,7 @@ pacer (:mod:`eamos.hal.sim.adapter`); see :mod:`eamos.hal.sim.adapter` for what 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from types import MappingProxyType
 from typing import Any
 
@@ -23,10 +23,9 @@ from eamos.hal.settings import (
     string_list,
 )
 from eamos.program.uniform import ACTIONS, DRONE_TYPES
-from eamos.records import frozen
 
 
-@frozen
+@dataclass(frozen=True)
 class BatteryModel:
     """How a simulated drone's battery drains (percent per minute), and its charge at start.
 
@@ -66,7 +65,7 @@ BATTERY_MODELS: Mapping[str, BatteryModel] = MappingProxyType(
 )
 
 
-@frozen
+@dataclass(frozen=True)
 class Waypoint:
     """One point of the scripted pilot's path (metres from home, hold in sim seconds)."""
 
@@ -76,7 +75,7 @@ class Waypoint:
     hold_s: float = 0.0
 
 
-@frozen
+@dataclass(frozen=True)
 class SimSettings:
     """Settings of one simulated vehicle; build with :meth:`from_mapping`."""
 

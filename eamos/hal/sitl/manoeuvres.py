@@ -23,10 +23,10 @@ and is stepped by it; nothing here owns a thread or a clock.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from eamos.hal.kinematics import Quadcopter
-from eamos.records import record
 
 
 class VehicleCore(Protocol):
@@ -68,7 +68,7 @@ def turn_towards(heading: float, target: float, max_step: float) -> float:
     return wrap_deg(heading + math.copysign(max_step, error))
 
 
-@record
+@dataclass
 class Orbit:
     """A circle being flown: centre (model x north, y east), radius, tangential speed."""
 

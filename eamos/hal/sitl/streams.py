@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from eamos.hal.kinematics import GeoFrame, VehicleState
@@ -49,7 +50,6 @@ from eamos.hal.sitl.wire import (
     UNSUPPORTED,
     VehicleOptions,
 )
-from eamos.records import frozen
 
 #: ``send(message, *fields)``: send one MAVLink message by its pymavlink name.
 Send = Callable[..., None]
@@ -58,7 +58,7 @@ Send = Callable[..., None]
 _GUIDED_MODES = frozenset({"OFFBOARD", "GUIDED", "HOLD", "LAND", "RTL"})
 
 
-@frozen
+@dataclass(frozen=True)
 class Status:
     """The vehicle as the streams see it at one send."""
 
@@ -76,7 +76,7 @@ class Status:
     heading_deg: float = 0.0
 
 
-@frozen
+@dataclass(frozen=True)
 class Identity:
     """What the vehicle says about itself: autopilot id, capabilities, firmware version."""
 

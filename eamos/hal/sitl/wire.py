@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Literal
 
 from eamos.hal.kinematics import Limits
 from eamos.hal.mavlink.link import load_mavutil
-from eamos.records import frozen
 
 AutopilotName = Literal["px4", "ardupilot"]
 
@@ -144,7 +143,7 @@ MAX_MESSAGES_PER_TICK = 200
 STATUSTEXT_LEN = 50
 
 
-@frozen
+@dataclass(frozen=True)
 class VehicleOptions:
     """How to build one :class:`SimVehicle` (the command line maps onto this)."""
 
