@@ -1,24 +1,30 @@
-"""The one place where an exception becomes an exit code and one message.
+"""The one place where an exception becomes an exit code and one message, for every entry point.
 
-Every ``eamos`` command runs through :func:`dispatch`.  A command returns an
-exit code of :mod:`eamos.cli.exits` for outcomes it expects (a mission that
-failed, a drone that did not answer); everything else it raises, and here:
+``eamos`` (:func:`dispatch`), ``eamos-node`` and ``eamos-sim-vehicle`` all run
+their work through :func:`run_reported`.  The work returns an exit code of
+:mod:`eamos.cli.exits` for outcomes it expects (a mission that failed, a drone
+that did not answer); everything else it raises, and :data:`EXIT_CODE_OF`
+(walked along the exception's class hierarchy by :func:`exit_code_of`) decides:
 
-* a mission with errors (:class:`~eamos.compiler.MissionError`) prints every
-  diagnostic with its line and caret: :data:`EXIT_BAD_INPUT`;
-* bad input -- a config or fleet file, a program, keys, a run folder, an
-  argument the parser could not check (:class:`BadInput`) -- prints
-  ``eamos CMD: what and where``: :data:`EXIT_BAD_INPUT`;
-* a fleet operation whose drones could not be reached (every drone's failure
-  is a connection failure), a ground station that cannot bind its port
-  (:class:`~eamos.ops.FleetConnectError`), a :class:`ConnectionError`: :data:`EXIT_CONNECT`;
-  other fleet failures (a version mismatch, a full disk): :data:`EXIT_MISSION_FAILED`;
-* a mission the pre-flight check refused (:class:`Refused`): :data:`EXIT_MISSION_FAILED`;
+* bad input -- a mission with errors (:class:`~eamos.compiler.MissionError`,
+  printed with every diagnostic's line and caret), a config or fleet file, a
+  program, keys, a run folder, an argument the parser could not check
+  (:class:`BadInput`): ``prog: what and where``, :data:`EXIT_BAD_INPUT`;
+* could not connect -- a vehicle the adapter cannot use, a runtime whose
+  sockets cannot start, a ground station that cannot bind its port, a
+  :class:`ConnectionError`, a fleet operation whose every drone failed to
+  connect: :data:`EXIT_CONNECT`; other fleet failures (a version mismatch, a
+  full disk) and a mission the pre-flight check refused (:class:`Refused`):
+  :data:`EXIT_MISSION_FAILED`;
 * anything else is a bug of ours: one line, the traceback only with ``-v``:
   :data:`EXIT_INTERNAL`.
 
-The exception classes are imported when one is raised, so a command that
-succeeds loads nothing it does not use.
+The table names each exception class by where it is defined
+(``module.QualifiedName``) instead of importing it: an exception is an instance
+of a class only if its module ran, so nothing needs loading to classify it, and
+neither a node's start-up nor its error path loads the compiler or the fleet
+operations to learn that a config was wrong.  ``tests/cli/test_exit_codes.py``
+imports every name of the table, so a renamed class fails there, not in the field.
 """
 
 from __future__ import annotations
@@ -26,7 +32,9 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import TextIO
 
 from .exits import (
@@ -37,9 +45,6 @@ from .exits import (
     EXIT_MISSION_FAILED,
 )
 
-#: Kinds of :class:`~eamos.ops.DroneError` that mean "could not connect".
-CONNECT_KINDS = frozenset({"unreachable", "wrong key", "host key changed"})
-
 
 class BadInput(Exception):
     """Input the command found wrong (an argument combination, an unwritable output)."""
@@ -49,34 +54,60 @@ class Refused(Exception):
     """The pre-flight check found errors: the mission is not flown (``--no-check`` overrides)."""
 
 
-def _bad_input_types() -> tuple[type[BaseException], ...]:
-    from eamos.config import ConfigError
-    from eamos.net.keys import KeysError
-    from eamos.ops import RunFolderError
-    from eamos.program.format import ProgramError
-    from eamos.report import ReportError
+MISSION_ERROR = "eamos.compiler.errors.MissionError"
+FLEET_ERROR = "eamos.ops.ssh.FleetError"
 
-    return (BadInput, ConfigError, KeysError, ProgramError, ReportError, RunFolderError)
+#: Exception class (``module.QualifiedName`` where it is defined) -> exit code.  An
+#: exception takes the code of the first class of its hierarchy listed here (its own,
+#: else its nearest base); none listed: :data:`EXIT_INTERNAL`.
+EXIT_CODE_OF: Mapping[str, int] = MappingProxyType(
+    {
+        # bad input, one exception type per layer (docs/architecture.md)
+        __name__ + ".BadInput": EXIT_BAD_INPUT,
+        MISSION_ERROR: EXIT_BAD_INPUT,
+        "eamos.program.format.ProgramError": EXIT_BAD_INPUT,
+        "eamos.config.validation.ConfigError": EXIT_BAD_INPUT,
+        "eamos.net.keys.KeysError": EXIT_BAD_INPUT,
+        "eamos.net.wire_fields.WireError": EXIT_BAD_INPUT,
+        "eamos.report.ReportError": EXIT_BAD_INPUT,
+        "eamos.ops.ssh.RunFolderError": EXIT_BAD_INPUT,
+        # could not connect
+        "eamos.hal.api.AdapterError": EXIT_CONNECT,
+        "eamos.actors.runtime.DroneRuntimeError": EXIT_CONNECT,
+        "eamos.ops.ssh.FleetConnectError": EXIT_CONNECT,
+        "builtins.ConnectionError": EXIT_CONNECT,
+        # the mission failed (or was not flown); FleetError: see exit_code_of
+        FLEET_ERROR: EXIT_MISSION_FAILED,
+        __name__ + ".Refused": EXIT_MISSION_FAILED,
+        "builtins.KeyboardInterrupt": EXIT_INTERRUPTED,
+    }
+)
+
+#: Kinds of :class:`~eamos.ops.DroneError` that mean "could not connect".
+CONNECT_KINDS = frozenset({"unreachable", "wrong key", "host key changed"})
+
+
+def listed_class(exc: BaseException) -> str | None:
+    """The name :data:`EXIT_CODE_OF` lists for ``exc``: its class's or its nearest base's."""
+    for cls in type(exc).__mro__:
+        name = f"{cls.__module__}.{cls.__qualname__}"
+        if name in EXIT_CODE_OF:
+            return name
+    return None
 
 
 def exit_code_of(exc: BaseException) -> int:
-    """The exit code for an exception a command raised (pure: no output)."""
-    from eamos.compiler import MissionError
-    from eamos.ops import FleetConnectError, FleetError
-
-    if isinstance(exc, KeyboardInterrupt):
-        return EXIT_INTERRUPTED
-    if isinstance(exc, Refused):
-        return EXIT_MISSION_FAILED
-    if isinstance(exc, (MissionError, *_bad_input_types())):
-        return EXIT_BAD_INPUT
-    if isinstance(exc, ConnectionError | FleetConnectError):
-        return EXIT_CONNECT
-    if isinstance(exc, FleetError):
-        if exc.errors and all(e.kind in CONNECT_KINDS for e in exc.errors):
+    """The exit code for an exception raised by an entry point's work (pure: no output)."""
+    listed = listed_class(exc)
+    if listed is None:
+        return EXIT_INTERNAL
+    if listed == FLEET_ERROR:
+        # A plain FleetError says per drone what went wrong: all of them unreachable
+        # (or refusing our key) is "could not connect", anything else the mission's failure.
+        drones = getattr(exc, "errors", [])
+        if drones and all(getattr(e, "kind", None) in CONNECT_KINDS for e in drones):
             return EXIT_CONNECT
-        return EXIT_MISSION_FAILED
-    return EXIT_INTERNAL
+    return EXIT_CODE_OF[listed]
 
 
 def source_text(path: str | Path) -> str | None:
@@ -98,13 +129,12 @@ def report(
     err: TextIO | None = None,
 ) -> int:
     """Print what went wrong, once, and return the exit code (see :func:`exit_code_of`)."""
-    from eamos.compiler import MissionError
-
     err = err if err is not None else sys.stderr
     code = exit_code_of(exc)
-    if isinstance(exc, MissionError):
+    if listed_class(exc) == MISSION_ERROR:
         path = str(mission) if mission is not None else "<mission>"
-        print(exc.render(path, source_text(path) if mission is not None else None), file=err)
+        render = exc.render  # type: ignore[attr-defined]
+        print(render(path, source_text(path) if mission is not None else None), file=err)
     elif code == EXIT_INTERRUPTED:
         print(f"{prog}: interrupted", file=err)
     elif code != EXIT_INTERNAL:
@@ -119,20 +149,39 @@ def report(
     return code
 
 
-def dispatch(args: argparse.Namespace) -> int:
-    """Run the command the parsed ``args`` name (``args.func``) and return its exit code."""
-    prog = getattr(args, "prog", None) or f"eamos {getattr(args, 'command', '')}".strip()
-    verbose = bool(getattr(args, "verbose", False))
+def run_reported(
+    prog: str,
+    work: Callable[[], int],
+    *,
+    verbose: bool = False,
+    mission: str | Path | None = None,
+) -> int:
+    """``work()``'s exit code, or the exit code of what it raised, said once on stderr.
+
+    Every entry point's ``main()`` runs its work through here (``prog`` starts each
+    message: ``eamos compile``, ``eamos-node Drone1``, ``eamos-sim-vehicle``).
+    """
     try:
-        return int(args.func(args))
+        return int(work())
     except (Exception, KeyboardInterrupt) as exc:
         try:
-            return report(prog, exc, verbose=verbose, mission=getattr(args, "mission", None))
+            return report(prog, exc, verbose=verbose, mission=mission)
         except Exception:  # the report itself failed: still one line, and the code
             if verbose:
                 traceback.print_exc()
             print(f"{prog}: internal error: {exc!r}, please report it", file=sys.stderr)
             return EXIT_INTERNAL
+
+
+def dispatch(args: argparse.Namespace) -> int:
+    """Run the ``eamos`` command the parsed ``args`` name (``args.func``); its exit code."""
+    prog = getattr(args, "prog", None) or f"eamos {getattr(args, 'command', '')}".strip()
+    return run_reported(
+        prog,
+        lambda: args.func(args),
+        verbose=bool(getattr(args, "verbose", False)),
+        mission=getattr(args, "mission", None),
+    )
 
 
 def command(parser: argparse.ArgumentParser, func: object) -> None:
@@ -142,10 +191,14 @@ def command(parser: argparse.ArgumentParser, func: object) -> None:
 
 __all__ = [
     "CONNECT_KINDS",
+    "EXIT_CODE_OF",
     "BadInput",
     "Refused",
     "command",
     "dispatch",
     "exit_code_of",
+    "listed_class",
     "report",
+    "run_reported",
+    "source_text",
 ]

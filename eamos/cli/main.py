@@ -10,7 +10,8 @@
 
 Every command exits with a code of :mod:`eamos.cli.exits` (0 ok, 1 mission
 failed, 2 bad input, 3 could not connect, 4 internal error), decided in one
-place, :func:`eamos.cli.errors.dispatch`; a traceback appears only with ``-v``.
+place for every entry point, :func:`eamos.cli.errors.run_reported` (through
+:func:`~eamos.cli.errors.dispatch`); a traceback appears only with ``-v``.
 """
 
 from __future__ import annotations

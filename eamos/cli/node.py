@@ -41,7 +41,6 @@ try:
     import signal
     import sys
     import threading
-    import traceback
     from collections.abc import Callable
     from pathlib import Path
     from types import FrameType
@@ -52,18 +51,10 @@ try:
     # isort: split
     from eamos import __version__
     from eamos.actors.drone import DroneEnd, load_node_program, run_drone
-    from eamos.actors.runtime import DroneRuntimeError
-    from eamos.cli.exits import (
-        EXIT_BAD_INPUT,
-        EXIT_CONNECT,
-        EXIT_INTERNAL,
-        EXIT_MISSION_FAILED,
-        EXIT_OK,
-    )
+    from eamos.cli.errors import run_reported
+    from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EXIT_OK
     from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
-    from eamos.hal import AdapterError
     from eamos.logs import LogWriter
-    from eamos.program.format import ProgramError
     from eamos.program.uniform import GROUND_STATION
 finally:
     if _COLLECTING:
@@ -199,21 +190,9 @@ def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -
 
 
 def guarded(body: Callable[[], int], verbose: bool, who: str = "") -> int:
-    """``body()``'s exit code, or the exit code of the error it raised (said on stderr)."""
-    prefix = f"eamos-node {who}" if who else "eamos-node"
-    try:
-        return body()
-    except (ConfigError, ProgramError) as exc:
-        print(f"{prefix}: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except (AdapterError, DroneRuntimeError) as exc:
-        print(f"{prefix}: {exc}", file=sys.stderr)
-        return EXIT_CONNECT
-    except Exception as exc:  # an internal error: one line, the trace only with -v
-        if verbose:
-            traceback.print_exc()
-        print(f"{prefix}: internal error: {exc!r} (run with -v for details)", file=sys.stderr)
-        return EXIT_INTERNAL
+    """``body()``'s exit code, or the exit code of the error it raised (said once on stderr:
+    :func:`eamos.cli.errors.run_reported`, the table of every entry point)."""
+    return run_reported(f"eamos-node {who}" if who else "eamos-node", body, verbose=verbose)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -227,12 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     if len(args.config) > 1:
-        try:
-            configs = load_group(args.config)
-        except ConfigError as exc:
-            print(f"eamos-node: {exc}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        return run_group(configs, stop, args.verbose)
+        return guarded(lambda: run_group(load_group(args.config), stop, args.verbose), args.verbose)
     return guarded(lambda: run_node(NodeConfig.load(args.config[0]), stop), args.verbose)
 
 

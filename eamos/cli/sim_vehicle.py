@@ -11,7 +11,8 @@ import threading
 from pathlib import Path
 from types import FrameType
 
-from eamos.cli.exits import EXIT_CONNECT, EXIT_MISSION_FAILED, EXIT_OK
+from eamos.cli.errors import run_reported
+from eamos.cli.exits import EXIT_MISSION_FAILED, EXIT_OK
 from eamos.hal.mavlink.signing import read_key
 from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions, parse_reject
 
@@ -171,6 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--log", type=Path, metavar="FILE", help="JSON-lines log of the vehicle")
     parser.add_argument(
+        "-v", "--verbose", action="store_true", help="show tracebacks of internal errors"
+    )
+    parser.add_argument(
         "--watch-stdin",
         action="store_true",
         help="exit when standard input closes (the parent process died)",
@@ -179,30 +183,50 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Console entry point of ``eamos-sim-vehicle``; SIGTERM/SIGINT stop it cleanly."""
+    """Console entry point of ``eamos-sim-vehicle``; SIGTERM/SIGINT stop it cleanly.
+
+    Exit codes (:mod:`eamos.cli.exits`, decided by :func:`eamos.cli.errors.run_reported`):
+    0 stopped, 1 died (``--die-after``), 2 bad arguments, 3 the connection could not be
+    opened, 4 internal error.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        key = read_key(args.signing_key) if args.signing_key is not None else None
-        options = VehicleOptions(
-            autopilot=args.autopilot,
-            connection=args.connection,
-            sysid=args.sysid,
-            speedup=args.speedup,
-            prearm_delay_s=args.prearm_delay,
-            home=args.home,
-            reject=parse_reject(args.reject),
-            disarm_after_s=args.disarm_after,
-            wander_m=args.wander,
-            estimator_settle_s=args.estimator_settle,
-            estimator_bias_m=args.estimator_bias,
-            seed=args.seed,
-            signing_key=key,
-            die_after_s=args.die_after,
-            log=args.log,
-        )
+        options = options_from(args)
     except ValueError as exc:
         parser.error(str(exc))
+    return run_reported(
+        "eamos-sim-vehicle", lambda: fly(options, args.watch_stdin), verbose=args.verbose
+    )
+
+
+def options_from(args: argparse.Namespace) -> VehicleOptions:
+    """The vehicle's options from the parsed arguments; ValueError names a bad one."""
+    key = read_key(args.signing_key) if args.signing_key is not None else None
+    return VehicleOptions(
+        autopilot=args.autopilot,
+        connection=args.connection,
+        sysid=args.sysid,
+        speedup=args.speedup,
+        prearm_delay_s=args.prearm_delay,
+        home=args.home,
+        reject=parse_reject(args.reject),
+        disarm_after_s=args.disarm_after,
+        wander_m=args.wander,
+        estimator_settle_s=args.estimator_settle,
+        estimator_bias_m=args.estimator_bias,
+        seed=args.seed,
+        signing_key=key,
+        die_after_s=args.die_after,
+        log=args.log,
+    )
+
+
+def fly(options: VehicleOptions, watch_stdin: bool) -> int:
+    """Run the vehicle until SIGTERM/SIGINT (or standard input closes, ``watch_stdin``).
+
+    Raises :class:`ConnectionError` if its connection cannot be opened.
+    """
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -210,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
-    if args.watch_stdin:
+    if watch_stdin:
 
         def watch() -> None:
             # Raw reads (no buffered-reader lock to trip over at interpreter exit);
@@ -224,8 +248,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         vehicle.start()
     except OSError as exc:
-        print(f"eamos-sim-vehicle: cannot open {options.connection}: {exc}", file=sys.stderr)
-        return EXIT_CONNECT
+        raise ConnectionError(f"cannot open {options.connection}: {exc}") from exc
     print(
         f"eamos-sim-vehicle: {options.autopilot} sysid {options.sysid} on "
         f"{options.connection}, speedup {options.speedup:g}",

@@ -1,19 +1,29 @@
-"""Every ``eamos`` command exits with a code of the one table; bad input shows no traceback.
+"""Every entry point exits with a code of the one table; bad input shows no traceback.
 
-The table (eamos/cli/exits.py, README "Exit codes"): 0 ok, 1 mission failed,
-2 bad input, 3 could not connect, 4 internal error.
+The codes (eamos/cli/exits.py, README "Exit codes"): 0 ok, 1 mission failed,
+2 bad input, 3 could not connect, 4 internal error.  Exceptions become codes in one
+place (eamos/cli/errors.py, ``EXIT_CODE_OF`` and ``run_reported``) for ``eamos``,
+``eamos-node`` and ``eamos-sim-vehicle`` alike.
 """
 
 from __future__ import annotations
 
+import argparse
+import importlib
+import signal
+import socket
 import subprocess
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
+from eamos.actors.runtime import DroneRuntimeError
 from eamos.cli import fleet as cli_fleet
-from eamos.cli.errors import exit_code_of
+from eamos.cli import node as cli_node
+from eamos.cli import sim_vehicle as cli_sim_vehicle
+from eamos.cli.errors import EXIT_CODE_OF, BadInput, Refused, dispatch, exit_code_of
 from eamos.cli.exits import (
     EXIT_BAD_INPUT,
     EXIT_CODES,
@@ -21,14 +31,19 @@ from eamos.cli.exits import (
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
     EXIT_MISSION_FAILED,
+    EXIT_OK,
 )
 from eamos.cli.main import main
-from eamos.compiler import MissionError
+from eamos.compiler import MissionError, compile_file
 from eamos.config import ConfigError
+from eamos.hal import AdapterError
 from eamos.net.keys import KeysError
+from eamos.net.wire import WireError
 from eamos.ops import DroneError, FleetConnectError, FleetError, RunFolderError
 from eamos.program.format import ProgramError
 from eamos.report import ReportError
+from tests.net.link_helpers import free_port
+from tests.support.netlab import node_argv, write_fleet
 
 REPO = Path(__file__).resolve().parents[2]
 GOOD = REPO / "missions" / "experiment_b.go"
@@ -135,7 +150,12 @@ def _drone_error(kind: str) -> DroneError:
         (ProgramError("x"), EXIT_BAD_INPUT),
         (KeysError("x"), EXIT_BAD_INPUT),
         (ReportError("x"), EXIT_BAD_INPUT),
+        (WireError("x"), EXIT_BAD_INPUT),
+        (BadInput("x"), EXIT_BAD_INPUT),
         (RunFolderError("not a roll-out folder"), EXIT_BAD_INPUT),
+        (AdapterError("hal.connection: nobody answers"), EXIT_CONNECT),
+        (DroneRuntimeError("cannot bind"), EXIT_CONNECT),
+        (Refused("the check found errors"), EXIT_MISSION_FAILED),
         (
             FleetError("probe", [_drone_error("unreachable"), _drone_error("wrong key")]),
             EXIT_CONNECT,
@@ -154,6 +174,28 @@ def _drone_error(kind: str) -> DroneError:
 )
 def test_exceptions_map_to_the_table(exc: BaseException, code: int) -> None:
     assert exit_code_of(exc) == code
+
+
+def test_every_class_the_table_names_is_an_exception_defined_there() -> None:
+    # The table names classes instead of importing them: a renamed or moved class fails here.
+    for name, code in EXIT_CODE_OF.items():
+        module, _, qualname = name.rpartition(".")
+        cls = getattr(importlib.import_module(module), qualname, None)
+        assert isinstance(cls, type) and issubclass(cls, BaseException), name
+        assert (cls.__module__, cls.__qualname__) == (module, qualname), name
+        assert code in EXIT_CODES or code == EXIT_INTERRUPTED, name
+
+
+def test_a_subclass_takes_its_nearest_listed_base() -> None:
+    class LabConfigError(ConfigError):
+        pass
+
+    class Unlisted(Exception):
+        pass
+
+    assert exit_code_of(LabConfigError("x")) == EXIT_BAD_INPUT
+    assert exit_code_of(RunFolderError("x")) == EXIT_BAD_INPUT  # not its base FleetError's 1
+    assert exit_code_of(Unlisted("x")) == EXIT_INTERNAL
 
 
 def test_a_mission_error_is_bad_input() -> None:
@@ -183,3 +225,125 @@ def test_the_installed_command_uses_the_table(tmp_path: Path) -> None:
     assert done.returncode == EXIT_BAD_INPUT
     assert "bad.go:2:9: error: unknown action 'Takof'" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+# -- every entry point: the same table, the same one line --------------------------------
+
+
+def _raiser(exc: BaseException) -> Callable[..., int]:
+    def work(*args: object, **kwargs: object) -> int:
+        raise exc
+
+    return work
+
+
+def _via_eamos(exc: BaseException) -> int:
+    args = argparse.Namespace(func=_raiser(exc), prog="eamos status", verbose=False)
+    return dispatch(args)
+
+
+def _via_node(exc: BaseException) -> int:
+    return cli_node.guarded(_raiser(exc), verbose=False, who="Drone1")
+
+
+def _via_sim_vehicle(exc: BaseException, monkeypatch: pytest.MonkeyPatch) -> int:
+    monkeypatch.setattr(cli_sim_vehicle, "fly", _raiser(exc))
+    return cli_sim_vehicle.main(["--autopilot", "px4", "--connection", "udpout:127.0.0.1:9"])
+
+
+ENTRY_POINTS = ["eamos status", "eamos-node Drone1", "eamos-sim-vehicle"]
+
+
+@pytest.mark.parametrize("prog", ENTRY_POINTS)
+@pytest.mark.parametrize(
+    "exc",
+    [
+        ConfigError("drone1.toml: net.bind: missing"),
+        AdapterError("hal.connection: udpin:0.0.0.0:14540: in use"),
+        FleetError("probe", [DroneError("Drone1", "root@198.18.0.2:22", "unreachable", "x")]),
+        Refused("the check found errors"),
+        RuntimeError("broken invariant"),
+    ],
+    ids=lambda e: type(e).__name__,
+)
+def test_every_entry_point_maps_exceptions_by_the_one_table(
+    prog: str,
+    exc: BaseException,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    via = {
+        "eamos status": _via_eamos,
+        "eamos-node Drone1": _via_node,
+        "eamos-sim-vehicle": lambda e: _via_sim_vehicle(e, monkeypatch),
+    }[prog]
+    assert via(exc) == exit_code_of(exc)
+    err = capsys.readouterr().err
+    if exit_code_of(exc) == EXIT_INTERNAL:
+        assert err == (
+            f"{prog}: internal error: RuntimeError: broken invariant "
+            "(run with -v for details), please report it\n"
+        )
+    else:
+        assert err.startswith(f"{prog}: ") and str(exc).splitlines()[0] in err, err
+    assert "Traceback" not in err
+
+
+def _run(argv: list[str], cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        argv, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False
+    )
+
+
+def test_eamos_node_bad_input_exits_2(tmp_path: Path) -> None:
+    done = _run(node_argv(tmp_path / "missing.toml"), tmp_path)
+    assert done.returncode == EXIT_BAD_INPUT, done.stderr
+    assert done.stderr.startswith("eamos-node: ") and "missing.toml" in done.stderr
+    assert "Traceback" not in done.stderr
+    twice = [*node_argv(tmp_path / "a.toml"), "--config", str(tmp_path / "a.toml")]
+    done = _run(twice, tmp_path)
+    assert done.returncode == EXIT_BAD_INPUT and "Traceback" not in done.stderr, done.stderr
+
+
+@pytest.fixture
+def taken_port() -> Iterator[int]:
+    """A TCP port on loopback that something listens on."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen()
+        yield sock.getsockname()[1]
+
+
+def test_eamos_node_that_cannot_bind_exits_3(tmp_path: Path, taken_port: int) -> None:
+    compiled = compile_file(REPO / "missions" / "experiment_b.go")
+    bind = {name: f"tcp://127.0.0.1:{free_port()}" for name in compiled.programs}
+    bind["Drone1"] = f"tcp://127.0.0.1:{taken_port}"
+    files = write_fleet(compiled.programs, tmp_path, bind, ready_timeout_s=30.0)
+    done = _run(node_argv(files.configs["Drone1"]), tmp_path)
+    assert done.returncode == EXIT_CONNECT, done.stderr
+    assert f"cannot bind the out-bridge at {bind['Drone1']}" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def _sim_vehicle(*args: str) -> list[str]:
+    return [sys.executable, "-m", "eamos.cli.sim_vehicle", "--autopilot", "px4", *args]
+
+
+def test_eamos_sim_vehicle_exits_0_2_and_3(tmp_path: Path, taken_port: int) -> None:
+    done = _run(_sim_vehicle("--connection", "udpout:127.0.0.1:9", "--speedup", "0"), tmp_path)
+    assert done.returncode == EXIT_BAD_INPUT and "must be > 0" in done.stderr, done.stderr
+    done = _run(_sim_vehicle("--connection", f"tcpin:127.0.0.1:{taken_port}"), tmp_path)
+    assert done.returncode == EXIT_CONNECT, done.stderr
+    assert done.stderr.startswith(f"eamos-sim-vehicle: cannot open tcpin:127.0.0.1:{taken_port}")
+    assert "Traceback" not in done.stderr
+    with subprocess.Popen(
+        _sim_vehicle("--connection", f"udpout:127.0.0.1:{free_port()}"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    ) as vehicle:
+        assert vehicle.stdout is not None
+        assert "eamos-sim-vehicle: px4 sysid 1" in vehicle.stdout.readline()
+        vehicle.send_signal(signal.SIGTERM)
+        assert vehicle.wait(timeout=60) == EXIT_OK, vehicle.stderr.read() if vehicle.stderr else ""
