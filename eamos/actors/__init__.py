@@ -6,7 +6,8 @@ What other packages may use:
   ``report``/``drone_report``, ``stop``), :class:`NetSettings`,
   :class:`DroneRuntimeError`, :data:`FINAL_SAMPLE_WAIT_S` (:mod:`.runtime`);
 * :class:`DroneReport`, :class:`FinalState`, :class:`ActionEntry`,
-  :class:`ReportError` (:mod:`.report`): a drone's part of the run summary;
+  :class:`DroneReportError` (:mod:`.report`): a drone's part of the run summary, and
+  the error for one whose JSON cannot be read back;
 * :class:`Dispatcher`, :class:`PooledActor` (:mod:`.dispatch`): actors on a shared pool;
 * :class:`RuntimeFailure` (:mod:`.failure`): an exception in a part of a runtime;
 * :data:`DEFAULT_PEER_WAIT_LIMIT_S`, :data:`END_POLICIES` (:mod:`.stranded`): when and how
@@ -15,23 +16,25 @@ What other packages may use:
 
 The parts (:mod:`.board`, :mod:`.outbox`, :mod:`.executive`, :mod:`.inbound`,
 :mod:`.node`, :mod:`.uniform_api`) are the runtime's own.  Names load on first
-use, so importing a pure module of this package (``state``, ``logic``,
-``report``) does not load ZeroMQ or Pykka.
+use (:func:`eamos.lazy.lazy_exports`), so importing a pure module of this package
+(``state``, ``logic``, ``report``) does not load ZeroMQ or Pykka.
 """
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from eamos.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .dispatch import Dispatcher, PooledActor
     from .failure import RuntimeFailure
     from .logic.telemetry import stale_values, telemetry_values
-    from .report import ActionEntry, DroneReport, FinalState, ReportError
+    from .report import ActionEntry, DroneReport, DroneReportError, FinalState
     from .runtime import FINAL_SAMPLE_WAIT_S, DroneRuntime, DroneRuntimeError, NetSettings
     from .stranded import DEFAULT_PEER_WAIT_LIMIT_S, END_POLICIES
 
+#: Each public name -> the module defining it.
 _WHERE = {
     "FINAL_SAMPLE_WAIT_S": "runtime",
     "DroneRuntime": "runtime",
@@ -40,7 +43,7 @@ _WHERE = {
     "ActionEntry": "report",
     "DroneReport": "report",
     "FinalState": "report",
-    "ReportError": "report",
+    "DroneReportError": "report",
     "Dispatcher": "dispatch",
     "PooledActor": "dispatch",
     "RuntimeFailure": "failure",
@@ -57,19 +60,17 @@ __all__ = [
     "ActionEntry",
     "Dispatcher",
     "DroneReport",
+    "DroneReportError",
     "DroneRuntime",
     "DroneRuntimeError",
     "FinalState",
     "NetSettings",
     "PooledActor",
-    "ReportError",
     "RuntimeFailure",
     "stale_values",
     "telemetry_values",
 ]
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+# Each public name, imported from its module on first use.
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)

@@ -10,7 +10,7 @@ from typing import Any
 import pykka
 
 from ..net import wire
-from ..net.link import PeerStatus, TelemetryStale
+from ..net.effects import PeerStatus, TelemetryStale
 from .dispatch import tell_here
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink

@@ -32,9 +32,9 @@ __all__ = [
     "LISTED_BLOCKED_MAX",
     "ActionEntry",
     "DroneReport",
+    "DroneReportError",
     "FinalState",
     "FoldedActions",
-    "ReportError",
     "fold_actions",
 ]
 
@@ -49,18 +49,18 @@ LISTED_BLOCKED_MAX: Final = 1_000
 """At most this many blocked nodes are named; ``blocked_nodes_more`` counts the rest."""
 
 
-class ReportError(ValueError):
+class DroneReportError(ValueError):
     """A report's JSON lacks a key or has a value of the wrong type."""
 
 
 def _get(data: Mapping[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
     """``data[key]`` if present and of ``kind`` (a bool is not a number here)."""
     if key not in data:
-        raise ReportError(f"{where}: no {key!r}")
+        raise DroneReportError(f"{where}: no {key!r}")
     value = data[key]
     kinds = kind if isinstance(kind, tuple) else (kind,)
     if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
-        raise ReportError(f"{where}: {key!r} is {value!r}")
+        raise DroneReportError(f"{where}: {key!r} is {value!r}")
     return value
 
 
@@ -207,7 +207,7 @@ class FoldedActions:
     def from_json(cls, data: Any) -> FoldedActions:
         where = "actions_folded"
         if not isinstance(data, Mapping):
-            raise ReportError(f"report: {where!r} is {data!r}")
+            raise DroneReportError(f"report: {where!r} is {data!r}")
         num = (int, float)
         return cls(
             count=_get(data, "count", int, where),
@@ -358,14 +358,14 @@ class DroneReport:
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> DroneReport:
-        """Read a report back; :class:`ReportError` names a missing or mistyped key.
+        """Read a report back; :class:`DroneReportError` names a missing or mistyped key.
 
         Keys the summary adds around a report (``exit_code``, ``error`` ...) are ignored.
         """
         where = "report"
         final = data.get("final")
         if final is not None and not isinstance(final, Mapping):
-            raise ReportError(f"{where}: 'final' is {final!r}")
+            raise DroneReportError(f"{where}: 'final' is {final!r}")
         actions: Sequence[Any] = _get(data, "actions", list, where)
         return cls(
             ok=_get(data, "ok", bool, where),

@@ -233,7 +233,7 @@ def _rollout_homes(run_dir: Path, drones: list[str]) -> dict[str, tuple[float, f
 def cmd_start(args: argparse.Namespace) -> int:
     """``eamos start``."""
     from eamos.ground import StopRequest, install_stop_handler
-    from eamos.ops.ground import StartOptions, fly_rollout
+    from eamos.ops.start import StartOptions, fly_rollout
 
     stop = StopRequest()  # Ctrl-C aborts and lands; a second one stops waiting
     install_stop_handler(stop)
@@ -296,7 +296,7 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 def cmd_abort(args: argparse.Namespace) -> int:
     """``eamos abort``: 1 when a drone did not confirm it landed."""
-    from eamos.ops.ground import abort
+    from eamos.ops.start import abort
 
     result = abort(args.source, args.mission, args.reason, args.timeout, _say)
     for name, landed in result.landed.items():

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from typing import Any, Protocol, TextIO
 
 from eamos.net import wire
-from eamos.net.link import PeerStatus
+from eamos.net.effects import PeerStatus
 
 from .station import DroneView, GroundStation, ParticipantFailed
 

@@ -29,10 +29,10 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from eamos.actors.report import DroneReport, ReportError
+from eamos.actors.report import DroneReport, DroneReportError
 from eamos.actors.runtime import DroneRuntime
 from eamos.net import wire
-from eamos.net.link import PeerStatus
+from eamos.net.effects import PeerStatus
 from eamos.net.progress import progress_events
 from eamos.program.uniform import GROUND_STATION
 
@@ -125,7 +125,7 @@ class GroundStation:
             elif isinstance(msg, wire.Report):
                 try:
                     view.report = DroneReport.from_json(msg.report)
-                except ReportError as exc:
+                except DroneReportError as exc:
                     # Not waited for any longer: what it would send again is the same.
                     view.state = "lost"
                     self.failures.append(f"{view.name}: unreadable report ({exc})")

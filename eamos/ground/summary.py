@@ -65,7 +65,7 @@ class DroneResult:
     def from_json(cls, data: Mapping[str, Any]) -> DroneResult:
         """Read a ``drones.<name>`` object (the inverse of :meth:`to_json`).
 
-        Raises :class:`~eamos.actors.report.ReportError` (a ``ValueError``) for a
+        Raises :class:`~eamos.actors.report.DroneReportError` (a ``ValueError``) for a
         report with missing or mistyped keys.
         """
         exit_code = data.get("exit_code")

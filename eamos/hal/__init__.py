@@ -1,55 +1,62 @@
 """The hardware-abstraction layer: the adapters behind the uniform API.
 
 ``make_adapter(drone, settings, adapter_log)`` builds the adapter a drone's
-``hal`` settings ask for (``settings["adapter"]``).  Adapter modules are
-imported only when chosen, so importing :mod:`eamos.hal` stays cheap (a
-MAVLink adapter, for instance, must not pull in pymavlink for simulated runs).
+``hal`` settings ask for (``settings["adapter"]``, one of :data:`ADAPTERS`).  Each
+adapter's factory loads with its module when first used
+(:func:`eamos.lazy.lazy_exports`), so importing :mod:`eamos.hal` stays cheap: a
+simulated drone loads neither the MAVLink adapter nor pymavlink.
 
-What other packages may use, by module:
+What other packages may use:
 
-* :mod:`eamos.hal.api` (re-exported here): the :class:`Adapter` protocol
+* from :mod:`eamos.hal.api` (imported here): the :class:`Adapter` protocol
   (``run(command, done)`` takes a typed :class:`eamos.program.uniform.Command`),
   :class:`Telemetry`, :class:`ActionResult`, :class:`ActionHandle`, :class:`AdapterError`;
-* :mod:`eamos.hal.sim.core`: :class:`~eamos.hal.sim.core.SimCore`, the simulated
-  quadcopter as pure logic stepped by its owner (virtual-time drivers), with
-  :class:`~eamos.hal.sim.settings.SimSettings`;
-* :mod:`eamos.hal.sim.adapter`, :mod:`eamos.hal.ground`, :mod:`eamos.hal.fake`,
-  :mod:`eamos.hal.mavlink.adapter`: the adapters (``make_adapter`` builds them);
-* :mod:`eamos.hal.mavlink.settings`: :class:`MavlinkSettings`;
-* :mod:`eamos.hal.sitl.vehicle`: :class:`SimVehicle`, the MAVLink simulated vehicle.
+* :func:`make_adapter`, :data:`ADAPTERS` and the adapters' factories:
+  :func:`sim_adapter_from_settings` (:mod:`eamos.hal.sim.adapter`),
+  :func:`ground_adapter_from_settings` (:mod:`eamos.hal.station_adapter`: the ground
+  station's adapter, pauses only), :func:`fake_adapter_from_settings`
+  (:mod:`eamos.hal.fake`), :func:`mavlink_adapter_from_settings`
+  (:mod:`eamos.hal.mavlink.adapter`);
+* :mod:`eamos.hal.sim`: :class:`~eamos.hal.sim.SimCore`, the simulated quadcopter as
+  pure logic stepped by its owner (virtual-time drivers), with
+  :class:`~eamos.hal.sim.SimSettings`;
+* :mod:`eamos.hal.mavlink`: :class:`~eamos.hal.mavlink.MavlinkSettings`;
+* :mod:`eamos.hal.sitl`: :class:`~eamos.hal.sitl.SimVehicle`, the MAVLink simulated vehicle.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
 from eamos.hal.settings import did_you_mean, field_error
+from eamos.lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from .fake import fake_adapter_from_settings
+    from .mavlink.adapter import mavlink_adapter_from_settings
+    from .sim.adapter import sim_adapter_from_settings
+    from .station_adapter import ground_adapter_from_settings
 
 AdapterFactory = Callable[[str, Mapping[str, Any], Any], Adapter]
 
+#: Each adapter's factory -> the module defining it (loaded when first used).
+_WHERE = {
+    "sim_adapter_from_settings": "sim.adapter",
+    "ground_adapter_from_settings": "station_adapter",
+    "fake_adapter_from_settings": "fake",
+    "mavlink_adapter_from_settings": "mavlink.adapter",
+}
 
-def _lazy(module: str, name: str) -> AdapterFactory:
-    """A factory importing ``module`` only when an adapter of that kind is built."""
-
-    def factory(drone: str, settings: Mapping[str, Any], adapter_log: Any) -> Adapter:
-        build: AdapterFactory = getattr(importlib.import_module(module), name)
-        return build(drone, settings, adapter_log)
-
-    factory.__doc__ = f"Build an adapter with {module}.{name}."
-    return factory
-
-
-#: Adapter kinds by their ``hal.adapter`` name (read-only).
-ADAPTERS: Mapping[str, AdapterFactory] = MappingProxyType(
+#: Adapter kinds by their ``hal.adapter`` name -> the name of the factory building one.
+ADAPTERS: Mapping[str, str] = MappingProxyType(
     {
-        "sim": _lazy("eamos.hal.sim.adapter", "sim_adapter_from_settings"),
-        "ground": _lazy("eamos.hal.ground", "ground_adapter_from_settings"),
-        "fake": _lazy("eamos.hal.fake", "fake_adapter_from_settings"),
-        "mavlink": _lazy("eamos.hal.mavlink.adapter", "mavlink_adapter_from_settings"),
+        "sim": "sim_adapter_from_settings",
+        "ground": "ground_adapter_from_settings",
+        "fake": "fake_adapter_from_settings",
+        "mavlink": "mavlink_adapter_from_settings",
     }
 )
 
@@ -66,12 +73,14 @@ def make_adapter(drone: str, settings: Mapping[str, Any], adapter_log: Any) -> A
     choices = ", ".join(sorted(ADAPTERS))
     if kind is None:
         raise field_error("hal.adapter", f"missing; choose one of: {choices}")
-    factory = ADAPTERS.get(kind) if isinstance(kind, str) else None
-    if factory is None:
+    factory_name = ADAPTERS.get(kind) if isinstance(kind, str) else None
+    if factory_name is None:
         hint = did_you_mean(kind, ADAPTERS) if isinstance(kind, str) else ""
         raise field_error(
             "hal.adapter", f"unknown adapter {kind!r}{hint}; choose one of: {choices}"
         )
+    # This package's own lazy export: the adapter's module loads here, the first time.
+    factory: AdapterFactory = __getattr__(factory_name)
     return factory(drone, settings, adapter_log)
 
 
@@ -81,6 +90,14 @@ __all__ = [
     "ActionResult",
     "Adapter",
     "AdapterError",
+    "AdapterFactory",
     "Telemetry",
+    "fake_adapter_from_settings",
+    "ground_adapter_from_settings",
     "make_adapter",
+    "mavlink_adapter_from_settings",
+    "sim_adapter_from_settings",
 ]
+
+# Each adapter's factory, imported from its module on first use.
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)

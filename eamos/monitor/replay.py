@@ -25,7 +25,7 @@ from typing import Any
 
 from eamos.ground.summary import RunSummary
 from eamos.net import wire
-from eamos.net.link import PeerStatus
+from eamos.net.effects import PeerStatus
 from eamos.program.uniform import GROUND_STATION
 
 from .hub import Hub

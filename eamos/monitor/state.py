@@ -42,7 +42,7 @@ from typing import Any
 from eamos.ground.display import format_event
 from eamos.ground.summary import DroneReport, RunSummary
 from eamos.net import wire
-from eamos.net.link import PeerStatus
+from eamos.net.effects import PeerStatus
 from eamos.program.uniform import GROUND_STATION
 
 from .links import LinkCount, LinkCounts

@@ -5,7 +5,9 @@
   checks (a trigger per action; what peers send is checked by ``decode``).
 * :mod:`eamos.net.session` -- :class:`ReliableSession`, the reliable-delivery
   protocol, pure (sequence numbers, acks, retransmission, heartbeats, peer
-  liveness, latest-value telemetry): events in, actions out, time passed in;
+  liveness, latest-value telemetry): events in, effects out (:mod:`eamos.net.effects`:
+  send, deliver, peer changed, wake; the local events :class:`PeerStatus` and
+  :class:`TelemetryStale`), time passed in;
   :mod:`eamos.net.incarnation` resynchronises peers with a restarted participant.
 * :mod:`eamos.net.link` -- :class:`Link`, the driver that runs a session on
   threads, the bridges and a clock (what a participant's runtime uses);
@@ -23,8 +25,9 @@ delivery, security and the fault tests.
 """
 
 from eamos.net.bridges import InBridge, OutBridge
+from eamos.net.effects import PeerStatus, TelemetryStale
 from eamos.net.link import Link
-from eamos.net.session import PeerStatus, ReliableSession, TelemetryStale
+from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
 from eamos.net.wire import (
     GROUND_STATION,

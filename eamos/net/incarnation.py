@@ -34,7 +34,7 @@ from __future__ import annotations
 import os
 import time
 
-from eamos.net.actions import Action, Wake
+from eamos.net.effects import SessionEffect, Wake
 from eamos.net.liveness import Liveness
 from eamos.net.sequence import Peer, Receiving, Sending, SessionCounters
 
@@ -62,13 +62,13 @@ def admit(
     live: Liveness,
     counters: SessionCounters,
     now: float,
-    actions: list[Action],
+    effects: list[SessionEffect],
 ) -> bool:
     """A message of ``incarnation`` (not the known one) came from ``peer``: take it?
 
     0 (a message sent outside a session) and the first incarnation heard are
     taken as they are; a larger one is a restart (:func:`resynchronise`, its
-    actions appended to ``actions``); a smaller one is its predecessor's: False.
+    effects appended to ``effects``); a smaller one is its predecessor's: False.
     """
     if not incarnation:
         return True
@@ -77,7 +77,7 @@ def admit(
         return False
     if peer.incarnation:
         counters.restarts += 1
-        actions += resynchronise(peer, incarnation, broadcasts, live, now)
+        effects += resynchronise(peer, incarnation, broadcasts, live, now)
     peer.incarnation = incarnation
     return True
 
@@ -89,10 +89,10 @@ def mine(own: int, acknowledged: int | None) -> bool:
 
 def resynchronise(
     peer: Peer, incarnation: int, broadcasts: Sending, live: Liveness, now: float
-) -> list[Action]:
+) -> list[SessionEffect]:
     """``peer`` restarted as ``incarnation``: start its sequences afresh, resend it everything.
 
-    Returns the actions: the ``restarted`` peer event and a wake-up now for the
+    Returns the effects: the ``restarted`` peer event and a wake-up now for the
     retransmissions.
     """
     previous = peer.incarnation

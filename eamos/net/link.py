@@ -32,19 +32,13 @@ import zmq
 
 import eamos.net.wire as wire
 from eamos.logs import make_logger
+from eamos.net.effects import PeerChanged, PeerStatus, Send, TelemetryStale, Wake
+from eamos.net.effects import SessionEffect as Action
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
 from eamos.net.reports import ReportJoiner
-from eamos.net.session import (
-    Action,
-    PeerChanged,
-    PeerStatus,
-    ReliableSession,
-    Send,
-    TelemetryStale,
-    Wake,
-)
+from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
 from eamos.net.transport import InSide, OutSide, Transport, ZmqTransport
 

@@ -13,7 +13,15 @@ from dataclasses import dataclass
 from typing import Any, Final
 
 import eamos.net.wire as wire
-from eamos.net.actions import Action, Deliver, PeerChanged, PeerStatus, Send, TelemetryStale, Wake
+from eamos.net.effects import (
+    Deliver,
+    PeerChanged,
+    PeerStatus,
+    Send,
+    SessionEffect,
+    TelemetryStale,
+    Wake,
+)
 from eamos.net.sequence import Peer, Sending, SessionCounters
 from eamos.net.settings import LinkSettings
 
@@ -120,7 +128,7 @@ class Liveness:
             if peer.tel_heard is not None:
                 peer.tel_heard = min(now, peer.tel_heard + stalled_s)
 
-    def check(self, peer: Peer, now: float, actions: list[Action]) -> float:
+    def check(self, peer: Peer, now: float, effects: list[SessionEffect]) -> float:
         """Report ``peer`` lost or its telemetry stale if due; return the next deadline."""
         s = self.settings
         deadline = float("inf")
@@ -128,7 +136,7 @@ class Liveness:
             silent = now - peer.heard
             if silent > s.peer_timeout_s:
                 peer.state = "lost"
-                actions.append(self.event(peer, "lost", silent))
+                effects.append(self.event(peer, "lost", silent))
             else:
                 deadline = peer.heard + s.peer_timeout_s + 1e-3
         if peer.tel_heard is not None and not peer.tel_stale:
@@ -136,7 +144,7 @@ class Liveness:
             if age > s.telemetry_stale_s:
                 peer.tel_stale = True
                 self.log.warning("mission.telemetry.stale", drone=peer.name, age_s=round(age, 3))
-                actions.append(Deliver(TelemetryStale(peer.name, round(age, 3))))
+                effects.append(Deliver(TelemetryStale(peer.name, round(age, 3))))
             else:
                 deadline = min(deadline, peer.tel_heard + s.telemetry_stale_s + 1e-3)
         return deadline
@@ -153,7 +161,7 @@ class TelemetryOut:
     sent_at: float = float("-inf")
     pending: bool = False  # a newer sample waits for the end of the interval
 
-    def offer(self, msg: wire.TelemetrySample, now: float) -> list[Action]:
+    def offer(self, msg: wire.TelemetrySample, now: float) -> list[SessionEffect]:
         self.latest = msg
         if now >= self.sent_at + self.interval:
             self.sent_at = now
@@ -164,22 +172,22 @@ class TelemetryOut:
         self.pending = True  # the timer sends the latest at the end of the interval
         return [Wake(self.sent_at + self.interval)]
 
-    def repeat(self, now: float) -> list[Action]:
+    def repeat(self, now: float) -> list[SessionEffect]:
         if self.latest is None:
             return []
         self.sent_at = now
         return [Send(self.latest)]
 
-    def tick(self, now: float) -> tuple[list[Action], float]:
+    def tick(self, now: float) -> tuple[list[SessionEffect], float]:
         # Compared as ``now >= sent_at + period``, the very sum returned as the
         # deadline: ``now - sent_at`` may round below the period at that instant.
         if self.latest is None:
             return [], float("inf")
-        actions: list[Action] = []
+        effects: list[SessionEffect] = []
         if self.pending and now >= self.sent_at + self.interval:
             self.pending = False
-            actions = self.repeat(now)
+            effects = self.repeat(now)
         elif not self.pending and now >= self.sent_at + self.refresh:
             # Nothing new: repeat the latest, so peers know it is still current.
-            actions = self.repeat(now)
-        return actions, self.sent_at + (self.interval if self.pending else self.refresh)
+            effects = self.repeat(now)
+        return effects, self.sent_at + (self.interval if self.pending else self.refresh)

@@ -68,8 +68,7 @@ from typing import Any, Final
 
 import eamos.net.wire as wire
 from eamos.logs import make_logger
-from eamos.net.actions import (
-    Action,
+from eamos.net.effects import (
     Deliver,
     PeerChanged,
     PeerStatus,
@@ -77,6 +76,7 @@ from eamos.net.actions import (
     TelemetryStale,
     Wake,
 )
+from eamos.net.effects import SessionEffect as Action
 from eamos.net.incarnation import admit, mine, new_incarnation
 from eamos.net.liveness import LATE_TICK_S, Liveness, TelemetryOut
 from eamos.net.sequence import (

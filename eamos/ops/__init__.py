@@ -12,8 +12,8 @@ computers on a network rather than processes on this machine:
   parts are :mod:`.identity` (fleet mission id, execution digests),
   :mod:`.probe`, :mod:`.plan` (what to copy, staging, launch) and :mod:`.record`
   (``rollout.json``, step timings);
-* :mod:`.ground`   -- ``eamos start`` (the ground station for a rolled-out fleet)
-  and ``eamos abort``;
+* :mod:`.start`    -- ``eamos start`` (the ground station for a rolled-out fleet,
+  watching the drones' nodes) and ``eamos abort``;
 * :mod:`.status`   -- ``eamos status`` and ``eamos logs fetch``;
 * :mod:`.deployment` -- what is deployed where (a run folder or the drones' stamps).
 

@@ -28,10 +28,10 @@ from typing import Any
 from ..net import wire
 from ..program.format import ProgramError, load_program
 from .deployment import Deployment
-from .ground import short
 from .localrun import local_node_pids
 from .probe import RUNNING_SH
 from .ssh import DroneError, copy_from, for_each, run_remote
+from .start import short
 from .targets import SshTarget
 
 STATUS_TIMEOUT_S = 30.0

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from eamos.actors import DroneReport, FinalState, ReportError
+from eamos.actors import DroneReport, DroneReportError, FinalState
 from eamos.actors.board import FinalSample, LocalSample, TelemetryBoard
 from eamos.actors.dispatch import Dispatcher
 from eamos.hal import make_adapter
@@ -105,13 +105,13 @@ def test_a_broken_report_is_refused_with_the_key_named() -> None:
     ).to_json()
     assert DroneReport.from_json(good).final == FinalState(1.0, 2.0, 0.0, False, 88.5)
     for key, value in [("ok", None), ("triggers_sent", True), ("actions", "x")]:
-        with pytest.raises(ReportError, match=key):
+        with pytest.raises(DroneReportError, match=key):
             DroneReport.from_json({**good, key: value})
-    with pytest.raises(ReportError, match="final"):
+    with pytest.raises(DroneReportError, match="final"):
         DroneReport.from_json({**good, "final": {"x": 1}})
     without = dict(good)
     del without["resolved"]
-    with pytest.raises(ReportError, match="resolved"):
+    with pytest.raises(DroneReportError, match="resolved"):
         DroneReport.from_json(without)
 
 

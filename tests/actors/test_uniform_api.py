@@ -22,7 +22,7 @@ from eamos.actors.uniform_api import (
 from eamos.hal import ActionResult, AdapterError, Telemetry
 from eamos.hal.api import ActionHandle, Adapter
 from eamos.hal.fake import FakeAdapter
-from eamos.hal.ground import GroundAdapter, GroundSettings
+from eamos.hal.station_adapter import GroundAdapter, GroundSettings
 from eamos.logs import DroneLogs, make_logger, read_log
 from tests.hal.hal_helpers import WAIT_S, Collector, TelemetrySink, next_message
 from tests.support.sim_fixtures import SimFactory

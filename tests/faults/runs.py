@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from eamos.ops.ground import wait_pid_exit
+from eamos.ops.start import wait_pid_exit
 from tests.support.runs import REPO, run_argv
 
 #: ``eamos run`` options for a process of its own per drone (one can be killed alone).

@@ -18,7 +18,7 @@ from typing import Any
 import eamos.ground
 import eamos.ground.local
 import eamos.ground.node
-import eamos.ops.ground
+import eamos.ops.start
 from eamos.ground import (
     DroneReport,
     Flight,
@@ -212,7 +212,7 @@ def test_eamos_run_eamos_start_and_eamos_node_fly_through_the_same_loop() -> Non
     # The three ground stations differ in how drones start, not in how a mission flies.
     assert eamos.ground.local.fly is fly
     assert eamos.ground.node.fly is fly
-    assert eamos.ops.ground.fly is fly
+    assert eamos.ops.start.fly is fly
 
 
 def test_the_summary_of_a_flight_reads_back() -> None:

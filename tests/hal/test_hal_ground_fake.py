@@ -11,7 +11,7 @@ import pytest
 
 from eamos.hal.api import ActionHandle, ActionResult, AdapterError
 from eamos.hal.fake import Call, FakeAdapter, fake_adapter_from_settings
-from eamos.hal.ground import GroundAdapter, GroundSettings
+from eamos.hal.station_adapter import GroundAdapter, GroundSettings
 from eamos.logs import close_logger, make_logger, read_log
 
 from .hal_helpers import WAIT_S, Done, TelemetrySink, cmd, do

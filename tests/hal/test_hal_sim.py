@@ -16,9 +16,9 @@ import pytest
 from eamos.hal import ADAPTERS, AdapterError, make_adapter
 from eamos.hal.api import POSITION_LOG_HZ
 from eamos.hal.fake import FakeAdapter
-from eamos.hal.ground import GroundAdapter
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.sim.adapter import SimAdapter, SimSettings, Waypoint
+from eamos.hal.station_adapter import GroundAdapter
 from eamos.logs import make_logger, read_log
 from tests.support.sim_fixtures import SimFactory
 

@@ -13,7 +13,7 @@ import pytest
 
 from eamos.hal.api import ActionResult
 from eamos.hal.fake import FakeAdapter
-from eamos.hal.ground import GroundAdapter, GroundSettings
+from eamos.hal.station_adapter import GroundAdapter, GroundSettings
 from eamos.logs import close_logger, make_logger
 from eamos.program.camera import CAMERA_PLUGINS
 from eamos.program.plugins import PluginRegistry

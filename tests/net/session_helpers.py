@@ -15,16 +15,16 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from eamos.net import wire
-from eamos.net.session import (
-    Action,
+from eamos.net.effects import (
     Deliver,
     PeerChanged,
     PeerStatus,
-    ReliableSession,
     Send,
+    SessionEffect,
     TelemetryStale,
     Wake,
 )
+from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
 
 MISSION = "mission-link"
@@ -112,7 +112,7 @@ class Fleet:
                 out.append(name)
         return out
 
-    def apply(self, who: str, actions: list[Action]) -> None:
+    def apply(self, who: str, actions: list[SessionEffect]) -> None:
         """Carry out ``who``'s actions, as the driver does."""
         for action in actions:
             if isinstance(action, Send):

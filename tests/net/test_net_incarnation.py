@@ -13,8 +13,9 @@ import dataclasses
 import random
 
 from eamos.net import wire
+from eamos.net.effects import PeerStatus
 from eamos.net.incarnation import new_incarnation
-from eamos.net.session import PeerStatus, ReliableSession
+from eamos.net.session import ReliableSession
 
 from .session_helpers import FAST, MISSION, Fleet, trig
 

@@ -10,7 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 from eamos.net import wire
-from eamos.net.session import LATE_TICK_S, PeerChanged, ReliableSession
+from eamos.net.effects import PeerChanged
+from eamos.net.session import LATE_TICK_S, ReliableSession
 
 from .session_helpers import FAST, MISSION
 

@@ -23,16 +23,9 @@ from hypothesis import strategies as st
 
 from eamos.logs import close_logger, make_logger, read_log
 from eamos.net import wire
+from eamos.net.effects import Deliver, PeerStatus, Send, TelemetryStale, Wake
 from eamos.net.link import LinkSettings
-from eamos.net.session import (
-    NACK_INTERVAL_S,
-    Deliver,
-    PeerStatus,
-    ReliableSession,
-    Send,
-    TelemetryStale,
-    Wake,
-)
+from eamos.net.session import NACK_INTERVAL_S, ReliableSession
 
 from .session_helpers import (
     FAST,
@@ -488,12 +481,12 @@ def test_any_loss_duplication_and_reordering_delivers_each_message_once_in_order
 
 # -- purity ------------------------------------------------------------------------------
 
-PURE_MODULES = ("session", "sequence", "liveness", "actions", "settings")
+PURE_MODULES = ("session", "sequence", "liveness", "effects", "settings")
 
 
 @pytest.mark.parametrize("module", PURE_MODULES)
 def test_the_protocol_modules_use_no_thread_socket_or_clock(module: str) -> None:
-    """The protocol is pure: time comes in as an argument, actions go out as values."""
+    """The protocol is pure: time comes in as an argument, effects go out as values."""
     path = Path(__file__).resolve().parents[2] / "eamos" / "net" / f"{module}.py"
     imported: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):

@@ -1,9 +1,13 @@
-"""What the reliable-delivery session tells its driver to do, and the local events it reports.
+"""The session's effects: what the reliable-delivery session tells its driver to do.
 
-Small frozen values: :class:`Send` a wire message, :class:`Deliver` an item to
-the application, report a :class:`PeerChanged`, :class:`Wake` the timer
-earlier.  :class:`PeerStatus` and :class:`TelemetryStale` are local events:
-handed to the application with the messages, never on the wire.
+The pure :class:`~eamos.net.session.ReliableSession` takes events and returns
+effects (:data:`SessionEffect`), small frozen values the driver
+(:class:`~eamos.net.link.Link`) carries out in order: :class:`Send` a wire
+message, :class:`Deliver` an item to the application, report a
+:class:`PeerChanged`, :class:`Wake` the timer earlier.  (A drone's actions are
+something else: :mod:`eamos.program.uniform`.)  :class:`PeerStatus` and
+:class:`TelemetryStale` are local events: handed to the application with the
+messages, never on the wire.
 """
 
 from __future__ import annotations
@@ -13,7 +17,15 @@ from typing import TypeAlias
 
 import eamos.net.wire as wire
 
-__all__ = ["Action", "Deliver", "PeerChanged", "PeerStatus", "Send", "TelemetryStale", "Wake"]
+__all__ = [
+    "Deliver",
+    "PeerChanged",
+    "PeerStatus",
+    "Send",
+    "SessionEffect",
+    "TelemetryStale",
+    "Wake",
+]
 
 
 # -- local events (handed to the application, never on the wire) ------------------
@@ -41,12 +53,12 @@ class TelemetryStale:
     age_s: float
 
 
-# -- actions (what the driver must do) -----------------------------------------------
+# -- effects (what the driver must do) -----------------------------------------------
 
 
 @dataclass(frozen=True)
 class Send:
-    """Put ``message`` on the network, in the order the actions are given."""
+    """Put ``message`` on the network, in the order the effects are given."""
 
     message: wire.Message
 
@@ -72,4 +84,5 @@ class Wake:
     at: float
 
 
-Action: TypeAlias = Send | Deliver | PeerChanged | Wake
+#: Every effect the session returns.
+SessionEffect: TypeAlias = Send | Deliver | PeerChanged | Wake

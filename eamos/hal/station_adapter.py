@@ -1,4 +1,7 @@
-"""The ground station's adapter: it only waits (``PauseFor``) and never flies.
+"""The ground station's adapter (``hal.adapter = "ground"``): it only waits (``PauseFor``).
+
+The ground station is a participant without a vehicle: it flies nothing and sends one
+static telemetry sample (its home).
 
 One scheduler thread sleeps on a :class:`threading.Condition` until the
 earliest pause deadline (monotonic clock), so pauses need no timer thread
