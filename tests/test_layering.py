@@ -8,6 +8,7 @@ this test fails the moment a module reaches up or sideways.
 from __future__ import annotations
 
 import ast
+import importlib
 import subprocess
 import sys
 from pathlib import Path
@@ -29,8 +30,8 @@ _LAYERS: dict[str, set[str]] = {
     "hal": {"program", "hints", "logs", "lazy"},
     "net": {"program", "logs"},
     "config": {"program", "hints", "hal", "net", "lazy"},
-    "actors": {"program", "hints", "logs", "hal", "net", "config"},
-    "ground": {"program", "hints", "logs", "hal", "net", "config", "actors"},
+    "actors": {"program", "hints", "logs", "hal", "net", "config", "lazy"},
+    "ground": {"program", "hints", "logs", "hal", "net", "config", "actors", "lazy"},
     "virtual": {"program", "hints", "logs", "hal", "actors"},
     "report": {"program", "logs", "ground", "hal"},
     "ops": {"program", "hints", "logs", "hal", "net", "config", "actors", "ground", "compiler"},
@@ -133,3 +134,31 @@ def test_the_layering_test_sees_a_violation() -> None:
     # The checks above must be able to fail: an upward import is found.
     assert ("eamos.compiler.phases", "eamos.program.uniform") in import_graph().edges
     assert "actors" not in ALLOWED["compiler"]
+
+
+def _packages() -> list[str]:
+    return sorted(_module_name(p.parent / "__init__.py") for p in PACKAGE.rglob("__init__.py"))
+
+
+@pytest.mark.parametrize("package", _packages())
+def test_every_package_says_what_it_offers_and_names_it(package: str) -> None:
+    # Each package's __init__.py names what others may use (__all__), under a docstring
+    # saying what the package offers; every name resolves, also those loaded on first use.
+    module = importlib.import_module(package)
+    assert (module.__doc__ or "").strip(), f"{package}/__init__.py has no docstring"
+    names = getattr(module, "__all__", None)
+    assert isinstance(names, list), f"{package}/__init__.py has no __all__"
+    assert len(set(names)) == len(names), f"{package}.__all__ names something twice"
+    missing = [name for name in names if not hasattr(module, name)]
+    assert not missing, f"{package}.__all__ names what it does not have: {missing}"
+    assert set(names) <= set(dir(module)), f"dir({package}) hides part of __all__"
+
+
+def test_one_lazy_export_mechanism() -> None:
+    # A package loading names on first use does it through eamos.lazy, not by hand.
+    by_hand = [
+        _module_name(path)
+        for path in PACKAGE.rglob("__init__.py")
+        if "def __getattr__" in path.read_text(encoding="utf-8")
+    ]
+    assert not by_hand, f"hand-written module __getattr__ (use eamos.lazy.lazy_exports): {by_hand}"

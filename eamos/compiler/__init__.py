@@ -1,8 +1,14 @@
-"""The mission compiler.
+"""The mission compiler: mission text -> mission tree -> execution graph -> dependency graphs
+-> programs, each phase a pure function (:mod:`.phases`).
 
-Mission text -> mission tree -> execution graph -> dependency graphs -> programs.
-
-Public surface; everything else in this package is private.
+What others may use: :func:`compile_mission` / :func:`compile_file` (a
+:class:`CompiledMission`: the graphs and one program per participant),
+:func:`check_source` (the checks only, for the language server), the errors
+(:class:`MissionError` with its located diagnostics, :class:`Diagnostic` at a
+:class:`SourceLocation`, :func:`render_diagnostics`; :class:`CompilerBug`), the
+pictures and files (:func:`to_dot`, :func:`to_graphml`, :func:`render_svg`,
+:func:`write_artifacts`) and the mission libraries (:data:`STANDARD_LIBRARY`,
+:func:`search_path`).  Everything else in this package is private.
 """
 
 from .artifacts import write_artifacts

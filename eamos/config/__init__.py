@@ -10,7 +10,8 @@
 
 Every error names the file and the field.
 
-:mod:`.fleet` and :mod:`.types` load on first use of their names: a drone's
+:mod:`.fleet` and :mod:`.types` load on first use of their names
+(:func:`eamos.lazy.lazy_exports`): a drone's
 ``eamos-node`` reads a node config only, and need not pay for fleet files, drone
 types and the simulator's settings at start-up (docs/performance.md).
 """
@@ -27,7 +28,6 @@ from .validation import (
     RANGES,
     ConfigError,
     Range,
-    _check_keys,
     check_keys,
     describe_ranges,
     in_range,
@@ -60,7 +60,6 @@ __all__ = [
     "NodeConfig",
     "Range",
     "SafetySettings",
-    "_check_keys",
     "check_keys",
     "describe_ranges",
     "fleet_order",
@@ -71,4 +70,4 @@ __all__ = [
 ]
 
 # The names of .fleet and .types, imported on first use.
-__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
+__getattr__, __dir__ = lazy_exports(globals(), _LAZY)

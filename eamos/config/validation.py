@@ -49,10 +49,6 @@ def endpoint(where: str, value: Any) -> str:
     return value
 
 
-#: The older name of :func:`check_keys` (eamos.ops.targets imports it).
-_check_keys = check_keys
-
-
 @dataclass(frozen=True)
 class Range:
     """The values a numeric field accepts: ``low < value <= high`` (``low <= ...`` if closed)."""

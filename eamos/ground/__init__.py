@@ -13,13 +13,15 @@
   :func:`run_ground_node` (``node.py``): ``eamos-node`` given the ground
   station's program; simulated MAVLink vehicles for hybrid runs (``vehicles.py``).
 
-See docs/architecture.md.
+Names load on first use (:func:`eamos.lazy.lazy_exports`): reading a summary
+(``eamos report``) starts neither ZeroMQ nor Pykka.  See docs/architecture.md.
 """
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from eamos.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from eamos.ground.display import (
@@ -58,8 +60,7 @@ if TYPE_CHECKING:
         summarize,
     )
 
-#: Public name -> its module.  Names load on first use, so reading a summary
-#: (``eamos report``) does not start ZeroMQ or Pykka.
+#: Each public name -> the module defining it.
 _WHERE = {
     "Display": "display",
     "LiveDisplay": "display",
@@ -123,8 +124,5 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module 'eamos.ground' has no attribute {name!r}")
-    return getattr(importlib.import_module(f"eamos.ground.{module}"), name)
+# Each public name, imported from its module on first use.
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from ..config import ConfigError, FleetConfig, _check_keys
+from ..config import ConfigError, FleetConfig, check_keys
 
 DEFAULT_FOLDER = "eamos"
 DEFAULT_NODE_COMMAND = "eamos-node"
@@ -240,9 +240,9 @@ def ssh_target(fleet: FleetConfig, drone: str) -> SshTarget:
     w = f"{fleet.path}: " if fleet.path is not None else ""
     merged = dict(fleet.ssh_defaults)
     merged.update(fleet.ssh.get(drone, {}))
-    _check_keys(f"{w}defaults.ssh.", fleet.ssh_defaults, SSH_FIELDS)
+    check_keys(f"{w}defaults.ssh.", fleet.ssh_defaults, SSH_FIELDS)
     where = f"{w}drones.{drone}.ssh."
-    _check_keys(where, fleet.ssh.get(drone, {}), SSH_FIELDS)
+    check_keys(where, fleet.ssh.get(drone, {}), SSH_FIELDS)
     if "host" not in merged:
         raise ConfigError(
             f"{where}host: required for the roll-out: the drone's address "
@@ -290,7 +290,7 @@ def ground_settings(fleet: FleetConfig) -> GroundSettings:
     """The validated ``[ground]`` table."""
     base = fleet.path.parent if fleet.path is not None else Path.cwd()
     w = f"{fleet.path}: " if fleet.path is not None else ""
-    _check_keys(f"{w}ground.", fleet.ground, GROUND_FIELDS)
+    check_keys(f"{w}ground.", fleet.ground, GROUND_FIELDS)
     if "bind" not in fleet.ground:
         raise ConfigError(
             f"{w}ground.bind: required for the roll-out: the ground station's endpoint on this "
