@@ -28,8 +28,6 @@ Status = Literal["done", "skipped", "failed"]
 Group = Literal["entry", "loop"]
 Iteration = tuple[int, ...]
 
-STATUSES: frozenset[str] = frozenset({"done", "skipped", "failed"})
-
 
 def combine(statuses: Iterable[Status]) -> Status:
     """What a node does after all its preconditions arrived.

@@ -35,11 +35,6 @@ from .errors import CompilerBug, Diagnostic, MissionError, SourceLocation
 from .limits import MAX_SYNC_ARCS, amount
 
 
-def node_key(meg: nx.DiGraph, node: int, drone: str) -> str:
-    """The MDG key of a MEG node (for forks: of its replica on ``drone``)."""
-    return f"n{node}@{drone}" if meg.nodes[node]["kind"] == "fork" else f"n{node}"
-
-
 class _MegIndex:
     """What every drone's slicing reads from the MEG, computed once for all drones.
 

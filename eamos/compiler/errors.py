@@ -32,8 +32,6 @@ class SourceLocation:
         return f"{self.line}:{self.col}"
 
 
-NOWHERE = SourceLocation(1, 1)
-
 # Longest part of a source line printed under a diagnostic, in characters.
 _EXCERPT = 160
 

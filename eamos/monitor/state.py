@@ -58,7 +58,6 @@ TRAIL_EVERY_S = 0.5
 #: Trail points kept per drone; past it every other old point is dropped (the shape stays).
 TRAIL_MAX = 4000
 
-NODE_STATES = ("waiting", "running", "done", "skipped", "failed", "cancelled")
 FINAL_NODE_STATES = frozenset({"done", "skipped", "failed", "cancelled"})
 #: An action's result (ActionEntry.result) -> the node's state.
 ACTION_TO_NODE = {

@@ -181,13 +181,6 @@ class FleetKeys:
         """Which of ``names`` have no public key in this fleet."""
         return sorted(n for n in names if n not in self.fleet)
 
-    def name_of(self, public: bytes) -> str | None:
-        """The participant owning ``public`` (z85), or None."""
-        for name, key in self.fleet.items():
-            if key == public:
-                return name
-        return None
-
 
 def is_local_endpoint(endpoint: str) -> bool:
     """Whether ``endpoint`` never leaves this machine (loopback TCP, ipc, inproc)."""
@@ -223,19 +216,16 @@ class _FleetCredentials:
     """ZAP callback: lets in the fleet's public keys, logs (rate-limited) the others."""
 
     def __init__(self, keys: FleetKeys, log: Any) -> None:
-        self._allowed = {key: name for name, key in keys.fleet.items()}
+        self._allowed = frozenset(keys.fleet.values())
         self._log = log
         self._lock = threading.Lock()
         self.denied: dict[bytes, int] = {}
-        self.allowed_count = 0
 
     def callback(self, domain: str, key: bytes) -> bool:
         # ``key`` arrives z85-encoded (bytes), like the certificates.
-        name = self._allowed.get(key)
+        if key in self._allowed:
+            return True
         with self._lock:
-            if name is not None:
-                self.allowed_count += 1
-                return True
             count = self.denied[key] = self.denied.get(key, 0) + 1
         if count <= _LOG_FIRST or count % _LOG_EVERY == 0:
             self._log.warning(
@@ -276,12 +266,6 @@ class FleetAuthenticator:
         """Connection attempts refused (unknown keys)."""
         with self.credentials._lock:
             return sum(self.credentials.denied.values())
-
-    @property
-    def denied_keys(self) -> list[str]:
-        """The unknown public keys that tried to connect (z85)."""
-        with self.credentials._lock:
-            return sorted(k.decode("ascii", "replace") for k in self.credentials.denied)
 
     def stop(self) -> None:
         """Stop the ZAP thread and close its socket (before ``Context.term``); idempotent."""

@@ -25,7 +25,6 @@ class Probe:
     """What a drone told about itself before the roll-out touched anything."""
 
     version_output: str
-    version_rc: int
     free_kb: int | None
     stamp: dict[str, Any] | None
     sums: dict[str, str]  # path relative to the mission folder -> sha256 hex
@@ -73,7 +72,6 @@ cd "$D" || exit 90
 rm -rf ".incoming/$N" && mkdir -p ".incoming/$N" || exit 90
 echo "@@version"
 {node} --version 2>&1
-echo "@@rc $?"
 echo "@@df"
 df -Pk . 2>&1 | tail -n 1
 echo "@@stamp"
@@ -93,11 +91,6 @@ echo "@@end"
 def parse_probe(stdout: str) -> Probe:
     """Read the probe script's output."""
     sec = sections(stdout)
-    rc_line = (sec.get("rc") or ["0"])[0]
-    try:
-        rc = int(rc_line.split()[0])
-    except (ValueError, IndexError):
-        rc = -1
     free_kb: int | None = None
     df = sec.get("df") or []
     if df:
@@ -125,7 +118,6 @@ def parse_probe(stdout: str) -> Probe:
             pid, alive = int(parts[1]), parts[0] == "alive"
     return Probe(
         version_output="\n".join(sec.get("version", [])).strip(),
-        version_rc=rc,
         free_kb=free_kb,
         stamp=stamp,
         sums=sums,

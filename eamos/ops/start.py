@@ -349,7 +349,6 @@ def wait_pid_exit(pid: int, timeout_s: float) -> bool:
 class AbortResult:
     """How an abort went, per drone."""
 
-    via: str  # "ground station" or "broadcast"
     landed: dict[str, bool]
     notes: list[str]
 
@@ -391,9 +390,7 @@ def abort(
             done = wait_pid_exit(pid, timeout_s)
             landed = _landed_from_summary(dep.run_dir) if done else {}
             notes = [] if done else [f"the ground station did not end within {timeout_s:g} s"]
-            return AbortResult(
-                "ground station", {n: landed.get(n, False) for n in dep.drones}, notes
-            )
+            return AbortResult({n: landed.get(n, False) for n in dep.drones}, notes)
     return broadcast_abort(dep, reason, timeout_s, say, dep.ground_keys())
 
 
@@ -493,7 +490,7 @@ def broadcast_abort(
         for d in listening:
             if views[d].report is None:
                 notes.append(f"{d}: no report (its node may still run: eamos status)")
-        return AbortResult("broadcast", landed, notes)
+        return AbortResult(landed, notes)
     finally:
         runtime.stop()
 

@@ -94,7 +94,7 @@ def plan_for(program, config: str = "cfg") -> DronePlan:
 
 
 def probe_with(stamp: dict | None, sums: dict[str, str]) -> Probe:
-    return Probe("eamos " + __version__, 0, 10**6, stamp, sums, None, False)
+    return Probe("eamos " + __version__, 10**6, stamp, sums, None, False)
 
 
 def test_decide_keeps_an_unchanged_program_and_copies_a_changed_config():

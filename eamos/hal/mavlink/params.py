@@ -31,7 +31,6 @@ import struct
 from dataclasses import dataclass
 
 #: MAV_PARAM_TYPE values.
-MAV_PARAM_TYPE_UINT8, MAV_PARAM_TYPE_INT8 = 1, 2
 MAV_PARAM_TYPE_INT32, MAV_PARAM_TYPE_REAL32 = 6, 9
 _INT_TYPES = frozenset(range(1, 9))  # UINT8 .. INT64
 

@@ -80,14 +80,12 @@ class LinkState:
     system_id: int | None = None
     component_id: int = 1
     autopilot: int | None = None
-    vehicle_type: int | None = None
     base_mode: int = 0
     custom_mode: int = 0
     armed: bool = False
     heartbeats: int = 0
     last_heartbeat: float = -math.inf  # time.monotonic()
     link_ok: bool = False  # heartbeats arrive (none missing for > heartbeat_timeout_s)
-    link_losses: int = 0
     last_rx: float = -math.inf
     gap_ended_at: float = -math.inf  # first message after a silence of GAP_S or more
     failsafe_at: float = -math.inf  # last STATUSTEXT mentioning a failsafe
@@ -176,7 +174,6 @@ class StateTracker:
         st = self.state
         if st.link_ok and now - st.last_heartbeat > self._heartbeat_timeout_s:
             st.link_ok = False
-            st.link_losses += 1
             events.append(
                 (
                     "link.lost",
@@ -241,7 +238,7 @@ class StateTracker:
             if st.heartbeats:
                 events.append(("link.restored", {"silent_s": round(now - st.last_heartbeat, 3)}))
             st.link_ok = True
-        st.autopilot, st.vehicle_type = msg.autopilot, msg.type
+        st.autopilot = msg.autopilot
         st.base_mode, st.custom_mode, st.armed = msg.base_mode, msg.custom_mode, armed
         st.heartbeats += 1
         st.last_heartbeat = now
