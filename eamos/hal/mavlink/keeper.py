@@ -1,8 +1,9 @@
 """Setting the drone type's speeds on a vehicle, and putting the old values back.
 
 :class:`ParamKeeper` carries out :func:`eamos.hal.mavlink.params.speed_plan`
-over a :class:`~eamos.hal.mavlink.link.MavlinkLink` (PARAM_REQUEST_READ, then
-PARAM_SET confirmed by the PARAM_VALUE echo), remembers what it found and
+over a :class:`~eamos.hal.mavlink.link.MavlinkLink` (the parameter protocol,
+:mod:`~eamos.hal.mavlink.param_protocol`: PARAM_REQUEST_READ, then PARAM_SET
+confirmed by the PARAM_VALUE echo), remembers what it found and
 writes it back at :meth:`ParamKeeper.restore`.  Every step is logged; the
 values are speeds, never secrets.
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
+from eamos.hal.mavlink.param_protocol import ParamProtocol
 from eamos.hal.mavlink.params import (
     MAV_PARAM_TYPE_REAL32,
     ParamChange,
@@ -30,6 +32,7 @@ class ParamKeeper:
 
     def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: Any) -> None:
         self.link = link
+        self.params = ParamProtocol(link)
         self.settings = settings
         self.log = log
         self.changes: list[ParamChange] = []
@@ -41,7 +44,7 @@ class ParamKeeper:
         """Read ``name`` (``value`` None) or set it; what the vehicle answers, or None."""
         s = self.settings
         write = None if value is None else (to_wire(value, param_type, self._bytewise), param_type)
-        answer = self.link.param_exchange(
+        answer = self.params.request(
             name,
             write,
             timeout_s=s.command_timeout_s,

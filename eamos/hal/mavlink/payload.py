@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from eamos.hal.mavlink.flight import RunControl
+from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.frames import Vector
 from eamos.hal.mavlink.link import LinkState
 from eamos.hal.mavlink.vehicle import MavlinkVehicle

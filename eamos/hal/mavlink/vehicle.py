@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
+from eamos.hal.mavlink.command_protocol import CommandProtocol
 from eamos.hal.mavlink.estimator import (
     MSG_EKF_STATUS_REPORT,
     MSG_ESTIMATOR_STATUS,
@@ -114,12 +115,13 @@ class MavlinkVehicle:
             heartbeat_timeout_s=settings.heartbeat_timeout_s,
             on_event=self._on_link_event,
         )
+        self.commands = CommandProtocol(self.link)
         # One condition for the link's state and everything below, so any
         # predicate sees the vehicle and the adapter's bookkeeping at once.
         self.cond = self.link.cond
         self.state: LinkState = self.link.state
         # Serializes vehicle-changing steps (commands, targets) between the
-        # action, hold and abort threads (see mavlink_flight.RunControl).
+        # action, hold and abort threads (see control.RunControl).
         self.cmd_lock = threading.Lock()
         self.autopilot: Autopilot = autopilot_named("px4")  # replaced by connect()
         self.origin: NedOrigin | None = None  # home, in the vehicle's NED frame
@@ -204,7 +206,7 @@ class MavlinkVehicle:
             ):
                 continue  # the other autopilot's estimator report
             rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
-            result = self.link.command_long(
+            result = self.commands.request(
                 MAV_CMD_SET_MESSAGE_INTERVAL,
                 (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
                 timeout_s=s.command_timeout_s,
