@@ -25,7 +25,7 @@ from ..net import wire
 from .dispatch import Dispatcher
 from .failure import FailureSink, RuntimePart
 from .logic.telemetry import telemetry_values
-from .messages import LocalTelemetry, RemoteTelemetry, TelemetryChanged, Unwatch, Watch
+from .messages import Mailbox, RemoteTelemetry, TelemetryChanged, Unwatch, Watch
 
 __all__ = [
     "FinalSample",
@@ -102,7 +102,11 @@ class FinalSample:
 
 
 def ask_final_sample(
-    board: Any, after_s: float | None, action: str | None, wait_s: float, timeout_s: float
+    board: Mailbox[FinalSample] | None,
+    after_s: float | None,
+    action: str | None,
+    wait_s: float,
+    timeout_s: float,
 ) -> Telemetry | None:
     """The board's answer to a :class:`FinalSample` (None without a board or an answer)."""
     if board is None:
@@ -131,7 +135,7 @@ class TelemetryBoard(RuntimePart):
         self,
         dispatcher: Dispatcher,
         drone: str,
-        out_bridge: Any,
+        out_bridge: Mailbox[wire.TelemetrySample] | None,
         mission_id: str,
         failure: FailureSink | None = None,
     ) -> None:
@@ -143,16 +147,14 @@ class TelemetryBoard(RuntimePart):
         self.latest: dict[str, dict[str, Any]] = {}
         self.local: Telemetry | None = None
         self.local_received_s = float("-inf")
-        self.watchers: dict[Any, tuple[str, ...]] = {}
+        self.watchers: dict[Mailbox[TelemetryChanged], tuple[str, ...]] = {}
         self.landed_waiters: list[threading.Event] = []
         self.final_waiters: list[FinalSample] = []
         self._timers: list[threading.Timer] = []
 
-    def on_receive(self, message: Any) -> Any:
+    def on_receive(self, message: Any) -> None:
         if isinstance(message, LocalSample):
             self._local(message.sample, message.received_s)
-        elif isinstance(message, LocalTelemetry):
-            self._local(message.sample, time.monotonic())
         elif isinstance(message, RemoteTelemetry):
             self._update(message.drone, message.values)
         elif isinstance(message, Watch):
@@ -171,7 +173,6 @@ class TelemetryBoard(RuntimePart):
             self._final(message)
         elif isinstance(message, _FinalDeadline):
             self._answer(message.request)
-        return None
 
     def on_stop(self) -> None:
         for timer in self._timers:
