@@ -16,7 +16,6 @@ import time
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
-from typing import Any
 
 import pykka
 
@@ -24,7 +23,7 @@ from ..hal.api import Telemetry
 from ..net import wire
 from .dispatch import Dispatcher
 from .failure import FailureSink, RuntimePart
-from .logic.telemetry import telemetry_values
+from .logic.telemetry import PropertyValues, telemetry_values
 from .messages import Mailbox, RemoteTelemetry, TelemetryChanged, Unwatch, Watch
 
 __all__ = [
@@ -144,7 +143,7 @@ class TelemetryBoard(RuntimePart):
         self.out_bridge = out_bridge
         self.mission_id = mission_id
         self.failure = failure
-        self.latest: dict[str, dict[str, Any]] = {}
+        self.latest: dict[str, PropertyValues] = {}
         self.local: Telemetry | None = None
         self.local_received_s = float("-inf")
         self.watchers: dict[Mailbox[TelemetryChanged], tuple[str, ...]] = {}
@@ -152,7 +151,7 @@ class TelemetryBoard(RuntimePart):
         self.final_waiters: list[FinalSample] = []
         self._timers: list[threading.Timer] = []
 
-    def on_receive(self, message: Any) -> None:
+    def on_receive(self, message: object) -> None:
         if isinstance(message, LocalSample):
             self._local(message.sample, message.received_s)
         elif isinstance(message, RemoteTelemetry):
@@ -224,7 +223,7 @@ class TelemetryBoard(RuntimePart):
         if not request.reply.done():
             request.reply.set_result(self.local)
 
-    def _update(self, drone: str, values: dict[str, Any]) -> None:
+    def _update(self, drone: str, values: PropertyValues) -> None:
         old = self.latest.get(drone)
         self.latest[drone] = values
         if old is not None and all(

@@ -6,7 +6,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import pykka
 
@@ -165,7 +165,7 @@ class DroneExecutive(RuntimePart):
         if not self.top_level:
             self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
-    def on_receive(self, message: Any) -> ExecutiveSnapshot | Activity | None:
+    def on_receive(self, message: object) -> ExecutiveSnapshot | Activity | None:
         if isinstance(message, ExecutiveNews):
             for item in message.items:
                 self._news(item)

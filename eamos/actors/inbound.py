@@ -5,12 +5,12 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, TypeAlias
+from typing import TYPE_CHECKING
 
 import pykka
 
 from ..net import wire
-from ..net.link import PeerStatus, TelemetryStale
+from ..net.link import Delivered, PeerStatus, TelemetryStale
 from .dispatch import tell_here
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink
@@ -20,10 +20,7 @@ from .messages import Interrupt, Mailbox, RemoteTelemetry, RemoteTrigger
 if TYPE_CHECKING:
     from ..logs import EventLog
 
-__all__ = ["InRouter", "Inbound"]
-
-#: What the link hands a participant: wire messages, and its local events.
-Inbound: TypeAlias = wire.Message | PeerStatus | TelemetryStale
+__all__ = ["InRouter"]
 
 _CONTROL = (wire.Start, wire.Abort, wire.Complete)
 
@@ -49,14 +46,14 @@ class InRouter:
     abort: Callable[[str], None]
     completed: threading.Event
     failure: FailureSink
-    ground_handler: Callable[[Inbound], None] | None = None
+    ground_handler: Callable[[Delivered], None] | None = None
     control_from: frozenset[str] = frozenset({wire.GROUND_STATION})
     """Who may start, abort and complete the mission: the ground station (``eamos abort``
     speaks as it, with its key).  ``sender`` is authenticated: the In-Bridge
     accepts on each peer's socket only messages naming that peer, and with CURVE
     the socket proved the peer's key."""
 
-    def __call__(self, msg: Inbound) -> None:
+    def __call__(self, msg: Delivered) -> None:
         try:
             for_station = self.route(msg)
         except pykka.ActorDeadError:
@@ -69,7 +66,7 @@ class InRouter:
         if for_station and self.ground_handler is not None:
             self.ground_handler(msg)
 
-    def route(self, msg: Inbound) -> bool:
+    def route(self, msg: Delivered) -> bool:
         """Hand ``msg`` to the node, board, executive or runtime it is for.
 
         True if the ground station (if this is it) should see it too.

@@ -10,9 +10,12 @@ test's recorder.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 from .state import Iteration, Status
+
+if TYPE_CHECKING:
+    from .logic.telemetry import PropertyValues
 
 M = TypeVar("M", contravariant=True)
 
@@ -87,7 +90,7 @@ class TelemetryChanged:
     """New property values of one drone, for the nodes watching it."""
 
     drone: str
-    values: dict[str, Any] = field(hash=False)
+    values: PropertyValues = field(hash=False)
 
 
 @dataclass(frozen=True)
@@ -110,7 +113,7 @@ class RemoteTelemetry:
     """A telemetry sample received from another drone."""
 
     drone: str
-    values: dict[str, Any] = field(hash=False)
+    values: PropertyValues = field(hash=False)
 
 
 @dataclass(frozen=True)

@@ -210,7 +210,7 @@ class MissionNode(PooledActor):
 
     # -- messages -> logic inputs ---------------------------------------------------
 
-    def on_receive(self, message: Any) -> None:
+    def on_receive(self, message: object) -> None:
         try:
             if self.crashed:
                 return None  # a failed node stays failed: later messages change nothing

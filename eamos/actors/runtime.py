@@ -35,7 +35,7 @@ from ..hal.api import Adapter, AdapterError
 from ..logs import DroneLogs, EventLog, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
-from ..net.link import Link
+from ..net.link import Delivered, Link
 from ..program.format import DroneProgram
 from .board import TelemetryBoard, WhenLanded
 from .dispatch import Dispatcher
@@ -43,7 +43,7 @@ from .errors import DroneRuntimeError
 from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
 from .executive import DroneExecutive as DroneExecutive
 from .failure import FailurePolicy, RuntimeFailure
-from .inbound import Inbound, InRouter
+from .inbound import InRouter
 from .logic.telemetry import stale_values as stale_values
 from .logic.telemetry import telemetry_values as telemetry_values
 from .messages import AbortMission, Fire
@@ -90,7 +90,7 @@ class DroneRuntime:
         log_dir: Path | None = None,
         *,
         context: zmq.Context[Any] | None = None,
-        ground_handler: Callable[[Inbound], None] | None = None,
+        ground_handler: Callable[[Delivered], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
         log_writer: LogWriter | None = None,

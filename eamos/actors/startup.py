@@ -24,14 +24,14 @@ from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge
 from ..net.keys import FleetKeys, KeysError, plain_refusal
-from ..net.link import Link, LinkSettings
+from ..net.link import Delivered, Link, LinkSettings
 from ..program.format import DroneProgram
 from .board import LocalSample, TelemetryBoard
 from .dispatch import Dispatcher
 from .errors import DroneRuntimeError
 from .executive import DroneExecutive
 from .failure import FailurePolicy
-from .inbound import Inbound, InRouter
+from .inbound import InRouter
 from .logic import program_wiring
 from .node import Links, MissionNode, Wire
 from .outbox import Outbox
@@ -85,7 +85,7 @@ class RuntimeStartup:
         failures: FailurePolicy,
         context: zmq.Context[Any],
         *,
-        ground_handler: Callable[[Inbound], None] | None = None,
+        ground_handler: Callable[[Delivered], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
     ) -> None:

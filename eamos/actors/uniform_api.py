@@ -412,7 +412,7 @@ class UniformAPI(pykka.ThreadingActor):
 
     # -- messages ------------------------------------------------------------
 
-    def on_receive(self, message: Any) -> None:
+    def on_receive(self, message: object) -> None:
         """Dispatch one of :class:`RunAction`, :class:`CancelAction`, :class:`Abort`."""
         match message:
             case RunAction():

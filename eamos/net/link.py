@@ -31,7 +31,7 @@ from typing import Any, Generic, TypeVar
 import zmq
 
 import eamos.net.wire as wire
-from eamos.logs import make_logger
+from eamos.logs import EventLog, make_logger
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
@@ -48,12 +48,15 @@ from eamos.net.session import (
 from eamos.net.settings import LinkSettings
 from eamos.net.transport import InSide, OutSide, Transport, ZmqTransport
 
-__all__ = ["Link", "LinkDriver", "LinkSettings", "PeerStatus", "TelemetryStale"]
+__all__ = ["Delivered", "Link", "LinkDriver", "LinkSettings", "PeerStatus", "TelemetryStale"]
 
 OutT = TypeVar("OutT", bound=OutSide)
 InT = TypeVar("InT", bound=InSide)
 
 Clock = Callable[[], float]
+
+#: What the link hands its participant: wire messages, and its local events.
+Delivered = wire.Message | PeerStatus | TelemetryStale
 
 
 class LinkDriver(Generic[OutT, InT]):
@@ -68,7 +71,7 @@ class LinkDriver(Generic[OutT, InT]):
         self,
         session: ReliableSession,
         transport: Transport[OutT, InT],
-        log: Any = None,
+        log: EventLog | None = None,
         *,
         clock: Clock = time.monotonic,
     ) -> None:
@@ -88,7 +91,7 @@ class LinkDriver(Generic[OutT, InT]):
         self._wake = threading.Condition(lock)
         self._next_wake = float("inf")
         self._flush_waiters = 0
-        self._on_message: Callable[[Any], None] = lambda msg: None
+        self._on_message: Callable[[Delivered], None] = lambda msg: None
         self.delivery_errors = 0
         self.peer_events: list[dict[str, Any]] = []
         self._reports = ReportJoiner()  # ReportParts arrive on the receive thread only
@@ -112,7 +115,7 @@ class LinkDriver(Generic[OutT, InT]):
         self,
         peers: Mapping[str, str],
         topics: Iterable[bytes],
-        on_message: Callable[[Any], None],
+        on_message: Callable[[Delivered], None],
         watch: Iterable[str] | None = None,
         announced: Iterable[str] = (),
     ) -> None:
@@ -405,7 +408,7 @@ class Link(LinkDriver[OutBridge, InBridge]):
         name: str,
         mission: str,
         bind: str,
-        log: Any = None,
+        log: EventLog | None = None,
         *,
         keys: FleetKeys | None = None,
         settings: LinkSettings | None = None,

@@ -11,7 +11,7 @@ values are speeds, never secrets.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from eamos.hal.mavlink.param_protocol import ParamProtocol
 from eamos.hal.mavlink.params import (
@@ -25,12 +25,13 @@ from eamos.hal.mavlink.params import (
 if TYPE_CHECKING:
     from eamos.hal.mavlink.link import MavlinkLink
     from eamos.hal.mavlink.settings import MavlinkSettings
+    from eamos.logs import EventLog
 
 
 class ParamKeeper:
     """The parameters the adapter changed on one vehicle (see module docstring)."""
 
-    def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: Any) -> None:
+    def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: EventLog) -> None:
         self.link = link
         self.params = ParamProtocol(link)
         self.settings = settings

@@ -54,6 +54,7 @@ from eamos.hal.settings import field_error
 
 if TYPE_CHECKING:
     from eamos.hal.mavlink.settings import MavlinkSettings
+    from eamos.logs import EventLog
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_LANDED_STATE_ON_GROUND = 1
@@ -100,7 +101,7 @@ def _signing_key(settings: MavlinkSettings) -> bytes | None:
 class MavlinkVehicle:
     """An autopilot behind a :class:`MavlinkLink`, seen in the mission frame (module docstring)."""
 
-    def __init__(self, drone: str, settings: MavlinkSettings, log: Any) -> None:
+    def __init__(self, drone: str, settings: MavlinkSettings, log: EventLog) -> None:
         self.drone = drone
         self.settings = settings
         self.log = log
@@ -140,7 +141,7 @@ class MavlinkVehicle:
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
         self._was_armed = False
-        self._last_position_key: tuple[Any, ...] | None = None
+        self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
 
