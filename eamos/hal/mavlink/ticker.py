@@ -19,6 +19,8 @@ EventCallback = Callable[[str, dict[str, Any]], None]
 
 @dataclass
 class _Periodic:
+    """One job of the ticker: what to run, how often, and when next (``time.monotonic()``)."""
+
     period_s: float
     job: Callable[[], None]
     name: str
