@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Protocol
 
 import structlog
 
@@ -428,3 +428,22 @@ def read_log(path: Path) -> list[dict[str, Any]]:
     if not path.exists():
         return []
     return [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line]
+
+
+class EventLog(Protocol):
+    """What EAMOS code calls on a log: one method per level, an event name and its fields.
+
+    A logger of :func:`make_logger` is one (any structlog bound logger is), and so is
+    the uniform API's :class:`~eamos.actors.uniform_api.UniformLog`.  The fields are
+    whatever the event carries: JSON-like values.
+    """
+
+    def debug(self, event: str, **fields: Any) -> None: ...
+
+    def info(self, event: str, **fields: Any) -> None: ...
+
+    def warning(self, event: str, **fields: Any) -> None: ...
+
+    def error(self, event: str, **fields: Any) -> None: ...
+
+    def exception(self, event: str, **fields: Any) -> None: ...

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from eamos.compiler.parse import _CONTROL_SIGNATURES
+from eamos.compiler.parse_statements import _CONTROL_SIGNATURES
 from eamos.compiler.syntax import CONTROL_KINDS
 from eamos.lsp.vocabulary import control_snippet, reference_tables
 from eamos.program.uniform import CONTROL_STRUCTURES, PARAM_RANGES, PROPERTIES, param_unit

@@ -16,7 +16,6 @@ import time
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
-from typing import Any
 
 import pykka
 
@@ -24,8 +23,8 @@ from ..hal.api import Telemetry
 from ..net import wire
 from .dispatch import Dispatcher
 from .failure import FailureSink, RuntimePart
-from .logic.telemetry import telemetry_values
-from .messages import LocalTelemetry, RemoteTelemetry, TelemetryChanged, Unwatch, Watch
+from .logic.telemetry import PropertyValues, telemetry_values
+from .messages import Mailbox, RemoteTelemetry, TelemetryChanged, Unwatch, Watch
 
 __all__ = [
     "FinalSample",
@@ -102,7 +101,11 @@ class FinalSample:
 
 
 def ask_final_sample(
-    board: Any, after_s: float | None, action: str | None, wait_s: float, timeout_s: float
+    board: Mailbox[FinalSample] | None,
+    after_s: float | None,
+    action: str | None,
+    wait_s: float,
+    timeout_s: float,
 ) -> Telemetry | None:
     """The board's answer to a :class:`FinalSample` (None without a board or an answer)."""
     if board is None:
@@ -131,7 +134,7 @@ class TelemetryBoard(RuntimePart):
         self,
         dispatcher: Dispatcher,
         drone: str,
-        out_bridge: Any,
+        out_bridge: Mailbox[wire.TelemetrySample] | None,
         mission_id: str,
         failure: FailureSink | None = None,
     ) -> None:
@@ -140,19 +143,17 @@ class TelemetryBoard(RuntimePart):
         self.out_bridge = out_bridge
         self.mission_id = mission_id
         self.failure = failure
-        self.latest: dict[str, dict[str, Any]] = {}
+        self.latest: dict[str, PropertyValues] = {}
         self.local: Telemetry | None = None
         self.local_received_s = float("-inf")
-        self.watchers: dict[Any, tuple[str, ...]] = {}
+        self.watchers: dict[Mailbox[TelemetryChanged], tuple[str, ...]] = {}
         self.landed_waiters: list[threading.Event] = []
         self.final_waiters: list[FinalSample] = []
         self._timers: list[threading.Timer] = []
 
-    def on_receive(self, message: Any) -> Any:
+    def on_receive(self, message: object) -> None:
         if isinstance(message, LocalSample):
             self._local(message.sample, message.received_s)
-        elif isinstance(message, LocalTelemetry):
-            self._local(message.sample, time.monotonic())
         elif isinstance(message, RemoteTelemetry):
             self._update(message.drone, message.values)
         elif isinstance(message, Watch):
@@ -171,7 +172,6 @@ class TelemetryBoard(RuntimePart):
             self._final(message)
         elif isinstance(message, _FinalDeadline):
             self._answer(message.request)
-        return None
 
     def on_stop(self) -> None:
         for timer in self._timers:
@@ -223,7 +223,7 @@ class TelemetryBoard(RuntimePart):
         if not request.reply.done():
             request.reply.set_result(self.local)
 
-    def _update(self, drone: str, values: dict[str, Any]) -> None:
+    def _update(self, drone: str, values: PropertyValues) -> None:
         old = self.latest.get(drone)
         self.latest[drone] = values
         if old is not None and all(

@@ -6,7 +6,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import pykka
 
@@ -17,10 +17,13 @@ from ..program.uniform import MOTION_ACTIONS
 from .alarm import Alarm
 from .dispatch import Dispatcher, RidesAlong
 from .failure import FailureSink, RuntimePart
-from .messages import ActionRecord, Interrupt, NodeEvent, NodeResolved, SendInterrupt
+from .messages import ActionRecord, Interrupt, Mailbox, NodeEvent, NodeResolved, SendInterrupt
 from .node import BroadcastInterrupt, ExecutiveNews
 from .state import Iteration
 from .stranded import Activity
+
+if TYPE_CHECKING:
+    from ..logs import EventLog
 
 __all__ = [
     "PROGRESS_INTERVAL_S",
@@ -80,23 +83,25 @@ class ExecutiveSnapshot:
     state_action: str | None = None  # and its action
 
 
-def ask_snapshot(executive: Any, timeout_s: float) -> ExecutiveSnapshot:
+def ask_snapshot(
+    executive: pykka.ActorRef[DroneExecutive] | None, timeout_s: float
+) -> ExecutiveSnapshot:
     """The executive's snapshot (an empty one if there is no executive, or it stopped)."""
     if executive is None:
         return ExecutiveSnapshot()
     try:
-        snap: ExecutiveSnapshot = executive.ask(Snapshot(), timeout=timeout_s)
+        snap: ExecutiveSnapshot = executive.ask(Snapshot(), block=True, timeout=timeout_s)
     except pykka.ActorDeadError:
         return ExecutiveSnapshot()
     return snap
 
 
-def ask_activity(executive: Any, timeout_s: float) -> Activity:
+def ask_activity(executive: pykka.ActorRef[DroneExecutive] | None, timeout_s: float) -> Activity:
     """The executive's :class:`~.stranded.Activity` (not resolved, busy, if there is none)."""
     if executive is None:
         return Activity(False, None)
     try:
-        answer: Activity = executive.ask(AskActivity(), timeout=timeout_s)
+        answer: Activity = executive.ask(AskActivity(), block=True, timeout=timeout_s)
     except pykka.ActorDeadError:
         return Activity(False, None)
     return answer
@@ -116,10 +121,10 @@ class DroneExecutive(RuntimePart):
         self,
         dispatcher: Dispatcher,
         program: DroneProgram,
-        nodes: Mapping[str, Any],
-        out_bridge: Any,
-        to_ground: Callable[[Any], None],
-        log: Any,
+        nodes: Mapping[str, Mailbox[Interrupt]],
+        out_bridge: Mailbox[SendInterrupt],
+        to_ground: Callable[[wire.Message], None],
+        log: EventLog,
         failure: FailureSink | None = None,
     ) -> None:
         super().__init__(dispatcher)
@@ -137,7 +142,7 @@ class DroneExecutive(RuntimePart):
         self.triggers_received = 0
         self.state_changed_s: float | None = None
         self.state_action: str | None = None
-        self.scope_index: dict[int, list[Any]] = {}
+        self.scope_index: dict[int, list[Mailbox[Interrupt]]] = {}
         for node in program.native_nodes():
             for scope in node.scopes:
                 self.scope_index.setdefault(scope, []).append(nodes[node.key])
@@ -160,14 +165,14 @@ class DroneExecutive(RuntimePart):
         if not self.top_level:
             self.to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
-    def on_receive(self, message: Any) -> Any:
+    def on_receive(self, message: object) -> ExecutiveSnapshot | Activity | None:
         if isinstance(message, ExecutiveNews):
             for item in message.items:
                 self._news(item)
             return None
         return self._news(message)
 
-    def _news(self, message: Any) -> Any:
+    def _news(self, message: object) -> ExecutiveSnapshot | Activity | None:
         if isinstance(message, NodeResolved):
             self._node_resolved(message)
         elif isinstance(message, ActionRecord):

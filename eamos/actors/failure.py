@@ -18,9 +18,12 @@ import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 from .dispatch import PooledActor
+
+if TYPE_CHECKING:
+    from ..logs import EventLog
 
 __all__ = ["FailurePolicy", "FailureSink", "RuntimeFailure", "RuntimePart", "tell_operator"]
 
@@ -57,7 +60,7 @@ class FailurePolicy:
     """Log each exception once; run ``react`` for the first one (thread-safe)."""
 
     def __init__(
-        self, log: Any, react: Callable[[RuntimeFailure], None], drone: str = "drone"
+        self, log: EventLog, react: Callable[[RuntimeFailure], None], drone: str = "drone"
     ) -> None:
         self._log = log
         self.drone = drone

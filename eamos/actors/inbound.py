@@ -5,17 +5,21 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import pykka
 
 from ..net import wire
 from ..net.effects import PeerStatus, TelemetryStale
+from ..net.link import Delivered
 from .dispatch import tell_here
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink
 from .logic.telemetry import stale_values, telemetry_values
-from .messages import Interrupt, RemoteTelemetry, RemoteTrigger
+from .messages import Interrupt, Mailbox, RemoteTelemetry, RemoteTrigger
+
+if TYPE_CHECKING:
+    from ..logs import EventLog
 
 __all__ = ["InRouter"]
 
@@ -36,21 +40,21 @@ class InRouter:
     """
 
     drone: str
-    nodes: Mapping[str, Any]
-    executive: Any
-    board: Any
-    log: Any
+    nodes: Mapping[str, Mailbox[RemoteTrigger]]
+    executive: Mailbox[TriggerReceived | DeliverInterrupt]
+    board: Mailbox[RemoteTelemetry]
+    log: EventLog
     abort: Callable[[str], None]
     completed: threading.Event
     failure: FailureSink
-    ground_handler: Callable[[Any], None] | None = None
+    ground_handler: Callable[[Delivered], None] | None = None
     control_from: frozenset[str] = frozenset({wire.GROUND_STATION})
     """Who may start, abort and complete the mission: the ground station (``eamos abort``
     speaks as it, with its key).  ``sender`` is authenticated: the In-Bridge
     accepts on each peer's socket only messages naming that peer, and with CURVE
     the socket proved the peer's key."""
 
-    def __call__(self, msg: wire.Message) -> None:
+    def __call__(self, msg: Delivered) -> None:
         try:
             for_station = self.route(msg)
         except pykka.ActorDeadError:
@@ -63,7 +67,7 @@ class InRouter:
         if for_station and self.ground_handler is not None:
             self.ground_handler(msg)
 
-    def route(self, msg: Any) -> bool:
+    def route(self, msg: Delivered) -> bool:
         """Hand ``msg`` to the node, board, executive or runtime it is for.
 
         True if the ground station (if this is it) should see it too.

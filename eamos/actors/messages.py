@@ -1,15 +1,35 @@
-"""Messages between the actors of one drone runtime (typed, frozen).
+"""Messages between the actors of one drone runtime (typed, frozen), and who takes them.
 
 Cross-drone messages have their own wire format in :mod:`eamos.net.wire`;
-these never leave the process.
+these never leave the process.  An actor holds each of the others as a
+:class:`Mailbox` of the messages it sends it: a node sees the telemetry board
+as a ``Mailbox[Watch | Unwatch]``, whether it is the board's actor ref or a
+test's recorder.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 from .state import Iteration, Status
+
+if TYPE_CHECKING:
+    from .logic.telemetry import PropertyValues
+
+M = TypeVar("M", contravariant=True)
+
+
+class Mailbox(Protocol[M]):
+    """Something that takes messages of type ``M`` one way, without waiting.
+
+    A Pykka actor's ref (``ActorRef.tell``), the Out-Bridge's
+    :class:`~.outbox.Outbox`, or a test's stand-in that records what it is told.
+    """
+
+    def tell(self, message: M) -> None:
+        """Hand over ``message``; raises ``pykka.ActorDeadError`` if the receiver stopped."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -70,14 +90,14 @@ class TelemetryChanged:
     """New property values of one drone, for the nodes watching it."""
 
     drone: str
-    values: dict[str, Any] = field(hash=False)
+    values: PropertyValues = field(hash=False)
 
 
 @dataclass(frozen=True)
 class Watch:
     """Ask the telemetry board for updates of these drones."""
 
-    watcher: Any  # pykka.ActorRef
+    watcher: Mailbox[TelemetryChanged]
     drones: tuple[str, ...]
 
 
@@ -85,14 +105,7 @@ class Watch:
 class Unwatch:
     """Stop the telemetry board's updates to this watcher."""
 
-    watcher: Any
-
-
-@dataclass(frozen=True)
-class LocalTelemetry:
-    """A sample of this drone's own state, from its adapter."""
-
-    sample: Any  # eamos.hal.Telemetry
+    watcher: Mailbox[TelemetryChanged]
 
 
 @dataclass(frozen=True)
@@ -100,7 +113,7 @@ class RemoteTelemetry:
     """A telemetry sample received from another drone."""
 
     drone: str
-    values: dict[str, Any] = field(hash=False)
+    values: PropertyValues = field(hash=False)
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 
 import pykka
 
@@ -62,8 +62,10 @@ from .logic import (
 )
 from .messages import (
     AbortMission,
+    ActionRecord,
     Fire,
     Interrupt,
+    Mailbox,
     NodeEvent,
     NodeResolved,
     PeerLost,
@@ -80,6 +82,11 @@ from .state import Iteration
 from .uniform_api import ActionFinished, UniformSpace
 from .uniform_api import CancelAction as HalCancel
 from .uniform_api import RunAction as HalRun
+
+if TYPE_CHECKING:
+    from structlog.typing import FilteringBoundLogger
+
+T = TypeVar("T")
 
 #: Effect type -> the MissionNode method that applies it (one table for every node:
 #: a bound-method dict per actor costs ~0.6 KB a node on 600-node programs).
@@ -114,13 +121,15 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Links:
-    """Who a node talks to; handed over once all actors of the runtime exist."""
+    """Who a node talks to, each as what the node tells it; handed over once all actors
+    of the runtime exist."""
 
-    nodes: Mapping[str, Any]  # key -> ActorRef of the local native nodes
-    hal: Any
-    board: Any
-    out_bridge: Any
-    executive: Any
+    nodes: Mapping[str, Mailbox[Trigger | Release]]  # key -> the local native nodes
+    hal: Mailbox[HalRun | HalCancel]  # the uniform-API actor
+    board: Mailbox[Watch | Unwatch]  # the telemetry board
+    #: The Out-Bridge: its ``send_trigger`` when it has one (the Outbox), else ``tell``.
+    out_bridge: Mailbox[SendTrigger]
+    executive: Mailbox[ExecutiveNews]
     #: The uniform API's bookkeeping, called directly when the adapter does not
     #: block (:func:`~.uniform_api.answers_at_once`); None: through the ``hal`` actor.
     uniform: UniformSpace | None = None
@@ -141,6 +150,10 @@ class BroadcastInterrupt:
     drones: tuple[str, ...]
 
 
+#: What a node tells the executive: progress, records, resolutions, interrupt broadcasts.
+News: TypeAlias = NodeEvent | ActionRecord | NodeResolved | BroadcastInterrupt
+
+
 @dataclass(frozen=True)
 class ExecutiveNews(LazyMail):
     """What one message to a node meant for the executive, in order, as one message.
@@ -151,7 +164,7 @@ class ExecutiveNews(LazyMail):
     one message, not three.
     """
 
-    items: tuple[Any, ...]
+    items: tuple[News, ...]
 
 
 class MissionNode(PooledActor):
@@ -165,7 +178,7 @@ class MissionNode(PooledActor):
         entry: frozenset[str],
         loop: frozenset[str],
         drone: str,
-        log: Any,
+        log: FilteringBoundLogger,
         begin_kind: str = "",
         logic: NodeLogic | None = None,
         battery_floor_pct: float | None = None,
@@ -184,12 +197,12 @@ class MissionNode(PooledActor):
             self.logic.battery_floor_pct = battery_floor_pct
         self.links: Links | None = None
         self.crashed = False
-        self._current: Any = None  # the message being handled (for the failure policy)
+        self._current: object = None  # the message being handled (for the failure policy)
         enabled = getattr(self.log, "is_enabled_for", None)
         self._debug = enabled is None or bool(enabled(logging.DEBUG))
         if not self._debug:
             self.logic.debug_notes = False  # filtered anyway: not made at all
-        self._news: list[Any] = []  # for the executive, sent once per message handled
+        self._news: list[News] = []  # for the executive, sent once per message handled
         self._inline: list[ActionFinished] = []  # actions the adapter ended inside run()
         self._results_held = False  # the uniform space holds result lines of this turn
         # This turn's mission-log lines (logger, method, event, fields, time), not written yet.
@@ -197,7 +210,7 @@ class MissionNode(PooledActor):
 
     # -- messages -> logic inputs ---------------------------------------------------
 
-    def on_receive(self, message: Any) -> Any:
+    def on_receive(self, message: object) -> None:
         try:
             if self.crashed:
                 return None  # a failed node stays failed: later messages change nothing
@@ -217,7 +230,6 @@ class MissionNode(PooledActor):
                 self.links.uniform.write_results()
             if isinstance(message, RemoteTrigger):
                 self._received_note(message)
-        return None
 
     def _received_note(self, t: RemoteTrigger) -> None:
         # After the node's work (its action already started): off the trigger's path.
@@ -255,7 +267,7 @@ class MissionNode(PooledActor):
             return
         self._crash(self._current, (exception_type, exception_value, traceback))
 
-    def _input(self, message: Any) -> Sequence[Effect]:
+    def _input(self, message: object) -> Sequence[Effect]:
         logic = self.logic
         if isinstance(message, Trigger):
             return logic.trigger(message.src, message.iteration, message.status)
@@ -293,7 +305,7 @@ class MissionNode(PooledActor):
             if type(effect) is not Emit or not effect.route.external:
                 getattr(self, _APPLY[type(effect)])(effect)
 
-    def _tell(self, ref: Any, message: Any) -> None:
+    def _tell(self, ref: Mailbox[T], message: T) -> None:
         if self._lines:  # what the receiver writes because of it comes after them
             self._write_lines()
         try:
@@ -384,7 +396,7 @@ class MissionNode(PooledActor):
 
     # -- failure policy -----------------------------------------------------------------
 
-    def _crash(self, message: Any, exc_info: ExcInfo) -> None:
+    def _crash(self, message: object, exc_info: ExcInfo) -> None:
         """Log once, resolve ``failed`` for what the node was doing, then ignore messages."""
         self.crashed = True
         self._inline.clear()
@@ -420,7 +432,7 @@ class MissionNode(PooledActor):
         except Exception:
             self.log.exception("mission.node.crash_unreported")
 
-    def _activations_at_crash(self, message: Any) -> list[Iteration]:
+    def _activations_at_crash(self, message: object) -> list[Iteration]:
         """The activations a crash leaves unfinished (at least one: the message's)."""
         logic = self.logic
         depth = len(self.spec.loops)

@@ -7,7 +7,7 @@ import time
 from collections.abc import Iterable
 from typing import Any
 
-from ..logs import LogLine, log_line
+from ..logs import EventLog, LogLine, log_line
 from ..net import wire
 from ..net.link import Link
 from ..net.trusted import trusted
@@ -32,7 +32,7 @@ class Outbox:
     triggers are dropped: only :meth:`release` speaks for this drone's nodes.
     """
 
-    def __init__(self, bridge: Link, drone: str, mission_id: str, log: Any) -> None:
+    def __init__(self, bridge: Link, drone: str, mission_id: str, log: EventLog) -> None:
         self.bridge = bridge
         self.drone = drone
         self.mission_id = mission_id
@@ -44,7 +44,7 @@ class Outbox:
         self._sealed = False
         self._checked: set[str] = set()  # destinations whose first Trigger was checked
 
-    def tell(self, message: Any) -> None:
+    def tell(self, message: SendTrigger | SendInterrupt | wire.Message) -> None:
         """Send ``message`` (a :class:`SendTrigger`, :class:`SendInterrupt` or wire message)."""
         if isinstance(message, SendTrigger):
             line = self.send_trigger(message.dest, message.trigger)

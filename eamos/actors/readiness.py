@@ -11,14 +11,21 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from ..net import wire
 from ..net.out_bridge import OutBridge
+from ..program.format import DroneProgram
+from .failure import tell_operator
+from .wiring import destinations
+
+if TYPE_CHECKING:
+    from ..logs import EventLog
 
 #: While waiting for its peers to listen, a node says whom it waits for this often.
 READY_NOTE_S = 5.0
 
-__all__ = ["READY_NOTE_S", "not_listening", "wait_listening"]
+__all__ = ["READY_NOTE_S", "announce_ready", "not_listening", "wait_listening"]
 
 
 def not_listening(out: OutBridge, names: Sequence[str]) -> list[str]:
@@ -50,3 +57,34 @@ def wait_listening(
             told = now
             note(not_listening(out, names), now - start)
     return []
+
+
+def announce_ready(
+    out: OutBridge,
+    program: DroneProgram,
+    to_ground: Callable[[wire.Message], None],
+    log: EventLog,
+    timeout_s: float,
+    stop: threading.Event | None = None,
+) -> bool:
+    """Wait until every participant ``program``'s drone sends to listens, then tell the
+    ground station it is ready (``to_ground``); False if they never all did.
+
+    ``stop`` (set by a signal handler) ends the wait early: a node asked to stop
+    while its peers are missing must not linger for the whole timeout.
+    """
+    drone = program.drone
+
+    def waiting(missing: list[str], waited_s: float) -> None:
+        log.info("mission.waiting_for_peers", peers=missing, waited_s=round(waited_s, 1))
+        tell_operator(drone, f"waiting for {', '.join(missing)} to listen ({waited_s:.0f} s)")
+
+    missing = wait_listening(out, destinations(program), timeout_s, stop, waiting)
+    if missing:
+        log.error("mission.not_ready", waiting_for=missing)
+        return False
+    to_ground(
+        wire.Ready(mission=program.mission_id, sender=drone, program_checksum=program.checksum)
+    )
+    log.info("mission.ready")
+    return True

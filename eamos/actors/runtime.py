@@ -13,14 +13,18 @@ Failures of its own parts (not the nodes', which resolve ``failed``) go to a
 :class:`~.failure.FailurePolicy`: logged once with the traceback, the drone
 aborts (it lands), the drones waiting for it are released, and the ground
 station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).
+
+How each part is built is :mod:`.startup`'s business, how they stop
+:mod:`.teardown`'s, how the drone's report is gathered :mod:`.reporting`'s and
+how it announces itself ready :mod:`.readiness`'s; the runtime holds the parts,
+starts them in order and runs the mission on this drone (fire, abort, give up).
 """
 
 from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -28,29 +32,30 @@ import pykka
 import zmq
 
 from ..hal.api import Adapter, AdapterError
-from ..logs import DroneLogs, LogWriter
+from ..logs import DroneLogs, EventLog, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
-from ..net.keys import FleetKeys, KeysError, plain_refusal
-from ..net.link import Link, LinkSettings
+from ..net.link import Delivered, Link
 from ..program.format import DroneProgram
-from .board import LocalSample, TelemetryBoard, WhenLanded, ask_final_sample
+from .board import TelemetryBoard, WhenLanded
 from .dispatch import Dispatcher
+from .errors import DroneRuntimeError
 from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
 from .executive import DroneExecutive as DroneExecutive
-from .executive import ask_snapshot
-from .failure import FailurePolicy, RuntimeFailure, tell_operator
+from .failure import FailurePolicy, RuntimeFailure
 from .inbound import InRouter
-from .logic import program_wiring
 from .logic.telemetry import stale_values as stale_values
 from .logic.telemetry import telemetry_values as telemetry_values
 from .messages import AbortMission, Fire
-from .node import Links, MissionNode, Wire
+from .node import MissionNode
 from .outbox import Outbox
-from .readiness import wait_listening
+from .readiness import announce_ready
+from .reporting import gather_report
+from .startup import NetSettings, RuntimeStartup
+from .teardown import tear_down
 from .uniform_api import Abort as HalAbort
-from .uniform_api import UniformSpace, answers_at_once, start_uniform_api
-from .wiring import destinations, released_arcs, subscriptions, watched_peers
+from .uniform_api import UniformAPI, UniformSpace
+from .wiring import destinations, released_arcs
 
 if TYPE_CHECKING:
     from .report import DroneReport
@@ -72,38 +77,6 @@ __all__ = [
 #: How long the report waits for the vehicle's first sample after its last
 #: state-changing action (adapters send one when the state changes).
 FINAL_SAMPLE_WAIT_S = 0.5
-_ASK_TIMEOUT_S = 30.0
-
-
-class DroneRuntimeError(Exception):
-    """A drone runtime cannot start or run (bad program, adapter unusable, network)."""
-
-
-@dataclass(frozen=True)
-class NetSettings:
-    """Where this participant binds its Out-Bridge, where its peers' are, and how to secure it.
-
-    ``keys`` (from ``eamos keys``) makes every link CURVE-encrypted and lets in
-    only the fleet.  Leaving them out asks for plain sockets, which are refused
-    unless every endpoint is local (loopback, ipc, inproc): development only.
-    (A drone config must also say ``plain = true``; see :mod:`eamos.config`.)
-    """
-
-    bind: str
-    peers: Mapping[str, str]
-    keys: FleetKeys | None = None
-    link: LinkSettings = field(default_factory=LinkSettings)
-
-    def refusal(self, me: str) -> str | None:
-        """Why these settings may not be used by participant ``me`` (None: fine)."""
-        if self.keys is None:
-            return plain_refusal([self.bind, *(e for n, e in self.peers.items() if n != me)])
-        if self.keys.me != me:
-            return f"the keys are {self.keys.me}'s, not {me}'s"
-        missing = self.keys.missing(n for n in self.peers if n != me)
-        if missing:
-            return f"the fleet keys have no public key for {', '.join(missing)}"
-        return None
 
 
 class DroneRuntime:
@@ -117,7 +90,7 @@ class DroneRuntime:
         log_dir: Path | None = None,
         *,
         context: zmq.Context[Any] | None = None,
-        ground_handler: Callable[[Any], None] | None = None,
+        ground_handler: Callable[[Delivered], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
         log_writer: LogWriter | None = None,
@@ -130,21 +103,33 @@ class DroneRuntime:
         self.net = net
         self.log_dir = log_dir
         self._own_context = context is None
-        self.context = context if context is not None else zmq.Context()
+        self.context: zmq.Context[Any] = context if context is not None else zmq.Context()
         self.ground_handler = ground_handler  # set on the ground station: receives drone reports
         self.extra_topics = extra_topics
         self.logs = DroneLogs.open(log_dir, self.drone, log_writer)
-        self.log = self.logs.mission
+        self.log: EventLog = self.logs.mission
         self.failures = FailurePolicy(self.log, self._fail_safe, self.drone)
+        self._startup = RuntimeStartup(
+            program,
+            adapter,
+            net,
+            self.logs,
+            self.failures,
+            self.context,
+            ground_handler=ground_handler,
+            extra_topics=extra_topics,
+            battery_reserve_pct=battery_reserve_pct,
+        )
+        # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None
         self.out: OutBridge | None = None
         self.inb: InBridge | None = None
         self.outbox: Outbox | None = None
-        self.board: Any = None
-        self.hal: Any = None
+        self.board: pykka.ActorRef[TelemetryBoard] | None = None
+        self.hal: pykka.ActorRef[UniformAPI] | None = None
         self.uniform: UniformSpace | None = None
-        self.executive: Any = None
-        self.nodes: dict[str, Any] = {}
+        self.executive: pykka.ActorRef[DroneExecutive] | None = None
+        self.nodes: dict[str, pykka.ActorRef[MissionNode]] = {}
         self.router: InRouter | None = None  # the in-bridge's callback, once connected
         self.dispatcher: Dispatcher | None = None  # the node actors'
         self.services: Dispatcher | None = None  # the telemetry board's (one actor: one worker)
@@ -162,14 +147,7 @@ class DroneRuntime:
         """Build every actor and bridge; raise :class:`DroneRuntimeError` if the drone can't run."""
         self.started_at = time.monotonic()
         try:
-            self._check_settings()
-            self._open_link()
-            self._start_board()
-            self._start_uniform_api()
-            self._start_nodes()
-            self._start_executive()
-            self._wire_nodes()
-            self._connect()
+            self._build()
         except DroneRuntimeError:
             self.stop()
             raise
@@ -182,111 +160,26 @@ class DroneRuntime:
             secure=self.link.secure,
         )
 
-    def _check_settings(self) -> None:
-        refusal = self.net.refusal(self.drone)
-        if refusal is not None:
-            raise DroneRuntimeError(f"{self.drone}: {refusal}")
-
-    def _open_link(self) -> None:
-        """Bind the Out-Bridge (the in-bridge connects last, once every actor exists)."""
-        try:
-            self.link = Link(
-                self.context,
-                self.drone,
-                self.program.mission_id,
-                self.net.bind,
-                self.logs.mission,
-                keys=self.net.keys,
-                settings=self.net.link,
-            )
-        except (zmq.ZMQError, KeysError) as exc:
-            raise DroneRuntimeError(
-                f"cannot bind the out-bridge at {self.net.bind}: {exc}"
-            ) from exc
-        self.out = self.link.out
-        self.outbox = Outbox(self.link, self.drone, self.program.mission_id, self.logs.mission)
-
-    def _start_board(self) -> None:
-        self.services = Dispatcher(workers=1, name=f"eamos-{self.drone}-services")
-        self.board = TelemetryBoard.start(
-            self.services, self.drone, self.outbox, self.program.mission_id, self.failures
-        )
-
-    def _start_uniform_api(self) -> None:
-        """Start the adapter behind the uniform-API actor; an unusable one stops the start."""
-        board = self.board
-        self.uniform = UniformSpace(self.adapter, self.logs.uniform)
-        self.hal, error = start_uniform_api(
-            self.uniform, lambda sample: board.tell(LocalSample(sample))
-        )
-        if error is not None:
-            self.adapter_error = error
-            raise DroneRuntimeError(f"{self.drone}: {error}")
-
-    def _start_nodes(self) -> None:
-        """One node actor per native node, on the node dispatcher (not started wired)."""
-        self.dispatcher = Dispatcher(workers=2, name=f"eamos-{self.drone}")
-        for key, w in program_wiring(self.program).items():
-            self.nodes[key] = MissionNode.start(
-                self.dispatcher,
-                w.spec,
-                w.routes,
-                w.entry,
-                w.loop,
-                self.drone,
-                self.logs.mission,
-                w.begin_kind,
-                battery_floor_pct=self.battery_reserve_pct,
-            )
-
-    def _start_executive(self) -> None:
-        assert self.dispatcher is not None
-        # On the nodes' dispatcher: their news (LazyMail) then wakes no other thread.
-        self.executive = DroneExecutive.start(
-            self.dispatcher,
-            self.program,
-            dict(self.nodes),
-            self.outbox,
-            self._to_ground,
-            self.logs.mission,
-            self.failures,
-        )
-
-    def _wire_nodes(self) -> None:
-        """Give every node its links: all the actors it talks to exist now."""
-        # Nodes call an adapter that answers at once directly (no hop through the actor).
-        direct = self.uniform if answers_at_once(self.adapter) else None
-        links = Links(dict(self.nodes), self.hal, self.board, self.outbox, self.executive, direct)
-        for ref in self.nodes.values():
-            ref.tell(Wire(links))
-
-    def _connect(self) -> None:
-        """Connect the In-Bridge to the peers; from now on messages arrive."""
-        assert self.link is not None
-        self.router = router = InRouter(
-            self.drone,
-            self.nodes,
-            self.executive,
-            self.board,
-            self.log,
-            self.abort,
-            self.completed,
-            self.failures,
-            self.ground_handler,
-        )
-        topics = subscriptions(self.program, self.extra_topics)
-        peers = {name: ep for name, ep in self.net.peers.items() if name != self.drone}
-        try:
-            # The ground station, up first, connects to a drone when it subscribes (listens).
-            waits = peers if self.ground_handler is not None else ()
-            self.link.connect(peers, topics, router, watch=self.watched_peers(), announced=waits)
-        except (zmq.ZMQError, ValueError) as exc:
-            raise DroneRuntimeError(f"cannot connect the in-bridge to {peers}: {exc}") from exc
-        self.inb = self.link.inb
-
-    def watched_peers(self) -> list[str] | None:
-        """Peers whose heartbeats this participant follows (None: every peer)."""
-        return watched_peers(self.program, whole_fleet=self.ground_handler is not None)
+    def _build(self) -> None:
+        """The parts in the order they need each other (:class:`.startup.RuntimeStartup`),
+        each kept as soon as it exists: a failed start stops what was built."""
+        build = self._startup
+        build.check_settings()
+        self.link = link = build.open_link()
+        self.out = link.out
+        self.outbox = outbox = build.outbox(link)
+        self.services = build.services()
+        self.board = board = build.start_board(self.services, outbox)
+        self.uniform = space = build.uniform_space()
+        self.hal, self.adapter_error = build.start_uniform_api(space, board)
+        if self.adapter_error is not None:  # an unusable adapter stops the start
+            raise DroneRuntimeError(f"{self.drone}: {self.adapter_error}")
+        self.dispatcher = build.node_dispatcher()
+        build.start_nodes(self.dispatcher, self.nodes)
+        self.executive = build.start_executive(self.dispatcher, self.nodes, outbox, self._to_ground)
+        build.wire_nodes(self.nodes, self.hal, board, outbox, self.executive, space)
+        self.router = build.router(self.nodes, self.executive, board, self.abort, self.completed)
+        self.inb = build.connect(link, self.router)
 
     # -- readiness ---------------------------------------------------------------------
 
@@ -296,29 +189,10 @@ class DroneRuntime:
 
     def announce_ready(self, timeout_s: float, stop: threading.Event | None = None) -> bool:
         """Wait until every participant this drone sends to listens, then tell the ground
-        station this drone is ready (:mod:`.readiness`); False if they never all did.
-
-        ``stop`` (set by a signal handler) ends the wait early: a node asked to stop
-        while its peers are missing must not linger for the whole timeout.
-        """
+        station this drone is ready (:func:`.readiness.announce_ready`); False if they
+        never all did.  ``stop`` (set by a signal handler) ends the wait early."""
         assert self.out is not None
-        missing = wait_listening(self.out, self.destinations(), timeout_s, stop, self._waiting)
-        if missing:
-            self.log.error("mission.not_ready", waiting_for=missing)
-            return False
-        self._to_ground(
-            wire.Ready(
-                mission=self.program.mission_id,
-                sender=self.drone,
-                program_checksum=self.program.checksum,
-            )
-        )
-        self.log.info("mission.ready")
-        return True
-
-    def _waiting(self, missing: list[str], waited_s: float) -> None:
-        self.log.info("mission.waiting_for_peers", peers=missing, waited_s=round(waited_s, 1))
-        tell_operator(self.drone, f"waiting for {', '.join(missing)} to listen ({waited_s:.0f} s)")
+        return announce_ready(self.out, self.program, self._to_ground, self.log, timeout_s, stop)
 
     # -- running -------------------------------------------------------------------------
 
@@ -386,7 +260,7 @@ class DroneRuntime:
         self.board.tell(WhenLanded(event))
         return event.wait(timeout_s)
 
-    def _to_ground(self, msg: Any) -> None:
+    def _to_ground(self, msg: wire.Message) -> None:
         if isinstance(msg, wire.Resolved):
             with self._lock:  # the executive and the failure policy may both say it
                 if self._resolved_told:
@@ -397,7 +271,7 @@ class DroneRuntime:
         elif self.outbox is not None:
             self.outbox.tell(msg)
 
-    def send(self, msg: Any) -> None:
+    def send(self, msg: wire.Message) -> None:
         """Publish a wire message through this participant's out-bridge."""
         if self.outbox is not None:
             self.outbox.tell(msg)
@@ -405,23 +279,18 @@ class DroneRuntime:
     # -- results ---------------------------------------------------------------------------
 
     def drone_report(self, final_wait_s: float = FINAL_SAMPLE_WAIT_S) -> DroneReport:
-        """This drone's part of the run summary.
+        """This drone's part of the run summary (:func:`.reporting.gather_report`).
 
         The final state is the vehicle's once its last action ended: the first sample after
         the last action that could change it (waiting up to ``final_wait_s``), never one before.
         """
-        from .report import DroneReport  # loaded here, at a flight's end: not before Ready
-
-        snap = ask_snapshot(self.executive, _ASK_TIMEOUT_S)
-        counts = self.outbox.counts() if self.outbox else {"triggers_sent": 0}
-        return DroneReport.build(
+        return gather_report(
             self.program,
-            snap,
-            triggers_sent=counts["triggers_sent"],
-            net=self.link.stats() if self.link is not None else {},
-            final=ask_final_sample(
-                self.board, snap.state_changed_s, snap.state_action, final_wait_s, _ASK_TIMEOUT_S
-            ),
+            self.executive,
+            self.board,
+            self.outbox,
+            self.link,
+            final_wait_s=final_wait_s,
             aborted=self.aborted.is_set(),
             abort_reason=self.abort_reason,
             adapter_error=str(self.adapter_error) if self.adapter_error else "",
@@ -432,33 +301,24 @@ class DroneRuntime:
         return self.drone_report().to_json()
 
     def stop(self) -> None:
-        """Stop every actor and close the bridges; idempotent."""
+        """Stop every actor and close the bridges (:func:`.teardown.tear_down`); idempotent."""
         if self._stopped:
             return
         self._stopped = True
-        if self.link is not None:
-            # Goodbye heartbeat, then the receive side closes (no callbacks into
-            # actors being stopped); the send side closes below, after the actors.
-            self.link.close_receiving()
-        for ref in [*self.nodes.values(), self.executive, self.board, self.hal]:
-            if ref is not None:
-                try:
-                    ref.stop(block=True, timeout=30)
-                except (pykka.ActorDeadError, pykka.Timeout):
-                    pass
-        if self.hal is not None and not self.hal.is_alive():
-            close_orphan(self.adapter, self.log)
-        for dispatcher in (self.dispatcher, self.services):
-            if dispatcher is not None:
-                dispatcher.shutdown()
-        if self.link is not None:
-            self.link.close()
+        tear_down(
+            self.link,
+            [*self.nodes.values(), self.executive, self.board],
+            self.hal,
+            self.adapter,
+            (self.dispatcher, self.services),
+            self.log,
+        )
         if self._own_context:
             self.context.term()
         self.logs.close()
 
 
-def land_now(hal: Any, adapter: Adapter, log: Any) -> None:
+def land_now(hal: pykka.ActorRef[UniformAPI] | None, adapter: Adapter, log: EventLog) -> None:
     """Tell the vehicle to land: through the uniform API, or the adapter if that actor died."""
     try:
         if hal is not None and hal.is_alive():
@@ -471,14 +331,6 @@ def land_now(hal: Any, adapter: Adapter, log: Any) -> None:
         adapter.abort()
     except Exception as exc:  # nothing else can land it: say so loudly
         log.error("mission.abort.adapter_error", error=repr(exc))
-
-
-def close_orphan(adapter: Adapter, log: Any) -> None:
-    """Close the adapter a dead uniform-API actor left open (so its landing could finish)."""
-    try:
-        adapter.close()
-    except Exception as exc:
-        log.error("mission.adapter.close_error", error=repr(exc))
 
 
 def stranded_progress(program: DroneProgram, reason: str, policy: str) -> wire.Progress:

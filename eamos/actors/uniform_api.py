@@ -37,16 +37,18 @@ import threading
 import time
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
+from types import TracebackType
 from typing import Any
 
 import pykka
 
 from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
-from eamos.logs import log_line
+from eamos.logs import EventLog, log_line
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import ACTIONS, CommandError, decode_command
 
 from .failure import tell_operator
+from .messages import Mailbox
 
 
 @dataclass(frozen=True)
@@ -60,7 +62,7 @@ class RunAction:
     token: Hashable
     action: str
     args: tuple[float, ...]
-    reply_to: pykka.ActorRef[Any]
+    reply_to: Mailbox[ActionFinished]
 
 
 @dataclass(frozen=True)
@@ -106,7 +108,7 @@ class _Running:
 NON_BLOCKING_FAMILIES = frozenset({"sim"})
 
 
-def answers_at_once(adapter: Any) -> bool:
+def answers_at_once(adapter: Adapter) -> bool:
     """True if node actors may call ``adapter`` directly, without the uniform-API actor's hop.
 
     An adapter says so with an ``answers_at_once`` attribute; otherwise its family
@@ -129,7 +131,7 @@ class UniformLog:
     ``uniform.call``) never comes before that end's ``uniform.result``.
     """
 
-    def __init__(self, log: Any) -> None:
+    def __init__(self, log: EventLog) -> None:
         self.log = log
         self._lock = threading.Lock()
         self._held: list[ActionFinished] = []
@@ -190,7 +192,7 @@ class UniformSpace:
     table of running actions; the adapter is never called with it held.
     """
 
-    def __init__(self, adapter: Adapter, uniform_log: Any) -> None:
+    def __init__(self, adapter: Adapter, uniform_log: EventLog) -> None:
         self.adapter = adapter
         self.drone = adapter.drone
         self._log = self.log = (
@@ -346,7 +348,7 @@ class UniformAPI(pykka.ThreadingActor):
     def __init__(
         self,
         adapter: Adapter,
-        uniform_log: Any,
+        uniform_log: EventLog,
         on_telemetry: Callable[[Telemetry], None],
         on_start_error: Callable[[AdapterError], None] | None = None,
         space: UniformSpace | None = None,
@@ -388,7 +390,12 @@ class UniformAPI(pykka.ThreadingActor):
         self.space.finish_all(ActionResult("cancelled", "uniform API stopped"), close=True)
         self._log.info("uniform.stop", drone=self.drone)
 
-    def on_failure(self, exception_type: Any, exception_value: Any, traceback: Any) -> None:
+    def on_failure(
+        self,
+        exception_type: type[BaseException] | None,
+        exception_value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
         """A bug killed the actor: answer running actions ``failed``, and land the vehicle.
 
         The adapter stays open (the runtime closes it when it stops), so the
@@ -405,7 +412,7 @@ class UniformAPI(pykka.ThreadingActor):
 
     # -- messages ------------------------------------------------------------
 
-    def on_receive(self, message: Any) -> Any:
+    def on_receive(self, message: object) -> None:
         """Dispatch one of :class:`RunAction`, :class:`CancelAction`, :class:`Abort`."""
         match message:
             case RunAction():
@@ -420,7 +427,6 @@ class UniformAPI(pykka.ThreadingActor):
                 self.space.abort()
             case _:
                 self._log.warning("uniform.unknown_message", message=repr(message))
-        return None
 
 
 def start_uniform_api(
@@ -443,7 +449,7 @@ def start_uniform_api(
     return ref, None
 
 
-def _tell_reply(reply_to: Any, finished: ActionFinished, log: Any) -> None:
+def _tell_reply(reply_to: Mailbox[ActionFinished], finished: ActionFinished, log: EventLog) -> None:
     try:
         reply_to.tell(finished)
     except pykka.ActorDeadError:
@@ -465,6 +471,6 @@ def _result_fields(finished: ActionFinished) -> dict[str, Any]:
     }
 
 
-def _jsonable(token: Hashable) -> Any:
+def _jsonable(token: Hashable) -> str | int | float:
     """Tokens go into JSON logs; keep simple ones as they are, stringify the rest."""
     return token if isinstance(token, str | int | float) else repr(token)

@@ -73,7 +73,7 @@ EXIT_CODE_OF: Mapping[str, int] = MappingProxyType(
         "eamos.ops.ssh.RunFolderError": EXIT_BAD_INPUT,
         # could not connect
         "eamos.hal.api.AdapterError": EXIT_CONNECT,
-        "eamos.actors.runtime.DroneRuntimeError": EXIT_CONNECT,
+        "eamos.actors.errors.DroneRuntimeError": EXIT_CONNECT,
         "eamos.ops.ssh.FleetConnectError": EXIT_CONNECT,
         "builtins.ConnectionError": EXIT_CONNECT,
         # the mission failed (or was not flown); FleetError: see exit_code_of

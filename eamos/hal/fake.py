@@ -20,7 +20,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from eamos.hal.api import (
     ActionHandle,
@@ -33,6 +33,9 @@ from eamos.hal.api import (
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, require_mapping
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 
 @dataclass(frozen=True)
@@ -245,7 +248,7 @@ class FakeAdapter:
 
 
 def fake_adapter_from_settings(
-    drone: str, settings: Mapping[str, Any], adapter_log: Any = None
+    drone: str, settings: Mapping[str, Any], adapter_log: EventLog | None = None
 ) -> FakeAdapter:
     """A :class:`FakeAdapter` from ``hal`` settings (only ``auto``, a bool, is accepted).
 

@@ -26,7 +26,7 @@ from eamos.hal.api import (
 )
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.settings import COMMON_KEYS, check_keys, number, require_mapping
-from eamos.logs import make_logger
+from eamos.logs import EventLog, make_logger
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import Command, PauseFor
 
@@ -71,7 +71,10 @@ class GroundAdapter:
     plugins: PluginRegistry = EMPTY_PLUGINS
 
     def __init__(
-        self, drone: str = "GCS", settings: GroundSettings | None = None, adapter_log: Any = None
+        self,
+        drone: str = "GCS",
+        settings: GroundSettings | None = None,
+        adapter_log: EventLog | None = None,
     ) -> None:
         self.drone = drone
         self.settings = settings or GroundSettings()
@@ -201,7 +204,7 @@ class GroundAdapter:
 
 
 def ground_adapter_from_settings(
-    drone: str, settings: Mapping[str, Any], adapter_log: Any = None
+    drone: str, settings: Mapping[str, Any], adapter_log: EventLog | None = None
 ) -> GroundAdapter:
     """Build a :class:`GroundAdapter` from the ground station's ``hal`` settings."""
     return GroundAdapter(drone, GroundSettings.from_mapping(settings), adapter_log)

@@ -18,7 +18,10 @@ thousands of them.  The defence is in three parts:
 from __future__ import annotations
 
 import resource
-from typing import Any, Final
+from typing import TYPE_CHECKING, Final
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 __all__ = ["MAX_SOFT_LIMIT", "RESERVE", "connection_budget", "raise_descriptor_limit"]
 
@@ -30,7 +33,7 @@ RESERVE: Final = 128
 report and summary, ZeroMQ's internal pipes."""
 
 
-def raise_descriptor_limit(log: Any = None) -> int:
+def raise_descriptor_limit(log: EventLog | None = None) -> int:
     """Raise the soft ``RLIMIT_NOFILE`` to the hard limit (at most :data:`MAX_SOFT_LIMIT`).
 
     Returns the soft limit now in force.  Idempotent; never lowers it; a

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import zmq
 from zmq import zmq_poll
 
-from eamos.logs import make_logger
+from eamos.logs import EventLog, make_logger
 from eamos.net.reconnect import Reconnector
 from eamos.net.sockets import (
     CMD_CONNECT,
@@ -114,7 +114,7 @@ class InBridge(BridgeThread):
         subscribe: Iterable[bytes],
         on_message: Callable[[Message], None],
         mission: str,
-        log: Any = None,
+        log: EventLog | None = None,
         *,
         hwm: int = DEFAULT_HWM,
         curve: FleetKeys | None = None,

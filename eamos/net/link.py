@@ -31,9 +31,8 @@ from typing import Any, Generic, TypeVar
 import zmq
 
 import eamos.net.wire as wire
-from eamos.logs import make_logger
-from eamos.net.effects import PeerChanged, PeerStatus, Send, TelemetryStale, Wake
-from eamos.net.effects import SessionEffect as Action
+from eamos.logs import EventLog, make_logger
+from eamos.net.effects import PeerChanged, PeerStatus, Send, SessionEffect, TelemetryStale, Wake
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
@@ -42,12 +41,15 @@ from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
 from eamos.net.transport import InSide, OutSide, Transport, ZmqTransport
 
-__all__ = ["Link", "LinkDriver", "LinkSettings", "PeerStatus", "TelemetryStale"]
+__all__ = ["Delivered", "Link", "LinkDriver", "LinkSettings", "PeerStatus", "TelemetryStale"]
 
 OutT = TypeVar("OutT", bound=OutSide)
 InT = TypeVar("InT", bound=InSide)
 
 Clock = Callable[[], float]
+
+#: What the link hands its participant: wire messages, and its local events.
+Delivered = wire.Message | PeerStatus | TelemetryStale
 
 
 class LinkDriver(Generic[OutT, InT]):
@@ -62,7 +64,7 @@ class LinkDriver(Generic[OutT, InT]):
         self,
         session: ReliableSession,
         transport: Transport[OutT, InT],
-        log: Any = None,
+        log: EventLog | None = None,
         *,
         clock: Clock = time.monotonic,
     ) -> None:
@@ -82,7 +84,7 @@ class LinkDriver(Generic[OutT, InT]):
         self._wake = threading.Condition(lock)
         self._next_wake = float("inf")
         self._flush_waiters = 0
-        self._on_message: Callable[[Any], None] = lambda msg: None
+        self._on_message: Callable[[Delivered], None] = lambda msg: None
         self.delivery_errors = 0
         self.peer_events: list[dict[str, Any]] = []
         self._reports = ReportJoiner()  # ReportParts arrive on the receive thread only
@@ -106,7 +108,7 @@ class LinkDriver(Generic[OutT, InT]):
         self,
         peers: Mapping[str, str],
         topics: Iterable[bytes],
-        on_message: Callable[[Any], None],
+        on_message: Callable[[Delivered], None],
         watch: Iterable[str] | None = None,
         announced: Iterable[str] = (),
     ) -> None:
@@ -151,10 +153,10 @@ class LinkDriver(Generic[OutT, InT]):
 
     # -- carrying out the session's actions ----------------------------------------------
 
-    def _execute(self, actions: list[Action]) -> tuple[bool, list[Action]]:
+    def _execute(self, actions: list[SessionEffect]) -> tuple[bool, list[SessionEffect]]:
         """Send and schedule (lock held); return (every send accepted, what to deliver)."""
         ok = True
-        later: list[Action] = []
+        later: list[SessionEffect] = []
         for action in actions:
             kind = type(action)
             if kind is Send:
@@ -180,7 +182,7 @@ class LinkDriver(Generic[OutT, InT]):
             self._cond.notify_all()
         return ok, later
 
-    def _deliver(self, later: list[Action]) -> None:
+    def _deliver(self, later: list[SessionEffect]) -> None:
         """Hand deliveries and peer events to the application (lock not held)."""
         for action in later:
             item = action.status if type(action) is PeerChanged else action.item  # type: ignore[union-attr]
@@ -399,7 +401,7 @@ class Link(LinkDriver[OutBridge, InBridge]):
         name: str,
         mission: str,
         bind: str,
-        log: Any = None,
+        log: EventLog | None = None,
         *,
         keys: FleetKeys | None = None,
         settings: LinkSettings | None = None,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import TYPE_CHECKING, Final
 
 import eamos.net.wire as wire
 from eamos.net.effects import (
@@ -24,6 +24,9 @@ from eamos.net.effects import (
 )
 from eamos.net.sequence import Peer, Sending, SessionCounters
 from eamos.net.settings import LinkSettings
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 __all__ = ["LATE_TICK_S", "Liveness", "TelemetryOut"]
 
@@ -39,7 +42,7 @@ class Liveness:
     them out of order (they come from two threads) keeps the highest.
     """
 
-    def __init__(self, settings: LinkSettings, log: Any) -> None:
+    def __init__(self, settings: LinkSettings, log: EventLog) -> None:
         self.settings = settings
         self.log = log
         self._serial = 0

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import zmq
 
-from eamos.logs import make_logger
+from eamos.logs import EventLog, make_logger
 from eamos.net.descriptors import connection_budget
 from eamos.net.sockets import (
     CMD_STOP,
@@ -60,7 +60,7 @@ class OutBridge(BridgeThread):
         self,
         context: zmq.Context[Any],
         bind: str,
-        log: Any = None,
+        log: EventLog | None = None,
         *,
         hwm: int = DEFAULT_HWM,
         linger_ms: int = DEFAULT_LINGER_MS,

@@ -23,11 +23,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import zmq
 
 from eamos.net.sockets import should_log
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 __all__ = ["OWN_RECONNECT_EVERY_S", "RECONNECT_GRACE_S", "Reconnector"]
 
@@ -43,7 +46,7 @@ OWN_RECONNECT_EVERY_S = 1.0
 class Reconnector:
     """The reconnections a receive thread owes (peer -> when) and made (peer -> when)."""
 
-    def __init__(self, peers: Mapping[str, str], log: Any) -> None:
+    def __init__(self, peers: Mapping[str, str], log: EventLog) -> None:
         self.peers = peers
         self.sockets: dict[str, zmq.Socket[Any]] = {}
         self._log = log

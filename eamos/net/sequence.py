@@ -26,6 +26,7 @@ __all__ = [
     "Sending",
     "SessionCounters",
     "heartbeat",
+    "should_log",
 ]
 
 HEARTBEAT_ACK_REPEATS: Final = 3
@@ -51,6 +52,17 @@ class SessionCounters:
     old_incarnation: int = 0  # messages of a predecessor of a restarted peer, dropped
     late_ticks: int = 0  # timer calls this participant's own stalled loop made late
     stalled_s: float = 0.0  # their lateness, summed: not counted as the peers' silence
+
+
+# Retransmissions and duplicates are logged one by one up to this count per
+# peer, then every _LOG_EVERY-th: a long partition must not flood the log.
+_LOG_FIRST: Final = 20
+_LOG_EVERY: Final = 500
+
+
+def should_log(count: int) -> bool:
+    """Whether the ``count``-th retransmission (or duplicate) of a peer gets its log line."""
+    return count <= _LOG_FIRST or count % _LOG_EVERY == 0
 
 
 @dataclass

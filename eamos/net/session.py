@@ -58,31 +58,42 @@ protocol is tested with a fake clock and messages passed in memory.
   not been heard for ``telemetry_stale_s`` is reported stale
   (:class:`TelemetryStale`): the runtime then withdraws its values, so a
   condition reading them waits (Unknown) rather than deciding on old data.
+
+Each part is a class of its own, in the module of that part:
+:class:`~eamos.net.sending.Sender` (numbering, retransmission timers),
+:class:`~eamos.net.receiving.Receiver` (in-order delivery, explicit Acks),
+:class:`~eamos.net.broadcasts.Broadcasts` (one sequence for every peer),
+:class:`~eamos.net.liveness.Liveness` and :class:`~eamos.net.liveness.TelemetryOut`
+(who is up; this participant's own telemetry), :mod:`eamos.net.incarnation` (a
+restarted peer).  :class:`ReliableSession` takes the driver's events and hands each
+to its part.
 """
 
 from __future__ import annotations
 
 import random
 from collections.abc import Iterable
-from typing import Any, Final
+from typing import Any
 
 import eamos.net.wire as wire
-from eamos.logs import make_logger
+from eamos.logs import EventLog, make_logger
+from eamos.net.broadcasts import Broadcasts
 from eamos.net.effects import (
     Deliver,
     PeerChanged,
     PeerStatus,
     Send,
+    SessionEffect,
     TelemetryStale,
     Wake,
 )
-from eamos.net.effects import SessionEffect as Action
 from eamos.net.incarnation import admit, mine, new_incarnation
 from eamos.net.liveness import LATE_TICK_S, Liveness, TelemetryOut
+from eamos.net.receiving import NACK_INTERVAL_S, Receiver
+from eamos.net.sending import Sender
 from eamos.net.sequence import (
     HEARTBEAT_ACK_REPEATS,
     Peer,
-    Receiving,
     Sending,
     SessionCounters,
     heartbeat,
@@ -93,33 +104,16 @@ __all__ = [
     "HEARTBEAT_ACK_REPEATS",
     "LATE_TICK_S",
     "NACK_INTERVAL_S",
-    "Action",
     "Deliver",
     "PeerChanged",
     "PeerStatus",
     "ReliableSession",
     "Send",
     "SessionCounters",
+    "SessionEffect",
     "TelemetryStale",
     "Wake",
 ]
-
-# Retransmissions and duplicates are logged one by one up to this count per
-# peer, then every _LOG_EVERY-th: a long partition must not flood the log.
-_LOG_FIRST: Final = 20
-_LOG_EVERY: Final = 500
-
-_ACK_AT_ONCE: Final = frozenset({wire.Ready, wire.Resolved, wire.Report, wire.ReportPart})
-"""Delivered messages acknowledged at once rather than by the next heartbeat: the
-final report's sender waits for its ack before it exits; Ready and Resolved reach
-the ground station from the whole fleet at once (at the start, at the end), when
-its heartbeat is most likely late: one Ack each spares a retransmission each."""
-
-NACK_INTERVAL_S: Final = 0.02
-"""At most one nack per peer per this interval: after a gap, every later arrival
-would otherwise ask for the same messages again."""
-
-_NEVER: Final = float("inf")
 
 
 class ReliableSession:
@@ -140,7 +134,7 @@ class ReliableSession:
         mission: str,
         settings: LinkSettings | None = None,
         *,
-        log: Any = None,
+        log: EventLog | None = None,
         rng: random.Random | None = None,
         incarnation: int | None = None,
     ) -> None:
@@ -148,16 +142,16 @@ class ReliableSession:
         self.incarnation = new_incarnation() if incarnation is None else incarnation
         self.mission = mission
         self.settings = s = settings or LinkSettings()
-        self.log = log if log is not None else make_logger(None)
-        self._rng = rng or random.Random()
+        self.log: EventLog = log if log is not None else make_logger(None)
+        self.counters = SessionCounters()
         self._peers: dict[str, Peer] = {}
-        self._acks_owed: dict[str, Peer] = {}  # peers whose ack_now was set since the last batch
-        self._btx = Sending(backoff=s.rto_initial_s)
+        self._sender = Sender(s, self.counters, self.log, rng or random.Random())
+        self._receiver = Receiver(name, mission, self.incarnation, s, self.counters, self.log)
+        self._broadcasts = Broadcasts(s.rto_initial_s)
         self._tel = TelemetryOut(1.0 / s.telemetry_max_hz, s.heartbeat_s)
         self._live = Liveness(s, self.log)
         self._hb_due = float("-inf")
         self.closed = False
-        self.counters = SessionCounters()
 
     def add_peers(self, names: Iterable[str], watched: Iterable[str] | None = None) -> None:
         """Open a link to each peer; follow the heartbeats of ``watched`` (default all)."""
@@ -169,7 +163,7 @@ class ReliableSession:
 
     # -- sending ---------------------------------------------------------------------
 
-    def on_send(self, msg: wire.Message, now: float) -> list[Action]:
+    def on_send(self, msg: wire.Message, now: float) -> list[SessionEffect]:
         """The application sends ``msg``: number it if reliable, rate-cap it if telemetry."""
         if self.closed:
             return []
@@ -177,33 +171,26 @@ class ReliableSession:
         if cls in wire.RELIABLE_TO and msg.seq == 0:  # type: ignore[union-attr]
             peer = self._peers.get(msg.dest)  # type: ignore[union-attr]
             if peer is not None:
-                return self._send_reliable(peer.tx, msg, now)
+                return self._sender.send(peer.tx, msg, now, self.incarnation)
             self.log.warning("net.link.unknown_dest", dest=msg.dest, type=cls.__name__)  # type: ignore[union-attr]
         elif cls in wire.RELIABLE_BROADCAST and msg.seq == 0:  # type: ignore[union-attr]
-            return self._send_reliable(self._btx, msg, now)
+            return self._sender.send(self._broadcasts.tx, msg, now, self.incarnation)
         if msg.incarnation != self.incarnation:
             msg = wire.restamp(msg, incarnation=self.incarnation)
         if cls is wire.TelemetrySample:
             return self._tel.offer(msg, now)  # type: ignore[arg-type]
         return [Send(msg)]
 
-    def _send_reliable(self, tx: Sending, msg: wire.Message, now: float) -> list[Action]:
-        numbered = tx.number(msg, now, self.incarnation)
-        if tx.due is None:
-            tx.due = now + tx.backoff
-            return [Send(numbered), Wake(tx.due)]
-        return [Send(numbered)]
-
     # -- receiving -------------------------------------------------------------------
 
-    def on_receive(self, msg: wire.Message, now: float) -> list[Action]:
+    def on_receive(self, msg: wire.Message, now: float) -> list[SessionEffect]:
         """A message arrived from the network (from a configured peer, or it is ignored)."""
         peer = self._peers.get(msg.sender)
         if peer is None:  # not a configured peer: the In-Bridge only connects to peers
             return []
-        actions: list[Action] = []
+        actions: list[SessionEffect] = []
         if msg.incarnation != peer.incarnation and not admit(
-            peer, msg.incarnation, self._btx, self._live, self.counters, now, actions
+            peer, msg.incarnation, self._broadcasts.tx, self._live, self.counters, now, actions
         ):
             return []  # its predecessor's, still in flight
         self._heard(peer, now, actions)
@@ -214,9 +201,9 @@ class ReliableSession:
         elif cls is wire.Heartbeat:
             self._heartbeat(peer, msg, now, actions)  # type: ignore[arg-type]
         elif cls in wire.RELIABLE_TO and msg.seq > 0:  # type: ignore[union-attr]
-            self._sequenced(peer, msg, peer.rx, actions)
+            self._receiver.accept(peer, msg, peer.rx, actions)
         elif cls in wire.RELIABLE_BROADCAST and msg.seq > 0:  # type: ignore[union-attr]
-            self._sequenced(peer, msg, peer.brx, actions)
+            self._receiver.accept(peer, msg, peer.brx, actions)
         elif cls is wire.TelemetrySample:
             if self._live.fresh(peer, msg, now):  # type: ignore[arg-type]
                 actions.append(Deliver(msg))
@@ -224,85 +211,40 @@ class ReliableSession:
                 self.counters.old_telemetry += 1  # latest-value: an older sample is no news
         else:
             actions.append(Deliver(msg))
-        if peer.ack_now:
-            self._acks_owed[peer.name] = peer
+        self._receiver.owe(peer)
         return actions
 
-    def _heard(self, peer: Peer, now: float, actions: list[Action]) -> None:
+    def _heard(self, peer: Peer, now: float, actions: list[SessionEffect]) -> None:
         back = self._live.heard(peer, now)
         if back is not None:
             actions.append(back)
             # It is reachable again: whatever it has not acknowledged goes now.
-            self._expedite(peer.tx, now, actions)
-            self._expedite(self._btx, now, actions)
-
-    def _expedite(self, tx: Sending, now: float, actions: list[Action]) -> None:
-        if tx.pending:
-            tx.due = now
-            actions.append(Wake(now))
-
-    def _sequenced(
-        self, peer: Peer, msg: wire.Message, rx: Receiving, actions: list[Action]
-    ) -> None:
-        got = rx.accept(msg, self.settings.reorder_limit)
-        if got is None:
-            peer.ack_now = True  # the sender is retransmitting: it lacks our ack
-            self.counters.duplicates_dropped += 1
-            peer.duplicates += 1
-            if _should_log(peer.duplicates):
-                seq = msg.seq  # type: ignore[union-attr]
-                self.log.info(
-                    "net.link.duplicate", peer=peer.name, seq=seq, type=type(msg).__name__
-                )
-            return
-        if not got:
-            # A gap: something before it was lost (a reconnection).  It waits in the
-            # buffer until the gap is filled; ask for the rest now.
-            self.counters.reordered += 1
-            peer.nack = peer.ack_now = True
-            return
-        if rx.buffer:
-            peer.nack = peer.ack_now = True
-        elif any(type(m) in _ACK_AT_ONCE for m in got):
-            peer.ack_now = True  # its sender waits for this one (then exits)
-        actions.extend(Deliver(m) for m in got)
+            self._sender.expedite(peer.tx, now, actions)
+            self._sender.expedite(self._broadcasts.tx, now, actions)
 
     def _acked(
-        self, peer: Peer, upto: int, bupto: int, nack: bool, now: float, actions: list[Action]
+        self,
+        peer: Peer,
+        upto: int,
+        bupto: int,
+        nack: bool,
+        now: float,
+        actions: list[SessionEffect],
     ) -> None:
         self.counters.acks_received += 1
-        tx = peer.tx
-        progressed, sample = tx.acknowledge(upto, now)
-        if sample is not None:
-            peer.measure(sample, self.settings)
-        if progressed:
-            tx.backoff = peer.rto
-            tx.due = now + peer.rto if tx.pending else None
-        if bupto > peer.acked_b:
-            peer.acked_b = bupto
-            self._prune_broadcasts()
+        self._sender.acknowledged(peer, upto, now)
+        self._broadcasts.acknowledged(peer, bupto, self._peers.values())
         if nack:
-            # Not what is probably still in flight (sent within about a round trip).
-            recent = peer.in_flight_window(self.settings)
-            self._retransmit(peer, tx, now, actions, recent=recent)
-            if self._btx.pending and peer.acked_b < self._btx.next_seq - 1:
-                self._retransmit(None, self._btx, now, actions, recent=recent, after=peer.acked_b)
+            self._sender.nacked(peer, self._broadcasts, now, actions)
 
-    def _broadcast_peers(self) -> list[Peer]:
-        return [p for p in self._peers.values() if p.state != "left"]
-
-    def _prune_broadcasts(self) -> None:
-        acked = min((p.acked_b for p in self._broadcast_peers()), default=self._btx.next_seq - 1)
-        self._btx.acknowledge(acked, None)
-        if not self._btx.pending:
-            self._btx.due = None
-
-    def _heartbeat(self, peer: Peer, hb: wire.Heartbeat, now: float, actions: list[Action]) -> None:
+    def _heartbeat(
+        self, peer: Peer, hb: wire.Heartbeat, now: float, actions: list[SessionEffect]
+    ) -> None:
         if hb.leaving:
             left = self._live.goodbye(peer)
             if left is not None:
                 actions.append(left)
-                self._prune_broadcasts()  # its acknowledgements are not waited for
+                self._broadcasts.prune(self._peers.values())  # its acks are not waited for
             return
         self._live.alive(peer)
         if (self.name in hb.acks or self.name in hb.backs) and mine(
@@ -315,125 +257,58 @@ class ReliableSession:
             # The tail of a link was lost and nothing came after it: ask for it.
             peer.ack_now = peer.nack = True
 
-    def on_batch_end(self, now: float) -> list[Action]:
+    def on_batch_end(self, now: float) -> list[SessionEffect]:
         """The end of a receive batch: the explicit Acks it called for (gaps, duplicates)."""
         if self.closed:
             return []  # nothing may follow the goodbye heartbeat
-        # Only the peers this batch called for: the ground station has the whole fleet.
-        owed, self._acks_owed = self._acks_owed, {}
-        return [self._ack(peer, now) for peer in owed.values() if peer.ack_now]
+        return self._receiver.acks(now)
 
-    def _ack(self, peer: Peer, now: float) -> Send:
-        """One cumulative Ack to ``peer``; a nack if a gap is known."""
-        nack = peer.nack and now - peer.last_nack >= NACK_INTERVAL_S
-        if nack:
-            # Rate-limited: after a gap every later arrival would ask again.
-            peer.nack = False
-            peer.last_nack = now
-            self.counters.nacks_sent += 1
-        peer.ack_now = False
-        self.counters.acks_sent += 1
-        acked, inc = (peer.rx.upto, peer.brx.upto, nack, peer.incarnation), self.incarnation
-        return Send(wire.Ack(self.mission, self.name, peer.name, *acked, incarnation=inc))
-
-    def on_subscription(self, topic: bytes, now: float) -> list[Action]:
+    def on_subscription(self, topic: bytes, now: float) -> list[SessionEffect]:
         """A peer (re)subscribed to ``topic``: what the socket dropped meanwhile goes now."""
-        actions: list[Action] = []
+        actions: list[SessionEffect] = []
         if topic == wire.TOPIC_ALL:
-            self._expedite(self._btx, now, actions)
+            self._sender.expedite(self._broadcasts.tx, now, actions)
         elif topic.startswith(b"to/"):
             peer = self._peers.get(topic[3:].decode("utf-8", "replace"))
             if peer is not None:
                 peer.tx.backoff = peer.rto
-                self._expedite(peer.tx, now, actions)
+                self._sender.expedite(peer.tx, now, actions)
         elif topic == wire.topic_telemetry(self.name):
             actions += self._tel.repeat(now)  # a new subscriber gets the latest value
         return actions
 
     # -- time ------------------------------------------------------------------------
 
-    def on_tick(self, now: float) -> tuple[list[Action], float]:
+    def on_tick(self, now: float) -> tuple[list[SessionEffect], float]:
         """Do what is due at ``now``; return the actions and when to be called next."""
         s = self.settings
-        actions: list[Action] = []
-        self._live.stalled(now, self._peers.values(), self.counters, self._btx)  # late: our stall
+        actions: list[SessionEffect] = []
+        peers = self._peers.values()
+        self._live.stalled(now, peers, self.counters, self._broadcasts.tx)  # late: our stall
         if now >= self._hb_due:
             self._hb_due = now + s.heartbeat_s
             actions.append(Send(self._heartbeat_message(leaving=False)))
         deadline = self._hb_due
-        for peer in self._peers.values():
-            deadline = min(deadline, self._tick_peer(peer, now, actions))
-        btx = self._btx
-        if btx.due is not None and now >= btx.due:
-            acked = min((p.acked_b for p in self._broadcast_peers()), default=btx.next_seq)
-            self._retransmit(None, btx, now, actions, after=acked)
-            btx.back_off(now, s.rto_max_s, self._rng)
-        if btx.due is not None:
-            deadline = min(deadline, btx.due)
+        for peer in peers:
+            # One peer's timers: retransmission, then liveness and telemetry staleness.
+            deadline = min(deadline, self._sender.link_timer(peer, now, actions))
+            deadline = min(deadline, self._live.check(peer, now, actions))
+        deadline = min(
+            deadline, self._sender.broadcast_timer(self._broadcasts, peers, now, actions)
+        )
         sent, due = self._tel.tick(now)
         actions += sent
         self._live.tick_due = due = min(deadline, due)
         return actions, due
 
-    def _tick_peer(self, peer: Peer, now: float, actions: list[Action]) -> float:
-        """One peer's timers: retransmission, liveness, telemetry staleness."""
-        deadline = _NEVER
-        tx = peer.tx
-        if tx.due is not None and now >= tx.due:
-            if peer.state == "left":
-                self.counters.abandoned += len(tx.pending)
-                tx.pending.clear()
-                tx.due = None
-            else:
-                self._retransmit(peer, tx, now, actions)
-                tx.back_off(now, self.settings.rto_max_s, self._rng)
-        if tx.due is not None:
-            deadline = tx.due
-        return min(deadline, self._live.check(peer, now, actions))
-
-    def _retransmit(
-        self,
-        peer: Peer | None,
-        tx: Sending,
-        now: float,
-        actions: list[Action],
-        *,
-        recent: float = 0.0,
-        after: int = 0,
-    ) -> None:
-        """Resend up to ``window`` unacknowledged messages of ``tx`` (seq > ``after``).
-
-        Messages sent within the last ``recent`` seconds are skipped (a nack
-        may race with messages still in flight).
-        """
-        again = tx.resend(now, self.settings.window, recent=recent, after=after)
-        if not again:
-            return
-        actions.extend(Send(m) for m in again)
-        sent = len(again)
-        self.counters.retransmissions += sent
-        if peer is not None:
-            peer.retransmitted += sent
-            count = peer.retransmitted
-        else:
-            count = self.counters.retransmissions
-        if _should_log(count):
-            self.log.info(
-                "net.link.retransmit",
-                peer=peer.name if peer is not None else "*",
-                messages=sent,
-                first_seq=next(iter(tx.pending)),
-                total=count,
-            )
-
     def _heartbeat_message(self, leaving: bool) -> wire.Heartbeat:
         self.counters.heartbeats_sent += 1
-        bsent, peers = self._btx.next_seq - 1, self._peers.values()
+        bsent, peers = self._broadcasts.sent, self._peers.values()
         return heartbeat(self.mission, self.name, self.incarnation, peers, bsent, leaving)
 
     # -- results and shutdown --------------------------------------------------------
 
-    def close(self) -> list[Action]:
+    def close(self) -> list[SessionEffect]:
         """Say goodbye (a leaving heartbeat, if there are peers); nothing is sent afterwards."""
         if self.closed:
             return []
@@ -452,7 +327,7 @@ class ReliableSession:
         if self.closed:
             return True
         only = None if peers is None else set(peers)
-        if only is None and self._btx.pending and self._broadcast_peers():
+        if only is None and not self._broadcasts.flushed(self._peers.values()):
             return False
         return all(
             not p.tx.pending or p.state == "left"
@@ -462,12 +337,9 @@ class ReliableSession:
 
     def unacked(self) -> int:
         """Reliable messages sent and not acknowledged yet."""
-        return sum(len(p.tx.pending) for p in self._peers.values()) + len(self._btx.pending)
+        pending = sum(len(p.tx.pending) for p in self._peers.values())
+        return pending + len(self._broadcasts.tx.pending)
 
     def peer_stats(self) -> dict[str, dict[str, Any]]:
         """Per peer: state (``unwatched`` if its heartbeats are not followed), RTT, counts."""
         return {p.name: p.stats() for p in self._peers.values()}
-
-
-def _should_log(count: int) -> bool:
-    return count <= _LOG_FIRST or count % _LOG_EVERY == 0

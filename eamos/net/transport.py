@@ -11,7 +11,7 @@ In-Bridge and, with fleet keys, the ZAP authenticator.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import zmq
 
@@ -21,6 +21,9 @@ from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
 from eamos.net.settings import DEFAULT_HEARTBEAT_MS
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 __all__ = ["InSide", "OutSide", "Transport", "ZmqTransport"]
 
@@ -107,7 +110,7 @@ class ZmqTransport:
         context: zmq.Context[Any],
         bind: str,
         mission: str,
-        log: Any,
+        log: EventLog,
         *,
         keys: FleetKeys | None = None,
         heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,

@@ -41,7 +41,7 @@ from ..actors.logic import (
     WatchTelemetry,
     program_wiring,
 )
-from ..actors.logic.telemetry import telemetry_values
+from ..actors.logic.telemetry import PropertyValues, telemetry_values
 from ..actors.messages import ActionRecord
 from ..actors.state import Iteration
 from ..hal.api import ActionHandle, ActionResult, Telemetry
@@ -89,10 +89,10 @@ class _Board:
     """Latest property values per drone; pushes changes to the nodes watching them."""
 
     def __init__(self) -> None:
-        self.latest: dict[str, dict[str, Any]] = {}
+        self.latest: dict[str, PropertyValues] = {}
         self.watchers: dict[NodeId, tuple[str, ...]] = {}
 
-    def publish(self, drone: str, values: dict[str, Any]) -> list[NodeId]:
+    def publish(self, drone: str, values: PropertyValues) -> list[NodeId]:
         """Record ``values``; the watchers to tell (none if nothing a condition reads changed)."""
         old = self.latest.get(drone)
         self.latest[drone] = values

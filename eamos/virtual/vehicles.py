@@ -10,12 +10,15 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from ..hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
 from ..hal.sim import SIM_DT_S, SimCore, SimSettings
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from ..program.uniform import Command
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 #: A finished action: its done callback and its result.
 Finished = tuple[DoneCallback, ActionResult]
@@ -146,7 +149,7 @@ class QuietLog:
 
 def sim_vehicles(
     settings: SimSettings | Mapping[str, SimSettings] | None = None,
-    log: Any = None,
+    log: EventLog | None = None,
     plugins: PluginRegistry | None = None,
 ) -> VehicleFactory:
     """A factory of simulator cores: one ``settings`` for all, or one per drone.

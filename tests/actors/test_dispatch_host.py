@@ -234,7 +234,7 @@ def _router(node: Any, executive: Any) -> InRouter:
         drone="D2",
         nodes={"n2": node},
         executive=executive,
-        board=None,
+        board=None,  # type: ignore[arg-type]  # no telemetry in these tests
         log=make_logger(None),
         abort=lambda reason: None,
         completed=threading.Event(),

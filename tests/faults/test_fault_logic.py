@@ -297,8 +297,8 @@ def test_abort_lands_the_vehicle_when_the_node_and_uniform_api_actors_are_dead()
     dead_node, dead_hal = Dead.start(), Dead.start()
     dead_node.stop()
     dead_hal.stop()
-    runtime.nodes = {"n1": dead_node}
-    runtime.hal = dead_hal
+    runtime.nodes = {"n1": dead_node}  # type: ignore[dict-item]
+    runtime.hal = dead_hal  # type: ignore[assignment]
     try:
         runtime.abort("a bug killed them")  # must not raise ActorDeadError
     finally:

@@ -36,6 +36,8 @@ class EventLog:
     def info(self, event: str, **fields: Any) -> None:
         self.events.append((event, fields))
 
+    debug = warning = error = exception = info
+
     def names(self) -> list[str]:
         return [name for name, _ in self.events]
 

@@ -52,7 +52,7 @@ def do_until_x(f: Flight, limit: float, leg: float) -> tuple[float, float]:
             # The runtime reacts on its own thread (the callback only posts a message).
             threading.Thread(target=f.adapter.cancel, args=(handle_box[0],)).start()
 
-    f.adapter._on_telemetry = watch  # the runtime's own telemetry callback
+    f.adapter._telemetry.connect(watch)  # instead of the runtime's own telemetry callback
     handle, done = f.run("FlyByX", leg)
     handle_box.append(handle)
     assert seen.wait(WAIT_S), "condition never seen"

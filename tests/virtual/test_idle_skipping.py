@@ -39,7 +39,7 @@ class Recorder:
     def info(self, event: str, **fields: Any) -> None:
         self.lines.append((event, fields))
 
-    debug = warning = error = info
+    debug = warning = error = exception = info
 
 
 class Stepped:

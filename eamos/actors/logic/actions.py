@@ -24,8 +24,6 @@ its own conditions.
 
 from __future__ import annotations
 
-from typing import Any
-
 from ...program.format import ProgramNode
 from ..messages import ActionRecord, Interrupt
 from ..state import Iteration, Status, within
@@ -40,6 +38,7 @@ from .effects import (
     UnwatchTelemetry,
     WatchTelemetry,
 )
+from .telemetry import PropertyValues
 
 _RESULT_STATUS: dict[str, Status] = {"ok": "done", "failed": "failed", "cancelled": "skipped"}
 #: Relative moves and the property their distance is measured on.
@@ -71,7 +70,7 @@ class ActionLogic(NodeLogic):
         self.suspending: set[Iteration] = set()
         self.axis = RELATIVE_AXES.get(self.action) if spec.suspendable else None
         self.origin: dict[Iteration, float] = {}  # the axis value when a relative move started
-        self.position: dict[str, Any] = {}
+        self.position: PropertyValues = {}
         self.watching = False
         self.retries: dict[Iteration, int] = {}
         self.retry_at_next_sample: list[Iteration] = []
@@ -224,11 +223,12 @@ class ActionLogic(NodeLogic):
             return self.spec.args  # never moved (it waited for the resume): all of it
         return (round(origin + self.spec.args[0] - float(now), 3),)
 
-    def telemetry(self, drone: str, values: dict[str, Any]) -> list[Effect]:
+    def telemetry(self, drone: str, values: PropertyValues) -> list[Effect]:
         self.position = values
-        if self.axis is not None and values.get(self.axis) is not None:
+        here = values.get(self.axis) if self.axis is not None else None
+        if here is not None:
             for act in self.running:
-                self.origin.setdefault(act, float(values[self.axis]))
+                self.origin.setdefault(act, float(here))
         if self._guards_battery():
             self._check_battery(values.get("Battery"))
         retry, self.retry_at_next_sample = self.retry_at_next_sample, []
@@ -238,7 +238,7 @@ class ActionLogic(NodeLogic):
         self._maybe_unwatch()
         return self._take()
 
-    def _check_battery(self, battery: Any) -> None:
+    def _check_battery(self, battery: float | bool | None) -> None:
         floor = self.battery_floor_pct
         if battery is None or floor is None or float(battery) >= floor:
             return

@@ -17,6 +17,7 @@ from ...program.format import ProgramNode
 from ..messages import Interrupt, NodeEvent
 from ..state import Fired, Iteration, Preconditions, Status, within
 from .effects import Broadcast, Effect, Emit, Note, Progress, Resolve, Route
+from .telemetry import PropertyValues
 
 
 class NodeLogic:
@@ -84,7 +85,7 @@ class NodeLogic:
         """The action started for ``iteration`` ended (only action nodes run actions)."""
         return []
 
-    def telemetry(self, drone: str, values: dict[str, Any]) -> list[Effect]:
+    def telemetry(self, drone: str, values: PropertyValues) -> list[Effect]:
         """New property values of ``drone`` (only condition nodes watch telemetry)."""
         return []
 

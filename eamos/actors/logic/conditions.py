@@ -12,7 +12,6 @@ and ``loop-watch``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 from ...program.conditions import Unknown, evaluate, properties, to_text
 from ...program.format import ProgramNode
@@ -20,6 +19,7 @@ from ..messages import Interrupt
 from ..state import Fired, Iteration, holds, within
 from .base import NodeLogic
 from .effects import Broadcast, Effect, ReleaseBegin, Route, UnwatchTelemetry, WatchTelemetry
+from .telemetry import PropertyValues
 
 #: ``override(activation, purpose, value) -> value to use`` (see :attr:`ConditionLogic.override`).
 Override = Callable[[Iteration, str, bool], bool]
@@ -43,13 +43,13 @@ class ConditionLogic(NodeLogic):
         loop: frozenset[str] = frozenset(),
     ) -> None:
         super().__init__(spec, routes, entry, loop)
-        self.values: dict[str, dict[str, Any]] = {}
+        self.values: dict[str, PropertyValues] = {}
         self.pending: dict[Iteration, str] = {}  # activation -> purpose
         self.watching = False
         self.cond_drones = tuple(sorted({drone for drone, _ in properties(spec.cond)}))
         self.cond_text = to_text(spec.cond)
 
-    def telemetry(self, drone: str, values: dict[str, Any]) -> list[Effect]:
+    def telemetry(self, drone: str, values: PropertyValues) -> list[Effect]:
         self.values[drone] = values
         for act in list(self.pending):
             self._check(act)
@@ -80,7 +80,7 @@ class ConditionLogic(NodeLogic):
             self.watching = False
             self._fx.append(UnwatchTelemetry())
 
-    def _lookup(self, drone: str, prop: str) -> Any:
+    def _lookup(self, drone: str, prop: str) -> float | bool | None:
         return self.values.get(drone, {}).get(prop)
 
     def _value(self) -> bool | None:

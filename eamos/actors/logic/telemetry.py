@@ -7,9 +7,13 @@ same table per drone: the uniform properties (``X``, ``Battery`` ...) plus
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Protocol, TypeAlias
 
 from ...program.uniform import PROPERTY_FIELDS
+
+#: One drone's property values by name (``X``, ``Battery``, ``_time_s`` ...): a number or
+#: a flag, None while unknown (stale).
+PropertyValues: TypeAlias = dict[str, float | bool | None]
 
 
 class Sample(Protocol):
@@ -22,19 +26,19 @@ class Sample(Protocol):
     def landed(self) -> bool: ...
 
 
-def telemetry_values(sample: Sample) -> dict[str, Any]:
+def telemetry_values(sample: Sample) -> PropertyValues:
     """Uniform property values (``X``, ``Battery`` ...) of a telemetry sample."""
-    values = {prop: getattr(sample, fld) for prop, fld in PROPERTY_FIELDS.items()}
+    values: PropertyValues = {prop: getattr(sample, fld) for prop, fld in PROPERTY_FIELDS.items()}
     values["_time_s"] = sample.time_s
     values["_landed"] = sample.landed
     return values
 
 
-def stale_values(age_s: float) -> dict[str, Any]:
+def stale_values(age_s: float) -> PropertyValues:
     """Property values of a drone whose telemetry went stale: none (conditions wait)."""
-    values: dict[str, Any] = dict.fromkeys(PROPERTY_FIELDS)
+    values: PropertyValues = dict.fromkeys(PROPERTY_FIELDS)
     values["_stale_s"] = age_s
     return values
 
 
-__all__ = ["Sample", "stale_values", "telemetry_values"]
+__all__ = ["PropertyValues", "Sample", "stale_values", "telemetry_values"]

@@ -1,17 +1,22 @@
 """The MAVLink adapter: PX4 and ArduPilot autopilots (real, SITL, or ``eamos-sim-vehicle``).
 
-Modules: :mod:`.adapter` (the adapter the uniform API drives), :mod:`.flight` (one
-action at a time: arm, take off, move, land, cancel), :mod:`.vehicle` (the vehicle's
-state from telemetry), :mod:`.link` and :mod:`.state` (the MAVLink connection and the
-messages it reads), :mod:`.autopilots` (what differs between PX4 and ArduPilot),
-:mod:`.frames` (mission frame <-> NED), :mod:`.settings` (the ``hal`` section),
-:mod:`.braking` (stop now, wait until at rest), :mod:`.params` and :mod:`.keeper`
-(the drone type's speeds set on the vehicle and restored), :mod:`.targets`
-(SET_POSITION_TARGET_* messages), :mod:`.signing` (MAVLink 2 signing keys and rules),
-:mod:`.waits` (how actions wait and end), :mod:`.estimator`, :mod:`.arming` and
-:mod:`.home` (a settled estimate before arming, home from it), :mod:`.manoeuvres`
-(ReturnHome, Hold, Yaw, SetSpeed, Orbit), :mod:`.payload` and :mod:`.camera` (plugin
-actions: the "mavlink" seam, the camera and gimbal).
+Modules: :mod:`.adapter` (the adapter the uniform API drives: a thread per action,
+cancel, abort, close), :mod:`.runs` (its running actions, one ``done`` each),
+:mod:`.publisher` (telemetry samples to the mission), :mod:`.flight` (which phase flies
+a command) and the phases: :mod:`.arming` (Arm, Disarm, a settled estimate first),
+:mod:`.takeoff`, :mod:`.moves` (FlyBy*, FlyTo*), :mod:`.landing` (Land, abort, landing at
+close), :mod:`.braking` (stop now, hold), :mod:`.manoeuvres` (ReturnHome, Hold, Yaw,
+SetSpeed, Orbit); :mod:`.control` (one run's hold on the vehicle: the autopilots'
+controller) and :mod:`.waits` (how actions wait and end); :mod:`.vehicle` (the vehicle
+in mission terms), :mod:`.link`, :mod:`.ticker` and :mod:`.state` (the MAVLink
+connection, its periodic jobs and the messages it reads), :mod:`.command_protocol` and
+:mod:`.param_protocol` (the MAVLink exchanges), :mod:`.signing` (MAVLink 2 signing keys
+and rules), :mod:`.autopilots` (what differs between PX4 and ArduPilot), :mod:`.frames`
+(mission frame <-> NED), :mod:`.settings` (the ``hal`` section), :mod:`.params` and
+:mod:`.keeper` (the drone type's speeds set on the vehicle and restored),
+:mod:`.targets` (SET_POSITION_TARGET_* messages), :mod:`.estimator` and :mod:`.home` (a
+settled estimate, home from it), :mod:`.payload` and :mod:`.camera` (plugin actions: the
+"mavlink" seam, the camera and gimbal).
 Importing this package does not load pymavlink; connecting does.
 """
 

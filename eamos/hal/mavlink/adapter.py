@@ -5,13 +5,18 @@
 HEARTBEAT (or takes ``autopilot`` from the settings).  The work is split:
 
 * :mod:`eamos.hal.mavlink.link`: the connection, its reader thread (the
-  vehicle's state under one condition), sends, the periodic ticker;
+  vehicle's state under one condition), sends; :mod:`~eamos.hal.mavlink.ticker`
+  the periodic jobs, :mod:`~eamos.hal.mavlink.command_protocol` and
+  :mod:`~eamos.hal.mavlink.param_protocol` the MAVLink exchanges,
+  :mod:`~eamos.hal.mavlink.signing` the link's signing;
 * :mod:`eamos.hal.mavlink.vehicle`: the vehicle in mission terms (home,
   frames, modes, telemetry samples, PX4's setpoint stream);
-* :mod:`eamos.hal.mavlink.flight`: the flight procedures and their waits;
+* :mod:`eamos.hal.mavlink.flight`: the flight phases (arming, take-off, moves,
+  landing, braking and holding) and their waits;
 * :mod:`eamos.hal.mavlink.autopilots`: what differs between PX4 and ArduPilot;
-* this module: the settings and the Adapter protocol (threads per action,
-  exactly one ``done`` per action, cancel, abort, close, telemetry).
+* :mod:`eamos.hal.mavlink.runs` (the running actions, one ``done`` each) and
+  :mod:`eamos.hal.mavlink.publisher` (telemetry samples to the mission);
+* this module: the Adapter protocol (a thread per action, cancel, abort, close).
 
 Frames.  Missions speak X north, Y east, Z up from home; the vehicle speaks
 local NED.  Home is the first LOCAL_POSITION_NED seen after :meth:`start`
@@ -40,7 +45,7 @@ change ends the action (a pilot took over).
 ``cancel`` ends the action at once and brakes the vehicle the fastest way its
 autopilot documents (PX4: a zero-velocity setpoint; ArduPilot: BRAKE mode),
 then holds where it came to rest; the next motion action waits for that
-(:func:`~eamos.hal.mavlink.flight.brake_to_rest`).  ``abort`` cancels
+(:class:`~eamos.hal.mavlink.braking.Brakes`).  ``abort`` cancels
 everything, brakes, lands and disarms.  :meth:`MavlinkAdapter.close` never
 leaves a flying vehicle silently: it lands it first, or logs
 ``adapter.stranded`` at error level.  After connecting, the drone type's
@@ -73,7 +78,6 @@ Adapter log events: ``adapter.start``, ``adapter.connected``,
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Mapping
@@ -87,16 +91,19 @@ from eamos.hal.api import (
     TelemetryCallback,
 )
 from eamos.hal.mavlink.autopilots import CommandRejected
-from eamos.hal.mavlink.flight import Ended, Failed, Flight, Run, RunControl, TimedOut
+from eamos.hal.mavlink.control import RunControl
+from eamos.hal.mavlink.flight import Flight
 from eamos.hal.mavlink.frames import Vector
 from eamos.hal.mavlink.manoeuvres import MANOEUVRES, perform_manoeuvre
 from eamos.hal.mavlink.payload import payload_context
+from eamos.hal.mavlink.publisher import TelemetryPublisher
+from eamos.hal.mavlink.runs import ActionBook
 from eamos.hal.mavlink.settings import MavlinkSettings
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
-from eamos.hal.mavlink.waits import RunKind
-from eamos.logs import make_logger
+from eamos.hal.mavlink.waits import Ended, Failed, Run, RunKind, TimedOut
+from eamos.logs import EventLog, make_logger
 from eamos.program.plugins import EMPTY_PLUGINS, PluginError, PluginRegistry, discover_plugins
-from eamos.program.uniform import Arm, Command, Disarm, PauseFor, Payload, PluginAction
+from eamos.program.uniform import Arm, Command, Disarm, PluginAction
 
 
 class MavlinkAdapter:
@@ -109,29 +116,24 @@ class MavlinkAdapter:
         self,
         drone: str,
         settings: MavlinkSettings,
-        adapter_log: Any = None,
+        adapter_log: EventLog | None = None,
         plugins: PluginRegistry = EMPTY_PLUGINS,
     ) -> None:
         self.drone = drone
         self.settings = settings
         #: The plugin actions it runs (their "mavlink" code, eamos.hal.mavlink.payload).
         self.plugins = plugins
-        self._log = adapter_log if adapter_log is not None else make_logger(None)
+        self._log: EventLog = adapter_log if adapter_log is not None else make_logger(None)
         self.vehicle = MavlinkVehicle(drone, settings, self._log)
         self._flight = Flight(self.vehicle)
         # The vehicle's condition also guards this adapter's bookkeeping.
         self._cond = self.vehicle.cond
-        self._on_telemetry: TelemetryCallback | None = None
+        self._telemetry = TelemetryPublisher(self.vehicle, self._log)
+        self._actions = ActionBook(self.vehicle, self._log, self._telemetry.publish)
         self._started = False
         self._closed = False
-        self._runs: dict[int, Run] = {}
-        self._motion: Run | None = None
         self._aborting = False
         self._abort_thread: threading.Thread | None = None
-        # Serialized: the ticker and finishing actions both publish samples,
-        # which must reach the mission in the order they were taken.
-        self._emit_lock = threading.Lock()
-        self._last_key: tuple[Any, ...] | None = None
 
     # -- Adapter protocol ----------------------------------------------------
 
@@ -148,7 +150,7 @@ class MavlinkAdapter:
             if self._started:
                 raise AdapterError(f"{self.drone}: adapter already started")
             self._started = True
-            self._on_telemetry = on_telemetry
+            self._telemetry.connect(on_telemetry)
         self._log.info(
             "adapter.start",
             adapter="mavlink",
@@ -158,7 +160,9 @@ class MavlinkAdapter:
             source_system=s.source_system,
             source_component=s.source_component,
         )
-        self.vehicle.connect(extra_jobs=((1.0 / s.telemetry_hz, self._publish, "telemetry"),))
+        self.vehicle.connect(
+            extra_jobs=((1.0 / s.telemetry_hz, self._telemetry.publish, "telemetry"),)
+        )
 
     def run(self, command: Command, done: DoneCallback) -> ActionHandle:
         """Start ``command`` on its own thread; ``done`` is called exactly once."""
@@ -171,7 +175,6 @@ class MavlinkAdapter:
         elif isinstance(command, Disarm):
             kind = "disarm"
         run = Run(handle, done, kind, time.monotonic(), command)
-        immediate: ActionResult | None = None
         missing: str | None = None  # a plugin action without a "mavlink" implementation
         if isinstance(command, PluginAction):
             try:
@@ -181,33 +184,9 @@ class MavlinkAdapter:
         with self._cond:
             if self._closed:
                 raise AdapterError(f"{self.drone}: adapter closed")
-            self._runs[handle.id] = run
-            self._log.info(
-                "adapter.action.start",
-                action=handle.action,
-                args=list(handle.args),
-                handle=handle.id,
-            )
-            if missing is not None:
-                immediate = ActionResult("failed", missing)
-            elif isinstance(command, Payload):
-                self._log.info(
-                    "adapter.payload",
-                    action=handle.action,
-                    note="no payload on this vehicle: acknowledged",
-                )
-                immediate = ActionResult("ok")
-            elif not self._started:
-                immediate = ActionResult("failed", "adapter not started")
-            elif self._aborting and not isinstance(command, PauseFor):
-                immediate = ActionResult("failed", "aborting")
-            elif kind == "motion":
-                if self._motion is not None:
-                    immediate = ActionResult("failed", "busy")
-                else:
-                    self._motion = run
+            immediate = self._actions.admit(run, self._started, self._aborting, missing)
         if immediate is not None:
-            self._finish(run, immediate)
+            self._actions.finish(run, immediate)
             return handle
         threading.Thread(
             target=self._execute,
@@ -220,12 +199,15 @@ class MavlinkAdapter:
     def cancel(self, handle: ActionHandle) -> None:
         """End ``handle`` with "cancelled"; a motion action brakes, then holds where it stops."""
         with self._cond:
-            run = self._runs.get(handle.id)
+            run = self._actions.running(handle.id)
             if run is None:
                 return
             self._log.info("adapter.cancel", action=handle.action, handle=handle.id)
-        if self._finish(run, ActionResult("cancelled", "cancelled")) and run.kind == "motion":
-            self._flight.start_hold(f"mavlink-{self.drone}-hold")
+        if (
+            self._actions.finish(run, ActionResult("cancelled", "cancelled"))
+            and run.kind == "motion"
+        ):
+            self._flight.brakes.start_hold(f"mavlink-{self.drone}-hold")
 
     def abort(self) -> None:
         """Cancel every action, then land and disarm (on a thread of its own)."""
@@ -233,10 +215,10 @@ class MavlinkAdapter:
             if self._closed or not self._started:
                 return
             self._aborting = True
-            runs = list(self._runs.values())
+            runs = self._actions.all_running()
         self._log.info("adapter.abort", running=len(runs))
         for run in runs:
-            self._finish(run, ActionResult("cancelled", "aborted"))
+            self._actions.finish(run, ActionResult("cancelled", "aborted"))
         thread = threading.Thread(
             target=self._abort, name=f"mavlink-{self.drone}-abort", daemon=True
         )
@@ -257,54 +239,21 @@ class MavlinkAdapter:
             if self._closed:
                 return
             self._closed = True
-            runs = list(self._runs.values())
+            runs = self._actions.all_running()
             started = self._started
             abort = self._abort_thread
         for run in runs:
-            self._finish(run, ActionResult("cancelled", "adapter closed"))
+            self._actions.finish(run, ActionResult("cancelled", "adapter closed"))
         if started:
             if abort is not None:
                 abort.join(self.settings.scaled(self.settings.action_timeout_s))
-            self._land_before_close()
+            self._flight.landing.land_at_close()
             with self._cond:
                 link_ok = self.vehicle.state.link_ok
             if link_ok:
                 self.vehicle.restore_params()
         self.vehicle.close()
         self._log.info("adapter.close")
-
-    def _land_before_close(self) -> None:
-        v = self.vehicle
-        with self._cond:
-            st = v.state
-            known = st.local is not None
-            flying = known and st.armed and not v.on_ground(st)
-            link_ok = st.link_ok
-            where = v.mission_position() if known and v.origin else None
-        if not flying:
-            return
-        why = ""
-        if not link_ok:
-            why = "link lost: no HEARTBEAT from the vehicle"
-        elif not self.settings.land_on_close:
-            why = "hal.land_on_close = false"
-        else:
-            self._log.warning("adapter.close_land", note="vehicle still flying at close: landing")
-            if self._flight.abort("close_land"):
-                return
-            why = "landing at close failed (see adapter.close_land.failed)"
-        with self._cond:
-            armed = v.state.armed
-            if v.state.local is not None and v.origin is not None:
-                where = v.mission_position()
-        self._log.error(
-            "adapter.stranded",
-            reason=why,
-            armed=armed,
-            x_m=None if where is None else round(where[0], 2),
-            y_m=None if where is None else round(where[1], 2),
-            z_m=None if where is None else round(where[2], 2),
-        )
 
     # -- observation (tests, tools) ------------------------------------------
 
@@ -351,21 +300,21 @@ class MavlinkAdapter:
         except TimedOut as exc:
             # Like the simulator: a move that never arrives stops where it is.
             if run.kind == "motion":
-                self._flight.start_hold(f"mavlink-{self.drone}-hold")
+                self._flight.brakes.start_hold(f"mavlink-{self.drone}-hold")
             result = ActionResult("failed", str(exc))
         except (Failed, CommandRejected) as exc:
             result = ActionResult("failed", str(exc))
         except Exception as exc:  # a bug must still answer the caller
             self._log.exception("adapter.error", action=run.handle.action, error=repr(exc))
             result = ActionResult("failed", f"adapter error: {exc!r}")
-        self._finish(run, result)
+        self._actions.finish(run, result)
 
     def _plugin(self, run: Run, command: PluginAction) -> ActionResult:
         """A plugin action's "mavlink" implementation, on this action's thread."""
         with self._cond:
             self._flight.waiter.raise_if_over(run)
         implementation = self.plugins.implementation(command.name, self.family)
-        ctx = payload_context(self.vehicle, RunControl(self._flight, run), run)
+        ctx = payload_context(self.vehicle, RunControl(self._flight.waiter, run), run)
         result = implementation(ctx, command)
         if not isinstance(result, ActionResult):
             raise Failed(f"plugin {command.name} returned {result!r}, not an ActionResult")
@@ -373,78 +322,17 @@ class MavlinkAdapter:
 
     def _abort(self) -> None:
         try:
-            self._flight.abort()
+            self._flight.landing.land_and_disarm()
         finally:
             with self._cond:
                 self._aborting = False
             # The state it ended in (disarmed, seen in a HEARTBEAT) reaches the
             # mission before it reports: the summary must not say "armed".
-            self._publish()
-
-    def _finish(self, run: Run, result: ActionResult) -> bool:
-        """Finish ``run`` once; call its done callback outside the condition."""
-        with self._cond:
-            if run.finished:
-                return False
-            run.finished = True
-            if run.handle is not None:
-                self._runs.pop(run.handle.id, None)
-            if self._motion is run:
-                self._motion = None
-            self._cond.notify_all()
-            known = self.vehicle.state.local is not None
-            pos = self.vehicle.mission_position() if known else (math.nan,) * 3
-        if run.handle is not None:
-            self._log.info(
-                "adapter.action.end",
-                action=run.handle.action,
-                args=list(run.handle.args),
-                handle=run.handle.id,
-                status=result.status,
-                reason=result.reason,
-                duration_s=round(time.monotonic() - run.started, 3),
-                x_m=round(pos[0], 3),
-                y_m=round(pos[1], 3),
-                z_m=round(pos[2], 3),
-            )
-        if run.done is not None:
-            # Publish the state the action ended in before anyone reacts to its end
-            # (a mission that completes right after Disarm reports that sample).
-            self._publish()
-            try:
-                run.done(result)
-            except Exception as exc:
-                self._log.exception("adapter.callback_error", error=repr(exc))
-        return True
-
-    # -- telemetry -------------------------------------------------------------------
-
-    def _publish(self) -> None:
-        """Send a telemetry sample if it differs from the last one sent."""
-        with self._emit_lock:
-            with self._cond:
-                sample = self.vehicle.sample()
-                if sample is None:
-                    return
-                key = sample.state()
-                if key == self._last_key:
-                    return
-                self._last_key = key
-            callback = self._on_telemetry
-            if callback is not None:
-                try:
-                    callback(sample)
-                except Exception as exc:
-                    if type(exc).__name__ == "ActorDeadError":
-                        # The node is shutting down before us: no one listens any more.
-                        self._on_telemetry = None
-                        self._log.info("adapter.telemetry_closed", reason=repr(exc))
-                    else:
-                        self._log.exception("adapter.telemetry_error", error=repr(exc))
+            self._telemetry.publish()
 
 
 def mavlink_adapter_from_settings(
-    drone: str, settings: Mapping[str, Any], adapter_log: Any = None
+    drone: str, settings: Mapping[str, Any], adapter_log: EventLog | None = None
 ) -> MavlinkAdapter:
     """Build a :class:`MavlinkAdapter` from a drone's ``hal`` settings mapping.
 

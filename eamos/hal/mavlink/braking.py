@@ -1,22 +1,27 @@
-"""Stopping a MAVLink vehicle now, and waiting until it is at rest (cancel, Land, abort).
+"""Stopping a MAVLink vehicle now, waiting until it is at rest, and holding there.
 
 A position target at the current spot does not stop a fast vehicle (ArduCopter
 overshot 9.4 m at 5 m/s, braking at WPNAV_ACCEL), and LAND brakes gently (10 m
 on ArduCopter, 14 m on PX4).  :func:`brake_to_rest` asks the autopilot for its
 fastest documented stop (:meth:`~eamos.hal.mavlink.autopilots.Autopilot.brake`:
 PX4 a zero-velocity setpoint, ArduPilot BRAKE mode) and waits on the vehicle's
-condition until the settle window shows it at rest.
+condition until the settle window shows it at rest.  :class:`Brakes` does that for a
+cancel (then holds where the vehicle came to rest, on a thread of its own), for Land
+and for an abort.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Callable
 
-from eamos.hal.mavlink.autopilots import Controller
+from eamos.hal.mavlink.autopilots import CommandRejected, Controller
+from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.state import LinkState
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
+from eamos.hal.mavlink.waits import Ended, Failed, Run, Waiter
 
 #: ``wait(until, deadline, timeout_reason)``: the running action's wait (flight.Waiter).
 Wait = Callable[[Callable[[LinkState], bool], float, Callable[[LinkState], str]], None]
@@ -59,4 +64,62 @@ def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
     )
 
 
-__all__ = ["brake_to_rest"]
+class Brakes:
+    """Stopping the vehicle now and holding where it came to rest (cancel, timeout, Land).
+
+    A hold runs on a thread of its own (a mode change may take a second); motion
+    actions started later wait for it (:meth:`await_hold`), so it never overrides them.
+    """
+
+    def __init__(self, waiter: Waiter) -> None:
+        self.waiter = waiter
+        self.v = waiter.v
+        self.s = waiter.v.settings
+        self._pending_hold: threading.Thread | None = None
+
+    def start_hold(self, name: str) -> None:
+        """Hold where the vehicle is, on a thread (a mode change may take a second).
+
+        Motion actions started later wait for it, so the hold never overrides them.
+        """
+        thread = threading.Thread(target=self._hold, name=name, daemon=True)
+        with self.v.cond:
+            # Started under the condition: whoever sees it pending can join it.
+            self._pending_hold = thread
+            thread.start()
+
+    def await_hold(self) -> None:
+        """Wait for a hold still being set up (a motion action must not race it)."""
+        with self.v.cond:
+            hold = self._pending_hold
+        if hold is not None:
+            hold.join(self.s.scaled(self.s.brake_timeout_s) + self.waiter.confirm_s() * 3)
+
+    def brake(self, run: Run, ctl: RunControl) -> None:
+        """Stop now if flying (see :func:`brake_to_rest`)."""
+        brake_to_rest(self.v, ctl, lambda until, end, why: self.waiter.wait(run, until, end, why))
+
+    def _hold(self) -> None:
+        v = self.v
+        run = Run(None, None, "internal", time.monotonic())
+        ctl = RunControl(self.waiter, run)
+        try:
+            self.brake(run, ctl)
+            with v.cond:
+                if v.state.local is None:
+                    return
+                here = v.here_ned()
+                airborne = not v.on_ground(v.state)
+                v.commanded = v.mission_position() if v.origin else None
+            v.autopilot.hold(ctl, here, airborne)
+            v.log.info(
+                "adapter.hold",
+                north_m=round(here[0], 2),
+                east_m=round(here[1], 2),
+                down_m=round(here[2], 2),
+            )
+        except (Failed, Ended, CommandRejected) as exc:
+            v.log.warning("adapter.hold_failed", error=str(exc))
+
+
+__all__ = ["Brakes", "brake_to_rest"]

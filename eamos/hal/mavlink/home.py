@@ -10,12 +10,15 @@ reports positions metres off in its first seconds (the notes).
 from __future__ import annotations
 
 import math
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from eamos.hal.kinematics import EARTH_RADIUS_M, GeoFrame
 from eamos.hal.mavlink.estimator import verdict
 from eamos.hal.mavlink.frames import NedOrigin, ned_to_mission
 from eamos.hal.mavlink.state import LinkState
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 
 class HomeOwner(Protocol):
@@ -26,7 +29,7 @@ class HomeOwner(Protocol):
     origin_provisional: bool
     flown: bool
     geo: GeoFrame | None
-    log: Any
+    log: EventLog
 
 
 def capture_home(self: HomeOwner, ground: bool = False) -> None:

@@ -1,8 +1,9 @@
 """Setting the drone type's speeds on a vehicle, and putting the old values back.
 
 :class:`ParamKeeper` carries out :func:`eamos.hal.mavlink.params.speed_plan`
-over a :class:`~eamos.hal.mavlink.link.MavlinkLink` (PARAM_REQUEST_READ, then
-PARAM_SET confirmed by the PARAM_VALUE echo), remembers what it found and
+over a :class:`~eamos.hal.mavlink.link.MavlinkLink` (the parameter protocol,
+:mod:`~eamos.hal.mavlink.param_protocol`: PARAM_REQUEST_READ, then PARAM_SET
+confirmed by the PARAM_VALUE echo), remembers what it found and
 writes it back at :meth:`ParamKeeper.restore`.  Every step is logged; the
 values are speeds, never secrets.
 """
@@ -10,8 +11,9 @@ values are speeds, never secrets.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from eamos.hal.mavlink.param_protocol import ParamProtocol
 from eamos.hal.mavlink.params import (
     MAV_PARAM_TYPE_REAL32,
     ParamChange,
@@ -23,13 +25,15 @@ from eamos.hal.mavlink.params import (
 if TYPE_CHECKING:
     from eamos.hal.mavlink.link import MavlinkLink
     from eamos.hal.mavlink.settings import MavlinkSettings
+    from eamos.logs import EventLog
 
 
 class ParamKeeper:
     """The parameters the adapter changed on one vehicle (see module docstring)."""
 
-    def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: Any) -> None:
+    def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: EventLog) -> None:
         self.link = link
+        self.params = ParamProtocol(link)
         self.settings = settings
         self.log = log
         self.changes: list[ParamChange] = []
@@ -41,7 +45,7 @@ class ParamKeeper:
         """Read ``name`` (``value`` None) or set it; what the vehicle answers, or None."""
         s = self.settings
         write = None if value is None else (to_wire(value, param_type, self._bytewise), param_type)
-        answer = self.link.param_exchange(
+        answer = self.params.request(
             name,
             write,
             timeout_s=s.command_timeout_s,

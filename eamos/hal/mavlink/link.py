@@ -1,4 +1,4 @@
-"""One MAVLink connection to one vehicle: transport, reader thread, periodic sender.
+"""One MAVLink connection to one vehicle: transport, reader thread, sends.
 
 :class:`MavlinkLink` owns a pymavlink connection.  Its reader thread is the
 only one that receives: it blocks on the socket (``select`` with a short
@@ -8,10 +8,14 @@ all waiters.  Everything that waits for the vehicle does so with
 ``cond.wait_for(predicate, timeout)`` against a ``time.monotonic()``
 deadline; nothing polls.
 
-Sends from any thread go through one lock.  A ticker thread runs periodic
-jobs (the 1 Hz GCS heartbeat, and whatever the adapter registers with
-:meth:`MavlinkLink.every`, e.g. PX4's setpoint stream) paced by
-``Event.wait`` on the stop event.
+Sends from any thread go through one lock.  A ticker thread
+(:class:`~eamos.hal.mavlink.ticker.Ticker`) runs periodic jobs (the 1 Hz GCS
+heartbeat, and whatever the adapter registers with :meth:`MavlinkLink.every`,
+e.g. PX4's setpoint stream) paced by ``Event.wait`` on the stop event.  The
+exchanges on top of the link are their own modules: the command protocol
+(:mod:`~eamos.hal.mavlink.command_protocol`), the parameter protocol
+(:mod:`~eamos.hal.mavlink.param_protocol`); so is signing
+(:class:`~eamos.hal.mavlink.signing.LinkSigning`).
 
 Heartbeat loss is tracked here: when no HEARTBEAT came for more than
 ``heartbeat_timeout_s`` the state's ``link_ok`` turns False (and waiters
@@ -27,11 +31,10 @@ import re
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
-from eamos.hal.mavlink.signing import radio_status_only, refresh_timestamp, signing_timestamp
+from eamos.hal.mavlink.signing import LinkSigning
 from eamos.hal.mavlink.state import (
     MAV_AUTOPILOT_INVALID,
     MAV_RESULT_NAMES,
@@ -42,13 +45,11 @@ from eamos.hal.mavlink.state import (
     StateTracker,
     result_name,
 )
+from eamos.hal.mavlink.ticker import EventCallback, Ticker
 
 #: MAVLink ids used by the link (numbers rather than pymavlink attributes keep
 #: this module importable without touching pymavlink's dialect machinery).
 MAV_STATE_ACTIVE = 4
-MAV_RESULT_ACCEPTED = 0
-MAV_RESULT_TEMPORARILY_REJECTED = 1
-MAV_RESULT_IN_PROGRESS = 5
 MAV_SYS_STATUS_PREARM_CHECK = 0x10000000
 
 
@@ -177,17 +178,6 @@ def _tcp_client(
     )
 
 
-EventCallback = Callable[[str, dict[str, Any]], None]
-
-
-@dataclass
-class _Periodic:
-    period_s: float
-    job: Callable[[], None]
-    name: str
-    due: float = 0.0
-
-
 class MavlinkLink:
     """A pymavlink connection with its reader and ticker threads (see module docstring)."""
 
@@ -219,7 +209,7 @@ class MavlinkLink:
         self._conn: Any = None
         self._mavutil: ModuleType | None = None
         self._threads: list[threading.Thread] = []
-        self._jobs: list[_Periodic] = []
+        self._ticker = Ticker(self._stop, self._on_event)
         self._tracker = StateTracker(
             self.state,
             source_system=source_system,
@@ -229,14 +219,13 @@ class MavlinkLink:
         )
         self._boot = time.monotonic()
         self._transport_down = False
-        self._signing_key = signing_key
-        self._signing_setup = signing_setup and signing_key is not None
+        self._signing = None if signing_key is None else LinkSigning(signing_key, signing_setup)
 
     # -- opening and closing -------------------------------------------------
 
     def every(self, period_s: float, job: Callable[[], None], name: str) -> None:
         """Run ``job`` every ``period_s`` on the ticker thread (register before :meth:`open`)."""
-        self._jobs.append(_Periodic(period_s, job, name))
+        self._ticker.every(period_s, job, name)
 
     def open(self, deadline: float) -> None:
         """Open the transport and start the threads.
@@ -261,9 +250,10 @@ class MavlinkLink:
                 if self._stop.wait(min(REDIAL_S, max(0.0, deadline - time.monotonic()))):
                     raise LinkError(f"{self.connection}: closed while connecting") from exc
         self.every(1.0, self._send_gcs_heartbeat, "gcs-heartbeat")
-        if self._signing_key is not None:
-            self._start_signing(self._signing_key)
-        for target, name in ((self._read_loop, "reader"), (self._tick_loop, "ticker")):
+        if self._signing is not None:
+            self._signing.install(self._conn)  # sign what we send, refuse what is unsigned
+            self.every(1.0, self._signing_tick, "signing")
+        for target, name in ((self._read_loop, "reader"), (self._ticker.run, "ticker")):
             thread = threading.Thread(target=target, name=f"mavlink-{name}", daemon=True)
             self._threads.append(thread)
             thread.start()
@@ -315,136 +305,15 @@ class MavlinkLink:
                 # A serial device that vanished; the reader reports transport errors.
                 self._on_event("link.send_error", {"message": message, "error": repr(exc)})
 
-    def command_long(
-        self,
-        command: int,
-        params: tuple[float, ...],
-        *,
-        timeout_s: float,
-        retries: int,
-        abandon: Callable[[], bool] = lambda: False,
-        frame: int | None = None,
-    ) -> int | None:
-        """Send COMMAND_LONG and return the MAV_RESULT of its COMMAND_ACK.
-
-        With ``frame`` it is sent as COMMAND_INT in that MAV_FRAME instead: params 5
-        and 6 (x, y: latitude and longitude in degrees) travel as degrees * 1e7, so a
-        position keeps its centimetres (COMMAND_LONG's float32 loses ~0.4 m).
-
-        Tries ``retries`` times, waiting ``timeout_s`` for an ack each time
-        (``confirmation`` counts the tries, as the protocol asks).  Returns
-        None when no ack came, or early when ``abandon()`` (evaluated under
-        the condition) turns true.  MAV_RESULT_IN_PROGRESS extends the wait.
-        """
-        if len(params) != 7:
-            raise ValueError("COMMAND_LONG takes 7 params")
-        for attempt in range(retries):
-            with self.cond:
-                seen = self.state.ack_serial
-            system, component = self.target
-            if frame is None:
-                self.send("command_long", system, component, command, attempt, *params)
-            else:
-                p = params
-                self.send(
-                    "command_int",
-                    system,
-                    component,
-                    frame,
-                    command,
-                    0,  # current
-                    0,  # autocontinue
-                    *p[:4],
-                    round(p[4] * 1e7),
-                    round(p[5] * 1e7),
-                    p[6],
-                )
-            deadline = time.monotonic() + timeout_s
-            while True:
-                with self.cond:
-
-                    def answered(seen: int = seen) -> bool:
-                        return (
-                            abandon()
-                            or self.state.closed
-                            or self.state.ack_since(command, seen) is not None
-                        )
-
-                    self.cond.wait_for(answered, timeout=max(0.0, deadline - time.monotonic()))
-                    result = self.state.ack_since(command, seen)
-                    if result is None:
-                        if abandon() or self.state.closed:
-                            return None
-                        break  # no ack: try again
-                    if result != MAV_RESULT_IN_PROGRESS:
-                        return result
-                    seen = self.state.ack_serial
-                    deadline = time.monotonic() + timeout_s
-        return None
-
-    def param_exchange(
-        self,
-        name: str,
-        write: tuple[float, int] | None,
-        *,
-        timeout_s: float,
-        retries: int,
-        abandon: Callable[[], bool] = lambda: False,
-    ) -> tuple[float, int] | None:
-        """Read a parameter (``write`` None: PARAM_REQUEST_READ) or set it (PARAM_SET with
-        ``(raw wire value, MAV_PARAM_TYPE)``); the (raw value, type) of the PARAM_VALUE
-        that answers, or None when none came after ``retries`` tries."""
-        encoded = name.encode()
-        for _ in range(retries):
-            with self.cond:
-                seen = self.state.param_serial
-            system, component = self.target
-            if write is None:
-                self.send("param_request_read", system, component, encoded, -1)
-            else:
-                self.send("param_set", system, component, encoded, write[0], write[1])
-
-            def answered(seen: int = seen) -> bool:
-                entry = self.state.params.get(name)
-                return abandon() or self.state.closed or (entry is not None and entry[2] > seen)
-
-            with self.cond:
-                self.cond.wait_for(answered, timeout=timeout_s)
-                entry = self.state.params.get(name)
-                if entry is not None and entry[2] > seen:
-                    return entry[0], entry[1]
-                if abandon() or self.state.closed:
-                    return None
-        return None
-
-    def _start_signing(self, key: bytes) -> None:
-        """Sign what we send, refuse what is not signed with ``key`` (signing.py)."""
-        conn = self._conn
-
-        def allow_unsigned(mav: Any, msg_id: int) -> bool:
-            # Provisioning: the vehicle signs only once it has the key.
-            provisioning = self._signing_setup and mav.signing.goodsig_count == 0
-            return provisioning or radio_status_only(mav, msg_id)
-
-        conn.setup_signing(key, sign_outgoing=True, allow_unsigned_callback=allow_unsigned)
-        self.every(1.0, self._signing_tick, "signing")
-
     def _signing_tick(self) -> None:
-        conn = self._conn
-        if conn is None:
+        conn, signing = self._conn, self._signing
+        if conn is None or signing is None:
             return
         with self._send_lock:
-            refresh_timestamp(conn.mav)
-            pending = self._signing_setup and conn.mav.signing.goodsig_count == 0
-        if pending and self.state.system_id is not None and self._signing_key is not None:
+            pending = signing.refresh(conn.mav)
+        if pending and self.state.system_id is not None:
             system, component = self.target
-            self.send(
-                "setup_signing",
-                system,
-                component,
-                list(self._signing_key),
-                signing_timestamp(time.time()),
-            )
+            self.send("setup_signing", system, component, *signing.setup_fields(time.time()))
             self._on_event("link.signing_setup", {"system_id": system})
 
     def _send_gcs_heartbeat(self) -> None:
@@ -452,25 +321,6 @@ class MavlinkLink:
         self.send("heartbeat", MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, 0, 0, MAV_STATE_ACTIVE)
 
     # -- threads ---------------------------------------------------------------
-
-    def _tick_loop(self) -> None:
-        now = time.monotonic()
-        for job in self._jobs:
-            job.due = now
-        while not self._stop.is_set():
-            now = time.monotonic()
-            for job in self._jobs:
-                if now >= job.due:
-                    try:
-                        job.job()
-                    except Exception as exc:  # a periodic job must not end the others
-                        self._on_event("link.job_error", {"job": job.name, "error": repr(exc)})
-                    # Keep the cadence; after a stall, restart from now instead of bursting.
-                    job.due = max(job.due + job.period_s, now)
-            wait = min(job.due for job in self._jobs) - time.monotonic()
-            # The pacing wait of the periodic streams; close() ends it at once.
-            if self._stop.wait(max(0.0, wait)):
-                return
 
     def _read_loop(self) -> None:
         while not self._stop.is_set():
@@ -515,9 +365,7 @@ class MavlinkLink:
 
 
 __all__ = [
-    "MAV_RESULT_ACCEPTED",
     "MAV_RESULT_NAMES",
-    "MAV_RESULT_TEMPORARILY_REJECTED",
     "MAV_SYS_STATUS_PREARM_CHECK",
     "GlobalPosition",
     "LinkError",

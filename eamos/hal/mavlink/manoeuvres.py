@@ -30,7 +30,8 @@ import math
 import time
 
 from eamos.hal.api import ActionResult
-from eamos.hal.mavlink.flight import Flight, RunControl
+from eamos.hal.mavlink.control import RunControl
+from eamos.hal.mavlink.flight import Flight
 from eamos.hal.mavlink.frames import mission_to_ned
 from eamos.hal.mavlink.link import LinkState
 from eamos.hal.mavlink.waits import Failed, Run
@@ -91,10 +92,10 @@ def perform_manoeuvre(flight: Flight, run: Run) -> ActionResult:
     raises like :meth:`~eamos.hal.mavlink.flight.Flight.perform`."""
     command = run.command
     assert command is not None
-    ctl = RunControl(flight, run)
+    ctl = RunControl(flight.waiter, run)
     with flight.v.cond:
         flight.waiter.raise_if_over(run)
-    flight.await_hold()  # a cancel's brake and hold finish first
+    flight.brakes.await_hold()  # a cancel's brake and hold finish first
     if isinstance(command, SetSpeed):
         return set_speed(flight, ctl, command.speed_m_s)
     _need_flying(flight)
@@ -126,7 +127,7 @@ def _set(flight: Flight, name: str, value: float) -> None:
 def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
     """Back above home at the current height, land there and disarm (the autopilot's RTL)."""
     v, s, waiter = flight.v, flight.s, flight.waiter
-    flight.brake(run, ctl)  # at rest first: RTL's own turn would overshoot at speed
+    flight.brakes.brake(run, ctl)  # at rest first: RTL's own turn would overshoot at speed
     with v.cond:
         height = v.mission_position()[2]
     _set(flight, *v.autopilot.return_altitude(height))
@@ -151,7 +152,7 @@ def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
     with v.cond:
         v.stop_steering()
         v.commanded = None
-        flight.armed_by_us = False
+        flight.arming.armed_by_us = False
     return ActionResult("ok")
 
 

@@ -21,13 +21,18 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, TypeVar
 
-from eamos.hal.mavlink.flight import RunControl
+from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.frames import Vector
 from eamos.hal.mavlink.link import LinkState
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.hal.mavlink.waits import Run, Waiter
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -38,7 +43,7 @@ class PayloadContext:
     #: ``"px4"`` or ``"ardupilot"``.
     autopilot: str
     #: The adapter log (``log.info("adapter.<event>", **fields)``).
-    log: Any
+    log: EventLog
     _vehicle: MavlinkVehicle
     _control: RunControl
     _waiter: Waiter
@@ -49,7 +54,7 @@ class PayloadContext:
         CommandRejected (with the vehicle's STATUSTEXT) or Failed (no COMMAND_ACK)."""
         self._control.command(command, params)
 
-    def read(self, what: Callable[[LinkState], Any]) -> Any:
+    def read(self, what: Callable[[LinkState], T]) -> T:
         """``what(state)`` evaluated on the vehicle's state as last heard (consistently)."""
         with self._vehicle.cond:
             return what(self._vehicle.state)

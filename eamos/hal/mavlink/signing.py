@@ -17,6 +17,7 @@ adapter (``hal.signing_key = "<path>"``) and ``eamos-sim-vehicle``
 Provisioning (``hal.signing_setup = true``): the adapter sends SETUP_SIGNING
 with the key to the vehicle, and accepts the vehicle's unsigned messages only
 until the first correctly signed one arrives.  The key itself is never logged.
+:class:`LinkSigning` applies these rules to the adapter's link.
 """
 
 from __future__ import annotations
@@ -106,9 +107,45 @@ def create_signing_key(out: Path, force: bool = False) -> Path:
     return path
 
 
+class LinkSigning:
+    """The signing rules on one link: sign what goes out, refuse what comes in unsigned,
+    keep the outgoing timestamp up with the clock, provision a vehicle without the key.
+
+    ``setup`` (``hal.signing_setup``): the vehicle's unsigned messages are accepted, and
+    SETUP_SIGNING is sent to it, until its first correctly signed message arrives.
+    """
+
+    def __init__(self, key: bytes, setup: bool) -> None:
+        self._key = key
+        self.setup = setup
+
+    def install(self, conn: Any) -> None:
+        """Turn signing on for a pymavlink connection ``conn``."""
+        conn.setup_signing(self._key, sign_outgoing=True, allow_unsigned_callback=self._unsigned)
+
+    def _unsigned(self, mav: Any, msg_id: int) -> bool:
+        # Provisioning: the vehicle signs only once it has the key.
+        return self.provisioning(mav) or radio_status_only(mav, msg_id)
+
+    def provisioning(self, mav: Any) -> bool:
+        """Whether the vehicle still needs the key (no correctly signed message from it yet)."""
+        return self.setup and mav.signing.goodsig_count == 0
+
+    def refresh(self, mav: Any) -> bool:
+        """Move the outgoing timestamp up to the clock (under the link's send lock);
+        whether the vehicle still needs the key."""
+        refresh_timestamp(mav)
+        return self.provisioning(mav)
+
+    def setup_fields(self, wall_s: float) -> tuple[list[int], int]:
+        """SETUP_SIGNING's ``secret_key`` and ``initial_timestamp`` at wall-clock ``wall_s``."""
+        return list(self._key), signing_timestamp(wall_s)
+
+
 __all__ = [
     "MSG_RADIO_STATUS",
     "SIGNING_KEY_FILE",
+    "LinkSigning",
     "SigningKeyError",
     "create_signing_key",
     "parse_key",

@@ -10,9 +10,12 @@ zero velocity (velocity only): "stop now", PX4's fastest stop in OFFBOARD
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
 from eamos.hal.mavlink.frames import Vector
+
+if TYPE_CHECKING:
+    from eamos.hal.mavlink.link import MavlinkLink
 
 MAV_FRAME_LOCAL_NED = 1
 MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 6
@@ -28,7 +31,7 @@ TYPE_MASK_YAW_IGNORE = 0x0400
 GuidedTarget = tuple[str, Vector]
 
 
-def send_position(link: Any, target: Vector, yaw_deg: float | None = None) -> None:
+def send_position(link: MavlinkLink, target: Vector, yaw_deg: float | None = None) -> None:
     """SET_POSITION_TARGET_LOCAL_NED, position only (and the compass heading ``yaw_deg``
     if given: PX4 turns to an OFFBOARD setpoint's yaw), MAV_FRAME_LOCAL_NED."""
     system, component = link.target
@@ -52,7 +55,7 @@ def send_position(link: Any, target: Vector, yaw_deg: float | None = None) -> No
     )
 
 
-def send_global(link: Any, point: Vector) -> None:
+def send_global(link: MavlinkLink, point: Vector) -> None:
     """SET_POSITION_TARGET_GLOBAL_INT (lat, lon in degrees, altitude above home)."""
     system, component = link.target
     lat, lon, alt = point
@@ -70,7 +73,7 @@ def send_global(link: Any, point: Vector) -> None:
     )
 
 
-def send_stop(link: Any) -> None:
+def send_stop(link: MavlinkLink) -> None:
     """SET_POSITION_TARGET_LOCAL_NED with a zero velocity (velocity only): stop now."""
     system, component = link.target
     link.send(

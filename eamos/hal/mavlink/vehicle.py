@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
+from eamos.hal.mavlink.command_protocol import CommandProtocol
 from eamos.hal.mavlink.estimator import (
     MSG_EKF_STATUS_REPORT,
     MSG_ESTIMATOR_STATUS,
@@ -53,6 +54,7 @@ from eamos.hal.settings import field_error
 
 if TYPE_CHECKING:
     from eamos.hal.mavlink.settings import MavlinkSettings
+    from eamos.logs import EventLog
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_LANDED_STATE_ON_GROUND = 1
@@ -99,7 +101,7 @@ def _signing_key(settings: MavlinkSettings) -> bytes | None:
 class MavlinkVehicle:
     """An autopilot behind a :class:`MavlinkLink`, seen in the mission frame (module docstring)."""
 
-    def __init__(self, drone: str, settings: MavlinkSettings, log: Any) -> None:
+    def __init__(self, drone: str, settings: MavlinkSettings, log: EventLog) -> None:
         self.drone = drone
         self.settings = settings
         self.log = log
@@ -114,12 +116,13 @@ class MavlinkVehicle:
             heartbeat_timeout_s=settings.heartbeat_timeout_s,
             on_event=self._on_link_event,
         )
+        self.commands = CommandProtocol(self.link)
         # One condition for the link's state and everything below, so any
         # predicate sees the vehicle and the adapter's bookkeeping at once.
         self.cond = self.link.cond
         self.state: LinkState = self.link.state
         # Serializes vehicle-changing steps (commands, targets) between the
-        # action, hold and abort threads (see mavlink_flight.RunControl).
+        # action, hold and abort threads (see control.RunControl).
         self.cmd_lock = threading.Lock()
         self.autopilot: Autopilot = autopilot_named("px4")  # replaced by connect()
         self.origin: NedOrigin | None = None  # home, in the vehicle's NED frame
@@ -138,7 +141,7 @@ class MavlinkVehicle:
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
         self._was_armed = False
-        self._last_position_key: tuple[Any, ...] | None = None
+        self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
 
@@ -204,7 +207,7 @@ class MavlinkVehicle:
             ):
                 continue  # the other autopilot's estimator report
             rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
-            result = self.link.command_long(
+            result = self.commands.request(
                 MAV_CMD_SET_MESSAGE_INTERVAL,
                 (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
                 timeout_s=s.command_timeout_s,

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback
 from eamos.hal.kinematics import GeoFrame, Quadcopter
@@ -45,6 +45,9 @@ from eamos.program.uniform import (
     Yaw,
     target_xyz,
 )
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 #: Simulated seconds per model step.
 SIM_DT_S = 0.02
@@ -95,7 +98,7 @@ class ActionRules:
     drone: str
     settings: SimSettings
     plugins: PluginRegistry
-    _log: Any
+    _log: EventLog
     _frame: GeoFrame
     _model: Quadcopter
     _pilot: ScriptedPilot

@@ -81,7 +81,7 @@ from eamos.hal.api import (
 from eamos.hal.kinematics import VehicleState
 from eamos.hal.sim.core import SIM_DT_S, Finished, SimCore
 from eamos.hal.sim.settings import SimSettings, Waypoint
-from eamos.logs import make_logger
+from eamos.logs import EventLog, make_logger
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
 
@@ -131,7 +131,7 @@ class SimAdapter:
         self,
         drone: str,
         settings: SimSettings | None = None,
-        adapter_log: Any = None,
+        adapter_log: EventLog | None = None,
         plugins: PluginRegistry = EMPTY_PLUGINS,
     ) -> None:
         """A simulated ``drone``; ``plugins``: the plugin actions it runs (their "sim" code)."""
@@ -366,7 +366,7 @@ class SimAdapter:
 
 
 def sim_adapter_from_settings(
-    drone: str, settings: Mapping[str, Any], adapter_log: Any = None
+    drone: str, settings: Mapping[str, Any], adapter_log: EventLog | None = None
 ) -> SimAdapter:
     """Build a :class:`SimAdapter` from a drone's ``hal`` settings mapping.
 

@@ -34,7 +34,7 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING
 
 from eamos.hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
 from eamos.hal.kinematics import Quadcopter, VehicleState
@@ -52,6 +52,9 @@ from eamos.hal.sim.telemetry import EPS_S, TelemetrySampler
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import Command
 
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
+
 
 class SimCore(ActionRules):
     """One simulated quadcopter, advanced step by step by its owner (see module doc).
@@ -63,7 +66,7 @@ class SimCore(ActionRules):
         self,
         drone: str,
         settings: SimSettings,
-        log: Any,
+        log: EventLog,
         clock: Callable[[], float] = time.time,
         plugins: PluginRegistry = EMPTY_PLUGINS,
     ) -> None:

@@ -5,17 +5,20 @@ Split from :mod:`eamos.hal.sim.core` (see :mod:`eamos.hal.sim.adapter` for its r
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 from eamos.hal.kinematics import Quadcopter
 from eamos.hal.sim.settings import SimSettings, Waypoint
 from eamos.hal.sim.telemetry import EPS_S
 
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
+
 
 class ScriptedPilot:
     """The scripted pilot: flies its waypoints in order, holding at each (a hand-flown drone)."""
 
-    def __init__(self, path: tuple[Waypoint, ...], settings: SimSettings, log: Any) -> None:
+    def __init__(self, path: tuple[Waypoint, ...], settings: SimSettings, log: EventLog) -> None:
         self._path = path
         self._settings = settings
         self._log = log

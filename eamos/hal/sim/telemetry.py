@@ -7,11 +7,14 @@ telemetry samples and ``adapter.position`` lines.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 from eamos.hal.api import POSITION_LOG_HZ, Telemetry
 from eamos.hal.kinematics import GeoFrame, VehicleState
 from eamos.hal.sim.settings import SimSettings
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 #: Simulated seconds between position log lines.
 POSITION_LOG_PERIOD_S = 1.0 / POSITION_LOG_HZ
@@ -27,7 +30,7 @@ class TelemetrySampler:
     """
 
     def __init__(
-        self, drone: str, settings: SimSettings, log: Any, clock: Callable[[], float]
+        self, drone: str, settings: SimSettings, log: EventLog, clock: Callable[[], float]
     ) -> None:
         self._drone = drone
         self._period_s = 1.0 / settings.telemetry_hz
@@ -35,14 +38,14 @@ class TelemetrySampler:
         self._log = log
         self._clock = clock
         self._next_sample_s = 0.0
-        self._last_sample_key: tuple[Any, ...] | None = None
+        self._last_sample_key: tuple[float | bool, ...] | None = None
         self._next_position_log_s = 0.0
-        self._last_position_key: tuple[Any, ...] | None = None
+        self._last_position_key: tuple[float | bool, ...] | None = None
         # The raw state the last sample and the last position line showed
         # (for settled(); None until the first of each).
-        self._sampled_raw: tuple[Any, ...] | None = None
+        self._sampled_raw: tuple[float | bool, ...] | None = None
         self._sampled_battery: float | None = None
-        self._logged_raw: tuple[Any, ...] | None = None
+        self._logged_raw: tuple[float | bool, ...] | None = None
 
     def first(self, st: VehicleState) -> Telemetry:
         """The sample sent at start; the next one is due one period later."""
@@ -70,7 +73,7 @@ class TelemetrySampler:
             landed=st.landed,
         )
 
-    def settled(self, raw: tuple[Any, ...], shown_battery_pct: float) -> bool:
+    def settled(self, raw: tuple[float | bool, ...], shown_battery_pct: float) -> bool:
         """True when the last sample and position line already show this state.
 
         ``raw`` is ``(x_m, y_m, z_m, armed, landed)``, ``shown_battery_pct`` the

@@ -25,7 +25,7 @@ import random
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter
 from eamos.hal.sim.core import SIM_DT_S
@@ -45,6 +45,9 @@ from eamos.hal.sitl.wire import (
     AutopilotName,
     VehicleOptions,
 )
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 #: A parameter: its value and MAV_PARAM_TYPE.
 Param = tuple[float, int]
@@ -238,7 +241,9 @@ class ParamTable:
     """The vehicle's parameters: PARAM_REQUEST_LIST/READ and PARAM_SET, each answered with
     PARAM_VALUE in the personality's wire encoding."""
 
-    def __init__(self, personality: Personality, initial: Params, log: Any, send: Send) -> None:
+    def __init__(
+        self, personality: Personality, initial: Params, log: EventLog, send: Send
+    ) -> None:
         self._p = personality
         self._params: Params = dict(initial)
         self._log = log
@@ -288,7 +293,7 @@ class VehicleCore:
         self,
         options: VehicleOptions,
         personality: Personality,
-        log: Any,
+        log: EventLog,
         send: Send,
         wall: Callable[[], float] = time.monotonic,
     ) -> None:
@@ -324,7 +329,7 @@ class VehicleCore:
         self._text_id = 0
         self.params = ParamTable(personality, personality.initial_params(o), log, send)
         self._next_position_log = 0.0
-        self._last_position_key: tuple[Any, ...] | None = None
+        self._last_position_key: tuple[float | bool | str, ...] | None = None
         identity = Identity(
             personality.mav_autopilot,
             personality.capabilities,

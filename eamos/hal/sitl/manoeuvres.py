@@ -24,9 +24,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from eamos.hal.kinematics import Quadcopter
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 
 class VehicleCore(Protocol):
@@ -34,7 +37,7 @@ class VehicleCore(Protocol):
 
     model: Quadcopter
     t: float
-    log: Any
+    log: EventLog
 
     def steer(self, x: float, y: float, z: float) -> None:
         """A new position target."""

@@ -19,10 +19,13 @@ Both autopilots answer the camera protocol on the autopilot's own component
 from __future__ import annotations
 
 import math
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from eamos.hal.kinematics import GeoFrame, Quadcopter
 from eamos.hal.sitl.wire import ACCEPTED, DENIED, FAILED, param_int
+
+if TYPE_CHECKING:
+    from eamos.logs import EventLog
 
 #: How fast the gimbal turns (deg/s), and its pitch limits (degrees).
 GIMBAL_RATE_DPS = 90.0
@@ -35,7 +38,7 @@ class Vehicle(Protocol):
     model: Quadcopter
     frame: GeoFrame
     t: float
-    log: Any
+    log: EventLog
 
     def send(self, message: str, *args: Any) -> None:
         """Send one MAVLink message."""

@@ -1,0 +1,243 @@
+"""How a drone runtime's parts are built, each from the program and the settings (start-up).
+
+:class:`RuntimeStartup` builds them in the order they need each other: the
+Out-Bridge first (the board and the executive send through it), the telemetry
+board, the uniform-API actor over the adapter (an adapter that cannot start
+stops the start), one node actor per native node, the executive; then every
+node gets its links, and the In-Bridge connects last, once every actor a
+message may be for exists.  :class:`~.runtime.DroneRuntime` keeps what it
+builds (and stops what was built when a step fails).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import pykka
+import zmq
+
+from ..hal.api import Adapter, AdapterError
+from ..logs import DroneLogs
+from ..net import wire
+from ..net.bridges import InBridge
+from ..net.keys import FleetKeys, KeysError, plain_refusal
+from ..net.link import Delivered, Link, LinkSettings
+from ..program.format import DroneProgram
+from .board import LocalSample, TelemetryBoard
+from .dispatch import Dispatcher
+from .errors import DroneRuntimeError
+from .executive import DroneExecutive
+from .failure import FailurePolicy
+from .inbound import InRouter
+from .logic import program_wiring
+from .node import Links, MissionNode, Wire
+from .outbox import Outbox
+from .uniform_api import UniformAPI, UniformSpace, answers_at_once, start_uniform_api
+from .wiring import subscriptions, watched_peers
+
+__all__ = ["NetSettings", "RuntimeStartup"]
+
+
+@dataclass(frozen=True)
+class NetSettings:
+    """Where this participant binds its Out-Bridge, where its peers' are, and how to secure it.
+
+    ``keys`` (from ``eamos keys``) makes every link CURVE-encrypted and lets in
+    only the fleet.  Leaving them out asks for plain sockets, which are refused
+    unless every endpoint is local (loopback, ipc, inproc): development only.
+    (A drone config must also say ``plain = true``; see :mod:`eamos.config`.)
+    """
+
+    bind: str
+    peers: Mapping[str, str]
+    keys: FleetKeys | None = None
+    link: LinkSettings = field(default_factory=LinkSettings)
+
+    def refusal(self, me: str) -> str | None:
+        """Why these settings may not be used by participant ``me`` (None: fine)."""
+        if self.keys is None:
+            return plain_refusal([self.bind, *(e for n, e in self.peers.items() if n != me)])
+        if self.keys.me != me:
+            return f"the keys are {self.keys.me}'s, not {me}'s"
+        missing = self.keys.missing(n for n in self.peers if n != me)
+        if missing:
+            return f"the fleet keys have no public key for {', '.join(missing)}"
+        return None
+
+
+class RuntimeStartup:
+    """Builds the parts of one drone's runtime (module docstring), one method per part.
+
+    ``ground_handler`` is set on the ground station (it receives the fleet's reports
+    and follows every drone's heartbeats); ``extra_topics`` are subscribed besides the
+    program's; ``battery_reserve_pct`` is the floor below which a Try's Body fails.
+    """
+
+    def __init__(
+        self,
+        program: DroneProgram,
+        adapter: Adapter,
+        net: NetSettings,
+        logs: DroneLogs,
+        failures: FailurePolicy,
+        context: zmq.Context[Any],
+        *,
+        ground_handler: Callable[[Delivered], None] | None = None,
+        extra_topics: tuple[bytes, ...] = (),
+        battery_reserve_pct: float | None = None,
+    ) -> None:
+        self.program = program
+        self.drone = program.drone
+        self.adapter = adapter
+        self.net = net
+        self.logs = logs
+        self.failures = failures
+        self.context = context
+        self.ground_handler = ground_handler
+        self.extra_topics = extra_topics
+        self.battery_reserve_pct = battery_reserve_pct
+
+    def check_settings(self) -> None:
+        """Refuse network settings this drone may not use (plain sockets off-host, wrong keys)."""
+        refusal = self.net.refusal(self.drone)
+        if refusal is not None:
+            raise DroneRuntimeError(f"{self.drone}: {refusal}")
+
+    def open_link(self) -> Link:
+        """Bind the Out-Bridge (the in-bridge connects last, once every actor exists)."""
+        try:
+            return Link(
+                self.context,
+                self.drone,
+                self.program.mission_id,
+                self.net.bind,
+                self.logs.mission,
+                keys=self.net.keys,
+                settings=self.net.link,
+            )
+        except (zmq.ZMQError, KeysError) as exc:
+            raise DroneRuntimeError(
+                f"cannot bind the out-bridge at {self.net.bind}: {exc}"
+            ) from exc
+
+    def outbox(self, link: Link) -> Outbox:
+        """The Out-Bridge as the actors see it."""
+        return Outbox(link, self.drone, self.program.mission_id, self.logs.mission)
+
+    def services(self) -> Dispatcher:
+        """The telemetry board's dispatcher (one actor: one worker)."""
+        return Dispatcher(workers=1, name=f"eamos-{self.drone}-services")
+
+    def start_board(self, services: Dispatcher, outbox: Outbox) -> pykka.ActorRef[TelemetryBoard]:
+        """The telemetry board, sending this drone's samples through ``outbox``."""
+        return TelemetryBoard.start(
+            services, self.drone, outbox, self.program.mission_id, self.failures
+        )
+
+    def uniform_space(self) -> UniformSpace:
+        """The uniform API's bookkeeping over the adapter."""
+        return UniformSpace(self.adapter, self.logs.uniform)
+
+    def start_uniform_api(
+        self, space: UniformSpace, board: pykka.ActorRef[TelemetryBoard]
+    ) -> tuple[pykka.ActorRef[UniformAPI], AdapterError | None]:
+        """Start the adapter behind the uniform-API actor (its samples go to ``board``);
+        the actor, and the adapter's error when it could not start."""
+        return start_uniform_api(space, lambda sample: board.tell(LocalSample(sample)))
+
+    def node_dispatcher(self) -> Dispatcher:
+        """The node actors' dispatcher (the executive runs on it too)."""
+        return Dispatcher(workers=2, name=f"eamos-{self.drone}")
+
+    def start_nodes(
+        self, dispatcher: Dispatcher, into: dict[str, pykka.ActorRef[MissionNode]]
+    ) -> None:
+        """One node actor per native node, into ``into`` (not wired yet: see :meth:`wire_nodes`)."""
+        for key, w in program_wiring(self.program).items():
+            into[key] = MissionNode.start(
+                dispatcher,
+                w.spec,
+                w.routes,
+                w.entry,
+                w.loop,
+                self.drone,
+                self.logs.mission,
+                w.begin_kind,
+                battery_floor_pct=self.battery_reserve_pct,
+            )
+
+    def start_executive(
+        self,
+        dispatcher: Dispatcher,
+        nodes: dict[str, pykka.ActorRef[MissionNode]],
+        outbox: Outbox,
+        to_ground: Callable[[wire.Message], None],
+    ) -> pykka.ActorRef[DroneExecutive]:
+        """The executive, on the nodes' dispatcher: their news (LazyMail) then wakes no
+        other thread."""
+        return DroneExecutive.start(
+            dispatcher,
+            self.program,
+            dict(nodes),
+            outbox,
+            to_ground,
+            self.logs.mission,
+            self.failures,
+        )
+
+    def wire_nodes(
+        self,
+        nodes: dict[str, pykka.ActorRef[MissionNode]],
+        hal: pykka.ActorRef[UniformAPI],
+        board: pykka.ActorRef[TelemetryBoard],
+        outbox: Outbox,
+        executive: pykka.ActorRef[DroneExecutive],
+        space: UniformSpace,
+    ) -> None:
+        """Give every node its links: all the actors it talks to exist now."""
+        # Nodes call an adapter that answers at once directly (no hop through the actor).
+        direct = space if answers_at_once(self.adapter) else None
+        links = Links(dict(nodes), hal, board, outbox, executive, direct)
+        for ref in nodes.values():
+            ref.tell(Wire(links))
+
+    def router(
+        self,
+        nodes: dict[str, pykka.ActorRef[MissionNode]],
+        executive: pykka.ActorRef[DroneExecutive],
+        board: pykka.ActorRef[TelemetryBoard],
+        abort: Callable[[str], None],
+        completed: threading.Event,
+    ) -> InRouter:
+        """The In-Bridge's routing: each message to the actor it is for."""
+        return InRouter(
+            self.drone,
+            nodes,
+            executive,
+            board,
+            self.logs.mission,
+            abort,
+            completed,
+            self.failures,
+            self.ground_handler,
+        )
+
+    def connect(self, link: Link, router: InRouter) -> InBridge:
+        """Connect the In-Bridge to the peers; from now on messages arrive."""
+        topics = subscriptions(self.program, self.extra_topics)
+        peers = {name: ep for name, ep in self.net.peers.items() if name != self.drone}
+        try:
+            # The ground station, up first, connects to a drone when it subscribes (listens).
+            waits = peers if self.ground_handler is not None else ()
+            link.connect(peers, topics, router, watch=self.watched_peers(), announced=waits)
+        except (zmq.ZMQError, ValueError) as exc:
+            raise DroneRuntimeError(f"cannot connect the in-bridge to {peers}: {exc}") from exc
+        assert link.inb is not None
+        return link.inb
+
+    def watched_peers(self) -> list[str] | None:
+        """Peers whose heartbeats this participant follows (None: every peer)."""
+        return watched_peers(self.program, whole_fleet=self.ground_handler is not None)

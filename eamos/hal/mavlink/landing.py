@@ -1,0 +1,128 @@
+"""Bringing a MAVLink vehicle down: Land, an abort's landing, and a vehicle still flying at close.
+
+Land comes to rest first (:class:`~eamos.hal.mavlink.braking.Brakes`: LAND alone brakes
+gently, metres past the point), then lands the autopilot's way and is done on the
+ground or disarmed.  An abort (and an adapter closed while the vehicle flies) also
+disarms and sees it in a HEARTBEAT; when it cannot land the vehicle, it says so
+(``adapter.stranded``, at error level): a drone is never left in the air silently.
+"""
+
+from __future__ import annotations
+
+import time
+
+from eamos.hal.api import ActionResult
+from eamos.hal.mavlink.arming import DISARM, MAV_CMD_COMPONENT_ARM_DISARM, Arming
+from eamos.hal.mavlink.autopilots import CommandRejected
+from eamos.hal.mavlink.braking import Brakes
+from eamos.hal.mavlink.control import RunControl
+from eamos.hal.mavlink.waits import Ended, Failed, Run, Waiter
+
+
+class Landing:
+    """Landing the vehicle where it is: the Land action, an abort, and landing at close."""
+
+    def __init__(self, waiter: Waiter, brakes: Brakes, arming: Arming) -> None:
+        self.waiter = waiter
+        self.brakes = brakes
+        self.arming = arming
+        self.v = waiter.v
+        self.s = waiter.v.settings
+
+    def land(self, run: Run, ctl: RunControl) -> ActionResult:
+        """MAV_CMD_NAV_LAND; done on the ground (or disarmed)."""
+        v = self.v
+        with v.cond:
+            if v.on_ground(v.state):
+                return ActionResult("ok")
+        # LAND brakes gently (ArduCopter touched down 10 m, PX4 14 m past the point
+        # where LAND was sent at full speed): come to rest first.
+        self.brakes.brake(run, ctl)
+        with v.cond:
+            here = v.here_ned()
+        v.autopilot.land(ctl, here)
+        with v.cond:
+            v.guided_target = None
+        modes = frozenset({v.autopilot.land_mode})
+        self.waiter.confirm_modes(run, modes, done=v.landed)
+        self.waiter.wait(
+            run,
+            v.landed,
+            run.started + self.s.scaled(self.s.action_timeout_s),
+            self.waiter.timeout_reason("not landed"),
+            guard=self.waiter.guard(modes, need_armed=False, unless=v.landed),
+        )
+        return ActionResult("ok")
+
+    def land_and_disarm(self, why: str = "abort") -> bool:
+        """Brake, land (if flying), then disarm and see it in a HEARTBEAT; logs how it
+        went as ``adapter.<why>.done`` / ``.failed`` (abort thread, or close)."""
+        v = self.v
+        run = Run(None, None, "internal", time.monotonic())
+        ctl = RunControl(self.waiter, run)
+        self.brakes.await_hold()
+        try:
+            with v.cond:
+                known = v.state.local is not None
+                airborne = known and not v.on_ground(v.state)
+            if airborne:
+                self.brakes.brake(run, ctl)
+                with v.cond:
+                    here = v.here_ned()
+                v.autopilot.land(ctl, here)
+                with v.cond:
+                    v.guided_target = None
+                self.waiter.wait(
+                    run,
+                    v.landed,
+                    time.monotonic() + self.s.scaled(self.s.action_timeout_s),
+                    self.waiter.timeout_reason("not landed"),
+                )
+            with v.cond:
+                armed = v.state.armed
+            if armed:
+                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
+            self.arming.confirm_disarmed(run)
+            v.log.info(f"adapter.{why}.done")
+            return True
+        except (Failed, Ended, CommandRejected) as exc:
+            v.log.error(f"adapter.{why}.failed", error=str(exc))
+            return False
+
+    def land_at_close(self) -> None:
+        """Never leave a flying vehicle silently at close: land it (``land_on_close``), or
+        log ``adapter.stranded`` at error level with where it was left and why."""
+        v = self.v
+        with v.cond:
+            st = v.state
+            known = st.local is not None
+            flying = known and st.armed and not v.on_ground(st)
+            link_ok = st.link_ok
+            where = v.mission_position() if known and v.origin else None
+        if not flying:
+            return
+        why = ""
+        if not link_ok:
+            why = "link lost: no HEARTBEAT from the vehicle"
+        elif not self.s.land_on_close:
+            why = "hal.land_on_close = false"
+        else:
+            v.log.warning("adapter.close_land", note="vehicle still flying at close: landing")
+            if self.land_and_disarm("close_land"):
+                return
+            why = "landing at close failed (see adapter.close_land.failed)"
+        with v.cond:
+            armed = v.state.armed
+            if v.state.local is not None and v.origin is not None:
+                where = v.mission_position()
+        v.log.error(
+            "adapter.stranded",
+            reason=why,
+            armed=armed,
+            x_m=None if where is None else round(where[0], 2),
+            y_m=None if where is None else round(where[1], 2),
+            z_m=None if where is None else round(where[2], 2),
+        )
+
+
+__all__ = ["Landing"]
