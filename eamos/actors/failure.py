@@ -21,6 +21,7 @@ from types import TracebackType
 from typing import Any, ClassVar
 
 from .dispatch import PooledActor
+from .pykka_seam import ExcInfo
 
 __all__ = ["FailurePolicy", "FailureSink", "RuntimeFailure", "RuntimePart", "tell_operator"]
 
@@ -109,3 +110,11 @@ class RuntimePart(PooledActor):
             super().on_failure(exception_type, exception_value, traceback)
         else:
             self.failure(self.part, exception_value)
+
+    def exited(self, exc_info: ExcInfo) -> None:
+        """A ``BaseException`` (``SystemExit``, ...) in a handler: as an exception, the
+        failure policy aborts the drone (which is all the dispatcher's hook would do)."""
+        if self.failure is None:
+            super().exited(exc_info)
+        else:
+            self.failed(exc_info)

@@ -12,7 +12,10 @@ process (as the tests do).
 Failures of its own parts (not the nodes', which resolve ``failed``) go to a
 :class:`~.failure.FailurePolicy`: logged once with the traceback, the drone
 aborts (it lands), the drones waiting for it are released, and the ground
-station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).
+station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).  So
+does a ``BaseException`` (``SystemExit``, ``KeyboardInterrupt``) raised inside
+any of its actors, a node's included: it ends this drone's part, never another
+runtime's in the same process (:meth:`DroneRuntime._actor_exited`).
 """
 
 from __future__ import annotations
@@ -207,7 +210,9 @@ class DroneRuntime:
         self.outbox = Outbox(self.link, self.drone, self.program.mission_id, self.logs.mission)
 
     def _start_board(self) -> None:
-        self.services = Dispatcher(workers=1, name=f"eamos-{self.drone}-services")
+        self.services = Dispatcher(
+            workers=1, name=f"eamos-{self.drone}-services", on_exit=self._actor_exited
+        )
         self.board = TelemetryBoard.start(
             self.services, self.drone, self.outbox, self.program.mission_id, self.failures
         )
@@ -225,7 +230,9 @@ class DroneRuntime:
 
     def _start_nodes(self) -> None:
         """One node actor per native node, on the node dispatcher (not started wired)."""
-        self.dispatcher = Dispatcher(workers=2, name=f"eamos-{self.drone}")
+        self.dispatcher = Dispatcher(
+            workers=2, name=f"eamos-{self.drone}", on_exit=self._actor_exited
+        )
         for key, w in program_wiring(self.program).items():
             self.nodes[key] = MissionNode.start(
                 self.dispatcher,
@@ -355,6 +362,13 @@ class DroneRuntime:
         Nothing this drone's nodes do can be trusted any more: see :meth:`_give_up`.
         """
         self._give_up(failure.reason(), "mission.failure.released", land=True)
+
+    def _actor_exited(self, actor: Any, exc: BaseException) -> None:
+        """A ``BaseException`` ended a handler of one of this drone's actors (after the
+        actor's own policy: a node resolved ``failed``): the failure policy aborts
+        this drone; the process and the other drones in it go on."""
+        part = f"node {actor.key}" if isinstance(actor, MissionNode) else type(actor).__name__
+        self.failures(part, exc)
 
     def end_stranded(self, reason: str, policy: str = "land") -> None:
         """Apply the end policy: this drone can no longer finish its part (a peer is lost).

@@ -406,7 +406,22 @@ class UniformAPI(pykka.ThreadingActor):
     # -- messages ------------------------------------------------------------
 
     def on_receive(self, message: Any) -> Any:
-        """Dispatch one of :class:`RunAction`, :class:`CancelAction`, :class:`Abort`."""
+        """Dispatch one of :class:`RunAction`, :class:`CancelAction`, :class:`Abort`.
+
+        A ``BaseException`` from the adapter (``SystemExit``, ``KeyboardInterrupt``
+        raised by its code: a real Ctrl-C reaches only the main thread) becomes this
+        actor's failure (:meth:`on_failure`: the vehicle lands): Pykka would stop
+        every actor of the process, the other drones' with them.
+        """
+        try:
+            self._dispatch(message)
+        except Exception:
+            raise
+        except BaseException as exc:
+            raise RuntimeError(f"{exc!r} in the adapter") from exc
+        return None
+
+    def _dispatch(self, message: Any) -> None:
         match message:
             case RunAction():
                 finished = self.space.run(message)
