@@ -81,6 +81,14 @@ class FailurePolicy:
             tell_operator(self.drone, failure.reason() + ": the drone aborts and lands")
             self._react(failure)
 
+    def actor_exited(self, actor: PooledActor, exc: BaseException) -> None:
+        """A drone dispatcher's exit hook (:data:`~.dispatch.ExitHook`): a ``BaseException``
+        ended a handler of one of the drone's actors, after the actor's own policy (a node
+        resolved ``failed``).  It is a failure of the drone, which aborts; the process and
+        the other drones in it go on."""
+        key = getattr(actor, "key", None)  # a mission node's
+        self(f"node {key}" if key is not None else type(actor).__name__, exc)
+
     @property
     def first(self) -> RuntimeFailure | None:
         """The failure the drone aborted for (None: none happened)."""

@@ -15,7 +15,8 @@ aborts (it lands), the drones waiting for it are released, and the ground
 station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).  So
 does a ``BaseException`` (``SystemExit``, ``KeyboardInterrupt``) raised inside
 any of its actors, a node's included: it ends this drone's part, never another
-runtime's in the same process (:meth:`DroneRuntime._actor_exited`).
+runtime's in the same process (:meth:`.FailurePolicy.actor_exited`, the node
+dispatcher's exit hook; the runtime parts report to the policy themselves).
 """
 
 from __future__ import annotations
@@ -210,9 +211,7 @@ class DroneRuntime:
         self.outbox = Outbox(self.link, self.drone, self.program.mission_id, self.logs.mission)
 
     def _start_board(self) -> None:
-        self.services = Dispatcher(
-            workers=1, name=f"eamos-{self.drone}-services", on_exit=self._actor_exited
-        )
+        self.services = Dispatcher(workers=1, name=f"eamos-{self.drone}-services")
         self.board = TelemetryBoard.start(
             self.services, self.drone, self.outbox, self.program.mission_id, self.failures
         )
@@ -230,9 +229,7 @@ class DroneRuntime:
 
     def _start_nodes(self) -> None:
         """One node actor per native node, on the node dispatcher (not started wired)."""
-        self.dispatcher = Dispatcher(
-            workers=2, name=f"eamos-{self.drone}", on_exit=self._actor_exited
-        )
+        self.dispatcher = Dispatcher(2, f"eamos-{self.drone}", self.failures.actor_exited)
         for key, w in program_wiring(self.program).items():
             self.nodes[key] = MissionNode.start(
                 self.dispatcher,
@@ -362,13 +359,6 @@ class DroneRuntime:
         Nothing this drone's nodes do can be trusted any more: see :meth:`_give_up`.
         """
         self._give_up(failure.reason(), "mission.failure.released", land=True)
-
-    def _actor_exited(self, actor: Any, exc: BaseException) -> None:
-        """A ``BaseException`` ended a handler of one of this drone's actors (after the
-        actor's own policy: a node resolved ``failed``): the failure policy aborts
-        this drone; the process and the other drones in it go on."""
-        part = f"node {actor.key}" if isinstance(actor, MissionNode) else type(actor).__name__
-        self.failures(part, exc)
 
     def end_stranded(self, reason: str, policy: str = "land") -> None:
         """Apply the end policy: this drone can no longer finish its part (a peer is lost).

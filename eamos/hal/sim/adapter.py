@@ -139,7 +139,11 @@ class SimAdapter:
         self.settings = settings or SimSettings()
         self.plugins = plugins
         self._log = adapter_log if adapter_log is not None else make_logger(None)
-        self._core = SimCore(drone, self.settings, self._log, plugins=plugins)
+        # A plugin's outcome is looked for at every step, never waited for: the
+        # vehicle flies on (and can land) whatever its implementation does.
+        self._core = SimCore(
+            drone, self.settings, self._log, plugins=plugins, wait_for_plugins=False
+        )
         # One lock guards the core; the condition lets observers (tests, tools)
         # wait for the next simulator tick.
         self._lock = threading.Lock()
@@ -264,7 +268,9 @@ class SimAdapter:
     def _loop(self) -> None:
         try:
             self._pace()
-        except Exception as exc:  # keep the adapter's promise: done is always called
+        except BaseException as exc:  # keep the adapter's promise: done is always called
+            # (BaseException too: this thread is never the main one, so a KeyboardInterrupt
+            # here is no Ctrl-C, and a SystemExit would end the thread silently.)
             # Fail the running actions first: logging may itself fail (a full disk).
             self._crash(exc)
             with contextlib.suppress(Exception):
@@ -324,7 +330,7 @@ class SimAdapter:
         covered = int((time.monotonic() - since) * self.settings.speedup / SIM_DT_S)
         self._core.skip(min(most, covered))
 
-    def _crash(self, exc: Exception) -> None:
+    def _crash(self, exc: BaseException) -> None:
         with self._lock:
             self._closed = True
             finished = self._core.finish_all(ActionResult("failed", f"simulator error: {exc!r}"))
