@@ -29,7 +29,9 @@ Actions complete on real criteria checked after every step:
   (:mod:`eamos.hal.sim.motions`).
 * ``ReturnHome``: above home at the current height, then landed.
 * Plugin actions: their "sim" implementation's duration (:mod:`eamos.hal.sim.plugin_api`;
-  the plugins come from entry points, docs/plugins.md).
+  the plugins come from entry points, docs/plugins.md).  The implementation computes the
+  outcome on a thread of its own within ``plugin_deadline_s`` wall-clock seconds; the
+  simulator never waits for it (the vehicle hovers, and can land, meanwhile).
 
 Rules: ``Takeoff`` needs the vehicle armed ("not armed"); ``FlyBy*``/``FlyTo*``
 need it airborne ("not flying"); ``Disarm`` fails in the air ("in the air");
