@@ -19,10 +19,11 @@ from typing import Any
 
 import pytest
 
+from eamos.actors.uniform_api import UniformSpace, start_uniform_api
 from eamos.ground.station import DroneView
 from eamos.hal.api import ActionResult
 from eamos.hal.fake import FakeAdapter
-from eamos.logs import read_log
+from eamos.logs import make_logger, read_log
 
 from .fleet_harness import Fleet, make_fleet
 
@@ -146,3 +147,17 @@ def test_stopping_one_runtime_leaves_the_other_flying(fleet_of: Any) -> None:
     assert d2_resolved.wait(PROMPT_S), "the ground station never heard D2 finish"
     report = fleet.runtimes["D2"].report()
     assert report["ok"] and report["resolved"], report
+
+
+@pytest.mark.parametrize("exit_exc", [SystemExit(3), KeyboardInterrupt()], ids=repr)
+def test_an_adapter_that_exits_while_starting_fails_that_drones_start_at_once(
+    exit_exc: BaseException,
+) -> None:
+    """The uniform-API actor is a Pykka ThreadingActor: a BaseException in its ``on_start``
+    would end its thread with the actor never stopped, and the start would wait."""
+    fake = FakeAdapter("D1", start_error=exit_exc)  # type: ignore[arg-type]
+    started = time.monotonic()
+    ref, error = start_uniform_api(UniformSpace(fake, make_logger(None)), lambda sample: None)
+    assert time.monotonic() - started < PROMPT_S
+    assert error is not None and repr(exit_exc) in str(error)
+    assert not ref.is_alive() and fake.closed
