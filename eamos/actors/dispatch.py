@@ -136,7 +136,7 @@ class Dispatcher:
         self, workers: int = 2, name: str = "eamos", on_exit: ExitHook | None = None
     ) -> None:
         self._on_exit = on_exit
-        self._actors: weakref.WeakSet[PooledActor] = weakref.WeakSet()  # for _stop_actors
+        self._actors: weakref.WeakSet[PooledActor] = weakref.WeakSet()  # for actor_exited
         self._actors_lock = threading.Lock()
         self._ready: deque[PooledActor] = deque()
         self._lazy: deque[PooledActor] = deque()  # scheduled by LazyMail: no worker woken

@@ -81,7 +81,7 @@ class FailurePolicy:
             tell_operator(self.drone, failure.reason() + ": the drone aborts and lands")
             self._react(failure)
 
-    def actor_exited(self, actor: PooledActor, exc: BaseException) -> None:
+    def on_actor_exit(self, actor: PooledActor, exc: BaseException) -> None:
         """A drone dispatcher's exit hook (:data:`~.dispatch.ExitHook`): a ``BaseException``
         ended a handler of one of the drone's actors, after the actor's own policy (a node
         resolved ``failed``).  It is a failure of the drone, which aborts; the process and

@@ -15,7 +15,7 @@ aborts (it lands), the drones waiting for it are released, and the ground
 station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).  So
 does a ``BaseException`` (``SystemExit``, ``KeyboardInterrupt``) raised inside
 any of its actors, a node's included: it ends this drone's part, never another
-runtime's in the same process (:meth:`.FailurePolicy.actor_exited`, the node
+runtime's in the same process (:meth:`.FailurePolicy.on_actor_exit`, the node
 dispatcher's exit hook; the runtime parts report to the policy themselves).
 """
 
@@ -229,7 +229,7 @@ class DroneRuntime:
 
     def _start_nodes(self) -> None:
         """One node actor per native node, on the node dispatcher (not started wired)."""
-        self.dispatcher = Dispatcher(2, f"eamos-{self.drone}", self.failures.actor_exited)
+        self.dispatcher = Dispatcher(2, f"eamos-{self.drone}", self.failures.on_actor_exit)
         for key, w in program_wiring(self.program).items():
             self.nodes[key] = MissionNode.start(
                 self.dispatcher,

@@ -424,14 +424,14 @@ class UniformAPI(pykka.ThreadingActor):
         every actor of the process, the other drones' with them.
         """
         try:
-            self._dispatch(message)
+            self._handle(message)
         except Exception:
             raise
         except BaseException as exc:
             raise RuntimeError(f"{exc!r} in the adapter") from exc
         return None
 
-    def _dispatch(self, message: Any) -> None:
+    def _handle(self, message: Any) -> None:
         match message:
             case RunAction():
                 finished = self.space.run(message)
