@@ -98,7 +98,7 @@ class PluginCall:
             self._settle(
                 PluginAnswer(
                     failed=f"plugin action {name!r} did not finish within {earlier:g} s "
-                    "earlier in this process: not called again"
+                    "before: not called again"
                 )
             )
             return
@@ -288,7 +288,8 @@ class PluginRegistry:
 
         The :class:`PluginCall` answers within ``deadline_s`` (wall-clock seconds) whatever
         the implementation does; one that missed its deadline is not called again by this
-        registry (each later call fails at once: its thread may still be running).
+        registry (each later call fails at once: its thread may still be running).  Each
+        simulated drone has a registry of its own; an ``eamos check`` has one.
         """
         return PluginCall(self, name, family, args, deadline_s)
 
