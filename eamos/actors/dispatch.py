@@ -15,7 +15,13 @@ Failures differ from Pykka on purpose: an exception raised by a ``tell``-ed
 message calls :meth:`PooledActor.on_failure` and the actor *lives on* unless
 the hook stops it (a mission node must resolve ``failed``, not vanish); the
 default hook does what Pykka does (log with the traceback, stop).  A
-``BaseException`` stops the actor and every other one, as in Pykka.
+``BaseException`` (``SystemExit``, ``KeyboardInterrupt`` raised by a handler)
+goes to ``on_failure`` the same way and then to the dispatcher's ``on_exit``
+hook: a drone runtime's aborts that drone (:mod:`.runtime`).  Pykka would stop
+every actor of the process; several drones share one process, so without a hook
+the dispatcher stops the actors *it* runs, and no other.  (A real Ctrl-C is
+never raised here: Python delivers signals to the main thread, and no actor
+runs on it.)
 
 Pykka's internals are used only through :mod:`.pykka_seam`.  Pooled actors
 must not block waiting for another pooled actor (no ``ask(...).get()`` between
@@ -41,16 +47,20 @@ from __future__ import annotations
 
 import logging
 import threading
+import weakref
 from collections import deque
+from collections.abc import Callable
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
+
+import pykka
 
 from .pykka_seam import ExcInfo, ExternalLoopActor
 
 if TYPE_CHECKING:
     from .pykka_seam import Envelope
 
-__all__ = ["Dispatcher", "LazyMail", "PooledActor", "RidesAlong", "tell_here"]
+__all__ = ["Dispatcher", "ExitHook", "LazyMail", "PooledActor", "RidesAlong", "tell_here"]
 
 logger = logging.getLogger(__name__)
 
@@ -64,6 +74,10 @@ _SLOT_STREAK = 16
 #: the mailed actor, the few it mails in turn, and their lazy news; a longer local
 #: chain goes on on a worker (the caller is a receive thread with more to read).
 _HOST_TURNS = 4
+
+#: ``hook(actor, exception)``: what a ``BaseException`` in one of a dispatcher's actors
+#: means beyond that actor (called on the thread that ran the handler; must not block).
+ExitHook = Callable[["PooledActor", BaseException], None]
 
 
 class _Worker(threading.local):
@@ -112,9 +126,18 @@ class Dispatcher:
     first, so nothing waits behind a long chain.  A thread that is not a worker
     gets such a slot for the length of one :meth:`tell_here` call (it *hosts*
     the dispatcher): see :func:`tell_here`.
+
+    ``on_exit`` (:data:`ExitHook`) is told when a handler of one of its actors raises
+    a ``BaseException``, after the actor's own ``on_failure``; without it the
+    dispatcher stops every actor it runs (Pykka's reaction, scoped to them).
     """
 
-    def __init__(self, workers: int = 2, name: str = "eamos") -> None:
+    def __init__(
+        self, workers: int = 2, name: str = "eamos", on_exit: ExitHook | None = None
+    ) -> None:
+        self._on_exit = on_exit
+        self._actors: weakref.WeakSet[PooledActor] = weakref.WeakSet()  # for actor_exited
+        self._actors_lock = threading.Lock()
         self._ready: deque[PooledActor] = deque()
         self._lazy: deque[PooledActor] = deque()  # scheduled by LazyMail: no worker woken
         self._cond = threading.Condition()
@@ -126,6 +149,31 @@ class Dispatcher:
         ]
         for thread in self._threads:
             thread.start()
+
+    def adopt(self, actor: PooledActor) -> None:
+        """Count ``actor`` among the actors this dispatcher runs (when it starts)."""
+        with self._actors_lock:
+            self._actors.add(actor)
+
+    def actor_exited(self, actor: PooledActor, exc: BaseException) -> None:
+        """``actor``'s handler raised ``exc`` (a ``BaseException``): the ``on_exit`` hook,
+        or else stop every actor of this dispatcher (without waiting: this runs on a
+        worker, which the actors need to handle their stop message)."""
+        if self._on_exit is not None:
+            try:
+                self._on_exit(actor, exc)
+            except Exception:
+                logger.exception("dispatcher: the exit hook raised for %s", actor)
+            return
+        logger.error("dispatcher: %r in %s: stopping this dispatcher's actors", exc, actor)
+        with self._actors_lock:
+            actors = list(self._actors)
+        for other in actors:
+            if not other.actor_stopped.is_set():
+                try:
+                    other.actor_ref.stop(block=False)
+                except pykka.ActorDeadError:
+                    continue
 
     def schedule(self, actor: PooledActor) -> None:
         """Queue ``actor`` for a worker (it has mail, or has not started yet)."""
@@ -317,6 +365,7 @@ class PooledActor(ExternalLoopActor):
 
     def loop_started(self) -> None:
         # on_start runs on a worker, before any message, like a thread's first step.
+        self._dispatcher.adopt(self)
         self._pooled_inbox.claim()
         self._dispatcher.schedule(self)
 
@@ -347,6 +396,14 @@ class PooledActor(ExternalLoopActor):
         except Exception as hook_error:
             logger.error("%s: on_failure raised", self, exc_info=exc_info)
             self.die((type(hook_error), hook_error, hook_error.__traceback__))
+
+    def exited(self, exc_info: ExcInfo) -> None:
+        """A ``BaseException`` in a handler: :meth:`on_failure` as for an exception (if
+        the actor still runs), then the dispatcher's reaction
+        (:meth:`Dispatcher.actor_exited`: its ``on_exit`` hook, or stop its actors)."""
+        if not self.actor_stopped.is_set():
+            self.failed(exc_info)
+        self._dispatcher.actor_exited(self, exc_info[1])
 
     def _run_slice(self) -> None:
         inbox = self._pooled_inbox

@@ -21,6 +21,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, ClassVar
 
 from .dispatch import PooledActor
+from .pykka_seam import ExcInfo
 
 if TYPE_CHECKING:
     from ..logs import EventLog
@@ -83,6 +84,14 @@ class FailurePolicy:
             tell_operator(self.drone, failure.reason() + ": the drone aborts and lands")
             self._react(failure)
 
+    def on_actor_exit(self, actor: PooledActor, exc: BaseException) -> None:
+        """A drone dispatcher's exit hook (:data:`~.dispatch.ExitHook`): a ``BaseException``
+        ended a handler of one of the drone's actors, after the actor's own policy (a node
+        resolved ``failed``).  It is a failure of the drone, which aborts; the process and
+        the other drones in it go on."""
+        key = getattr(actor, "key", None)  # a mission node's
+        self(f"node {key}" if key is not None else type(actor).__name__, exc)
+
     @property
     def first(self) -> RuntimeFailure | None:
         """The failure the drone aborted for (None: none happened)."""
@@ -112,3 +121,11 @@ class RuntimePart(PooledActor):
             super().on_failure(exception_type, exception_value, traceback)
         else:
             self.failure(self.part, exception_value)
+
+    def exited(self, exc_info: ExcInfo) -> None:
+        """A ``BaseException`` (``SystemExit``, ...) in a handler: as an exception, the
+        failure policy aborts the drone (which is all the dispatcher's hook would do)."""
+        if self.failure is None:
+            super().exited(exc_info)
+        else:
+            self.failed(exc_info)

@@ -12,7 +12,11 @@ process (as the tests do).
 Failures of its own parts (not the nodes', which resolve ``failed``) go to a
 :class:`~.failure.FailurePolicy`: logged once with the traceback, the drone
 aborts (it lands), the drones waiting for it are released, and the ground
-station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).
+station hears ``Resolved`` at once (see :meth:`DroneRuntime._fail_safe`).  So
+does a ``BaseException`` (``SystemExit``, ``KeyboardInterrupt``) raised inside
+any of its actors, a node's included: it ends this drone's part, never another
+runtime's in the same process (:meth:`.FailurePolicy.on_actor_exit`, the node
+dispatcher's exit hook; the runtime parts report to the policy themselves).
 
 How each part is built is :mod:`.startup`'s business, how they stop
 :mod:`.teardown`'s, how the drone's report is gathered :mod:`.reporting`'s and

@@ -150,7 +150,7 @@ class RuntimeStartup:
 
     def node_dispatcher(self) -> Dispatcher:
         """The node actors' dispatcher (the executive runs on it too)."""
-        return Dispatcher(workers=2, name=f"eamos-{self.drone}")
+        return Dispatcher(2, f"eamos-{self.drone}", self.failures.on_actor_exit)
 
     def start_nodes(
         self, dispatcher: Dispatcher, into: dict[str, pykka.ActorRef[MissionNode]]

@@ -376,14 +376,24 @@ class UniformAPI(pykka.ThreadingActor):
         try:
             self.adapter.start(self._on_telemetry)
         except AdapterError as exc:
-            self._log.error("uniform.start_failed", error=str(exc))
-            if self._on_start_error is not None:
-                try:
-                    self._on_start_error(exc)
-                except Exception as cb_exc:
-                    self._log.exception("uniform.callback_error", error=repr(cb_exc))
-            self.space.close_adapter()  # on_stop is not called when on_start fails
+            self._start_failed(exc)
             raise
+        except Exception:
+            raise
+        except BaseException as exc:  # SystemExit ... from the adapter's code: Pykka would
+            # let it end this actor's thread unstopped, and the start would wait for ever.
+            error = AdapterError(f"{self.drone}: the adapter raised {exc!r} while starting")
+            self._start_failed(error)
+            raise error from exc
+
+    def _start_failed(self, exc: AdapterError) -> None:
+        self._log.error("uniform.start_failed", error=str(exc))
+        if self._on_start_error is not None:
+            try:
+                self._on_start_error(exc)
+            except Exception as cb_exc:
+                self._log.exception("uniform.callback_error", error=repr(cb_exc))
+        self.space.close_adapter()  # on_stop is not called when on_start fails
 
     def on_stop(self) -> None:
         """Close the adapter; answer actions still running with ``cancelled``."""
@@ -413,7 +423,22 @@ class UniformAPI(pykka.ThreadingActor):
     # -- messages ------------------------------------------------------------
 
     def on_receive(self, message: object) -> None:
-        """Dispatch one of :class:`RunAction`, :class:`CancelAction`, :class:`Abort`."""
+        """Dispatch one of :class:`RunAction`, :class:`CancelAction`, :class:`Abort`.
+
+        A ``BaseException`` from the adapter (``SystemExit``, ``KeyboardInterrupt``
+        raised by its code: a real Ctrl-C reaches only the main thread) becomes this
+        actor's failure (:meth:`on_failure`: the vehicle lands): Pykka would stop
+        every actor of the process, the other drones' with them.
+        """
+        try:
+            self._handle(message)
+        except Exception:
+            raise
+        except BaseException as exc:
+            raise RuntimeError(f"{exc!r} in the adapter") from exc
+        return None
+
+    def _handle(self, message: object) -> None:
         match message:
             case RunAction():
                 finished = self.space.run(message)

@@ -15,6 +15,11 @@ The module holding the :class:`ActionPlugin` must be light (it may import only
 Adapter families: ``"sim"`` (the simulated quadcopter, the virtual driver's vehicles, the fake
 adapter) and ``"mavlink"`` (PX4 and ArduPilot).  The ground station runs no plugin action.
 See docs/plugins.md.
+
+A plugin is code EAMOS does not control, so :meth:`PluginRegistry.call` runs an
+implementation on a thread of its own under a deadline (:class:`PluginCall`): whatever it
+raises (``SystemExit`` and ``KeyboardInterrupt`` included) or however long it takes, the
+caller gets an answer, never the exception and never a wait past the deadline.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from __future__ import annotations
 import importlib
 import re
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -39,8 +45,108 @@ _NAME = re.compile(r"[A-Z][A-Za-z0-9]*\Z")
 _PARAM = re.compile(r"[a-z][a-z0-9]*(_[a-z0-9]+)*_(m|deg|s|m_s|pct|count)\Z")
 
 
+#: How long one call of a plugin implementation may take by default (wall-clock seconds).
+#: A "sim" implementation computes an outcome (microseconds); the bound leaves room for
+#: its module's first import on a loaded machine.
+PLUGIN_DEADLINE_S = 10.0
+
+
 class PluginError(Exception):
     """A plugin that cannot be used: a bad declaration or an implementation that does not load."""
+
+
+@dataclass(frozen=True)
+class PluginAnswer:
+    """What one call of a plugin implementation gave: its ``value``, or why it ``failed``."""
+
+    value: Any = None
+    failed: str = ""  # a sentence naming the plugin action; "" when it returned
+
+
+class PluginCall:
+    """One call of a plugin implementation, on a daemon thread of its own, under a deadline.
+
+    Made by :meth:`PluginRegistry.call`.  :meth:`poll` never waits; :meth:`wait` waits
+    at most until the deadline.  Past the deadline the call has *failed* ("did not finish
+    within N s") and its thread is abandoned: Python cannot stop a thread, so a plugin
+    that sleeps or spins forever keeps its thread (a daemon: it never holds up the
+    process's exit) and its later result is dropped.  Anything the implementation raises,
+    ``BaseException`` included, is its failure: the thread is never the process's main
+    thread, so a ``KeyboardInterrupt`` there was raised by the plugin, not by Ctrl-C.
+    """
+
+    def __init__(
+        self,
+        registry: PluginRegistry,
+        name: str,
+        family: str,
+        args: tuple[Any, ...],
+        deadline_s: float,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.name = name
+        self.family = family
+        self.deadline_s = deadline_s
+        self._registry = registry
+        self._clock = clock
+        self._due = clock() + deadline_s
+        self._lock = threading.Lock()  # the implementation's thread and the deadline race
+        self._done = threading.Event()
+        self._answer: PluginAnswer | None = None
+        earlier = registry.overran(name, family)
+        if earlier is not None:  # its thread may still run: never a second one
+            self._settle(
+                PluginAnswer(
+                    failed=f"plugin action {name!r} did not finish within {earlier:g} s "
+                    "before: not called again"
+                )
+            )
+            return
+        threading.Thread(
+            target=self._call, args=args, name=f"plugin-{name}-{family}", daemon=True
+        ).start()
+
+    def _call(self, *args: Any) -> None:
+        try:
+            implementation = self._registry.implementation(self.name, self.family)
+            answer = PluginAnswer(value=implementation(*args))
+        except PluginError as exc:
+            answer = PluginAnswer(failed=str(exc))
+        except BaseException as exc:  # its own thread: whatever it raised is its failure
+            answer = PluginAnswer(
+                failed=f"plugin action {self.name!r} failed in its {self.family} "
+                f"implementation: {exc!r}"
+            )
+        self._settle(answer)
+
+    def _settle(self, answer: PluginAnswer) -> None:
+        with self._lock:
+            if self._answer is None:
+                self._answer = answer
+                self._done.set()
+
+    def poll(self) -> PluginAnswer | None:
+        """The answer, or None while the implementation runs and its deadline is ahead."""
+        if not self._done.is_set() and self._clock() >= self._due:
+            self._overran()
+        return self._answer
+
+    def wait(self) -> PluginAnswer:
+        """The answer, waiting for it at most until the deadline."""
+        if not self._done.wait(max(0.0, self._due - self._clock())):
+            self._overran()
+        answer = self._answer
+        assert answer is not None
+        return answer
+
+    def _overran(self) -> None:
+        failed = f"plugin action {self.name!r} did not finish within {self.deadline_s:g} s"
+        with self._lock:
+            if self._answer is not None:
+                return  # it finished just in time
+            self._answer = PluginAnswer(failed=failed)
+            self._done.set()
+        self._registry.mark_overran(self.name, self.family, self.deadline_s)
 
 
 @dataclass(frozen=True)
@@ -125,6 +231,8 @@ class PluginRegistry:
         self._on_problem = on_problem
         self._finding = threading.Lock()
         self._loaded: dict[tuple[str, str], Callable[..., Any]] = {}
+        self._overran_lock = threading.Lock()
+        self._overran: dict[tuple[str, str], float] = {}  # (name, family) -> deadline missed
 
     @property
     def plugins(self) -> Mapping[str, ActionPlugin]:
@@ -168,6 +276,32 @@ class PluginRegistry:
     def implemented_by(self, family: str) -> frozenset[str]:
         """The plugin actions with an implementation for ``family``."""
         return frozenset(n for n, p in self.plugins.items() if family in p.implementations)
+
+    def call(
+        self,
+        name: str,
+        family: str,
+        args: tuple[Any, ...],
+        deadline_s: float = PLUGIN_DEADLINE_S,
+    ) -> PluginCall:
+        """Start ``name``'s ``family`` implementation on ``args``, on a thread of its own.
+
+        The :class:`PluginCall` answers within ``deadline_s`` (wall-clock seconds) whatever
+        the implementation does; one that missed its deadline is not called again by this
+        registry (each later call fails at once: its thread may still be running).  Each
+        simulated drone has a registry of its own; an ``eamos check`` has one.
+        """
+        return PluginCall(self, name, family, args, deadline_s)
+
+    def overran(self, name: str, family: str) -> float | None:
+        """The deadline ``name``'s ``family`` implementation missed (None: it never did)."""
+        with self._overran_lock:
+            return self._overran.get((name, family))
+
+    def mark_overran(self, name: str, family: str, deadline_s: float) -> None:
+        """Remember that a call of ``name``'s implementation missed ``deadline_s``."""
+        with self._overran_lock:
+            self._overran.setdefault((name, family), deadline_s)
 
     def implementation(self, name: str, family: str) -> Callable[..., Any]:
         """Import and return ``name``'s implementation for ``family`` (cached).
@@ -261,7 +395,10 @@ __all__ = [
     "EMPTY_PLUGINS",
     "ENTRY_POINT_GROUP",
     "FAMILIES",
+    "PLUGIN_DEADLINE_S",
     "ActionPlugin",
+    "PluginAnswer",
+    "PluginCall",
     "PluginError",
     "PluginRegistry",
     "discover_plugins",

@@ -5,9 +5,13 @@ Real threads and real Pykka refs and futures; every wait is on a future or an ev
 
 from __future__ import annotations
 
+import re
 import threading
+import tomllib
 from collections.abc import Iterator
 from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
 from types import TracebackType
 from typing import Any
 
@@ -15,7 +19,7 @@ import pykka
 import pytest
 
 from eamos.actors.dispatch import Dispatcher, LazyMail, PooledActor, RidesAlong
-from eamos.actors.pykka_seam import shape_problems
+from eamos.actors.pykka_seam import PYKKA_TESTED, ActorExit
 
 WAIT_S = 30.0
 
@@ -35,6 +39,8 @@ class Recorder(PooledActor):
             raise ValueError("boom")
         if message == "exit":
             raise SystemExit(3)
+        if message == "interrupt":
+            raise KeyboardInterrupt
         self.seen.append(message)
         return len(self.seen)
 
@@ -65,9 +71,15 @@ def dispatcher() -> Iterator[Dispatcher]:
     d.shutdown()
 
 
-def test_pykka_internals_have_the_shape_the_seam_relies_on() -> None:
-    """Fails when a Pykka upgrade changes what eamos/actors/pykka_seam.py uses."""
-    assert shape_problems() == []
+def test_the_installed_pykka_is_the_pinned_and_tested_range() -> None:
+    """pyproject.toml's pin, the seam's PYKKA_TESTED and the installed Pykka agree."""
+    pyproject = Path(__file__).parents[2] / "pyproject.toml"
+    deps = tomllib.loads(pyproject.read_text(encoding="utf-8"))["project"]["dependencies"]
+    (pin,) = [d for d in deps if d.startswith("pykka")]
+    low, high = PYKKA_TESTED
+    assert re.sub(r"\s", "", pin) == f"pykka>={low[0]}.{low[1]},<{high[0]}.{high[1]}"
+    installed = tuple(int(p) for p in metadata.version("pykka").split(".")[:2])
+    assert low <= installed < high
 
 
 def test_messages_are_handled_in_order_and_asks_are_answered(dispatcher: Dispatcher) -> None:
@@ -119,15 +131,127 @@ def test_a_hook_that_raises_stops_the_actor(dispatcher: Dispatcher) -> None:
         ref.ask("after", timeout=WAIT_S)
 
 
-def test_a_base_exception_stops_the_actor_and_every_other(dispatcher: Dispatcher) -> None:
-    """Pykka's BaseException branch: SystemExit in one actor stops them all."""
+class Gated(PooledActor):
+    """Handles a message only once the event it is given is set (the actor is busy)."""
+
+    def on_receive(self, message: Any) -> Any:
+        if isinstance(message, threading.Event):
+            message.wait(WAIT_S)
+        return None
+
+
+def test_a_stopped_actor_is_unregistered_and_answers_late_mail_as_pykka_does(
+    dispatcher: Dispatcher,
+) -> None:
+    ref = Gated.start(dispatcher)
+    assert pykka.ActorRegistry.get_by_urn(ref.actor_urn) is ref
+    gate = threading.Event()
+    ref.tell(gate)  # busy: what follows waits in its inbox
+    first, second = ref.stop(block=False), ref.stop(block=False)
+    late = ref.ask("late", block=False)
+    gate.set()
+    # The first stop stops it; the second (Pykka's stop message, seen after the actor
+    # stopped) is answered as stopped too, and other mail with ActorDeadError.
+    assert first.get(timeout=WAIT_S) is True
+    assert second.get(timeout=WAIT_S) is True
+    with pytest.raises(pykka.ActorDeadError):
+        late.get(timeout=WAIT_S)
+    assert pykka.ActorRegistry.get_by_urn(ref.actor_urn) is None
+
+
+def test_a_failure_unregisters_the_actor(dispatcher: Dispatcher) -> None:
+    ref = Recorder.start(dispatcher)
+    ref.tell("boom")
+    ref.actor_stopped.wait(WAIT_S)
+    assert pykka.ActorRegistry.get_by_urn(ref.actor_urn) is None
+
+
+EXITS = pytest.mark.parametrize("message", ["exit", "interrupt"])
+
+
+@EXITS
+def test_a_base_exception_stops_the_actors_of_its_dispatcher_only(
+    dispatcher: Dispatcher, message: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Pykka stops every actor of the process; here only those of the dispatcher."""
     one, other = Recorder.start(dispatcher), Recorder.start(dispatcher)
-    threaded = pykka.ThreadingActor.start()
-    one.tell("exit")
-    for ref in (one, other, threaded):
+    elsewhere = Dispatcher(workers=1, name="test-elsewhere")
+    try:
+        neighbour = Recorder.start(elsewhere)
+        threaded = pykka.ThreadingActor.start()
+        one.tell(message)
+        for ref in (one, other):
+            ref.actor_stopped.wait(WAIT_S)
+            with pytest.raises(pykka.ActorDeadError):
+                ref.ask("after", timeout=WAIT_S)
+        # Another dispatcher's actors (another drone's) and Pykka's own go on.
+        assert neighbour.ask("after", timeout=WAIT_S) == 1
+        assert threaded.is_alive()
+        threaded.stop()
+        neighbour.stop(block=True, timeout=WAIT_S)
+    finally:
+        elsewhere.shutdown()
+    # The exception is logged once, with its traceback.
+    expected = SystemExit if message == "exit" else KeyboardInterrupt
+    logged = [r for r in caplog.records if r.exc_info and r.exc_info[0] is expected]
+    assert len(logged) == 1
+
+
+@EXITS
+def test_a_base_exception_goes_to_on_failure_then_to_the_dispatchers_exit_hook(
+    message: str,
+) -> None:
+    told: list[tuple[Any, BaseException]] = []
+    hooked = Dispatcher(workers=2, name="test-hook", on_exit=lambda a, e: told.append((a, e)))
+    try:
+        one = Recorder.start(hooked, keep_alive=True)
+        other = Recorder.start(hooked)
+        one.tell(message)
+        # on_failure kept the actor alive; nothing else was stopped.
+        assert one.ask("after", timeout=WAIT_S) == 1
+        failures = one.proxy().failures.get(timeout=WAIT_S)
+        assert failures == [repr(SystemExit(3)) if message == "exit" else "KeyboardInterrupt()"]
+        assert other.ask("after", timeout=WAIT_S) == 1
+        ((actor, exc),) = told
+        assert actor.actor_ref == one
+        assert isinstance(exc, SystemExit if message == "exit" else KeyboardInterrupt)
+        for ref in (one, other):
+            ref.stop(block=True, timeout=WAIT_S)
+    finally:
+        hooked.shutdown()
+
+
+@EXITS
+def test_an_ask_whose_handler_exits_is_answered_with_an_ordinary_exception(
+    dispatcher: Dispatcher, message: str
+) -> None:
+    """Pykka leaves the asker waiting; a SystemExit must not cross into the asker's thread.
+
+    The exception still reaches the dispatcher's scope (here: its actors stop)."""
+    expected = SystemExit if message == "exit" else KeyboardInterrupt
+    ref = Recorder.start(dispatcher)
+    with pytest.raises(ActorExit) as caught:
+        ref.ask(message, timeout=WAIT_S)
+    assert isinstance(caught.value.__cause__, expected)
+    assert ref.actor_stopped.wait(WAIT_S)
+
+
+class ExitsOnStart(PooledActor):
+    def on_start(self) -> None:
+        raise SystemExit(4)
+
+
+def test_an_actor_whose_on_start_exits_is_stopped_and_the_hook_told() -> None:
+    told: list[BaseException] = []
+    hooked = Dispatcher(workers=1, name="test-start", on_exit=lambda a, e: told.append(e))
+    try:
+        ref = ExitsOnStart.start(hooked)
         with pytest.raises(pykka.ActorDeadError):
-            ref.ask("after", timeout=WAIT_S)
-    assert not one.is_alive() and not other.is_alive()
+            ref.ask("hello", timeout=WAIT_S)
+        assert [repr(e) for e in told] == ["SystemExit(4)"]
+        assert Recorder.start(hooked).ask("x", timeout=WAIT_S) == 1  # the workers live on
+    finally:
+        hooked.shutdown()
 
 
 class FailsToStart(PooledActor):

@@ -18,6 +18,16 @@ ENTRY_POINTS = """\
 Spray = eamos_labspray:SPRAY
 """
 
+#: The lab's broken plugins too (``eamos_labspray/faults.py``).
+FAULTY_ENTRY_POINTS = """\
+[eamos.actions]
+Spray = eamos_labspray:SPRAY
+Quit = eamos_labspray.faults:QUIT
+CtrlC = eamos_labspray.faults:CTRL_C
+Stall = eamos_labspray.faults:STALL
+Spin = eamos_labspray.faults:SPIN
+"""
+
 
 def install_lab(folder: Path, entry_points: str = ENTRY_POINTS) -> Path:
     """Install the lab package into ``folder``; returns ``folder``."""

@@ -4,13 +4,18 @@ Split from :mod:`eamos.hal.sim.core` by responsibility: :class:`ActionRules` hol
 action lifecycle (refusals, timers, arming, moves to a target, the guided motions of
 :mod:`eamos.hal.sim.motions`, ``ReturnHome``'s two phases, plugin actions, timeouts);
 :class:`~eamos.hal.sim.core.SimCore` adds requests, stepping, idling and observation.
-Pure: no thread, no clock read.
+Pure: no thread, no clock read, but for one thing it does not control: a plugin action's
+"sim" implementation runs on a thread of its own under a wall-clock deadline
+(:meth:`~eamos.program.plugins.PluginRegistry.call`).  Its owner says whether the core
+waits for the outcome (the virtual-time driver: a run stays the same run) or looks for it
+at every step (the real-time adapter: the vehicle flies on, and can land, meanwhile).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
@@ -27,7 +32,7 @@ from eamos.hal.sim.pilot import ScriptedPilot
 from eamos.hal.sim.plugin_api import SimOutcome, SimView
 from eamos.hal.sim.settings import SimSettings
 from eamos.hal.sim.telemetry import EPS_S
-from eamos.program.plugins import PluginError, PluginRegistry
+from eamos.program.plugins import PluginCall, PluginRegistry
 from eamos.program.uniform import (
     Arm,
     Command,
@@ -55,12 +60,18 @@ SIM_DT_S = 0.02
 PAYLOAD_DELAY_S = 0.2
 _EPS_S = EPS_S
 
+#: Fields of an ``adapter.plugin`` line the line (or the logger) writes itself: a
+#: plugin's ``SimOutcome.log`` may not use them.
+PLUGIN_LOG_TAKEN = frozenset(
+    {"event", "action", "args", "handle", "t_sim", "drone", "level", "ts", "exc_info", "exception"}
+)
+
 #: A finished action: its done callback and its result (the caller invokes it).
 Finished = tuple[DoneCallback, ActionResult]
 
 # "motion": to a fixed target; "orbit": a moving one (guide); "home": above home, then
-# "land"; "yaw": turning on the spot.
-_Kind = Literal["arm", "motion", "land", "timer", "orbit", "home", "yaw"]
+# "land"; "yaw": turning on the spot; "plugin": its implementation computes the outcome.
+_Kind = Literal["arm", "motion", "land", "timer", "orbit", "home", "yaw", "plugin"]
 
 
 @dataclass(eq=False)
@@ -78,6 +89,7 @@ class SimAction:
     deferred: bool = False  # waiting for the scripted pilot
     guide: OrbitGuide | None = None  # "orbit": the moving setpoint
     heading_deg: float = 0.0  # "yaw": the heading turned to
+    call: PluginCall | None = None  # "plugin": the implementation's call
 
 
 @dataclass(frozen=True)
@@ -98,6 +110,8 @@ class ActionRules:
     drone: str
     settings: SimSettings
     plugins: PluginRegistry
+    #: Wait for a plugin's outcome when the action starts (else: look at every step).
+    wait_for_plugins: bool
     _log: EventLog
     _frame: GeoFrame
     _model: Quadcopter
@@ -190,7 +204,11 @@ class ActionRules:
     def _begin_plugin(
         self, act: SimAction, command: PluginAction, finished: list[Finished]
     ) -> None:
-        """Run a plugin action's "sim" implementation; it becomes a timer (or fails now)."""
+        """Start a plugin action's "sim" implementation on its own thread (docs/plugins.md).
+
+        Its outcome makes the action a timer counted from the action's start (or fails
+        it); until the outcome comes the action is ``"plugin"``, looked at every step.
+        """
         x, y, z = self._model.position
         view = SimView(
             self.drone,
@@ -203,17 +221,36 @@ class ActionRules:
             self._model.landed,
             dict(self._payload),
         )
-        try:
-            outcome = self.plugins.implementation(command.name, "sim")(view, command)
-            if not isinstance(outcome, SimOutcome):
-                raise TypeError(f"returned {type(outcome).__name__}, not SimOutcome")
-        except PluginError as exc:
-            return self._finish(act, ActionResult("failed", str(exc)), finished)
-        except Exception as exc:  # a plugin's bug fails its action, not the vehicle
-            reason = f"plugin action {command.name!r} failed in its sim implementation: {exc!r}"
+        act.kind = "plugin"
+        act.call = self.plugins.call(
+            command.name, "sim", (view, command), self.settings.plugin_deadline_s
+        )
+        if self.wait_for_plugins:
+            act.call.wait()
+        self._plugin_progress(act, command, finished)
+
+    def _plugin_progress(
+        self, act: SimAction, command: PluginAction, finished: list[Finished]
+    ) -> None:
+        """Apply a plugin action's outcome once its implementation gave one (or failed)."""
+        assert act.call is not None
+        answer = act.call.poll()
+        if answer is None:
+            return  # still computing, its deadline ahead
+        act.call = None
+        outcome = answer.value
+        if answer.failed:
+            reason = answer.failed
+        elif not isinstance(outcome, SimOutcome):
+            reason = (
+                f"plugin action {command.name!r} failed in its sim implementation: "
+                f"returned {type(outcome).__name__}, not SimOutcome"
+            )
+        else:
+            reason = outcome.failed or _outcome_problem(command.name, outcome)
+        if reason:
             return self._finish(act, ActionResult("failed", reason), finished)
-        if outcome.failed:
-            return self._finish(act, ActionResult("failed", outcome.failed), finished)
+        assert isinstance(outcome, SimOutcome)
         self._payload.update(outcome.payload)
         self._log.info(
             "adapter.plugin",
@@ -223,7 +260,8 @@ class ActionRules:
             t_sim=round(self.t_s, 3),
             **dict(outcome.log),
         )
-        act.until_s = self.t_s + max(0.0, outcome.duration_s)
+        act.kind = "timer"
+        act.until_s = act.started_s + outcome.duration_s
         return None
 
     def _guide(self) -> None:
@@ -308,6 +346,9 @@ class ActionRules:
         for act in list(self._actions.values()):
             if act.deferred:
                 continue
+            if act.kind == "plugin" and isinstance(act.command, PluginAction):
+                self._plugin_progress(act, act.command, finished)
+                continue
             if act.kind == "timer":
                 if self.t_s >= act.until_s - _EPS_S:
                     self._finish(act, ActionResult("ok"), finished)
@@ -367,4 +408,35 @@ class ActionRules:
             self._start_motion(self._motion, finished)
 
 
-__all__ = ["PAYLOAD_DELAY_S", "SIM_DT_S", "ActionRules", "Finished", "SimAction", "SimRequest"]
+def _outcome_problem(name: str, outcome: SimOutcome) -> str:
+    """What in a plugin's outcome the simulator cannot use ("" when nothing): its fields
+    are the plugin's, checked here so that a bad one fails the action, not the vehicle."""
+    where = f"plugin action {name!r} failed in its sim implementation: SimOutcome"
+    duration = outcome.duration_s
+    if isinstance(duration, bool) or not isinstance(duration, int | float):
+        return f"{where}.duration_s is {duration!r}, not a number"
+    if not 0.0 <= duration < math.inf:
+        return f"{where}.duration_s is {duration!r}, not a finite number >= 0"
+    payload, log = outcome.payload, outcome.log
+    if not isinstance(payload, Mapping) or not all(
+        isinstance(k, str) and isinstance(v, int | float) and not isinstance(v, bool)
+        for k, v in payload.items()
+    ):
+        return f"{where}.payload must map names to numbers"
+    if not isinstance(log, Mapping) or not all(isinstance(k, str) for k in log):
+        return f"{where}.log must map field names to values"
+    taken = sorted(set(log) & PLUGIN_LOG_TAKEN)
+    if taken:
+        return f"{where}.log uses field(s) the adapter log writes itself: {', '.join(taken)}"
+    return ""
+
+
+__all__ = [
+    "PAYLOAD_DELAY_S",
+    "PLUGIN_LOG_TAKEN",
+    "SIM_DT_S",
+    "ActionRules",
+    "Finished",
+    "SimAction",
+    "SimRequest",
+]

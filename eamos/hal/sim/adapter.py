@@ -29,7 +29,9 @@ Actions complete on real criteria checked after every step:
   (:mod:`eamos.hal.sim.motions`).
 * ``ReturnHome``: above home at the current height, then landed.
 * Plugin actions: their "sim" implementation's duration (:mod:`eamos.hal.sim.plugin_api`;
-  the plugins come from entry points, docs/plugins.md).
+  the plugins come from entry points, docs/plugins.md).  The implementation computes the
+  outcome on a thread of its own within ``plugin_deadline_s`` wall-clock seconds; the
+  simulator never waits for it (the vehicle hovers, and can land, meanwhile).
 
 Rules: ``Takeoff`` needs the vehicle armed ("not armed"); ``FlyBy*``/``FlyTo*``
 need it airborne ("not flying"); ``Disarm`` fails in the air ("in the air");
@@ -139,7 +141,11 @@ class SimAdapter:
         self.settings = settings or SimSettings()
         self.plugins = plugins
         self._log = adapter_log if adapter_log is not None else make_logger(None)
-        self._core = SimCore(drone, self.settings, self._log, plugins=plugins)
+        # A plugin's outcome is looked for at every step, never waited for: the
+        # vehicle flies on (and can land) whatever its implementation does.
+        self._core = SimCore(
+            drone, self.settings, self._log, plugins=plugins, wait_for_plugins=False
+        )
         # One lock guards the core; the condition lets observers (tests, tools)
         # wait for the next simulator tick.
         self._lock = threading.Lock()
@@ -264,7 +270,9 @@ class SimAdapter:
     def _loop(self) -> None:
         try:
             self._pace()
-        except Exception as exc:  # keep the adapter's promise: done is always called
+        except BaseException as exc:  # keep the adapter's promise: done is always called
+            # (BaseException too: this thread is never the main one, so a KeyboardInterrupt
+            # here is no Ctrl-C, and a SystemExit would end the thread silently.)
             # Fail the running actions first: logging may itself fail (a full disk).
             self._crash(exc)
             with contextlib.suppress(Exception):
@@ -324,7 +332,7 @@ class SimAdapter:
         covered = int((time.monotonic() - since) * self.settings.speedup / SIM_DT_S)
         self._core.skip(min(most, covered))
 
-    def _crash(self, exc: Exception) -> None:
+    def _crash(self, exc: BaseException) -> None:
         with self._lock:
             self._closed = True
             finished = self._core.finish_all(ActionResult("failed", f"simulator error: {exc!r}"))

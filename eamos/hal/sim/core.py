@@ -69,10 +69,16 @@ class SimCore(ActionRules):
         log: EventLog,
         clock: Callable[[], float] = time.time,
         plugins: PluginRegistry = EMPTY_PLUGINS,
+        wait_for_plugins: bool = True,
     ) -> None:
         """A core for ``drone``; ``clock`` gives the epoch time stamped on telemetry.
 
-        ``plugins``: the plugin actions it may run (their "sim" implementations).
+        ``plugins``: the plugin actions it may run (their "sim" implementations, each
+        on a thread of its own under ``settings.plugin_deadline_s``).
+        ``wait_for_plugins``: the step that starts a plugin action waits for its
+        outcome (at most the deadline), so a run in virtual time does not depend on
+        how fast the implementation's thread is; False (a vehicle in real time): the
+        core looks for the outcome at every step and flies on meanwhile.
         """
         self.drone = drone
         self.settings = settings
@@ -88,6 +94,7 @@ class SimCore(ActionRules):
         self._aborting = False
         self._pilot = ScriptedPilot(settings.pilot, settings, log)
         self.plugins = plugins
+        self.wait_for_plugins = wait_for_plugins
         self._heading_deg = 0.0  # compass degrees; Orbit's centre lies ahead along it
         self._payload: dict[str, float] = {}  # plugin state (gimbal pitch, photos, video)
 

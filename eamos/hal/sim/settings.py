@@ -22,7 +22,11 @@ from eamos.hal.settings import (
     require_mapping,
     string_list,
 )
+from eamos.program.plugins import PLUGIN_DEADLINE_S
 from eamos.program.uniform import ACTIONS, DRONE_TYPES
+
+#: The longest deadline a plugin's "sim" implementation may be given (an hour).
+PLUGIN_DEADLINE_MAX_S = 3600.0
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,9 @@ class SimSettings:
     drain_climb_per_mps_pct_per_min: float = BatteryModel.drain_climb_per_mps_pct_per_min
     drain_idle_pct_per_min: float = BatteryModel.drain_idle_pct_per_min
     action_timeout_s: float = 120.0
+    # Wall-clock seconds a plugin action's "sim" implementation may compute its outcome
+    # (docs/plugins.md): not simulated time, so not scaled by speedup.
+    plugin_deadline_s: float = PLUGIN_DEADLINE_S
     reject_actions: tuple[str, ...] = ()
     pilot: tuple[Waypoint, ...] = ()
     # Where this drone stands in the fleet frame: metres (north, east) from the
@@ -152,6 +159,7 @@ class SimSettings:
             drain_climb_per_mps_pct_per_min=num("drain_climb_per_mps_pct_per_min", ge=0),
             drain_idle_pct_per_min=num("drain_idle_pct_per_min", ge=0),
             action_timeout_s=num("action_timeout_s", gt=0),
+            plugin_deadline_s=num("plugin_deadline_s", gt=0, le=PLUGIN_DEADLINE_MAX_S),
             reject_actions=reject,
             pilot=pilot,
             home_m=home_m,
