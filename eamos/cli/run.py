@@ -196,6 +196,8 @@ def summary_lines(summary: RunSummary) -> list[str]:
         extra = "".join(f"; {a.action} {a.result}: {a.reason}" for a in fails)
         if report.blocked_nodes:
             extra += f"; blocked: {len(report.blocked_nodes)} node(s)"
+        if result.left_armed:
+            extra += f"; left {result.left_armed}"
         lines.append(
             f"  {name}: {'ok' if result.ok else 'not ok'}, "
             f"{report.action_count} actions, triggers sent/received "
