@@ -1,7 +1,7 @@
 // Experiment D (Listing 13 of the EAMOS paper, missions/experiment_d.go) with one
-// change: PAR_Exit lands D1 and D2 as well as D3.  As printed, the listing leaves
-// the two real drones hovering when the loops end, so the pre-flight check refuses
-// it and a run of it does not finish; this one ends with every drone landed (and
+// addition: PAR_Land lands D1 and D2 once the loops have ended.  As printed, the
+// listing leaves the two real drones hovering, so the pre-flight check refuses it
+// and a run of it does not finish; this one ends with every drone landed (and
 // disarmed by its autopilot a moment later).
 // Fly it with the scripted pilot standing in for D3's:
 //   eamos run missions/experiment_d_lands.go --fleet configs/experiment_d_pilot.toml
@@ -12,6 +12,13 @@ func SEQ_Experiment_D() {
 	PAR_1()
 	SEQ_2()
 	PAR_Loop()
+	PAR_Land()
+}
+
+// Not in Listing 13: once the loops have ended, land the two real drones too.
+func PAR_Land() {
+	D1.Land()
+	D2.Land()
 }
 
 func PAR_1() {
@@ -89,7 +96,5 @@ func SEQ_downXD2() {
 }
 
 func PAR_Exit() {
-	D1.Land()
-	D2.Land()
 	D3.Land()
 }
