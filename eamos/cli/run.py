@@ -22,9 +22,9 @@ from eamos.cli.options import (
     add_svg,
     add_verbose,
 )
-from eamos.config import FleetConfig, fleet_order
 
-if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `eamos compile`)
+if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `--help`)
+    from eamos.config import FleetConfig
     from eamos.ground import Display, RunSummary
 
 _RUN_HELP = """\
@@ -105,12 +105,18 @@ def drones_per_process(text: str) -> int | None:
     return value
 
 
+def _no_fleet_file() -> FleetConfig:
+    from eamos.config import FleetConfig
+
+    return FleetConfig.empty()
+
+
 @dataclass
 class RunOptions:
     """What ``eamos run`` was asked to do."""
 
     mission: Path
-    fleet: FleetConfig = field(default_factory=FleetConfig.empty)
+    fleet: FleetConfig = field(default_factory=_no_fleet_file)
     speedup: float | None = None
     summary: Path | None = None
     run_dir: Path | None = None
@@ -145,6 +151,7 @@ def run_mission(
     ``display`` defaults to a live table on a terminal (``opts.live``), plain lines otherwise.
     """
     from eamos.compiler import compile_file, write_artifacts
+    from eamos.config import fleet_order
     from eamos.ground import Limits, LocalMission, fly_local, make_display, use_run_dir
     from eamos.ground.local import link_latest
     from eamos.program.uniform import GROUND_STATION
@@ -216,6 +223,8 @@ def summary_lines(summary: RunSummary) -> list[str]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``eamos run``; a bad mission or fleet file reaches the dispatcher (exit 2)."""
+    from eamos.config import FleetConfig
+
     fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
     from eamos.ground import StopRequest, hurried, install_stop_handler
 

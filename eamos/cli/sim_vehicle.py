@@ -11,9 +11,8 @@ import threading
 from pathlib import Path
 from types import FrameType
 
+from eamos import __version__
 from eamos.cli.exits import EXIT_CONNECT, EXIT_MISSION_FAILED, EXIT_OK
-from eamos.hal.mavlink.signing import read_key
-from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions, parse_reject
 
 
 def _home(text: str) -> tuple[float, float, float]:
@@ -86,6 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
         required=True,
         help="udpout:HOST:PORT (PX4 style), tcpin:HOST:PORT (ArduPilot style) or udpin:HOST:PORT",
     )
+    parser.add_argument("--version", action="version", version=f"eamos {__version__}")
     parser.add_argument("--sysid", type=int, default=1, help="MAVLink system id (1)")
     parser.add_argument(
         "--speedup",
@@ -182,6 +182,10 @@ def main(argv: list[str] | None = None) -> int:
     """Console entry point of ``eamos-sim-vehicle``; SIGTERM/SIGINT stop it cleanly."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    # The vehicle (pymavlink) loads once the arguments are read: --help and --version are quick.
+    from eamos.hal.mavlink.signing import read_key
+    from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions, parse_reject
+
     try:
         key = read_key(args.signing_key) if args.signing_key is not None else None
         options = VehicleOptions(

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 
-from eamos.cli import fleet as cli_fleet
 from eamos.cli.errors import exit_code_of
 from eamos.cli.exits import (
     EXIT_BAD_INPUT,
@@ -112,7 +111,7 @@ def test_an_internal_error_is_one_line_and_the_traceback_needs_v(
     def broken(source: Path, mission: str | None = None) -> None:
         raise RuntimeError("broken invariant")
 
-    monkeypatch.setattr(cli_fleet, "resolve", broken)
+    monkeypatch.setattr("eamos.ops.deployment.resolve", broken)  # imported by the command
     assert main(["status", files["empty"]]) == EXIT_INTERNAL
     err = capsys.readouterr().err
     assert err == (
