@@ -54,6 +54,27 @@ def one_edit_apart(a: str, b: str) -> bool:
     )
 
 
+def _neighbours(names: list[str]) -> dict[str, set[str]]:
+    """For each name, the others that may be one edit from it (a superset, in linear time).
+
+    Two names one insertion, deletion, substitution or swap apart have a common string
+    among each one and its copies with one character deleted; grouping by those
+    strings finds the candidates without comparing every pair (a mission may have
+    thousands of drones).
+    """
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        keys = {name} | {name[:i] + name[i + 1 :] for i in range(len(name))}
+        for key in keys:
+            groups.setdefault(key, []).append(name)
+    near: dict[str, set[str]] = {}
+    for members in groups.values():
+        if len(members) > 1:
+            for name in members:
+                near.setdefault(name, set()).update(m for m in members if m != name)
+    return near
+
+
 def _props(expr: Expr | None) -> Iterator[Prop]:
     if isinstance(expr, Prop):
         yield expr
@@ -100,6 +121,7 @@ def misspelt_drones(mission: Mission) -> list[Diagnostic]:
         first.setdefault(name, loc)
     declared = set(mission.drones)
     names = sorted(declared | set(count))
+    near = _neighbours(names)
     out: list[Diagnostic] = []
     for name in names:
         if name in declared or name not in first:
@@ -107,10 +129,8 @@ def misspelt_drones(mission: Mission) -> list[Diagnostic]:
         # The names it may be a mistake for: declared ones, or used more often.
         likelier = [
             other
-            for other in names
-            if other != name
-            and one_edit_apart(name, other)
-            and (other in declared or count[other] > count[name])
+            for other in near.get(name, ())
+            if one_edit_apart(name, other) and (other in declared or count[other] > count[name])
         ]
         if not likelier:
             continue

@@ -7,9 +7,11 @@ next to ``Drone1`` was silently a third drone; only the pre-flight check noticed
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from eamos.compiler import compile_mission
-from eamos.compiler.drone_names import one_edit_apart
+from eamos.compiler.drone_names import _neighbours, one_edit_apart
 
 from .compiler_helpers import mission_files
 
@@ -92,3 +94,13 @@ def test_numbered_fleets_and_parameters_are_not_mistakes() -> None:
 def test_no_shipped_mission_is_warned(path) -> None:
     compiled = compile_mission(path.read_text(), str(path))
     assert [w for w in compiled.warnings if "one letter away" in w.message] == []
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.text(alphabet="abD12_", min_size=1, max_size=5), max_size=40, unique=True))
+def test_the_grouping_finds_every_pair_one_edit_apart(names: list[str]) -> None:
+    near = _neighbours(sorted(names))
+    for a in names:
+        for b in names:
+            if a != b and one_edit_apart(a, b):
+                assert b in near.get(a, set()), (a, b)
