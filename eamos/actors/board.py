@@ -5,8 +5,9 @@ by polling: a condition node ``Watch``-es the drones it reads, and the board
 tells it every change.  Local samples (from the adapter) also go out to the
 fleet through the out-bridge; remote ones arrive from the in-bridge.  The board
 also answers the runtime's questions about this drone's own vehicle: has it
-landed (:class:`WhenLanded`), and what was its state once its last action ended
-(:class:`FinalSample`, for the report).
+landed (:class:`WhenLanded`), has it stopped standing armed on the ground
+(:class:`WhenSettled`: an autopilot disarms a moment after landing), and what
+was its state once its last action ended (:class:`FinalSample`, for the report).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ __all__ = [
     "LocalSample",
     "TelemetryBoard",
     "WhenLanded",
+    "WhenSettled",
     "ask_final_sample",
     "shows_effect",
 ]
@@ -80,6 +82,22 @@ class WhenLanded:
     """Set ``event`` once the vehicle reports it is on the ground (at once if it is)."""
 
     event: threading.Event
+
+
+@dataclass(frozen=True)
+class WhenSettled:
+    """Set ``event`` once a sample taken after the last action shows the vehicle not
+    standing armed on the ground (disarmed, or in the air).
+
+    After a landing, autopilots (and the simulated drone) disarm by themselves a
+    moment later; the drone's report waits for that to tell the state it is left in.
+    ``after_s`` and ``action`` say which samples are new enough, as for :class:`FinalSample`
+    (a sample from before the landing would still show the vehicle in the air).
+    """
+
+    event: threading.Event
+    after_s: float | None = None
+    action: str | None = None
 
 
 @dataclass(frozen=True)
@@ -148,6 +166,7 @@ class TelemetryBoard(RuntimePart):
         self.local_received_s = float("-inf")
         self.watchers: dict[Mailbox[TelemetryChanged], tuple[str, ...]] = {}
         self.landed_waiters: list[threading.Event] = []
+        self.settled_waiters: list[WhenSettled] = []
         self.final_waiters: list[FinalSample] = []
         self._timers: list[threading.Timer] = []
 
@@ -168,6 +187,11 @@ class TelemetryBoard(RuntimePart):
                 message.event.set()
             else:
                 self.landed_waiters.append(message.event)
+        elif isinstance(message, WhenSettled):
+            if self.local is None or self._settled(message):
+                message.event.set()
+            else:
+                self.settled_waiters.append(message)
         elif isinstance(message, FinalSample):
             self._final(message)
         elif isinstance(message, _FinalDeadline):
@@ -189,10 +213,17 @@ class TelemetryBoard(RuntimePart):
             for event in self.landed_waiters:
                 event.set()
             self.landed_waiters.clear()
+        for waiter in [w for w in self.settled_waiters if self._settled(w)]:
+            waiter.event.set()
+            self.settled_waiters.remove(waiter)
         for request in [r for r in self.final_waiters if self._fresh(r)]:
             self._answer(request)
 
-    def _fresh(self, request: FinalSample) -> bool:
+    def _settled(self, request: WhenSettled) -> bool:
+        local = self.local
+        return local is not None and self._fresh(request) and not (local.landed and local.armed)
+
+    def _fresh(self, request: FinalSample | WhenSettled) -> bool:
         return (
             request.after_s is None
             or self.local_received_s > request.after_s

@@ -22,7 +22,7 @@ from eamos.net.wire import WireError
 from eamos.program.format import DroneProgram, load_program
 from eamos.program.uniform import GROUND_STATION
 
-from .board import ask_final_sample
+from .board import WhenSettled, ask_final_sample
 from .executive import ask_activity, ask_snapshot
 from .failure import tell_operator
 from .messages import PeerLost
@@ -107,6 +107,9 @@ def run_drone(
             landed = runtime.wait_landed(config.land_timeout_s)
             if not landed:
                 runtime.log.error("mission.abort.not_landed", timeout_s=config.land_timeout_s)
+        elif config.disarm_wait_s > 0 and not wait_settled(runtime, config.disarm_wait_s):
+            # Its autopilot disarms a moment after landing: the report tells what it is left in.
+            runtime.log.warning("mission.end.armed_on_ground", waited_s=config.disarm_wait_s)
         report = runtime.drone_report()
         data = report.to_json()
         try:
@@ -136,6 +139,21 @@ def run_drone(
         close_logger(adapter_log)
         if log_writer is None:
             writer.close()
+
+
+def wait_settled(runtime: DroneRuntime, timeout_s: float) -> bool:
+    """Wait (on telemetry) until the vehicle does not stand armed on the ground.
+
+    Autopilots (and the simulated drone) disarm by themselves a moment after a
+    landing; the report must tell the state the vehicle is left in.  False if it
+    still stands armed after ``timeout_s``.
+    """
+    if runtime.board is None:
+        return True
+    snap = ask_snapshot(runtime.executive, ASK_TIMEOUT_S)
+    event = threading.Event()
+    runtime.board.tell(WhenSettled(event, snap.state_changed_s, snap.state_action))
+    return event.wait(timeout_s)
 
 
 def peer_wait_limit(config: NodeConfig) -> float:

@@ -73,14 +73,20 @@ class FinalState:
     z: float
     armed: bool
     battery: float
+    landed: bool | None = None  # None: a report from before it was written
 
     @classmethod
     def of(cls, sample: Telemetry) -> FinalState:
         """The final state a telemetry sample shows."""
-        return cls(sample.x_m, sample.y_m, sample.z_m, sample.armed, sample.battery_pct)
+        return cls(
+            sample.x_m, sample.y_m, sample.z_m, sample.armed, sample.battery_pct, sample.landed
+        )
 
     def to_json(self) -> dict[str, Any]:
-        return {"x": self.x, "y": self.y, "z": self.z, "armed": self.armed, "battery": self.battery}
+        out = {"x": self.x, "y": self.y, "z": self.z, "armed": self.armed, "battery": self.battery}
+        if self.landed is not None:
+            out["landed"] = self.landed
+        return out
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> FinalState:
@@ -91,6 +97,7 @@ class FinalState:
             float(_get(data, "z", num, "final")),
             bool(_get(data, "armed", bool, "final")),
             float(_get(data, "battery", num, "final")),
+            bool(_get(data, "landed", bool, "final")) if "landed" in data else None,
         )
 
 

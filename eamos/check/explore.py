@@ -25,7 +25,7 @@ from ..virtual.vehicles import Clock
 from .branches import Oracle
 from .findings import CheckReport, Finding, Place, RunSummary
 from .limits import battery, geofence
-from .rules import deadlock, failed_actions, node_index, separation, termination
+from .rules import block_files, deadlock, failed_actions, node_index, separation, termination
 from .tracks import Track, TrackRecorder
 
 #: Virtual seconds after which a run that has not ended is reported (a wait never ending).
@@ -101,7 +101,7 @@ def check_run(
     time_limit_s: float,
 ) -> list[Finding]:
     """Every rule applied to one run."""
-    nodes = node_index(compiled.programs)
+    nodes = node_index(compiled.programs, block_files(compiled.mission.blocks))
     return [
         *failed_actions(run, nodes, branch),
         *deadlock(run, nodes, time_limit_s, branch),
@@ -160,7 +160,12 @@ def _check_mission(
     drones = fleet_order(compiled.programs)
     fleet.check_drones(drones)  # a misspelt [drones.X] table is an error, not ignored
     notes: list[Finding] = [
-        Finding("warning", "compile", d.message, (Place("", "", "", d.loc.line, d.loc.col),))
+        Finding(
+            "warning",
+            "compile",
+            d.message,
+            (Place("", "", "", d.loc.line, d.loc.col, d.loc.file),),
+        )
         for d in compiled.warnings
     ]
     settings: dict[str, SimSettings] = {}

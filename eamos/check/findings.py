@@ -18,20 +18,26 @@ Point = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class Place:
-    """Where in the mission text: a node's action (or condition) and its line and column."""
+    """Where in the mission text: a node's action (or condition) and its line and column.
+
+    ``file`` is the library file the line is in ("" for the mission file itself: a
+    block of a library, ``import "shapes"``, is written in ``shapes/shapes.go``).
+    """
 
     drone: str
     node: str
     label: str
     line: int
     col: int
+    file: str = ""
 
-    def to_json(self) -> dict[str, Any]:
-        """A JSON-ready dict."""
+    def to_json(self, mission_file: str = "") -> dict[str, Any]:
+        """A JSON-ready dict; ``file`` is the library's, else ``mission_file``."""
         return {
             "drone": self.drone,
             "node": self.node,
             "label": self.label,
+            "file": self.file or mission_file,
             "line": self.line,
             "col": self.col,
         }
@@ -65,20 +71,27 @@ class Finding:
         """The column the finding is reported on."""
         return self.places[0].col if self.places and self.places[0].col else 1
 
-    def render(self, path: str) -> str:
-        """``path:line:col: severity: message [branch]``."""
-        where = f" [{self.branch}]" if self.branch else ""
-        return f"{path}:{self.line}:{self.col}: {self.severity}: {self.message}{where}"
+    @property
+    def file(self) -> str:
+        """The library file the finding is reported in ("" for the mission file)."""
+        return self.places[0].file if self.places else ""
 
-    def to_json(self) -> dict[str, Any]:
-        """A JSON-ready dict."""
+    def render(self, path: str) -> str:
+        """``file:line:col: severity: message [branch]``; ``path`` is the mission file's name,
+        used unless the line is in a library file."""
+        where = f" [{self.branch}]" if self.branch else ""
+        return f"{self.file or path}:{self.line}:{self.col}: {self.severity}: {self.message}{where}"
+
+    def to_json(self, mission_file: str = "") -> dict[str, Any]:
+        """A JSON-ready dict; ``file`` is where ``line`` is (a library's, else ``mission_file``)."""
         return {
             "severity": self.severity,
             "check": self.check,
             "message": self.message,
+            "file": self.file or mission_file,
             "line": self.line,
             "col": self.col,
-            "places": [p.to_json() for p in self.places],
+            "places": [p.to_json(mission_file) for p in self.places],
             "time_s": None if self.time_s is None else round(self.time_s, 3),
             "positions": {d: [round(c, 3) for c in p] for d, p in self.positions},
             "branch": self.branch,
@@ -177,7 +190,7 @@ class CheckReport:
             },
             "settings": self.settings,
             "runs": [r.to_json() for r in self.runs],
-            "findings": [f.to_json() for f in self.findings],
+            "findings": [f.to_json(self.source_file) for f in self.findings],
         }
 
 

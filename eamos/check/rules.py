@@ -7,6 +7,9 @@ time limit) and the recorded tracks, and returns located findings.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import PurePath
+from typing import Any
 
 from ..actors.messages import ActionRecord
 from ..program.format import DroneProgram, ProgramNode
@@ -15,28 +18,58 @@ from .findings import Finding, Place
 from .separation import Conflict, conflicts
 from .tracks import Track
 
-NodeIndex = Mapping[tuple[str, str], ProgramNode]
+
+@dataclass(frozen=True)
+class NodeIndex:
+    """Every native node of every program by (drone, node key), and where blocks are written.
+
+    ``files`` maps a block (a node's ``block``, a library block's copy named
+    ``package.Block(arguments)``) to the library file it is written in; a block of
+    the mission file itself is not in it.
+    """
+
+    nodes: Mapping[tuple[str, str], ProgramNode]
+    files: Mapping[str, str] = field(default_factory=dict)
+
+    def get(self, key: tuple[str, str]) -> ProgramNode | None:
+        """The node of (drone, node key), if native to that drone."""
+        return self.nodes.get(key)
 
 
-def node_index(programs: Mapping[str, DroneProgram]) -> dict[tuple[str, str], ProgramNode]:
-    """Every native node of every program by (drone, node key)."""
-    return {(drone, n.key): n for drone, p in programs.items() for n in p.nodes if n.native}
+def node_index(
+    programs: Mapping[str, DroneProgram], files: Mapping[str, str] | None = None
+) -> NodeIndex:
+    """Every native node of every program; ``files``: each library block's file."""
+    return NodeIndex(
+        {(drone, n.key): n for drone, p in programs.items() for n in p.nodes if n.native},
+        dict(files or {}),
+    )
+
+
+def block_files(blocks: Mapping[str, Any]) -> dict[str, str]:
+    """The library file of each block written in one (a compiled mission's ``blocks``)."""
+    return {name: b.loc.file for name, b in blocks.items() if b.loc.file}
 
 
 def place(nodes: NodeIndex, drone: str, key: str) -> Place:
-    """Where a node is written in the mission text."""
+    """Where a node is written: the mission text, or the library file of its block."""
     n = nodes.get((drone, key))
     if n is None:
         return Place(drone, key, key, 0, 0)
-    return Place(drone, key, n.label, n.line, n.col)
+    return Place(drone, key, n.label, n.line, n.col, nodes.files.get(n.block, ""))
 
 
 def _fmt(p: tuple[float, ...]) -> str:
     return "(" + ", ".join(f"{c:.2f}" for c in p) + ")"
 
 
+def _line(pl: Place) -> str:
+    """``line 15``, or ``line 15 of shapes.go`` for a line in a library file."""
+    return f"line {pl.line}" + (f" of {PurePath(pl.file).name}" if pl.file else "")
+
+
 def _what(pl: Place) -> str:
-    return f"{pl.drone}.{pl.label} (line {pl.line})"
+    return f"{pl.drone}.{pl.label} ({_line(pl)})"
 
 
 def failed_actions(run: VirtualRun, nodes: NodeIndex, branch: str) -> list[Finding]:
@@ -75,6 +108,7 @@ def termination(
             continue
         state = "hovering armed" if not final.landed else "on the ground armed"
         track = tracks.get(drone)
+        hint = _termination_hint(drone, final.landed, track) if not outcome.blocked else ""
         pos = (
             track.points[-1].position
             if track and track.points
@@ -100,7 +134,7 @@ def termination(
             Finding(
                 "error",
                 "termination",
-                f"{drone} is left {state} at {_fmt(pos)} {after}{why}",
+                f"{drone} is left {state} at {_fmt(pos)} {after}{why}{hint}",
                 places,
                 run.duration_s,
                 ((drone, pos),),
@@ -108,6 +142,20 @@ def termination(
             )
         )
     return out
+
+
+def _termination_hint(drone: str, landed: bool, track: Track | None) -> str:
+    """What would end the drone landed and disarmed, from how its run went."""
+    if not landed:
+        return f": nothing lands it (end with {drone}.Land())"
+    flew = track is not None and any(p.airborne for p in track.points)
+    if flew:
+        # The simulated drone disarms by itself after landing unless its type says not to.
+        return (
+            ": it landed, but its drone type does not disarm by itself after landing "
+            f"([hal] disarm_after_landing_s = 0): end with {drone}.Disarm()"
+        )
+    return f": it never took off (take off, or end with {drone}.Disarm())"
 
 
 def deadlock(run: VirtualRun, nodes: NodeIndex, time_limit_s: float, branch: str) -> list[Finding]:
@@ -119,7 +167,7 @@ def deadlock(run: VirtualRun, nodes: NodeIndex, time_limit_s: float, branch: str
     involved = tuple(place(nodes, w.drone, w.node) for w in waits + others)
     if waits:
         names = "; ".join(
-            f"{w.drone}: {w.label} (line {place(nodes, w.drone, w.node).line})" for w in waits
+            f"{w.drone}: {w.label} ({_line(place(nodes, w.drone, w.node))})" for w in waits
         )
         message = f"deadlock: a wait never ends (still waiting after {time_limit_s:g} s): {names}"
     else:
@@ -174,4 +222,13 @@ def separation(
     return out
 
 
-__all__ = ["deadlock", "failed_actions", "node_index", "place", "separation", "termination"]
+__all__ = [
+    "NodeIndex",
+    "block_files",
+    "deadlock",
+    "failed_actions",
+    "node_index",
+    "place",
+    "separation",
+    "termination",
+]

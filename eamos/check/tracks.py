@@ -18,7 +18,7 @@ from ..hal.sim import SimCore
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry
 from ..program.uniform import Command
 from ..virtual import IdleVehicle, Vehicle
-from ..virtual.vehicles import Clock, Finished
+from ..virtual.vehicles import Clock, Finished, settles
 
 #: (t_s, north_m, east_m, up_m, airborne, armed, battery_pct), as recorded.
 _Raw = tuple[float, float, float, float, bool, bool, float]
@@ -77,6 +77,7 @@ class TrackRecorder:
         self._clock = clock
         self._home = home
         self._idle = inner if isinstance(inner, IdleVehicle) else None  # checked once: slow
+        self._settles = settles(inner)
         # A simulator core tells where it is without building a whole state (every step).
         self._where = inner.where if isinstance(inner, SimCore) else None
         # Plain tuples while recording (one per step): TrackPoints only when asked.
@@ -115,6 +116,11 @@ class TrackRecorder:
     def state(self) -> Any:
         """As the wrapped vehicle."""
         return self._inner.state()
+
+    @property
+    def settling(self) -> bool:
+        """As the wrapped vehicle (False if it cannot tell)."""
+        return self._settles is not None and self._settles.settling
 
     def idle_steps(self, limit: int) -> int:
         """As the wrapped vehicle (0 if it cannot tell)."""

@@ -37,7 +37,7 @@ Exit code: 0 no error finding, 1 error findings (the mission would fail), 2 bad 
 _EPILOG = """\
 examples:
   eamos check missions/experiment_b.go
-  eamos check missions/experiment_d.go --fleet configs/experiment_d_pilot.toml --json"""
+  eamos check missions/experiment_d_lands.go --fleet configs/experiment_d_pilot.toml --json"""
 
 
 def add_check_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -152,8 +152,9 @@ def preflight(
         f"{len(report.warnings)} warning(s)"
     )
     if not report.ok:
+        kept = f" (the whole report: {report_file})" if report_file is not None else ""
         raise Refused(
-            f"the pre-flight check found {len(report.errors)} error(s) (above); fix the "
+            f"the pre-flight check found {len(report.errors)} error(s) (above){kept}; fix the "
             "mission or the fleet file, or fly it anyway with --no-check"
         )
     return report

@@ -15,16 +15,15 @@ import subprocess
 import sys
 import webbrowser
 from pathlib import Path
-from typing import Any, TextIO
-
-import networkx as nx
-
-from eamos.compiler import CompiledMission, Diagnostic, compile_file, write_artifacts
-from eamos.compiler.drawing import GraphKind, graphml_ready, render_svg, to_dot, to_graphml
+from typing import TYPE_CHECKING, Any, TextIO
 
 from .errors import BadInput, command, source_text
 from .exits import EXIT_OK
 from .options import add_fleet_file, add_mission, add_svg, add_verbose
+
+if TYPE_CHECKING:  # the compiler (networkx, tree-sitter) loads when a command runs, not for --help
+    from eamos.compiler import CompiledMission, Diagnostic
+    from eamos.compiler.drawing import GraphKind
 
 _COMPILE_HELP = """\
 Compile a mission file into one drone program per participant.
@@ -161,6 +160,8 @@ def run_compile(
     args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None
 ) -> int:
     """Handle ``eamos compile``; returns the exit code."""
+    from eamos.compiler import compile_file, write_artifacts
+
     out = out or sys.stdout
     err = err or sys.stderr
     path = str(args.mission)
@@ -250,6 +251,11 @@ def run_graph(
     args: argparse.Namespace, out: TextIO | None = None, err: TextIO | None = None
 ) -> int:
     """Handle ``eamos graph``; returns the exit code."""
+    import networkx as nx
+
+    from eamos.compiler import compile_file
+    from eamos.compiler.drawing import graphml_ready, render_svg, to_dot, to_graphml
+
     out = out or sys.stdout
     err = err or sys.stderr
     path = str(args.mission)

@@ -11,9 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
-
-from eamos.ops.deployment import Deployment, resolve
+from typing import TYPE_CHECKING, Any
 
 from .errors import BadInput, command
 from .exits import EXIT_INTERRUPTED, EXIT_MISSION_FAILED, EXIT_OK
@@ -29,6 +27,9 @@ from .options import (
     add_svg,
     add_verbose,
 )
+
+if TYPE_CHECKING:  # eamos.ops (SSH, networks, the runtime) loads when a command runs
+    from eamos.ops.deployment import Deployment
 
 _ROLLOUT_HELP = """\
 Roll a mission out to real drones over SSH (paper V-E, VI-E/F): compile it here
@@ -274,6 +275,8 @@ def cmd_start(args: argparse.Namespace) -> int:
 
 
 def _deployment(args: argparse.Namespace) -> Deployment:
+    from eamos.ops.deployment import resolve
+
     return resolve(args.source, args.mission)
 
 

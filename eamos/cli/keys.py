@@ -3,23 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from eamos.hal.mavlink.signing import create_signing_key
-from eamos.net.keys import create_fleet_keys, participants_of_compiled
-from eamos.program.uniform import GROUND_STATION
-
-from .errors import command
+from .errors import BadInput, command
 from .exits import EXIT_OK
 from .options import add_verbose
 
 _KEYS_HELP = """\
 Make one CURVE key pair per participant of a mission (each drone and the ground
 station), in ZeroMQ's certificate format.  Either name the participants with
---fleet (keys go to OUT), or give a compiled mission folder (`eamos compile -o
-OUT`): the participants are read from OUT/programs/*.program.json and the keys go
-to OUT/keys.
+--fleet (keys go to OUT, by default your own folder for them:
+$XDG_DATA_HOME/eamos/keys, that is ~/.local/share/eamos/keys, never the checkout),
+or give a compiled mission or run folder (`eamos compile -o OUT`): the participants
+are read from OUT/programs/*.program.json and the keys go to OUT/keys.
 
 Layout: public/<name>.key (every public key), <name>/<name>.key_secret (the key
 pair, mode 0600) and <name>/public/ (a copy of the public keys).  Ship <name>/
@@ -39,10 +38,19 @@ def add_keys_parser(sub: Any) -> None:
         help="make the fleet's network keys (CURVE key pairs)",
         description=_KEYS_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  eamos keys out/experiment_c\n"
-        "  eamos keys fleet-keys --fleet GCS Drone1 Drone2",
+        epilog="examples:\n  eamos keys --fleet GCS Drone1 Drone2      "
+        "# into ~/.local/share/eamos/keys\n"
+        "  eamos compile missions/experiment_c.go && eamos keys out/experiment_c",
     )
-    parser.add_argument("out", metavar="OUT", type=Path, help="output (or compiled mission) folder")
+    parser.add_argument(
+        "out",
+        metavar="OUT",
+        type=Path,
+        nargs="?",
+        default=None,
+        help="output (or compiled mission) folder; default with --fleet: "
+        "$XDG_DATA_HOME/eamos/keys (~/.local/share/eamos/keys)",
+    )
     parser.add_argument(
         "--fleet", nargs="+", metavar="NAME", help="participant names (the ground station is GCS)"
     )
@@ -51,13 +59,34 @@ def add_keys_parser(sub: Any) -> None:
     command(parser, cmd_keys)
 
 
+def default_keys_folder(env: Mapping[str, str] = os.environ) -> Path:
+    """Where ``eamos keys --fleet ...`` puts a fleet's keys: a per-user folder.
+
+    ``$XDG_DATA_HOME/eamos/keys`` (``~/.local/share/eamos/keys`` without it, as the
+    XDG base directory specification says): secret keys never land in a checkout
+    by default, where ``git add .`` would take them.
+    """
+    data = env.get("XDG_DATA_HOME", "")
+    base = Path(data) if data and Path(data).is_absolute() else Path.home() / ".local" / "share"
+    return base / "eamos" / "keys"
+
+
 def cmd_keys(args: argparse.Namespace) -> int:
     """``eamos keys``; a :class:`~eamos.net.keys.KeysError` is bad input (exit 2)."""
+    from eamos.hal.mavlink.signing import create_signing_key
+    from eamos.net.keys import create_fleet_keys, participants_of_compiled
+    from eamos.program.uniform import GROUND_STATION
+
     if args.fleet:
         names = list(dict.fromkeys(args.fleet))
         if GROUND_STATION not in names:
             names.insert(0, GROUND_STATION)  # the ground station is always a participant
-        out = Path(args.out)
+        out = Path(args.out) if args.out is not None else default_keys_folder()
+    elif args.out is None:
+        raise BadInput(
+            "name the participants (--fleet GCS Drone1 ...) or give a compiled "
+            "mission folder (eamos keys out/MISSION)"
+        )
     else:
         names = participants_of_compiled(args.out)
         out = Path(args.out) / "keys"
@@ -68,7 +97,8 @@ def cmd_keys(args: argparse.Namespace) -> int:
     for name in names:
         print(f'  {name}: ship {out / name}/  ([net] keys = "<where it lands>")')
     print(f'  MAVLink drones: ship {signing}  ([hal] signing_key = "<where it lands>")')
+    print(f'  eamos rollout: [ground] keys = "{out}" in the fleet file')
     return EXIT_OK
 
 
-__all__ = ["add_keys_parser", "cmd_keys"]
+__all__ = ["add_keys_parser", "cmd_keys", "default_keys_folder"]

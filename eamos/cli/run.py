@@ -22,9 +22,9 @@ from eamos.cli.options import (
     add_svg,
     add_verbose,
 )
-from eamos.config import FleetConfig, fleet_order
 
-if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `eamos compile`)
+if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `--help`)
+    from eamos.config import FleetConfig
     from eamos.ground import Display, RunSummary
 
 _RUN_HELP = """\
@@ -35,14 +35,17 @@ run folder with the programs, graphs, per-drone logs (mission.log, uniform.log,
 adapter.log) and summary.json.  The fleet file's [net] ground_telemetry_hz sets how
 often each drone's position reaches the ground station (docs/configuration.md).
 
-Exit code 0 when every drone finished its part, 1 otherwise (a failed action, a
-timeout, an abort), 2 for a bad mission or fleet file.  Ctrl-C aborts: every
+Exit code 0 when every drone finished its part, landed and disarmed (simulated
+drones disarm by themselves after landing, as autopilots do), 1 otherwise (a failed
+action, a drone left in the air or armed, a timeout, an abort), 2 for a bad mission
+or fleet file.  Ctrl-C aborts: every
 drone lands, then every process ends."""
 
 _RUN_EPILOG = """\
 examples:
   eamos run missions/experiment_b.go --speedup 10
-  eamos run missions/experiment_d.go --fleet configs/experiment_d_pilot.toml --summary out/d.json"""
+  eamos run missions/experiment_d_lands.go --fleet configs/experiment_d_pilot.toml
+  eamos run missions/experiment_b.go --no-check --summary out/b.json"""
 
 
 def add_run_parser(sub: Any) -> None:
@@ -102,12 +105,18 @@ def drones_per_process(text: str) -> int | None:
     return value
 
 
+def _no_fleet_file() -> FleetConfig:
+    from eamos.config import FleetConfig
+
+    return FleetConfig.empty()
+
+
 @dataclass
 class RunOptions:
     """What ``eamos run`` was asked to do."""
 
     mission: Path
-    fleet: FleetConfig = field(default_factory=FleetConfig.empty)
+    fleet: FleetConfig = field(default_factory=_no_fleet_file)
     speedup: float | None = None
     summary: Path | None = None
     run_dir: Path | None = None
@@ -121,17 +130,17 @@ class RunOptions:
 
 
 def default_run_dir(mission: str) -> Path:
-    """A new ``runs/<mission>-<date-time>[-N]/`` folder (made here), linked as ``runs/latest``.
+    """A new ``runs/<mission>-<date-time>[-N]/`` folder (made here).
 
     Runs started in the same second get folders of their own (see
-    :func:`eamos.ground.local.new_run_dir`); ``runs/latest`` always names the
-    newest, for the notebook (``notebooks/analyse_run.ipynb``).
+    :func:`eamos.ground.local.new_run_dir`).  It becomes ``runs/latest`` only once
+    the drones start (:func:`run_mission`): a run the pre-flight check refuses keeps
+    its folder (``check.json``) but ``runs/latest`` still names the newest run that
+    flew, which the notebook, ``eamos report`` and ``eamos monitor`` can read.
     """
-    from eamos.ground.local import link_latest, new_run_dir
+    from eamos.ground.local import new_run_dir
 
-    run_dir = new_run_dir(mission)
-    link_latest(run_dir)
-    return run_dir
+    return new_run_dir(mission)
 
 
 def run_mission(
@@ -142,7 +151,9 @@ def run_mission(
     ``display`` defaults to a live table on a terminal (``opts.live``), plain lines otherwise.
     """
     from eamos.compiler import compile_file, write_artifacts
+    from eamos.config import fleet_order
     from eamos.ground import Limits, LocalMission, fly_local, make_display, use_run_dir
+    from eamos.ground.local import link_latest
     from eamos.program.uniform import GROUND_STATION
 
     compiled = compile_file(opts.mission)
@@ -158,6 +169,8 @@ def run_mission(
         from eamos.cli.check import preflight
 
         preflight(compiled, fleet, str(opts.mission), report_file=run_dir / "check.json")
+    if opts.run_dir is None:
+        link_latest(run_dir)  # it flies: the newest run for the notebook, report, monitor
     drones = [n for n in compiled.programs if n != GROUND_STATION]
     stop = stop or threading.Event()
     shown = display or make_display(opts.live, drones)
@@ -196,6 +209,8 @@ def summary_lines(summary: RunSummary) -> list[str]:
         extra = "".join(f"; {a.action} {a.result}: {a.reason}" for a in fails)
         if report.blocked_nodes:
             extra += f"; blocked: {len(report.blocked_nodes)} node(s)"
+        if result.left_armed:
+            extra += f"; left {result.left_armed}"
         lines.append(
             f"  {name}: {'ok' if result.ok else 'not ok'}, "
             f"{report.action_count} actions, triggers sent/received "
@@ -208,6 +223,8 @@ def summary_lines(summary: RunSummary) -> list[str]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``eamos run``; a bad mission or fleet file reaches the dispatcher (exit 2)."""
+    from eamos.config import FleetConfig
+
     fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
     from eamos.ground import StopRequest, hurried, install_stop_handler
 

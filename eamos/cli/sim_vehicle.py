@@ -10,11 +10,14 @@ import sys
 import threading
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
+from eamos import __version__
 from eamos.cli.errors import run_reported
 from eamos.cli.exits import EXIT_MISSION_FAILED, EXIT_OK
-from eamos.hal.mavlink.signing import read_key
-from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions, parse_reject
+
+if TYPE_CHECKING:
+    from eamos.hal.sitl.vehicle import VehicleOptions
 
 
 def _home(text: str) -> tuple[float, float, float]:
@@ -87,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
         required=True,
         help="udpout:HOST:PORT (PX4 style), tcpin:HOST:PORT (ArduPilot style) or udpin:HOST:PORT",
     )
+    parser.add_argument("--version", action="version", version=f"eamos {__version__}")
     parser.add_argument("--sysid", type=int, default=1, help="MAVLink system id (1)")
     parser.add_argument(
         "--speedup",
@@ -202,6 +206,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def options_from(args: argparse.Namespace) -> VehicleOptions:
     """The vehicle's options from the parsed arguments; ValueError names a bad one."""
+    # The vehicle (pymavlink) loads once the arguments are read: --help and --version are quick.
+    from eamos.hal.mavlink.signing import read_key
+    from eamos.hal.sitl.vehicle import VehicleOptions, parse_reject
+
     key = read_key(args.signing_key) if args.signing_key is not None else None
     return VehicleOptions(
         autopilot=args.autopilot,
@@ -227,6 +235,8 @@ def fly(options: VehicleOptions, watch_stdin: bool) -> int:
 
     Raises :class:`ConnectionError` if its connection cannot be opened.
     """
+    from eamos.hal.sitl.vehicle import SimVehicle
+
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

@@ -24,6 +24,7 @@ from ..program.uniform import (
 )
 from .check_calls import CallChecks, drone_arguments, signature
 from .check_handlers import handler_errors
+from .drone_names import misspelt_drones
 from .drone_types import Vocabulary, implemented_actions, plugin_argument_problem, vocabulary
 from .errors import Diagnostic, MissionError, SourceLocation, did_you_mean
 from .limits import (
@@ -548,7 +549,7 @@ def props_read(expr: Expr | None) -> list[Prop]:
 
 def collect_diagnostics(mission: Mission) -> list[Diagnostic]:
     """Every error and warning the checks find (without raising)."""
-    return _Checker(mission).run()
+    return [*_Checker(mission).run(), *misspelt_drones(mission)]
 
 
 def instance_warnings(mission: Mission) -> list[Diagnostic]:

@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..hal.settings import DISARM_AFTER_LANDING_S
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import LinkSettings
 from ..program.uniform import GROUND_STATION
@@ -73,6 +74,36 @@ from .validation import (
 #: In a drone's log folder: its exit code, written when it ran in a process shared
 #: with other drones (the process's own exit code is the worst of theirs).
 EXIT_CODE_FILE = "exit_code"
+
+
+#: Vehicle seconds a MAVLink autopilot may take to disarm by itself after the landing
+#: its Land action saw: PX4's COM_DISARM_LAND (2 s) after its land detector, ArduCopter's
+#: about 2 s after "Land complete", with room for the land detector and a HEARTBEAT.
+AUTOPILOT_DISARM_WAIT_S = 10.0
+#: Wall seconds added to a simulated drone's wait (its pacing thread on a loaded machine).
+SIM_DISARM_SLACK_S = 2.0
+
+
+def disarm_wait_s(hal: Mapping[str, Any]) -> float:
+    """How long a drone with these ``[hal]`` settings waits after its part for its vehicle
+    to disarm by itself after landing, in wall seconds (0: it never does).
+
+    The simulated drone disarms ``disarm_after_landing_s`` after touchdown (0: never;
+    :mod:`eamos.hal.sim.landing`); a MAVLink autopilot within
+    :data:`AUTOPILOT_DISARM_WAIT_S`; both scaled by the adapter's ``speedup``.  The
+    wait ends as soon as the telemetry shows the vehicle disarmed (or in the air).
+    """
+    adapter = hal.get("adapter", "sim")
+    speedup = hal.get("speedup", 1.0)
+    speedup = float(speedup) if isinstance(speedup, int | float) and speedup > 0 else 1.0
+    if adapter == "sim":
+        delay = hal.get("disarm_after_landing_s", DISARM_AFTER_LANDING_S)
+        if not isinstance(delay, int | float) or delay <= 0:
+            return 0.0
+        return float(delay) / speedup + SIM_DISARM_SLACK_S
+    if adapter == "mavlink":
+        return AUTOPILOT_DISARM_WAIT_S / speedup
+    return 0.0  # the fake and the ground adapters never stand armed on the ground
 
 
 @dataclass(frozen=True)
@@ -100,6 +131,12 @@ class NodeConfig:
     # Inside a Try's Body an action fails when the battery drops below this
     # (actors/logic/actions.py); None: a low battery fails nothing.
     battery_reserve_pct: float | None = None
+
+    @property
+    def disarm_wait_s(self) -> float:
+        """How long (wall seconds) the drone waits, once its part is over, for its vehicle
+        to disarm by itself after a landing (0: not at all); see :func:`disarm_wait_s`."""
+        return disarm_wait_s(self.hal)
 
     @classmethod
     def load(cls, path: Path) -> NodeConfig:

@@ -44,8 +44,27 @@ class DroneResult:
 
     @property
     def ok(self) -> bool:
-        """The drone finished its part (a report that says so)."""
-        return self.report is not None and self.report.ok
+        """The drone finished its part (a report that says so) and was left disarmed."""
+        return self.report is not None and self.report.ok and not self.left_armed
+
+    @property
+    def left_armed(self) -> str:
+        """Where the drone was left armed, in words ("" when it was not, or is unknown).
+
+        A drone whose part is over must stand disarmed on the ground: autopilots (and
+        the simulated drone) disarm by themselves a moment after landing, and the drone
+        waits for that before it reports.  One left hovering, or armed on the ground
+        (armed, never flown, never disarmed), did not finish.
+        """
+        final = self.report.final if self.report is not None else None
+        if final is None or not final.armed:
+            return ""
+        where = f"at ({final.x:.2f}, {final.y:.2f}, {final.z:.2f}) m from its home"
+        if final.landed is True:
+            return f"armed on the ground {where}"
+        if final.landed is False:
+            return f"in the air, armed, {where}"
+        return f"armed {where}"
 
     def to_json(self, link: str | None = None) -> dict[str, Any]:
         """The ``drones.<name>`` object; ``link`` is written where no report explains the end."""
@@ -123,10 +142,12 @@ class RunSummary:
             return ""
         if self.outcome != "ok":
             return self.outcome
-        bad = [n for n, d in self.drones.items() if not d.ok]
+        left = [f"{n} left {d.left_armed}" for n, d in self.drones.items() if d.left_armed]
+        bad = [n for n, d in self.drones.items() if not d.ok and not d.left_armed]
         if self.ground_station is None or not self.ground_station.ok:
             bad.append(GROUND_STATION)
-        return "not ok: " + ", ".join(bad) if bad else ""
+        parts = (["not ok: " + ", ".join(bad)] if bad else []) + left
+        return "; ".join(parts)
 
     def to_json(self) -> dict[str, Any]:
         """The ``summary.json`` object."""

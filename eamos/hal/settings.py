@@ -17,6 +17,11 @@ from eamos.hints import closest
 #: Keys every adapter accepts and ignores: ``adapter`` selects the adapter itself.
 COMMON_KEYS = frozenset({"adapter"})
 
+#: The autopilots' delay between touchdown and disarming by themselves (PX4
+#: ``COM_DISARM_LAND``, ArduCopter after "Land complete"), and the simulated drone's
+#: default (:mod:`eamos.hal.sim.landing`; here so a config reads it without the simulator).
+DISARM_AFTER_LANDING_S = 2.0
+
 
 def field_error(path: str, problem: str) -> AdapterError:
     """An :class:`AdapterError` naming the field ``path`` (e.g. ``"hal.speedup"``)."""

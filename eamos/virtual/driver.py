@@ -56,6 +56,7 @@ from .vehicles import (
     LazyVehicle,
     Vehicle,
     VehicleFactory,
+    settles,
     sim_vehicles,
 )
 
@@ -225,7 +226,21 @@ class VirtualMission:
                 break
             self._advance()
             self._drain()
-        return self._result(timed_out)
+        ended = self.t
+        if not timed_out:
+            self._settle()
+        return self._result(timed_out, ended)
+
+    def _settle(self) -> None:
+        """After the mission: step on while a vehicle still changes by itself (within the limit).
+
+        A simulated drone disarms by itself a moment after its landing, as real
+        autopilots do; the final states are those it is left in.
+        """
+        settling = [s for _, v in self._vehicles if (s := settles(v)) is not None]
+        while self.t < self.time_limit_s - 1e-9 and any(s.settling for s in settling):
+            self._advance()
+            self._drain()
 
     def _advance(self) -> None:
         """One vehicle step (or, with no vehicle, a jump to the next pause's end).
@@ -395,7 +410,7 @@ class VirtualMission:
 
     # -- the result -------------------------------------------------------------------
 
-    def _result(self, timed_out: bool) -> VirtualRun:
+    def _result(self, timed_out: bool, ended: float) -> VirtualRun:
         drones = {
             drone: DroneOutcome(
                 drone=drone,
@@ -411,7 +426,7 @@ class VirtualMission:
         return VirtualRun(
             mission=self.mission,
             drones=drones,
-            duration_s=self.t,
+            duration_s=ended,
             timed_out=timed_out,
             waiting=self._waiting() if timed_out else (),
             steps=self.steps,

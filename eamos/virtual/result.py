@@ -25,7 +25,9 @@ class DroneOutcome:
 
     ``actions`` are in start order (ties by node key), as in the run summary;
     ``resolved`` holds the statuses of its top-level nodes; ``final`` is the
-    vehicle's state when the run ended (``None`` for the ground station).
+    vehicle's state when the run ended and the vehicles settled (a simulated drone
+    disarms by itself a moment after landing, as autopilots do; ``None`` for the
+    ground station).
     """
 
     drone: str
@@ -59,8 +61,9 @@ class DroneOutcome:
 class VirtualRun:
     """The outcome of :func:`eamos.virtual.run_virtual`.
 
-    ``timed_out`` means the virtual-time limit came first; ``waiting`` then
-    lists the nodes that were still waiting and for what.
+    ``duration_s`` is when the last participant resolved; ``timed_out`` means the
+    virtual-time limit came first; ``waiting`` then lists the nodes that were still
+    waiting and for what.
     """
 
     mission: str

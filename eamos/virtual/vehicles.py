@@ -55,6 +55,24 @@ class IdleVehicle(Vehicle, Protocol):
     def skip(self, steps: int) -> None: ...
 
 
+@runtime_checkable
+class SettlingVehicle(Protocol):
+    """A vehicle that still changes by itself once its actions are over.
+
+    ``settling`` is true while it will (the simulator: a disarm after landing is
+    due, as on PX4 and ArduCopter); the driver steps such vehicles on after the
+    mission has ended, so the final state is the one a real autopilot is left in.
+    """
+
+    @property
+    def settling(self) -> bool: ...
+
+
+def settles(vehicle: object) -> SettlingVehicle | None:
+    """``vehicle`` if it can say it is settling, else None (a protocol check: do it once)."""
+    return vehicle if isinstance(vehicle, SettlingVehicle) else None
+
+
 class LazyVehicle:
     """An :class:`IdleVehicle` stepped only when something can happen to it.
 
@@ -68,6 +86,7 @@ class LazyVehicle:
 
     def __init__(self, inner: IdleVehicle, now: Callable[[], int], horizon: Callable[[], int]):
         self._inner = inner
+        self._settles = settles(inner)
         self._now = now
         self._horizon = horizon
         self._at = 0  # the driver step the vehicle has been advanced to
@@ -113,6 +132,14 @@ class LazyVehicle:
         """As the wrapped vehicle, up to now."""
         self._sync()
         return self._inner.state()
+
+    @property
+    def settling(self) -> bool:
+        """As the wrapped vehicle, up to now (False if it cannot tell)."""
+        if self._settles is None:
+            return False
+        self._sync()
+        return self._settles.settling
 
     def step(self) -> tuple[list[Finished], list[Telemetry]]:
         """The driver's step ``now()``: a real step if due, else nothing (still idle)."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from concurrent.futures import Future
 from dataclasses import replace
@@ -12,7 +13,7 @@ from typing import Any
 import pytest
 
 from eamos.actors import DroneReport, DroneReportError, FinalState
-from eamos.actors.board import FinalSample, LocalSample, TelemetryBoard
+from eamos.actors.board import FinalSample, LocalSample, TelemetryBoard, WhenSettled
 from eamos.actors.dispatch import Dispatcher
 from eamos.hal import make_adapter
 from eamos.hal.api import Telemetry
@@ -71,7 +72,8 @@ def test_a_report_keeps_the_first_versions_json_and_reads_back() -> None:
     finally:
         fleet.close()
     assert list(data) == REPORT_KEYS
-    assert list(data["final"]) == ["x", "y", "z", "armed", "battery"]
+    # The first version's keys, then whether it stands on the ground (a left-armed drone).
+    assert list(data["final"]) == ["x", "y", "z", "armed", "battery", "landed"]
     assert list(data["actions"][0]) == [
         "node",
         "action",
@@ -128,8 +130,8 @@ def test_importing_the_report_loads_neither_pykka_nor_zmq() -> None:
 # -- the final state -------------------------------------------------------------------------
 
 
-def sample(armed: bool, time_s: float = 0.0) -> Telemetry:
-    return Telemetry("D1", time_s, 0.0, 0.0, 0.0, 46.6, 14.2, 400.0, 90.0, armed, True)
+def sample(armed: bool, time_s: float = 0.0, landed: bool = True) -> Telemetry:
+    return Telemetry("D1", time_s, 0.0, 0.0, 0.0, 46.6, 14.2, 400.0, 90.0, armed, landed)
 
 
 @pytest.fixture
@@ -212,3 +214,33 @@ def test_a_sample_showing_the_last_actions_effect_needs_no_wait(board: Any) -> N
     # Recorded at 2.0, but the sample already shows the Disarm: no wait (30 s here).
     got = final(board, after_s=2.0, wait_s=WAIT_S, action="Disarm").result(timeout=5.0)
     assert got is not None and got.armed is False
+
+
+# -- waiting for the disarm after landing ---------------------------------------------------
+
+
+def settled(board: Any, after_s: float | None, action: str | None = None) -> threading.Event:
+    event = threading.Event()
+    board.tell(WhenSettled(event, after_s, action))
+    return event
+
+
+def test_settled_waits_for_the_disarm_after_a_landing(board: Any) -> None:
+    # The sample before the Land ended (at 2.0) shows it in the air: too old to tell.
+    board.tell(LocalSample(sample(armed=True, landed=False), received_s=1.0))
+    event = settled(board, after_s=2.0, action="Land")
+    board.tell(LocalSample(sample(armed=True, landed=True), received_s=2.5))
+    assert not event.wait(0.3)  # landed, still armed: the autopilot disarms a moment later
+    board.tell(LocalSample(sample(armed=False, landed=True), received_s=4.5))
+    assert event.wait(WAIT_S)
+
+
+def test_settled_at_once_when_disarmed_or_left_in_the_air(board: Any) -> None:
+    board.tell(LocalSample(sample(armed=False), received_s=3.0))
+    assert settled(board, after_s=2.0, action="Land").wait(WAIT_S)
+    board.tell(LocalSample(sample(armed=True, landed=False), received_s=4.0))
+    # Hovering after its last action: nothing will disarm it, no wait.
+    assert settled(board, after_s=3.5, action="Takeoff").wait(WAIT_S)
+    # Armed on the ground, never flown: not settled (the caller's wait is bounded).
+    board.tell(LocalSample(sample(armed=True), received_s=5.0))
+    assert not settled(board, after_s=4.5, action="Arm").wait(0.3)

@@ -157,7 +157,7 @@ def test_a_par_with_two_moves_of_one_drone_fails_and_leaves_it_hovering_armed():
 
 
 def _fleet(mission: str) -> FleetConfig | None:
-    if mission == "experiment_d":
+    if mission in ("experiment_d", "experiment_d_lands"):
         return FleetConfig.load(REPO / "configs" / "experiment_d_pilot.toml")
     return None
 
@@ -168,19 +168,16 @@ def test_every_mission_passes_or_its_findings_are_explained(mission):
     if mission != "experiment_d":
         assert report.ok and report.findings == (), report.lines()
         return
-    # Experiment D as printed (Listing 13) never lands D1 and D2 and never disarms
-    # anyone: the check says so, naming each drone's last action, on every branch
-    # of the pilot's flight it explores (the loops stopping early leave D1 or D2
-    # elsewhere; those are findings of their own).
+    # Experiment D as printed (Listing 13) never lands D1 and D2: the check says so,
+    # naming each drone's last action, on every branch of the pilot's flight it
+    # explores (the loops stopping early leave D1 or D2 elsewhere; those are findings
+    # of their own).  D3 lands and disarms by itself, as its autopilot would.
     assert {f.check for f in report.findings} == {"termination"}
     left = {f.message.split(" at ")[0] for f in report.findings}
-    assert left == {
-        "D1 is left hovering armed",
-        "D2 is left hovering armed",
-        "D3 is left on the ground armed",
-    }
+    assert left == {"D1 is left hovering armed", "D2 is left hovering armed"}
+    assert all("end with D" in f.message and ".Land()" in f.message for f in report.findings)
     assert report.runs[0].branch == "as simulated" and len(report.runs) == 64
-    assert all(r.errors == 3 for r in report.runs)
+    assert all(r.errors == 2 for r in report.runs)
 
 
 def test_the_command_exit_codes_and_json(capsys, tmp_path):
@@ -229,3 +226,132 @@ def test_the_picture_marks_the_conflict(tmp_path):
     texts = [t.text or "" for t in root.iter(f"{ns}text")]
     assert any(t.startswith("separation: Drone1 and Drone2 at") for t in texts)
     assert main(["check", str(bad), "--svg", str(tmp_path / "no" / "such" / "x.svg")]) == 2
+
+
+# Ends with Land(), no Disarm(): the autopilot disarms after the landing (2 s).
+LANDS = """\
+var Drone1 Quadcopter
+
+func SEQ_Main() {
+    Drone1.Arm()
+    Drone1.Takeoff(2)
+    Drone1.FlyByX(3)
+    Drone1.Land()
+}
+"""
+
+
+def test_a_mission_ending_with_land_passes_the_drone_disarming_after_its_landing():
+    report = check_source(LANDS)
+    assert report.ok and report.findings == (), report.lines()
+    # The run ends when the mission does; the drone disarms 2 s later (not in duration).
+    (run,) = report.runs
+    _branch, tracks = report.tracks[0]
+    last = tracks["Drone1"].points[-1]
+    assert not last.armed and not last.airborne
+    assert last.t_s == pytest.approx(run.duration_s + 2.0, abs=0.05)
+
+
+def test_a_type_that_does_not_disarm_after_landing_leaves_the_drone_armed(tmp_path):
+    fleet_file = tmp_path / "fleet.toml"
+    fleet_file.write_text("[types.Quadcopter.hal]\ndisarm_after_landing_s = 0\n")
+    report = check_source(LANDS, fleet=FleetConfig.load(fleet_file))
+    (term,) = report.errors
+    assert term.check == "termination" and term.line == line_of(LANDS, "Land()")
+    assert term.message.startswith("Drone1 is left on the ground armed at (2.99, 0.00, 0.00)")
+    assert "disarm_after_landing_s = 0" in term.message
+    assert "end with Drone1.Disarm()" in term.message
+    # A Disarm() at the end makes it pass.
+    ends = LANDS.replace("Drone1.Land()", "Drone1.Land()\n    Drone1.Disarm()")
+    assert check_source(ends, fleet=FleetConfig.load(fleet_file)).ok
+
+
+def test_a_drone_armed_that_never_takes_off_is_left_armed():
+    source = "var Drone1 Quadcopter\nfunc SEQ_Main() {\n    Drone1.Arm()\n    Drone1.Land()\n}\n"
+    (term,) = check_source(source).errors
+    assert term.check == "termination"
+    assert term.message.startswith("Drone1 is left on the ground armed")
+    assert "never took off" in term.message
+
+
+def test_a_drone_left_hovering_is_found_with_a_hint_to_land():
+    source = (
+        "var Drone1 Quadcopter\nfunc SEQ_Main() {\n    Drone1.Arm()\n    Drone1.Takeoff(2)\n}\n"
+    )
+    (term,) = check_source(source).errors
+    assert term.message.startswith("Drone1 is left hovering armed")
+    assert "end with Drone1.Land()" in term.message
+
+
+def test_landing_and_taking_off_again_after_the_disarm_needs_a_new_arm():
+    # As on PX4 and ArduCopter: once disarmed after a landing, a take-off needs Arm().
+    again = LANDS.replace(
+        "    Drone1.Land()\n",
+        "    Drone1.Land()\n    Drone1.PauseFor(5)\n    Drone1.Takeoff(2)\n    Drone1.Land()\n",
+    )
+    failed = [f for f in check_source(again).errors if f.check == "action"]
+    assert failed and "not armed" in failed[0].message
+    rearmed = again.replace("PauseFor(5)\n", "PauseFor(5)\n    Drone1.Arm()\n")
+    assert check_source(rearmed).ok
+
+
+# The language doc's library example (docs/mission-language.md, "Libraries").
+LIBRARY = """\
+package patrol
+
+import (
+\t"fleet"
+\t"shapes"
+)
+
+var D1 Quadcopter
+var D2 DroneType1
+
+func SEQ_Main() {
+\tfleet.PAR_TakeOff2(D1, D2, 3)
+\tshapes.SEQ_Square(D1, SIDE)
+\tfleet.PAR_Land2(D1, D2)
+}
+"""
+SHAPES = REPO / "eamos" / "missions_lib" / "shapes" / "shapes.go"
+FLEET = REPO / "eamos" / "missions_lib" / "fleet" / "fleet.go"
+
+
+def test_findings_inside_library_blocks_name_the_library_file(tmp_path, capsys):
+    # A 5 m square flies D1 over D2's home (5 m east, no fleet file): in shapes.go.
+    mission = tmp_path / "patrol.go"
+    mission.write_text(LIBRARY.replace("SIDE", "5"))
+    report = check_mission(compile_file(mission))
+    (finding,) = report.errors
+    assert finding.check == "separation"
+    assert Path(finding.file) == SHAPES.resolve()
+    assert finding.line == line_of(SHAPES.read_text(), "d.FlyByX(-side_m)")
+    d1, d2 = finding.places
+    assert Path(d1.file) == SHAPES.resolve() and Path(d2.file) == FLEET.resolve()
+    assert d2.line == line_of(FLEET.read_text(), "d.Takeoff(height_m)")
+    assert f"(line {d1.line} of shapes.go)" in finding.message
+    assert f"(line {d2.line} of fleet.go)" in finding.message
+    # The text names the library file, with its line; the JSON too, for every place.
+    assert main(["check", str(mission)]) == 1
+    out = capsys.readouterr().out
+    assert out.startswith(f"{SHAPES.resolve()}:{finding.line}:{finding.col}: error: D1 and D2")
+    assert main(["check", str(mission), "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["file"] == str(mission)
+    (found,) = doc["findings"]
+    assert Path(found["file"]) == SHAPES.resolve() and found["line"] == finding.line
+    assert [Path(p["file"]).name for p in found["places"]] == ["shapes.go", "fleet.go"]
+
+
+def test_a_finding_in_the_mission_file_names_the_mission_file(capsys, tmp_path):
+    mission = tmp_path / "crossing.go"
+    mission.write_text(CROSSING.replace("CLIMB", "2"))
+    assert main(["check", str(mission), "--json"]) == 1
+    (found,) = json.loads(capsys.readouterr().out)["findings"]
+    assert found["file"] == str(mission)
+    assert {p["file"] for p in found["places"]} == {str(mission)}
+
+
+def test_the_docs_library_example_passes_and_lands_with_the_fleet_blocks():
+    report = check_mission(compile_mission(LIBRARY.replace("SIDE", "2"), "patrol.go"))
+    assert report.ok and report.findings == (), report.lines()

@@ -19,8 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from eamos.actors.runtime import DroneRuntimeError
-from eamos.cli import fleet as cli_fleet
+from eamos.actors.errors import DroneRuntimeError
 from eamos.cli import node as cli_node
 from eamos.cli import sim_vehicle as cli_sim_vehicle
 from eamos.cli.errors import EXIT_CODE_OF, BadInput, Refused, dispatch, exit_code_of
@@ -127,7 +126,7 @@ def test_an_internal_error_is_one_line_and_the_traceback_needs_v(
     def broken(source: Path, mission: str | None = None) -> None:
         raise RuntimeError("broken invariant")
 
-    monkeypatch.setattr(cli_fleet, "resolve", broken)
+    monkeypatch.setattr("eamos.ops.deployment.resolve", broken)  # imported by the command
     assert main(["status", files["empty"]]) == EXIT_INTERNAL
     err = capsys.readouterr().err
     assert err == (

@@ -168,7 +168,7 @@ def test_internal_errors_exit_4_in_one_line(
     def explode(path: Path) -> None:
         raise exc
 
-    monkeypatch.setattr(cli_compile, "compile_file", explode)
+    monkeypatch.setattr("eamos.compiler.compile_file", explode)  # imported by the command
     # Internal errors exit 4 like every other command's (compile's was 2).
     code, out, err = _run(["compile", str(MISSIONS / "experiment_a.go")])
     assert code == 4 and out == ""

@@ -33,7 +33,8 @@ LOOP_FREE = {
     "inspection_if",
     "relay_wait",
 }
-FLEETS = {"experiment_d": REPO / "configs" / "experiment_d_pilot.toml"}
+PILOT = REPO / "configs" / "experiment_d_pilot.toml"
+FLEETS = {"experiment_d": PILOT, "experiment_d_lands": PILOT}
 
 
 def by_action(actions: list[dict]) -> list[dict]:
@@ -45,18 +46,27 @@ def test_every_mission_flies_and_finishes(tmp_path, mission):
     extra: tuple[str, ...] = ("--fleet", str(FLEETS[mission])) if mission in FLEETS else ()
     if mission == "experiment_d":
         # Listing 13 as printed leaves D1 and D2 hovering: the pre-flight check refuses it
-        # (tests/check asserts those findings); fly it as the paper did.
+        # (tests/check asserts those findings); fly it as the paper did: it does not finish.
         extra += ("--no-check",)
     proc, summary = run_mission(tmp_path, MISSIONS / f"{mission}.go", *extra)
+    if mission == "experiment_d":
+        assert proc.returncode == 1, proc.stdout + proc.stderr
+        assert summary["result"] == "failed" and not summary["ok"]
+        for name in ("D1", "D2"):
+            assert f"{name} left in the air, armed, at (" in proc.stdout, proc.stdout
+            assert summary["drones"][name]["final"]["armed"]
+        final = summary["drones"]["D3"]["final"]
+        assert final["landed"] and not final["armed"]  # disarmed by itself after landing
+        return
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert summary["ok"] and summary["drones"]
     for name, report in summary["drones"].items():
         assert report["ok"], (name, report)
         assert all(a["result"] in ("ok", "cancelled") for a in report["actions"])
         final = report["final"]
-        # Listing 13 lands only D3; D1 and D2 end the paper's mission hovering.
-        if not (mission == "experiment_d" and name in ("D1", "D2")):
-            assert final is not None and final["z"] == pytest.approx(0.0, abs=0.15), (name, final)
+        assert final is not None and final["z"] == pytest.approx(0.0, abs=0.15), (name, final)
+        # Landed and disarmed: by Disarm(), or by itself a moment after Land().
+        assert final["landed"] and not final["armed"], (name, final)
         if mission in LOOP_FREE:
             # The paper's Table 7 check: triggers on the wire equal the MDG's external arcs.
             assert report["triggers_sent"] == report["external_out"], name
@@ -95,14 +105,11 @@ def test_experiment_b_happens_before(tmp_path):
 
 
 def test_experiment_d_pilot_moves_the_real_drones(tmp_path):
+    # As `eamos run --help` shows it: Listing 13 with every drone landed at the end.
     proc, summary = run_mission(
-        tmp_path,
-        MISSIONS / "experiment_d.go",
-        "--fleet",
-        str(FLEETS["experiment_d"]),
-        "--no-check",  # it ends hovering, as printed in the paper
+        tmp_path, MISSIONS / "experiment_d_lands.go", "--fleet", str(FLEETS["experiment_d"])
     )
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 0, proc.stdout + proc.stderr
     d1 = [a for a in summary["drones"]["D1"]["actions"] if a["action"] == "FlyByX"]
     d2 = [a for a in summary["drones"]["D2"]["actions"] if a["action"] == "FlyByX"]
     assert {a["args"][0] for a in d1} == {0.2, -0.2} and {a["args"][0] for a in d2} == {0.2, -0.2}
@@ -128,6 +135,30 @@ def test_failed_action_stops_dependents_and_independent_drone_finishes(tmp_path)
     d2 = summary["drones"]["Drone2"]
     assert d2["ok"] and [a["result"] for a in d2["actions"]] == ["ok"] * 5
     assert "FlyByX failed" in proc.stdout
+
+
+def test_no_check_never_calls_a_drone_left_hovering_or_armed_finished(tmp_path):
+    mission = tmp_path / "ends.go"
+    # Drone1 ends hovering, Drone2 armed on the ground (never flown), Drone3 landed.
+    mission.write_text(
+        "var Drone1 Quadcopter\nvar Drone2 Quadcopter\nvar Drone3 Quadcopter\n"
+        "func SEQ_Main() {\n    PAR_All()\n}\n"
+        "func PAR_All() {\n    SEQ_Hover()\n    Drone2.Arm()\n    SEQ_Hop()\n}\n"
+        "func SEQ_Hover() {\n    Drone1.Arm()\n    Drone1.Takeoff(2)\n}\n"
+        "func SEQ_Hop() {\n    Drone3.Arm()\n    Drone3.Takeoff(2)\n    Drone3.Land()\n}\n"
+    )
+    proc, summary = run_mission(tmp_path, mission, "--no-check")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert summary["result"] == "failed" and not summary["ok"]
+    first = proc.stdout.splitlines()[-5]
+    assert first.startswith(
+        "mission ends failed (Drone1 left in the air, armed, at (0.00, 0.00, 2.0"
+    )
+    assert "Drone2 left armed on the ground at (0.00, 0.00, 0.00)" in first
+    assert "Drone3" not in first
+    assert "  Drone3: ok," in proc.stdout
+    final = summary["drones"]["Drone3"]["final"]
+    assert final["landed"] and not final["armed"]
 
 
 def test_bad_mission_is_a_located_error_not_a_traceback(tmp_path):

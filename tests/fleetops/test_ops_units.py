@@ -363,14 +363,16 @@ def test_stamp_round_trip_through_json():
     assert doc["mission_id"] == "m" and doc["eamos"] == __version__
 
 
-def test_the_example_fleet_file_is_valid(tmp_path):
+def test_the_example_fleet_file_is_valid(tmp_path, monkeypatch):
     (tmp_path / "configs").mkdir()
-    (tmp_path / "keys").mkdir()  # `eamos keys keys ...` would make it
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    keys = tmp_path / "home" / ".local" / "share" / "eamos" / "keys"
+    keys.mkdir(parents=True)  # `eamos keys --fleet ...` would make it
     example = tmp_path / "configs" / "fleet_example.toml"
     example.write_text((REPO / "configs" / "fleet_example.toml").read_text())
     config = FleetConfig.load(example)
     assert config.hal_for("Drone2")["adapter"] == "mavlink"
     targets = load_targets(config, ["Drone1", "Drone2"])
-    assert targets.ground.keys == tmp_path / "keys"
+    assert targets.ground.keys == keys
     assert targets.endpoints["Drone2"] == "tcp://192.0.2.12:6002"
     assert targets.drones["Drone1"].label == "pi@192.0.2.11:22"

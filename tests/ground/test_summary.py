@@ -119,3 +119,34 @@ def test_a_report_with_a_missing_key_is_refused() -> None:
     del data["drones"]["Drone1"]["triggers_sent"]
     with pytest.raises(ValueError, match="triggers_sent"):
         RunSummary.from_json(data)
+
+
+def _with_final(**final: object) -> DroneResult:
+    base = REPORT["final"]
+    assert isinstance(base, dict)
+    return DroneResult(DroneReport.from_json({**REPORT, "final": {**base, **final}}))
+
+
+def test_a_drone_left_armed_did_not_finish_and_the_summary_says_where() -> None:
+    hovering = _with_final(armed=True, landed=False, x=1.0, z=2.0)
+    on_ground = _with_final(armed=True, landed=True, y=5.0)
+    down = _with_final(armed=False, landed=True)
+    # Its own report says ok (every action ok); the run does not.
+    assert hovering.report is not None and hovering.report.ok and not hovering.ok
+    assert hovering.left_armed == "in the air, armed, at (1.00, 0.00, 2.00) m from its home"
+    assert on_ground.left_armed == "armed on the ground at (0.00, 5.00, 0.00) m from its home"
+    assert down.ok and down.left_armed == ""
+    run = summary(
+        drones={"Drone1": hovering, "Drone2": on_ground, "Drone3": down},
+        failures=(),
+        links={},
+    )
+    assert not run.ok and run.word == "failed"
+    assert run.detail == (
+        "Drone1 left in the air, armed, at (1.00, 0.00, 2.00) m from its home; "
+        "Drone2 left armed on the ground at (0.00, 5.00, 0.00) m from its home"
+    )
+    # A report from before `landed` was written still reads, and armed is still not finished.
+    old = _with_final(armed=True)
+    assert old.report is not None and old.report.final is not None
+    assert old.report.final.landed is None and old.left_armed.startswith("armed at (")

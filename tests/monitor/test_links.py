@@ -94,7 +94,7 @@ def programs_of(mission: str) -> dict[str, Any]:
 
 
 def settings_for(mission: str) -> dict[str, SimSettings]:
-    if mission != "experiment_d":
+    if mission not in ("experiment_d", "experiment_d_lands"):
         return {}
     doc = tomllib.loads((REPO / "configs" / "experiment_d_pilot.toml").read_text())
     return {name: SimSettings.from_mapping(d["hal"]) for name, d in doc["drones"].items()}

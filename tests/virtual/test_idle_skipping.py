@@ -66,6 +66,10 @@ class Stepped:
     def state(self) -> Any:
         return self.core.state()
 
+    @property
+    def settling(self) -> bool:
+        return self.core.settling
+
 
 def fly(programs: Any, settings: dict[str, SimSettings], lazy: bool) -> tuple[Any, dict]:
     logs: dict[str, Recorder] = {}

@@ -42,7 +42,8 @@ def pilot_settings() -> dict[str, SimSettings]:
 
 
 def settings_for(mission: str) -> dict[str, SimSettings]:
-    return pilot_settings() if mission == "experiment_d" else {}
+    # Experiment D's D3 is flown by a scripted pilot (its variant that lands everyone too).
+    return pilot_settings() if mission in ("experiment_d", "experiment_d_lands") else {}
 
 
 def run_source(source: str, settings: dict[str, SimSettings] | None = None, **kw: Any):
@@ -69,6 +70,8 @@ def test_every_mission_resolves_ok_in_milliseconds(mission):
         assert all(a.result in ("ok", "cancelled") for a in outcome.actions)
         if outcome.final is not None and not (mission == "experiment_d" and name in ("D1", "D2")):
             assert outcome.final.z_m == pytest.approx(0.0, abs=0.15), name
+            # Landed, and disarmed: by Disarm(), or by itself 2 s after its landing.
+            assert outcome.final.landed and not outcome.final.armed, name
         if mission in LOOP_FREE:
             stats = compiled.programs[name].stats()
             assert outcome.triggers_sent == stats["external_out"], name

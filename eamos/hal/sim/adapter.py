@@ -21,6 +21,9 @@ Actions complete on real criteria checked after every step:
 * ``Takeoff``/``FlyBy*``/``FlyTo*``: within ``tolerance_m`` of the target and
   slower than ``settle_speed_mps``.
 * ``Land``: the landed flag is set.  ``Disarm``: immediate, on the ground only.
+  After a touchdown that ends a flight the vehicle disarms by itself
+  ``disarm_after_landing_s`` later (2 s; 0: never), as PX4 (``COM_DISARM_LAND``)
+  and ArduCopter do (:mod:`eamos.hal.sim.landing`, ``adapter.disarm_after_landing``).
 * ``PauseFor(s)``: ``s`` simulated seconds.  Payload actions: 0.2 simulated s.
 * ``Hold(s)``: ``s`` simulated seconds of hover (only in the air, not during a move).
 * ``SetSpeed(v)``: at once; later horizontal moves cruise at ``v``.

@@ -46,6 +46,7 @@ from eamos.hal.sim.actions import (
     SimAction,
     SimRequest,
 )
+from eamos.hal.sim.landing import LandingDisarm
 from eamos.hal.sim.pilot import ScriptedPilot
 from eamos.hal.sim.settings import SimSettings
 from eamos.hal.sim.telemetry import EPS_S, TelemetrySampler
@@ -97,6 +98,7 @@ class SimCore(ActionRules):
         self.wait_for_plugins = wait_for_plugins
         self._heading_deg = 0.0  # compass degrees; Orbit's centre lies ahead along it
         self._payload: dict[str, float] = {}  # plugin state (gimbal pitch, photos, video)
+        self._landing = LandingDisarm.of(settings.disarm_after_landing_s, SIM_DT_S)
 
     # -- requests ------------------------------------------------------------
 
@@ -157,12 +159,14 @@ class SimCore(ActionRules):
         samples: list[Telemetry] = []
         self._handle_requests(finished)
         self._guide()
+        was_landed = self._model.landed
         self._model.step(SIM_DT_S)
         self._step_count += 1
         if self._pilot.update(self.t_s, self._model):
             self._pilot_handed_over(finished)
         self._update_actions(finished)
         self._update_abort()
+        self._update_landing(was_landed)
         self._telemetry.observe(self.t_s, self._model.state, samples)
         return finished, samples
 
@@ -197,6 +201,9 @@ class SimCore(ActionRules):
             edge = shown - 0.05
             crossing = int((battery - edge) / per_step) - 2
             limit = min(limit, max(0, crossing))
+        disarm = self._landing.idle_limit(self._step_count)
+        if disarm is not None:
+            limit = min(limit, disarm)
         if due == math.inf:
             return max(0, limit)
         # A timer ends at the first step k with k * SIM_DT_S >= due (less EPS_S):
@@ -230,6 +237,15 @@ class SimCore(ActionRules):
         m = self._model
         x, y, z = m.position
         return (x, y, z, m.landed, m.armed, m.battery_pct)
+
+    @property
+    def settling(self) -> bool:
+        """True while the vehicle will still disarm by itself after its landing.
+
+        A mission may be over while this holds: whoever owns the core steps it on
+        until it is false to see the state a real autopilot would be left in.
+        """
+        return self._landing.pending
 
     @property
     def pilot_flying(self) -> bool:
@@ -271,6 +287,13 @@ class SimCore(ActionRules):
         self._pilot.abort()
         self._aborting = True
         self._model.land()
+
+    def _update_landing(self, was_landed: bool) -> None:
+        """Disarm ``disarm_after_landing_s`` after a touchdown, as the autopilots do."""
+        model = self._model
+        if self._landing.update(self._step_count, was_landed, model.landed, model.armed):
+            model.disarm()
+            self._log.info("adapter.disarm_after_landing", t_sim=round(self.t_s, 3))
 
     def _update_abort(self) -> None:
         if self._aborting and self._model.landed:

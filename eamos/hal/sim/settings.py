@@ -14,6 +14,7 @@ from typing import Any
 from eamos.hal.kinematics import GeoFrame, Limits
 from eamos.hal.settings import (
     COMMON_KEYS,
+    DISARM_AFTER_LANDING_S,
     as_number,
     check_keys,
     did_you_mean,
@@ -91,6 +92,9 @@ class SimSettings:
     tolerance_m: float = 0.1
     settle_speed_mps: float = 0.2
     arm_delay_s: float = 2.0
+    # Disarm by itself this long after a touchdown ending a flight, as PX4 (COM_DISARM_LAND)
+    # and ArduCopter do; 0: never (eamos.hal.sim.landing).
+    disarm_after_landing_s: float = DISARM_AFTER_LANDING_S
     telemetry_hz: float = 10.0
     home_lat_deg: float = 46.6103
     home_lon_deg: float = 14.2640
@@ -149,6 +153,7 @@ class SimSettings:
             tolerance_m=num("tolerance_m", gt=0),
             settle_speed_mps=num("settle_speed_mps", gt=0),
             arm_delay_s=num("arm_delay_s", ge=0),
+            disarm_after_landing_s=num("disarm_after_landing_s", ge=0),
             telemetry_hz=num("telemetry_hz", gt=0),
             home_lat_deg=num("home_lat_deg", ge=-90, le=90),
             home_lon_deg=num("home_lon_deg", ge=-180, le=180),
