@@ -66,6 +66,8 @@ import random
 from collections.abc import Iterable
 from typing import Any, Final
 
+from msgspec.structs import replace
+
 import eamos.net.wire as wire
 from eamos.logs import make_logger
 from eamos.net.actions import (
@@ -182,7 +184,7 @@ class ReliableSession:
         elif cls in wire.RELIABLE_BROADCAST and msg.seq == 0:  # type: ignore[union-attr]
             return self._send_reliable(self._btx, msg, now)
         if msg.incarnation != self.incarnation:
-            msg = wire.restamp(msg, incarnation=self.incarnation)
+            msg = replace(msg, incarnation=self.incarnation)
         if cls is wire.TelemetrySample:
             return self._tel.offer(msg, now)  # type: ignore[arg-type]
         return [Send(msg)]
