@@ -296,6 +296,7 @@ class _Base(_Fields, frozen=True, kw_only=True):
     # How the topic is derived: "to" (from dest), "tm" or "hb" (from sender), or "all".
     KIND: ClassVar[str] = ""
 
+    # In every payload; decode reads it before anything else (a WireError "version").
     version: Literal[4] = msgspec.field(default=WIRE_VERSION, name="v")
     # The session stamps it on sending.
     incarnation: Seq = msgspec.field(default=0, name="n")
@@ -525,11 +526,12 @@ _PAYLOAD_KEYS: Final[dict[type[_Base], frozenset[str]]] = {
     cls: frozenset(key for key, _name, _type in fields) | {"t"} for cls, fields in _FIELDS.items()
 }
 _PLAIN_KEYS: Final[dict[type[_Base], tuple[tuple[str, str], ...]]] = {
-    cls: tuple((key, f"{cls.__name__}.{name}") for key, name, kind in fields if kind is PlainMap)
+    cls: tuple((key, f"{cls.__name__}.{name}") for key, name, kind in fields if kind == PlainMap)
     for cls, fields in _FIELDS.items()
 }
 # msgpack carries bin natively: a str is not decoded as base64 into a bytes field.
 _NATIVE: Final = (bytes,)
+_BYTES: Final = (bytes, bytearray, memoryview)
 
 
 # ---------------------------------------------------------------------------
@@ -620,13 +622,11 @@ def decode(frames: Sequence[bytes]) -> Message:
     The trust boundary: every field is checked against its type here, once.
     Raises :class:`WireError`, and only that, for any malformed input.
     """
-    if not isinstance(frames, list | tuple) or len(frames) != 2:
-        count = len(frames) if isinstance(frames, list | tuple) else type(frames).__name__
+    if not isinstance(frames, (list, tuple)) or len(frames) != 2:
+        count = len(frames) if isinstance(frames, (list, tuple)) else type(frames).__name__
         raise WireError(f"expected 2 frames [topic, payload], got {count}")
     topic, payload = frames
-    if not isinstance(topic, bytes | bytearray | memoryview) or not isinstance(
-        payload, bytes | bytearray | memoryview
-    ):
+    if not isinstance(topic, _BYTES) or not isinstance(payload, _BYTES):
         raise WireError("frames must be bytes")
     if len(topic) > MAX_TOPIC_BYTES:
         raise WireError(f"topic of {len(topic)} bytes exceeds {MAX_TOPIC_BYTES}")
