@@ -602,17 +602,18 @@ def plain_map(value: Any, label: str) -> dict[str, Any]:
     todo: list[tuple[Any, int]] = [(value, 0)]
     while todo:
         container, depth = todo.pop()
-        if type(container) is dict:
-            if any(type(key) is not str for key in container):
-                raise WireError(f"{label}: map keys must be str")
-            items = container.values()
-        else:
-            items = container
         if depth == MAX_DEPTH and container:
             raise WireError(f"{label}: nested deeper than {MAX_DEPTH}")
-        for item in items:
-            if type(item) is dict or type(item) is list:
-                todo.append((item, depth + 1))
+        if type(container) is dict:
+            for key, item in container.items():
+                if type(key) is not str:
+                    raise WireError(f"{label}: map keys must be str")
+                if type(item) is dict or type(item) is list:
+                    todo.append((item, depth + 1))
+        else:
+            for item in container:
+                if type(item) is dict or type(item) is list:
+                    todo.append((item, depth + 1))
     return value
 
 
