@@ -5,12 +5,11 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, cast
 
 from ..logs import EventLog, LogLine, log_line
 from ..net import wire
 from ..net.link import Link
-from ..net.trusted import trusted
 from .messages import SendInterrupt, SendTrigger, Trigger
 
 __all__ = ["Outbox"]
@@ -42,7 +41,6 @@ class Outbox:
         self.sent_by_dest: dict[str, int] = {}
         self._sent: set[tuple[str, str, tuple[int, ...]]] = set()  # (src, dst, iteration)
         self._sealed = False
-        self._checked: set[str] = set()  # destinations whose first Trigger was checked
 
     def tell(self, message: SendTrigger | SendInterrupt | wire.Message) -> None:
         """Send ``message`` (a :class:`SendTrigger`, :class:`SendInterrupt` or wire message)."""
@@ -61,7 +59,7 @@ class Outbox:
                     dest=message.dest,
                     scope=str(i.scope),
                     iteration=i.iteration,
-                    mode=i.mode,
+                    mode=cast(wire.InterruptMode, i.mode),  # the node logic's modes
                 )
             )
             self.log.info(
@@ -94,20 +92,15 @@ class Outbox:
             self._sent.add(key)
             self.triggers_sent += 1
             self.sent_by_dest[dest] = self.sent_by_dest.get(dest, 0) + 1
-        values: dict[str, Any] = {
-            "mission": self.mission_id,
-            "sender": self.drone,
-            "dest": dest,
-            "src_node": t.src,
-            "dst_node": t.dst,
-            "iteration": tuple(t.iteration),
-            "status": t.status,
-        }
-        if dest in self._checked:  # the program and the node logic made the values
-            msg = trusted(wire.Trigger, **values)
-        else:  # the first Trigger to each destination checked in full (a WireError if bad)
-            msg = wire.Trigger(**values)
-            self._checked.add(dest)
+        msg = wire.Trigger(
+            mission=self.mission_id,
+            sender=self.drone,
+            dest=dest,
+            src_node=t.src,
+            dst_node=t.dst,
+            iteration=tuple(t.iteration),
+            status=t.status,
+        )
         self.bridge.send(msg)
         fields = {
             "dest": dest,

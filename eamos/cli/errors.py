@@ -68,7 +68,7 @@ EXIT_CODE_OF: Mapping[str, int] = MappingProxyType(
         "eamos.program.format.ProgramError": EXIT_BAD_INPUT,
         "eamos.config.validation.ConfigError": EXIT_BAD_INPUT,
         "eamos.net.keys.KeysError": EXIT_BAD_INPUT,
-        "eamos.net.wire_fields.WireError": EXIT_BAD_INPUT,
+        "eamos.net.wire.WireError": EXIT_BAD_INPUT,
         "eamos.report.ReportError": EXIT_BAD_INPUT,
         "eamos.ops.ssh.RunFolderError": EXIT_BAD_INPUT,
         # could not connect

@@ -1,8 +1,8 @@
 """EAMOS network layer: the wire format, the reliable link, the Out-/In-Bridges.
 
-* :mod:`eamos.net.wire` -- the one versioned wire format (``encode``/``decode``);
-  :mod:`eamos.net.trusted` builds this process's own messages without the field
-  checks (a trigger per action; what peers send is checked by ``decode``).
+* :mod:`eamos.net.wire` -- the one versioned wire format: messages are frozen
+  ``msgspec.Struct`` s, built by their constructors; ``encode``/``decode``, which
+  validates what peers send.
 * :mod:`eamos.net.session` -- :class:`ReliableSession`, the reliable-delivery
   protocol, pure (sequence numbers, acks, retransmission, heartbeats, peer
   liveness, latest-value telemetry): events in, effects out (:mod:`eamos.net.effects`:

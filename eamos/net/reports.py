@@ -116,11 +116,11 @@ def _joined(last: wire.ReportPart, packed: bytes) -> wire.Report:
         MAX_REPORT_BYTES,
         f"joined report from {last.sender} is not msgpack",
     )
-    # The Report's own check: a map of plain data, nested at most MAX_DEPTH deep.
+    # What a Report's decode checks: a map of plain data, nested at most MAX_DEPTH deep.
     return wire.Report(
         mission=last.mission,
         sender=last.sender,
-        report=body,
+        report=wire.plain_map(body, f"joined report from {last.sender}"),
         dest=last.dest,
         seq=last.seq,
         incarnation=last.incarnation,

@@ -16,6 +16,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any, Final
 
+from msgspec.structs import replace
+
 import eamos.net.wire as wire
 from eamos.net.settings import LinkSettings
 
@@ -91,7 +93,7 @@ class Sending:
         """``msg`` with the next seq (and the sender's ``incarnation``), kept until acknowledged."""
         seq = self.next_seq
         self.next_seq += 1
-        numbered = wire.restamp(msg, seq=seq, incarnation=incarnation)
+        numbered = replace(msg, seq=seq, incarnation=incarnation)
         self.pending[seq] = _Out(numbered, now, now)
         self.history[seq] = numbered
         return numbered

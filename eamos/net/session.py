@@ -75,6 +75,8 @@ import random
 from collections.abc import Iterable
 from typing import Any
 
+from msgspec.structs import replace
+
 import eamos.net.wire as wire
 from eamos.logs import EventLog, make_logger
 from eamos.net.broadcasts import Broadcasts
@@ -176,7 +178,7 @@ class ReliableSession:
         elif cls in wire.RELIABLE_BROADCAST and msg.seq == 0:  # type: ignore[union-attr]
             return self._sender.send(self._broadcasts.tx, msg, now, self.incarnation)
         if msg.incarnation != self.incarnation:
-            msg = wire.restamp(msg, incarnation=self.incarnation)
+            msg = replace(msg, incarnation=self.incarnation)
         if cls is wire.TelemetrySample:
             return self._tel.offer(msg, now)  # type: ignore[arg-type]
         return [Send(msg)]

@@ -1,7 +1,7 @@
 """The EAMOS wire format, version 4: the only place messages become bytes and back.
 
 Every message crossing the network between participants (drones and the ground
-station) is one of the frozen dataclasses below.  On the wire it is a two-frame
+station) is one of the frozen :class:`msgspec.Struct` types below.  On the wire it is a two-frame
 ZeroMQ multipart message ``[topic, payload]``:
 
 * ``topic`` (UTF-8 bytes) decides who receives it (SUB sockets filter on it):
@@ -120,7 +120,8 @@ ZeroMQ multipart message ``[topic, payload]``:
   Floats accept msgpack ints on decode (converted to float); bools are never
   accepted where numbers are expected.  "Plain data" is nil, bool, int, float,
   str, bin, array and str-keyed maps, nested at most :data:`MAX_DEPTH` deep
-  (arrays come back as lists).
+  (arrays come back as lists).  The order of the keys in the map carries no
+  meaning (this encoder writes ``t`` first, the envelope's ``v`` and ``n`` last).
 
 Ready, Progress, Resolved, Report and ReportPart are addressed to the ground
 station; their ``dest`` defaults to :data:`GROUND_STATION` so their constructors
@@ -132,13 +133,24 @@ encoding of the report map cut into ``parts`` slices of at most
 once each, in order); the receiver joins them and decodes the whole as a
 Report's ``rp`` (:mod:`eamos.net.reports`).
 
+Inside a process a message is built by its constructor, plainly (the program,
+the node logic and the session made the values); the session stamps ``seq`` and
+``incarnation`` with :func:`msgspec.structs.replace`.  What a peer sends is
+validated once, by :func:`decode`, at the trust boundary: the field types say
+what each field accepts (``Annotated`` with :class:`msgspec.Meta` for bounds,
+``Literal`` for choices) and :func:`msgspec.convert` checks them, after msgpack
+(whose unpacker keeps its own stack) unpacked the payload with every length
+bounded and :func:`plain_map` bounded the nesting of plain data without recursing.
+
 :func:`decode` raises :class:`WireError`, and nothing else, for any malformed
-input: wrong frame count, oversize frames, payload that is not msgpack, wrong or
-missing version, unknown type, missing, extra or wrongly typed fields, or a topic
-that does not match the message; its ``reason`` is ``"version"`` for a payload of
-another wire version (an older or newer program) and ``"malformed"`` otherwise.
-Changing anything in this table means bumping :data:`WIRE_VERSION`;
-``docs/wire-format.md`` holds the same table.
+input: wrong frame count, oversize frames, payload that is not msgpack or nests
+too deep, wrong or missing version, unknown type, missing, extra or wrongly
+typed fields, or a topic that does not match the message; its ``reason`` is
+``"version"`` for a payload of another wire version (an older or newer program),
+``"oversize"`` for a payload over :data:`MAX_PAYLOAD_BYTES` and ``"malformed"``
+otherwise.  Its texts name the field at fault and show no value longer than a
+few dozen characters.  Changing anything in this table means bumping
+:data:`WIRE_VERSION`; ``docs/wire-format.md`` holds the same table.
 
 Version history: 1 (first format); 2 adds ``q`` (sequence numbers), Ack and
 Heartbeat for reliable delivery and peer liveness; 3 adds the incarnation
@@ -150,37 +162,15 @@ size, in parts).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar, Final, TypeVar
+from typing import Annotated, Any, ClassVar, Final, Literal, TypeAlias, get_args
 
 import msgpack
+import msgspec
 
-from eamos.net.wire_fields import (
-    _MAX_CONTAINER_LEN,
-    MAX_DEPTH,
-    MAX_PAYLOAD_BYTES,
-    MAX_REPORT_PARTS,
-    MAX_TOPIC_BYTES,
-    REPORT_PART_BYTES,
-    WireError,
-    _check_bool,
-    _check_choice,
-    _check_float,
-    _check_iteration,
-    _check_map,
-    _check_name,
-    _check_part_data,
-    _check_parts,
-    _check_seq,
-    _check_seq_map,
-    _check_str,
-    _m,
-)
 from eamos.program.uniform import GROUND_STATION as _GCS
 
 __all__ = [
     "GROUND_STATION",
-    "INTERRUPT_MODES",
     "MAX_DEPTH",
     "MAX_PAYLOAD_BYTES",
     "MAX_REPORT_PARTS",
@@ -190,13 +180,13 @@ __all__ = [
     "RELIABLE_TO",
     "REPORT_PART_BYTES",
     "TOPIC_ALL",
-    "TRIGGER_STATUSES",
     "WIRE_VERSION",
     "Abort",
     "Ack",
     "Complete",
     "Heartbeat",
     "Interrupt",
+    "InterruptMode",
     "Message",
     "Progress",
     "Ready",
@@ -206,10 +196,11 @@ __all__ = [
     "Start",
     "TelemetrySample",
     "Trigger",
+    "TriggerStatus",
     "WireError",
     "decode",
     "encode",
-    "restamp",
+    "plain_map",
     "topic_heartbeat",
     "topic_telemetry",
     "topic_to",
@@ -225,8 +216,31 @@ GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground stat
 TOPIC_ALL: Final = b"all"
 """Topic of broadcasts (Start, Abort, Complete)."""
 
-TRIGGER_STATUSES: Final = frozenset({"done", "skipped", "failed"})
-INTERRUPT_MODES: Final = frozenset({"all", "waits", "suspend", "resume"})
+# Limits applied before and during unpacking so a hostile or broken peer cannot
+# make a receiver allocate or recurse without bound.  Reports are the largest
+# legitimate messages and stay far below them.
+MAX_PAYLOAD_BYTES: Final = 1 << 20
+MAX_TOPIC_BYTES: Final = 256
+MAX_DEPTH: Final = 32
+"""Plain data (``detail``, ``report``) nests at most this deep below its map."""
+_MAX_CONTAINER_LEN: Final = 1 << 16
+REPORT_PART_BYTES: Final = 256 * 1024
+"""Bytes of a report's encoding one ReportPart carries (at most); a quarter of a message."""
+MAX_REPORT_PARTS: Final = 256
+"""At most this many parts make one report (64 MiB): a receiver's bound on what it joins."""
+
+
+class WireError(ValueError):
+    """A message could not be encoded or decoded (the network layer's one error type).
+
+    ``reason`` is ``"version"`` when the payload is of another wire version,
+    ``"oversize"`` for a payload over :data:`MAX_PAYLOAD_BYTES` and ``"malformed"``
+    for everything else; receivers log and count drops by it.
+    """
+
+    def __init__(self, message: str, reason: str = "malformed") -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 def topic_to(participant: str) -> bytes:
@@ -245,35 +259,47 @@ def topic_telemetry(drone: str) -> bytes:
 
 
 # ---------------------------------------------------------------------------
-# Messages.
+# Field types: what decode accepts, said once, in the types.
+
+Name: TypeAlias = Annotated[str, msgspec.Meta(pattern="^[^/]+$")]
+"""A participant name: it ends up in topics, so non-empty and without ``/``
+(``to/<name>`` would be ambiguous)."""
+Seq: TypeAlias = Annotated[int, msgspec.Meta(ge=0, le=(1 << 63) - 1)]
+"""Sequence numbers, acknowledgements and incarnations: ints in [0, 2**63)."""
+Iteration: TypeAlias = tuple[int, ...]
+"""Loop indices; a tuple, so that a Trigger is hashable and compares equal after a trip."""
+SeqMap: TypeAlias = Annotated[dict[Name, Seq], msgspec.Meta(max_length=_MAX_CONTAINER_LEN)]
+PlainMap: TypeAlias = Annotated[dict[str, Any], msgspec.Meta(max_length=_MAX_CONTAINER_LEN)]
+"""A str-keyed map of plain data; its nesting is bounded by :func:`plain_map` (no type can
+say it without recursing)."""
+PartCount: TypeAlias = Annotated[int, msgspec.Meta(ge=1, le=MAX_REPORT_PARTS)]
+PartData: TypeAlias = Annotated[bytes, msgspec.Meta(max_length=REPORT_PART_BYTES)]
+TriggerStatus: TypeAlias = Literal["done", "skipped", "failed"]
+InterruptMode: TypeAlias = Literal["all", "waits", "suspend", "resume"]
 
 
-@dataclass(frozen=True)
-class _Base:
-    """Fields shared by every message; subclasses set ``CODE`` and ``KIND``."""
+# ---------------------------------------------------------------------------
+# Messages.  Each class's tag (``t``) is its type code; ``name=`` gives each field's
+# wire key.  Constructors check nothing: decode does, at the trust boundary.
 
-    CODE: ClassVar[str] = ""
+
+class _Fields(msgspec.Struct, frozen=True, tag_field="t", forbid_unknown_fields=True):
+    """The positional fields every message starts with."""
+
+    mission: str = msgspec.field(name="m")
+    sender: Name = msgspec.field(name="s")
+
+
+class _Base(_Fields, frozen=True, kw_only=True):
+    """Fields shared by every message (keyword-only, after each class's own)."""
+
     # How the topic is derived: "to" (from dest), "tm" or "hb" (from sender), or "all".
     KIND: ClassVar[str] = ""
 
-    mission: str = field(metadata=_m("m", _check_str))
-    sender: str = field(metadata=_m("s", _check_name))
-    # Keyword-only (last in every constructor): the session stamps it on sending.
-    incarnation: int = field(default=0, kw_only=True, metadata=_m("n", _check_seq))
-
-    # (field name, validator, "Class.field") per field, set once below the classes:
-    # ``dataclasses.fields()`` and the labels cost more than the checks themselves.
-    _CHECKS: ClassVar[tuple[tuple[str, Any, str], ...]] = ()
-
-    def __post_init__(self) -> None:
-        # Validate and normalise every field (e.g. list -> tuple, int -> float).
-        # object.__setattr__ is the documented way to do this in a frozen dataclass.
-        for name, check, label in self._CHECKS:
-            object.__setattr__(self, name, check(getattr(self, name), label))
-        self._check_together()
-
-    def _check_together(self) -> None:
-        """Checks across fields, after each field's own (none by default)."""
+    # In every payload; decode reads it before anything else (a WireError "version").
+    version: Literal[4] = msgspec.field(default=WIRE_VERSION, name="v")
+    # The session stamps it on sending.
+    incarnation: Seq = msgspec.field(default=0, name="n")
 
     @property
     def topic(self) -> bytes:
@@ -287,158 +313,137 @@ class _Base:
         return TOPIC_ALL
 
 
-@dataclass(frozen=True)
-class Trigger(_Base):
+class Trigger(_Base, frozen=True, tag="trg"):
     """External arc: ``src_node`` on ``sender`` resolved; trigger ``dst_node`` on ``dest``."""
 
-    CODE: ClassVar[str] = "trg"
     KIND: ClassVar[str] = "to"
 
-    dest: str = field(metadata=_m("d", _check_name))
-    src_node: str = field(metadata=_m("sn", _check_str))
-    dst_node: str = field(metadata=_m("dn", _check_str))
-    iteration: tuple[int, ...] = field(metadata=_m("i", _check_iteration))
-    status: str = field(metadata=_m("st", _check_choice(TRIGGER_STATUSES)))
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    dest: Name = msgspec.field(name="d")
+    src_node: str = msgspec.field(name="sn")
+    dst_node: str = msgspec.field(name="dn")
+    iteration: Iteration = msgspec.field(name="i")
+    status: TriggerStatus = msgspec.field(name="st")
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class Interrupt(_Base):
+class Interrupt(_Base, frozen=True, tag="int"):
     """Interrupt ``scope`` (at ``iteration``) on ``dest``; mode "all" or only its "waits"."""
 
-    CODE: ClassVar[str] = "int"
     KIND: ClassVar[str] = "to"
 
-    dest: str = field(metadata=_m("d", _check_name))
-    scope: str = field(metadata=_m("sc", _check_str))
-    iteration: tuple[int, ...] = field(metadata=_m("i", _check_iteration))
-    mode: str = field(metadata=_m("md", _check_choice(INTERRUPT_MODES)))
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    dest: Name = msgspec.field(name="d")
+    scope: str = msgspec.field(name="sc")
+    iteration: Iteration = msgspec.field(name="i")
+    mode: InterruptMode = msgspec.field(name="md")
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class TelemetrySample(_Base):
+class TelemetrySample(_Base, frozen=True, tag="tel"):
     """Latest state of the sender drone, read by other drones' conditions."""
 
-    CODE: ClassVar[str] = "tel"
     KIND: ClassVar[str] = "tm"
 
-    time_s: float = field(metadata=_m("ts", _check_float))
-    x_m: float = field(metadata=_m("x", _check_float))
-    y_m: float = field(metadata=_m("y", _check_float))
-    z_m: float = field(metadata=_m("z", _check_float))
-    lat_deg: float = field(metadata=_m("lat", _check_float))
-    lon_deg: float = field(metadata=_m("lon", _check_float))
-    alt_m: float = field(metadata=_m("alt", _check_float))
-    battery_pct: float = field(metadata=_m("bat", _check_float))
-    armed: bool = field(metadata=_m("arm", _check_bool))
-    landed: bool = field(metadata=_m("lnd", _check_bool))
+    time_s: float = msgspec.field(name="ts")
+    x_m: float = msgspec.field(name="x")
+    y_m: float = msgspec.field(name="y")
+    z_m: float = msgspec.field(name="z")
+    lat_deg: float = msgspec.field(name="lat")
+    lon_deg: float = msgspec.field(name="lon")
+    alt_m: float = msgspec.field(name="alt")
+    battery_pct: float = msgspec.field(name="bat")
+    armed: bool = msgspec.field(name="arm")
+    landed: bool = msgspec.field(name="lnd")
 
 
-@dataclass(frozen=True)
-class Ready(_Base):
+class Ready(_Base, frozen=True, tag="rdy"):
     """The sender loaded its program and every participant it sends to has subscribed."""
 
-    CODE: ClassVar[str] = "rdy"
     KIND: ClassVar[str] = "to"
 
-    program_checksum: str = field(metadata=_m("ck", _check_str))
-    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    program_checksum: str = msgspec.field(name="ck")
+    dest: Name = msgspec.field(default=GROUND_STATION, name="d")
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class Start(_Base):
+class Start(_Base, frozen=True, tag="sta"):
     """Broadcast by the ground station: every drone starts its program."""
 
-    CODE: ClassVar[str] = "sta"
     KIND: ClassVar[str] = "all"
 
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class Abort(_Base):
+class Abort(_Base, frozen=True, tag="abt"):
     """Broadcast: stop the mission now (drones run their failsafe)."""
 
-    CODE: ClassVar[str] = "abt"
     KIND: ClassVar[str] = "all"
 
-    reason: str = field(metadata=_m("r", _check_str))
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    reason: str = msgspec.field(name="r")
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class Complete(_Base):
+class Complete(_Base, frozen=True, tag="cmp"):
     """Broadcast by the ground station: the whole mission is over."""
 
-    CODE: ClassVar[str] = "cmp"
     KIND: ClassVar[str] = "all"
 
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class Progress(_Base):
+class Progress(_Base, frozen=True, tag="prg"):
     """A node/action event on the sender, for live display at the ground station."""
 
-    CODE: ClassVar[str] = "prg"
     KIND: ClassVar[str] = "to"
 
-    state: str = field(metadata=_m("st", _check_str))
-    node: str = field(metadata=_m("nd", _check_str))  # not "n": the incarnation's key
-    action: str = field(metadata=_m("a", _check_str))
-    detail: dict[str, Any] = field(metadata=_m("dt", _check_map), default_factory=dict)
-    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
+    state: str = msgspec.field(name="st")
+    node: str = msgspec.field(name="nd")  # not "n": the incarnation's key
+    action: str = msgspec.field(name="a")
+    detail: PlainMap = msgspec.field(default_factory=dict, name="dt")
+    dest: Name = msgspec.field(default=GROUND_STATION, name="d")
 
 
-@dataclass(frozen=True)
-class Resolved(_Base):
+class Resolved(_Base, frozen=True, tag="res"):
     """The sender's top-level nodes are all resolved."""
 
-    CODE: ClassVar[str] = "res"
     KIND: ClassVar[str] = "to"
 
-    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    dest: Name = msgspec.field(default=GROUND_STATION, name="d")
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class Report(_Base):
+class Report(_Base, frozen=True, tag="rep"):
     """Final per-drone summary, sent to the ground station."""
 
-    CODE: ClassVar[str] = "rep"
     KIND: ClassVar[str] = "to"
 
-    report: dict[str, Any] = field(metadata=_m("rp", _check_map))
-    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    report: PlainMap = msgspec.field(name="rp")
+    dest: Name = msgspec.field(default=GROUND_STATION, name="d")
+    seq: Seq = msgspec.field(default=0, name="q")
 
 
-@dataclass(frozen=True)
-class ReportPart(_Base):
+class ReportPart(_Base, frozen=True, tag="rpp"):
     """Part ``part`` of ``parts`` of a final report too large for one message.
 
     ``data`` is a slice of the report map's MessagePack encoding; the parts of
     one report follow each other on the link, ``part`` 0 first.
     """
 
-    CODE: ClassVar[str] = "rpp"
     KIND: ClassVar[str] = "to"
 
-    part: int = field(metadata=_m("pi", _check_seq))
-    parts: int = field(metadata=_m("pn", _check_parts))
-    data: bytes = field(metadata=_m("pd", _check_part_data))
-    dest: str = field(metadata=_m("d", _check_name), default=GROUND_STATION)
-    seq: int = field(metadata=_m("q", _check_seq), default=0)
+    part: Seq = msgspec.field(name="pi")
+    parts: PartCount = msgspec.field(name="pn")
+    data: PartData = msgspec.field(name="pd")
+    dest: Name = msgspec.field(default=GROUND_STATION, name="d")
+    seq: Seq = msgspec.field(default=0, name="q")
 
-    def _check_together(self) -> None:
+    def __post_init__(self) -> None:
+        # The one check across fields (no type can say it); msgspec runs it when
+        # decoding too, and reports it as a validation error.
         if self.part >= self.parts:
             raise WireError(f"ReportPart.part: {self.part} of {self.parts} parts")
 
 
-@dataclass(frozen=True)
-class Ack(_Base):
+class Ack(_Base, frozen=True, tag="ack"):
     """Cumulative acknowledgement from ``sender`` to ``dest`` (the reliability layer).
 
     Every message of the link ``dest -> sender`` with ``seq <= upto`` and every
@@ -448,18 +453,16 @@ class Ack(_Base):
     ``dest_incarnation`` is the incarnation of ``dest`` acknowledged (0: unknown).
     """
 
-    CODE: ClassVar[str] = "ack"
     KIND: ClassVar[str] = "to"
 
-    dest: str = field(metadata=_m("d", _check_name))
-    upto: int = field(metadata=_m("a", _check_seq))
-    bupto: int = field(metadata=_m("b", _check_seq))
-    nack: bool = field(metadata=_m("nk", _check_bool), default=False)
-    dest_incarnation: int = field(metadata=_m("di", _check_seq), default=0)
+    dest: Name = msgspec.field(name="d")
+    upto: Seq = msgspec.field(name="a")
+    bupto: Seq = msgspec.field(name="b")
+    nack: bool = msgspec.field(default=False, name="nk")
+    dest_incarnation: Seq = msgspec.field(default=0, name="di")
 
 
-@dataclass(frozen=True)
-class Heartbeat(_Base):
+class Heartbeat(_Base, frozen=True, tag="hb"):
     """Periodic sign of life on ``hb/<sender>``, carrying the sender's acknowledgements.
 
     ``sent`` maps each participant to the highest seq sent to it, ``bsent`` is
@@ -473,15 +476,14 @@ class Heartbeat(_Base):
     a restarted participant ignores acknowledgements meant for its predecessor.
     """
 
-    CODE: ClassVar[str] = "hb"
     KIND: ClassVar[str] = "hb"
 
-    sent: dict[str, int] = field(metadata=_m("hs", _check_seq_map), default_factory=dict)
-    bsent: int = field(metadata=_m("bs", _check_seq), default=0)
-    leaving: bool = field(metadata=_m("end", _check_bool), default=False)
-    acks: dict[str, int] = field(metadata=_m("ak", _check_seq_map), default_factory=dict)
-    backs: dict[str, int] = field(metadata=_m("bk", _check_seq_map), default_factory=dict)
-    known: dict[str, int] = field(metadata=_m("ki", _check_seq_map), default_factory=dict)
+    sent: SeqMap = msgspec.field(default_factory=dict, name="hs")
+    bsent: Seq = msgspec.field(default=0, name="bs")
+    leaving: bool = msgspec.field(default=False, name="end")
+    acks: SeqMap = msgspec.field(default_factory=dict, name="ak")
+    backs: SeqMap = msgspec.field(default_factory=dict, name="bk")
+    known: SeqMap = msgspec.field(default_factory=dict, name="ki")
 
 
 Message = (
@@ -499,23 +501,9 @@ Message = (
     | Ack
     | Heartbeat
 )
-"""Any message of the wire format."""
+"""Any message of the wire format (a tagged union on ``t``)."""
 
-MESSAGE_TYPES: Final[tuple[type[_Base], ...]] = (
-    Trigger,
-    Interrupt,
-    TelemetrySample,
-    Ready,
-    Start,
-    Abort,
-    Complete,
-    Progress,
-    Resolved,
-    Report,
-    ReportPart,
-    Ack,
-    Heartbeat,
-)
+MESSAGE_TYPES: Final[tuple[type[_Base], ...]] = get_args(Message)
 
 RELIABLE_TO: Final[frozenset[type[_Base]]] = frozenset(
     {Trigger, Interrupt, Ready, Resolved, Report, ReportPart}
@@ -525,62 +513,48 @@ RELIABLE_TO: Final[frozenset[type[_Base]]] = frozenset(
 RELIABLE_BROADCAST: Final[frozenset[type[_Base]]] = frozenset({Start, Abort, Complete})
 """Broadcasts the reliability layer numbers per sender and has every peer acknowledge."""
 
-for _cls in MESSAGE_TYPES:
-    _cls._CHECKS = tuple(
-        (f.name, f.metadata["check"], f"{_cls.__name__}.{f.name}") for f in fields(_cls)
-    )
-
-_BY_CODE: Final[dict[str, type[_Base]]] = {cls.CODE: cls for cls in MESSAGE_TYPES}
-# Wire key -> field name, per type; computed once (immutable afterwards).
-_KEYS: Final[dict[type[_Base], dict[str, str]]] = {
-    cls: {f.metadata["key"]: f.name for f in fields(cls)} for cls in MESSAGE_TYPES
+_BY_CODE: Final[dict[str, type[_Base]]] = {
+    str(cls.__struct_config__.tag): cls for cls in MESSAGE_TYPES
 }
-_ENVELOPE_KEYS: Final = frozenset({"v", "t"})
-# Per type: every key of a payload (envelope included), and (key, field, validator,
-# label) per field: what decode checks, once, without the constructor's overhead.
-_PAYLOAD_KEYS: Final[dict[type[_Base], frozenset[str]]] = {
-    cls: frozenset(keys) | _ENVELOPE_KEYS for cls, keys in _KEYS.items()
-}
-_DECODERS: Final[dict[type[_Base], tuple[tuple[str, str, Any, str], ...]]] = {
-    cls: tuple(
-        (f.metadata["key"], f.name, f.metadata["check"], f"{cls.__name__}.{f.name}")
-        for f in fields(cls)
-    )
+# Per type, computed once: (wire key, field name, field type) per field; every key of
+# a payload (the tag included); the keys holding plain data, whose nesting decode bounds.
+_FIELDS: Final[dict[type[_Base], tuple[tuple[str, str, Any], ...]]] = {
+    cls: tuple((f.encode_name, f.name, f.type) for f in msgspec.structs.fields(cls))
     for cls in MESSAGE_TYPES
 }
-_CHECK_OF: Final[dict[type[_Base], dict[str, tuple[Any, str]]]] = {
-    cls: {name: (check, label) for _key, name, check, label in checks}
-    for cls, checks in _DECODERS.items()
+_PAYLOAD_KEYS: Final[dict[type[_Base], frozenset[str]]] = {
+    cls: frozenset(key for key, _name, _type in fields) | {"t"} for cls, fields in _FIELDS.items()
 }
-# Per type: (wire key, field name) in field order, for encode.
-_ENCODERS: Final[dict[type[_Base], tuple[tuple[str, str], ...]]] = {
-    cls: tuple(keys.items()) for cls, keys in _KEYS.items()
+_PLAIN_KEYS: Final[dict[type[_Base], tuple[tuple[str, str], ...]]] = {
+    cls: tuple((key, f"{cls.__name__}.{name}") for key, name, kind in fields if kind == PlainMap)
+    for cls, fields in _FIELDS.items()
 }
+# msgpack carries bin natively: a str is not decoded as base64 into a bytes field.
+_NATIVE: Final = (bytes,)
+_BYTES: Final = (bytes, bytearray, memoryview)
 
 
 # ---------------------------------------------------------------------------
 # Encode / decode.  Sequence numbers and acks are ordinary fields (above);
 # authentication and encryption happen below, in ZeroMQ's CURVE mechanism.
 
+# One encoder for all: it keeps its working state per call (thread-safe).
+_ENCODER: Final = msgspec.msgpack.Encoder()
+
 
 def encode(msg: Message) -> list[bytes]:
     """Encode ``msg`` as the multipart frames ``[topic, payload]``.
 
-    Raises :class:`WireError` if ``msg`` is not a wire message or its payload
-    does not fit in :data:`MAX_PAYLOAD_BYTES`.
+    Raises :class:`WireError` if ``msg`` is not a wire message, holds a value
+    MessagePack cannot carry, or its payload does not fit in :data:`MAX_PAYLOAD_BYTES`.
     """
     cls = type(msg)
-    keys = _ENCODERS.get(cls)
-    if keys is None:
+    if cls not in _FIELDS:
         raise WireError(f"not a wire message: {cls.__name__}")
-    values = msg.__dict__
-    body: dict[str, Any] = {"v": WIRE_VERSION, "t": cls.CODE}
-    for key, name in keys:
-        body[key] = values[name]  # a tuple packs as an array, as a list does
     try:
-        payload = msgpack.packb(body, use_bin_type=True)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise WireError(f"cannot encode {cls.__name__}: {exc}") from exc
+        payload = _ENCODER.encode(msg)
+    except (TypeError, ValueError, OverflowError, msgspec.EncodeError) as exc:
+        raise WireError(f"cannot encode {cls.__name__}: {_cut(str(exc))}") from exc
     if len(payload) > MAX_PAYLOAD_BYTES:
         raise WireError(f"{cls.__name__} payload of {len(payload)} bytes exceeds the limit")
     return [msg.topic, payload]
@@ -592,8 +566,10 @@ def unpack_bounded(
     """``data`` decoded from msgpack with every length bounded; :class:`WireError` if bad.
 
     Strings and binaries are at most ``max_bytes`` long, arrays and maps hold at
-    most ``max_items``; extension types are refused.  ``refusal`` begins the
-    error's message ("payload is not valid msgpack").
+    most ``max_items``; extension types are refused.  msgpack's unpacker keeps
+    its own stack (it never recurses) and refuses more than about a thousand
+    levels of nesting.  ``refusal`` begins the error's message ("payload is not
+    valid msgpack").
     """
     try:
         return msgpack.unpackb(
@@ -606,25 +582,52 @@ def unpack_bounded(
             max_map_len=max_items,
             max_ext_len=0,
         )
-    # msgpack signals bad input with ValueError subclasses (incl. UnicodeDecodeError),
-    # its own UnpackException family, TypeError (e.g. unhashable keys) and
-    # OverflowError; all mean "not valid msgpack".
+    # msgpack signals bad input with ValueError subclasses (incl. UnicodeDecodeError
+    # and StackError, too deep), its own UnpackException family, TypeError (e.g.
+    # unhashable keys) and OverflowError; all mean "not valid msgpack".
     except (ValueError, TypeError, OverflowError, msgpack.UnpackException) as exc:
-        raise WireError(f"{refusal}: {exc}") from exc
+        raise WireError(f"{refusal}: {_cut(str(exc)) or type(exc).__name__}") from exc
+
+
+def plain_map(value: Any, label: str) -> dict[str, Any]:
+    """``value`` if it is a str-keyed map of plain data nested at most :data:`MAX_DEPTH` deep.
+
+    Meant for what msgpack unpacked (whose containers are dicts and lists); raises
+    :class:`WireError` naming ``label`` otherwise.  It walks the map with a stack of
+    its own: it never recurses, however deep ``value`` is.
+    """
+    if type(value) is not dict:
+        raise WireError(f"{label}: expected a map, got {type(value).__name__}")
+    # The map itself is depth 0: an item at depth MAX_DEPTH + 1 is one too deep.
+    todo: list[tuple[Any, int]] = [(value, 0)]
+    while todo:
+        container, depth = todo.pop()
+        if depth == MAX_DEPTH and container:
+            raise WireError(f"{label}: nested deeper than {MAX_DEPTH}")
+        if type(container) is dict:
+            for key, item in container.items():
+                if type(key) is not str:
+                    raise WireError(f"{label}: map keys must be str")
+                if type(item) is dict or type(item) is list:
+                    todo.append((item, depth + 1))
+        else:
+            for item in container:
+                if type(item) is dict or type(item) is list:
+                    todo.append((item, depth + 1))
+    return value
 
 
 def decode(frames: Sequence[bytes]) -> Message:
-    """Decode multipart ``frames`` (``[topic, payload]``) into a message.
+    """Decode multipart ``frames`` (``[topic, payload]``) into a message, validated.
 
+    The trust boundary: every field is checked against its type here, once.
     Raises :class:`WireError`, and only that, for any malformed input.
     """
-    if not isinstance(frames, list | tuple) or len(frames) != 2:
-        count = len(frames) if isinstance(frames, list | tuple) else type(frames).__name__
+    if not isinstance(frames, (list, tuple)) or len(frames) != 2:
+        count = len(frames) if isinstance(frames, (list, tuple)) else type(frames).__name__
         raise WireError(f"expected 2 frames [topic, payload], got {count}")
     topic, payload = frames
-    if not isinstance(topic, bytes | bytearray | memoryview) or not isinstance(
-        payload, bytes | bytearray | memoryview
-    ):
+    if not isinstance(topic, _BYTES) or not isinstance(payload, _BYTES):
         raise WireError("frames must be bytes")
     if len(topic) > MAX_TOPIC_BYTES:
         raise WireError(f"topic of {len(topic)} bytes exceeds {MAX_TOPIC_BYTES}")
@@ -635,31 +638,33 @@ def decode(frames: Sequence[bytes]) -> Message:
     body = unpack_bounded(
         payload, MAX_PAYLOAD_BYTES, _MAX_CONTAINER_LEN, "payload is not valid msgpack"
     )
-    if not isinstance(body, dict):
+    if type(body) is not dict:
         raise WireError(f"payload must be a map, got {type(body).__name__}")
     version = body.get("v")
     # type() rather than isinstance: True and 1.0 both compare equal to 1.
     if type(version) is not int or version != WIRE_VERSION:
         raise WireError(
-            f"unsupported wire version {version!r} (expected {WIRE_VERSION})", reason="version"
+            f"unsupported wire version {_shown(version)} (expected {WIRE_VERSION})",
+            reason="version",
         )
     code = body.get("t")
-    cls = _BY_CODE.get(code) if isinstance(code, str) else None
+    cls = _BY_CODE.get(code) if type(code) is str else None
     if cls is None:
-        raise WireError(f"unknown message type {code!r}")
+        raise WireError(f"unknown message type {_shown(code)}")
+    # Every key is required on the wire (the defaults serve constructors only).
     if body.keys() != _PAYLOAD_KEYS[cls]:
-        keys = set(_KEYS[cls])
-        present = set(body) - _ENVELOPE_KEYS
-        missing = sorted(keys - present)
-        extra = sorted(map(repr, present - keys))
-        raise WireError(f"{cls.__name__}: missing keys {missing}, unexpected keys {extra}")
-    # Validated here, once, at the trust boundary: each field's check, then the
-    # instance filled in directly (the constructor would look every field up again).
-    msg: Message = cls.__new__(cls)  # type: ignore[assignment]
-    values = msg.__dict__
-    for key, name, check, label in _DECODERS[cls]:
-        values[name] = check(body[key], label)
-    msg._check_together()
+        keys = _PAYLOAD_KEYS[cls]
+        missing = sorted(keys - body.keys())
+        extra = sorted(_shown(key) for key in body.keys() - keys)
+        raise WireError(
+            f"{cls.__name__}: missing keys {missing}, unexpected keys {_cut(', '.join(extra))}"
+        )
+    for key, label in _PLAIN_KEYS[cls]:
+        plain_map(body[key], label)
+    try:
+        msg: Message = msgspec.convert(body, cls, builtin_types=_NATIVE)  # type: ignore[assignment]
+    except msgspec.ValidationError as exc:
+        raise _field_error(cls, body, exc) from exc
     if type(topic) is not bytes:
         topic = bytes(topic)
     if topic != msg.topic:
@@ -667,25 +672,25 @@ def decode(frames: Sequence[bytes]) -> Message:
     return msg
 
 
-MessageT = TypeVar("MessageT", bound=_Base)
+def _field_error(cls: type[_Base], body: dict[str, Any], exc: Exception) -> WireError:
+    """The error naming the field at fault (msgspec's own text names its wire key)."""
+    for key, name, kind in _FIELDS[cls]:
+        try:
+            msgspec.convert(body[key], kind, builtin_types=_NATIVE)
+        except msgspec.ValidationError as field_exc:
+            return WireError(f"{cls.__name__}.{name}: {_cut(str(field_exc))}")
+    return WireError(_cut(str(exc)))  # a check across fields (ReportPart's)
 
 
-def restamp(msg: MessageT, **changes: Any) -> MessageT:
-    """``msg`` with the fields in ``changes`` replaced and checked; the others are kept.
+def _shown(value: Any) -> str:
+    """``value`` for an error text: a short repr of a scalar, else only its type."""
+    if type(value) is str or type(value) is bytes:
+        shown = repr(value[:40])
+        return shown if len(value) <= 40 else shown + "..."
+    if value is None or type(value) in (int, float, bool):
+        return repr(value)
+    return f"of type {type(value).__name__}"
 
-    What :func:`dataclasses.replace` does, without checking again the fields
-    that were checked when ``msg`` was made (the session stamps every message
-    it sends with its sequence number and incarnation).
-    """
-    cls = type(msg)
-    checks = _CHECK_OF[cls]
-    new = cls.__new__(cls)
-    values = new.__dict__
-    values.update(msg.__dict__)
-    for name, value in changes.items():
-        if name not in checks:
-            raise TypeError(f"{cls.__name__} has no field {name!r}")
-        check, label = checks[name]
-        values[name] = check(value, label)
-    new._check_together()
-    return new
+
+def _cut(text: str, limit: int = 300) -> str:
+    return text if len(text) <= limit else text[:limit] + "..."

@@ -127,8 +127,7 @@ def test_an_exception_routing_a_wire_message_aborts_the_drone(fleets: Any) -> No
     router = fleet.runtimes["D1"].router
     assert router is not None
     # A message that breaks routing (a decoder bug would let it through): no iteration.
-    broken = wire.Interrupt("m", "GCS", dest="D1", scope="1", iteration=(), mode="all")
-    object.__setattr__(broken, "iteration", None)
+    broken = wire.Interrupt("m", "GCS", dest="D1", scope="1", iteration=None, mode="all")  # type: ignore[arg-type]
     router(broken)
     resolved_within(fleet, PROMPT_S)
     report = fleet.finish()["D1"]

@@ -79,7 +79,8 @@ class ScriptedFleet:
             self.on_start()
             for name in self.replies.get("start", []):
                 self.station.handle(wire.Resolved(mission=MISSION, sender=name))
-        kind = {wire.Complete: "complete", wire.Abort: "abort"}.get(type(msg))
+        kinds: dict[type, str] = {wire.Complete: "complete", wire.Abort: "abort"}
+        kind = kinds.get(type(msg))
         for name in self.replies.get(kind or "", []):
             self.station.handle(wire.Report(mission=MISSION, sender=name, report=report()))
 

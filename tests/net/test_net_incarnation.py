@@ -9,8 +9,9 @@ predecessor.  Pure: sessions joined by the in-memory network of ``session_helper
 
 from __future__ import annotations
 
-import dataclasses
 import random
+
+import msgspec
 
 from eamos.net import wire
 from eamos.net.effects import PeerStatus
@@ -126,8 +127,8 @@ def test_acknowledgements_for_the_predecessor_are_ignored() -> None:
 
 def test_messages_of_the_predecessor_are_dropped() -> None:
     b = b_session(7)
-    new = dataclasses.replace(trig("A", "B", 1), seq=1, incarnation=300)
-    old = dataclasses.replace(trig("A", "B", 9), seq=2, incarnation=299)
+    new = msgspec.structs.replace(trig("A", "B", 1), seq=1, incarnation=300)
+    old = msgspec.structs.replace(trig("A", "B", 9), seq=2, incarnation=299)
     assert b.on_receive(new, 0.0)
     assert b.on_receive(old, 0.1) == []
     assert b.counters.old_incarnation == 1 and b.counters.restarts == 0

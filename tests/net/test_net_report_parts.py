@@ -113,8 +113,8 @@ def test_joined_bytes_that_are_not_a_report_map_are_refused() -> None:
     ],
 )
 def test_a_report_part_out_of_its_bounds_is_refused(fields: dict[str, Any], match: str) -> None:
-    with pytest.raises(wire.WireError, match=match):
-        wire.ReportPart(mission=MISSION, sender="D1", **fields)
+    with pytest.raises(wire.WireError, match=match):  # at the latest where it arrives
+        wire.decode(wire.encode(wire.ReportPart(mission=MISSION, sender="D1", **fields)))
 
 
 def test_a_report_part_with_an_unknown_key_is_refused_on_decode() -> None:

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -64,7 +65,7 @@ def delivered(actions: Sequence[object]) -> list[Any]:
 def seq(n: int, sender: str = "B", dest: str = "A", cls: type = wire.Trigger) -> wire.Message:
     if cls is wire.Report:
         return wire.Report(MISSION, sender, {"ok": True}, dest=dest, seq=n)
-    return dataclasses.replace(trig(sender, dest, n), seq=n)
+    return msgspec.structs.replace(trig(sender, dest, n), seq=n)
 
 
 # -- delivery -------------------------------------------------------------------------
