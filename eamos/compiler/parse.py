@@ -14,8 +14,8 @@ from typing import Any, Literal
 from ..program.uniform import ACTIONS
 from .errors import Diagnostic, MissionError, SourceLocation
 from .limits import MAX_REPEAT, MAX_SOURCE_BYTES
-from .parse_declarations import DeclarationReader
 from .parse_expressions import Node, text
+from .parse_loops import LoopReader
 from .source import SourceText
 from .syntax import (
     CONTROL_KINDS,
@@ -23,6 +23,8 @@ from .syntax import (
     Control,
     DroneDecl,
     Expr,
+    GroupDecl,
+    Member,
     Mission,
     Statement,
     TypeDecl,
@@ -32,10 +34,6 @@ __all__ = ["MAX_SOURCE_BYTES", "parse_mission", "parse_partial", "parse_with_war
 
 # Go statements a mission cannot contain, and what to write instead.
 _UNSUPPORTED_STATEMENTS = {
-    "for_statement": (
-        "a Go 'for' loop",
-        "use RepeatWhile(cond, Body), RepeatUntil or RepeatFor(n, Body)",
-    ),
     "if_statement": (
         "a Go 'if' statement",
         "use If(cond, Then, Else) with blocks named Then and Else",
@@ -101,7 +99,7 @@ def _go_parser() -> Any:
     return tree_sitter.Parser(tree_sitter.Language(tree_sitter_go.language()))
 
 
-class _Reader(DeclarationReader):
+class _Reader(LoopReader):
     """Walks one tree-sitter tree, collecting diagnostics instead of stopping."""
 
     def __init__(
@@ -117,6 +115,7 @@ class _Reader(DeclarationReader):
         name = "mission"
         blocks: dict[str, Block] = {}
         drones: dict[str, DroneDecl] = {}
+        groups: dict[str, GroupDecl] = {}
         order: list[str] = []
         imports = self._imports(root)
         types: dict[str, TypeDecl] = {}
@@ -132,16 +131,22 @@ class _Reader(DeclarationReader):
                     name = text(ident)
             elif kind == "var_declaration":
                 for decl in self._var_specs(node):
-                    if decl.name in drones:
+                    first = drones.get(decl.name) or groups.get(decl.name)
+                    if first is not None:
+                        what = "group" if decl.name in groups else "drone"
                         self.diags.append(
                             Diagnostic(
                                 "error",
                                 decl.loc,
-                                f"drone '{decl.name}' is declared twice",
-                                f"first declared at line {drones[decl.name].loc.line}",
+                                f"{what} '{decl.name}' is declared twice",
+                                f"first declared at line {first.loc.line}",
                             )
                         )
-                    drones[decl.name] = decl
+                        continue
+                    if isinstance(decl, GroupDecl):
+                        groups[decl.name] = decl
+                    else:
+                        drones[decl.name] = decl
             elif kind == "function_declaration":
                 block = self._function(node)
                 if block is None:
@@ -202,13 +207,14 @@ class _Reader(DeclarationReader):
             incomplete_blocks=frozenset(self.incomplete),
             imports=tuple(imports),
             types=types,
+            groups=groups,
         )
 
-    def _var_specs(self, node: Node) -> list[DroneDecl]:
+    def _var_specs(self, node: Node) -> list[DroneDecl | GroupDecl]:
         specs = [c for c in node.named_children if c.type == "var_spec"]
         for group in (c for c in node.named_children if c.type == "var_spec_list"):
             specs.extend(c for c in group.named_children if c.type == "var_spec")
-        out: list[DroneDecl] = []
+        out: list[DroneDecl | GroupDecl] = []
         for spec in specs:
             names = [c for c in spec.children_by_field_name("name")]
             type_node = spec.child_by_field_name("type")
@@ -216,8 +222,11 @@ class _Reader(DeclarationReader):
                 self.error(
                     spec,
                     "a drone declaration names a drone and its type",
-                    "write: var Drone1 DroneType1",
+                    "write: var Drone1 DroneType1, or a group: var Team [20]Quadcopter",
                 )
+                continue
+            if type_node.type == "array_type" and not self.prefix:
+                out.extend(self.group_spec(spec, names, type_node))
                 continue
             if type_node.type not in ("type_identifier", "qualified_type"):
                 self.error(
@@ -268,12 +277,9 @@ class _Reader(DeclarationReader):
         body = node.child_by_field_name("body")
         statements: list[Statement] = []
         if body is not None:
-            for stmt_node in self._statement_nodes(body):
-                stmt = self._statement(stmt_node)
-                if stmt is not None:
-                    statements.append(stmt)
-                else:
-                    self.incomplete.add(name)
+            statements, complete = self.statements_of(body)
+            if not complete:
+                self.incomplete.add(self.qualify(name))
         self.param_names = frozenset()
         return Block(
             name=self.qualify(name),
@@ -282,6 +288,18 @@ class _Reader(DeclarationReader):
             loc=self.loc(name_node),
             params=params,
         )
+
+    def statements_of(self, body: Node) -> tuple[list[Statement], bool]:
+        """The statements of a ``{ ... }`` body, and whether none was lost to an error."""
+        statements: list[Statement] = []
+        complete = True
+        for stmt_node in self._statement_nodes(body):
+            stmt = self._statement(stmt_node)
+            if stmt is not None:
+                statements.append(stmt)
+            else:
+                complete = False
+        return statements, complete
 
     def _statement_nodes(self, body: Node) -> list[Node]:
         out: list[Node] = []
@@ -297,6 +315,8 @@ class _Reader(DeclarationReader):
     def _statement(self, node: Node) -> Statement | None:
         if node.type == "ERROR":
             return None
+        if node.type == "for_statement":
+            return self.for_loop(node)
         if node.type in _UNSUPPORTED_STATEMENTS:
             what, hint = _UNSUPPORTED_STATEMENTS[node.type]
             self.error(node, f"{what} is not supported in missions", hint)
@@ -340,16 +360,27 @@ class _Reader(DeclarationReader):
         if function.type == "selector_expression":
             operand = function.child_by_field_name("operand")
             field = function.child_by_field_name("field")
-            if operand is None or field is None or operand.type != "identifier":
+            member: Member | None = None
+            if operand is not None and operand.type == "index_expression" and field is not None:
+                if self.too_deep(operand, "this index"):
+                    return None
+                picked = self.pick(operand)  # Team[i].Arm(): a member of a group
+                if not isinstance(picked, Member):
+                    return None
+                member = picked
+            elif operand is None or field is None or operand.type != "identifier":
                 self.error(
-                    function, "an action is called on a drone by name", "e.g. Drone1.Takeoff(1.5)"
+                    function,
+                    "an action is called on a drone by name",
+                    "e.g. Drone1.Takeoff(1.5), or Team[i].Takeoff(1.5) on a group's member",
                 )
                 return None
-            drone, action = text(operand), text(field)
-            if drone in self.packages:
+            drone = member.group if member is not None else text(operand)
+            action = text(field)
+            if drone in self.packages and member is None:
                 return self._block_call(f"{drone}.{action}", call, args, function)
             if action in ("PauseWhile", "PauseUntil"):
-                return self._control(action, drone, call, args)
+                return self._control(action, drone, call, args, member)
             if action in CONTROL_KINDS:
                 self.error(
                     field,
@@ -357,7 +388,7 @@ class _Reader(DeclarationReader):
                     f"write {_CONTROL_SIGNATURES[action]}",
                 )
                 return None
-            return self._action_call(drone, action, call, args, field)
+            return self._action_call(drone, action, call, args, field, member)
         self.error(
             function,
             "a statement is a block call, a drone action or a control structure",
@@ -366,7 +397,12 @@ class _Reader(DeclarationReader):
         return None
 
     def _control(
-        self, kind: str, drone: str | None, call: Node, args: list[Node]
+        self,
+        kind: str,
+        drone: str | None,
+        call: Node,
+        args: list[Node],
+        member: Member | None = None,
     ) -> Control | None:
         sig = _CONTROL_SIGNATURES[kind]
         loc = self.loc(call)
@@ -446,6 +482,7 @@ class _Reader(DeclarationReader):
             exit=rest,
             drone=drone,
             count_expr=count_expr,
+            pick=member,
         )
 
 

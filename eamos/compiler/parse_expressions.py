@@ -18,11 +18,25 @@ from ..program.uniform import PROPERTIES
 from .errors import Diagnostic, SourceLocation
 from .limits import MAX_EXPRESSION_DEPTH, MAX_NAME_BYTES, MAX_NAME_CHARS, name_error
 from .source import SourceText, display_line, split_lines
-from .syntax import Binary, Bool, Expr, Name, Num, Prop, Unary
+from .syntax import (
+    QUANTIFIERS,
+    Binary,
+    Bool,
+    Expr,
+    Len,
+    Member,
+    Name,
+    Num,
+    Prop,
+    Quantifier,
+    Slice,
+    Unary,
+)
 
 Node = Any  # tree_sitter.Node; typed loosely so the module imports without it
 
-_BINARY_OPS = {"&&", "||", "==", "!=", "<", "<=", ">", ">=", "+", "-", "*", "/"}
+_BINARY_OPS = {"&&", "||", "==", "!=", "<", "<=", ">", ">=", "+", "-", "*", "/", "%"}
+_ARITHMETIC = ("+", "-", "*", "/", "%")
 # The node kinds that nest an expression one level deeper, as a person counts them.
 _NESTING = frozenset({"unary_expression", "binary_expression", "parenthesized_expression"})
 
@@ -196,17 +210,19 @@ class NodeReader:
         return None
 
     def const_expr(self, node: Node) -> Expr | None:
-        """An argument: numbers and names joined by ``+ - * /``, unary minus, parentheses.
+        """An argument: numbers and names joined by ``+ - * / %``, unary minus, parentheses.
 
-        Names are block parameters (or drones, for a block's drone parameters);
-        what they stand for is checked later.  Call :meth:`too_deep` first.
+        Names are block parameters and loop variables (or drones and groups, for a
+        block's drone and group parameters), ``len(Team)`` a group's size, ``Team[i]`` a
+        member and ``Team[a:b]`` part of a group; what they stand for is checked later.
+        Call :meth:`too_deep` first.
         """
         if node is None:
             return None
         kind = node.type
         if kind in ("int_literal", "float_literal"):
             value = self.number(node)
-            return None if value is None else Num(value, self.loc(node))
+            return None if value is None else Num(value, self.loc(node), kind == "int_literal")
         if kind == "identifier":
             return Name(text(node), self.loc(node))
         if kind == "parenthesized_expression":
@@ -223,12 +239,16 @@ class NodeReader:
         if kind == "binary_expression":
             operator = node.child_by_field_name("operator")
             op = text(operator)
-            if op in ("+", "-", "*", "/"):
+            if op in _ARITHMETIC:
                 left = self.const_expr(node.child_by_field_name("left"))
                 right = self.const_expr(node.child_by_field_name("right"))
                 if left is None or right is None:
                     return None
                 return Binary(op, left, right, self.loc(operator))
+        if kind in ("index_expression", "slice_expression"):
+            return self.pick(node)
+        if kind == "call_expression" and text(node.child_by_field_name("function")) == "len":
+            return self.length(node)
         what = {
             "interpreted_string_literal": "a string",
             "raw_string_literal": "a string",
@@ -238,9 +258,53 @@ class NodeReader:
         self.error(
             node,
             f"action arguments are literal numbers, not {what}",
-            "write the value itself, e.g. Drone1.Takeoff(1.5), or an expression of numbers "
-            "and the block's parameters with + - * /",
+            "write the value itself, e.g. Drone1.Takeoff(1.5), or an expression of numbers, "
+            "the block's parameters and loop variables with + - * / %",
         )
+        return None
+
+    # -- groups -------------------------------------------------------------
+
+    def pick(self, node: Node) -> Member | Slice | None:
+        """``Team[i]`` (a member) or ``Team[a:b]`` (part of a group), or None (reported)."""
+        operand = node.child_by_field_name("operand")
+        if operand is None or operand.type != "identifier":
+            self.error(
+                node,
+                "only a group's name is indexed",
+                "write Team[i] for one member, Team[a:b] for several",
+            )
+            return None
+        group = text(operand)
+        if node.type == "index_expression":
+            index_node = node.child_by_field_name("index")
+            index = self.const_expr(index_node) if index_node is not None else None
+            return None if index is None else Member(group, index, self.loc(node))
+        if node.child_by_field_name("capacity") is not None:
+            self.error(node, "a part of a group is written Team[a:b]", "remove the third bound")
+            return None
+        bounds: list[Expr | None] = []
+        for name in ("start", "end"):
+            bound_node = node.child_by_field_name(name)
+            if bound_node is None:
+                bounds.append(None)
+                continue
+            bound = self.const_expr(bound_node)
+            if bound is None:
+                return None
+            bounds.append(bound)
+        return Slice(group, bounds[0], bounds[1], self.loc(node))
+
+    def length(self, node: Node) -> Len | None:
+        """``len(Team)`` or ``len(Team[a:b])``, or None (reported)."""
+        args = node.child_by_field_name("arguments")
+        given = [a for a in args.named_children if a.type != "comment"] if args else []
+        if len(given) == 1 and given[0].type == "identifier":
+            return Len(Name(text(given[0]), self.loc(given[0])), self.loc(node))
+        if len(given) == 1 and given[0].type == "slice_expression":
+            part = self.pick(given[0])
+            return None if not isinstance(part, Slice) else Len(part, self.loc(node))
+        self.error(node, "len takes one group", "e.g. len(Team)")
         return None
 
     # -- conditions ---------------------------------------------------------
@@ -256,7 +320,7 @@ class NodeReader:
             return self.expr(inner[0]) if len(inner) == 1 else None
         if kind in ("int_literal", "float_literal"):
             value = self.number(node)
-            return None if value is None else Num(value, loc)
+            return None if value is None else Num(value, loc, kind == "int_literal")
         if kind in ("true", "false"):
             return Bool(kind == "true", loc)
         if kind == "unary_expression":
@@ -264,6 +328,11 @@ class NodeReader:
         if kind == "binary_expression":
             return self._binary(node)
         if kind == "call_expression":
+            function = text(node.child_by_field_name("function"))
+            if function in QUANTIFIERS:
+                return self._quantifier(function, node, loc)
+            if function == "len":
+                return self.length(node)
             return self._property(node, loc)
         if kind == "identifier":
             name = text(node)
@@ -320,13 +389,33 @@ class NodeReader:
             return None
         return Binary(op, left, right, self.loc(operator))
 
+    def _quantifier(self, kind: str, node: Node, loc: SourceLocation) -> Expr | None:
+        """``All(Team.Z() > 2)``: one condition that reads a group as if it were a drone."""
+        args = node.child_by_field_name("arguments")
+        given = [a for a in args.named_children if a.type != "comment"] if args else []
+        if len(given) != 1:
+            self.error(
+                node,
+                f"{kind} takes one condition that reads a group",
+                f"e.g. {kind}(Team.Z() > 2): Team.Z() stands for each member's Z()",
+            )
+            return None
+        cond = self.expr(given[0])
+        if cond is None:
+            return None
+        return Quantifier(kind, cond, loc)  # type: ignore[arg-type]
+
     def _property(self, node: Node, loc: SourceLocation) -> Expr | None:
         fn = node.child_by_field_name("function")
         args = node.child_by_field_name("arguments")
         if fn is not None and fn.type == "selector_expression":
             operand = fn.child_by_field_name("operand")
             field = fn.child_by_field_name("field")
-            if operand is not None and operand.type == "identifier" and field is not None:
+            picked = operand is not None and operand.type in (
+                "index_expression",
+                "slice_expression",
+            )
+            if operand is not None and (operand.type == "identifier" or picked) and field:
                 if args is not None and args.named_child_count:
                     self.error(
                         args,
@@ -334,7 +423,12 @@ class NodeReader:
                         f"write {text(operand)}.{text(field)}()",
                     )
                     return None
-                return Prop(text(operand), text(field), loc)
+                if not picked:
+                    return Prop(text(operand), text(field), loc)
+                part = self.pick(operand)
+                if part is None:
+                    return None
+                return Prop(part.group, text(field), loc, part)
         self.error(
             node,
             "only drone properties can be called in a condition",
