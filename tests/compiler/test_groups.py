@@ -544,3 +544,42 @@ def test_the_expanded_size_limit_counts_the_written_out_mission() -> None:
     assert error.message == "the loops and block copies write out more than 50 000 statements"
     assert 8 <= error.loc.line <= 67 and error.hint.startswith("loop over fewer drones")
     assert "(in SEQ_Hop(Team_" in error.hint
+
+
+# -- the 100-drone example in missions/ ----------------------------------------------------
+
+FLEET100 = REPO / "missions" / "fleet100.go"
+
+
+def fleet100_written_out() -> str:
+    """missions/fleet100.go written out by hand, as a script would generate it."""
+    team = [f"Team_{i}" for i in range(100)]
+    out = ['import "fleet"', *(f"var {d} Quadcopter" for d in team)]
+    out += ["func SEQ_Mission() {", "\tPAR_Grid()"]
+    out += [f"\t{d}.{move}" for d in team for move in ("FlyByZ(1)", "FlyByZ(-1)")]
+    out += ["\tPAR_Sweep1()", "\tPAR_Sweep2()", *(f"\tPAR_Row{r}()" for r in range(10)), "}"]
+    out += ["func PAR_Grid() {", *(f"\tSEQ_Cell{i}()" for i in range(100)), "}"]
+    for i, d in enumerate(team):
+        x = 5 * (i % 10)
+        out += [f"func SEQ_Cell{i}() {{", f"\tfleet.SEQ_Up({d}, 3)"]
+        out += [f"\t{d}.FlyToXYZ({x}, {-x}, 3)", "}"]
+    for k, dx in ((1, 20), (2, -20)):
+        out += [f"func PAR_Sweep{k}() {{", *(f"\t{d}.FlyByX({dx})" for d in team), "}"]
+    for r in range(10):
+        row = team[10 * r : 10 * r + 10]
+        out += [f"func PAR_Row{r}() {{", *(f"\tfleet.SEQ_Park({d})" for d in row), "}"]
+    return "\n".join(out) + "\n"
+
+
+def test_the_100_drone_example_is_30_lines_and_compiles_cleanly() -> None:
+    text = FLEET100.read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 30
+    compiled = compile_mission(text, str(FLEET100))
+    assert compiled.warnings == ()
+    assert len(compiled.programs) == 101
+    assert {p.drone_type for d, p in compiled.programs.items() if d != "GCS"} == {"Quadcopter"}
+
+
+def test_the_100_drone_example_compiles_to_the_graphs_of_the_mission_written_out() -> None:
+    text = FLEET100.read_text(encoding="utf-8")
+    assert_same_compilation(fleet100_written_out(), text, rename=str)
