@@ -80,7 +80,7 @@ def test_a_member_left_in_the_air_is_named_and_located_in_the_loop() -> None:
 
 
 def test_the_100_drone_example_passes_the_check() -> None:
-    compiled = compile_file(REPO / "missions" / "fleet100.go")
+    compiled = compile_file(REPO / "missions" / "fleets" / "fleet100.go")
     report = check_mission(compiled)
     assert report.ok, [f.message for f in report.findings][:5]
     assert report.findings == ()

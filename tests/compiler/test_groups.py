@@ -548,7 +548,7 @@ def test_the_expanded_size_limit_counts_the_written_out_mission() -> None:
 
 # -- the 100-drone example in missions/ ----------------------------------------------------
 
-FLEET100 = REPO / "missions" / "fleet100.go"
+FLEET100 = REPO / "missions" / "fleets" / "fleet100.go"
 
 
 def fleet100_written_out() -> str:
