@@ -287,6 +287,7 @@ class _Reader(LoopReader):
             statements=tuple(statements),
             loc=self.loc(name_node),
             params=params,
+            end_line=node.end_point.row + 1,
         )
 
     def statements_of(self, body: Node) -> tuple[list[Statement], bool]:

@@ -138,7 +138,12 @@ class LoopReader(DeclarationReader):
         finally:
             self.loop_depth -= 1
             self.param_names = outer
-        return dataclasses.replace(header, body=tuple(statements), incomplete=not complete)
+        return dataclasses.replace(
+            header,
+            body=tuple(statements),
+            incomplete=not complete,
+            end_line=node.end_point.row + 1,
+        )
 
     def _variable(self, node: Node) -> tuple[str | None, Node | None]:
         if node.type != "identifier":

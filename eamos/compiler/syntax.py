@@ -234,6 +234,8 @@ class ForLoop:
     step: Expr | None = None
     # The body lost statements to errors (an "empty" expansion is then a consequence).
     incomplete: bool = False
+    # The line of the loop's closing brace: its variables are in scope up to there.
+    end_line: int = 0
 
 
 Statement = ActionCall | BlockCall | Control | ForLoop
@@ -285,6 +287,8 @@ class Block:
     statements: tuple[Statement, ...]
     loc: SourceLocation
     params: tuple[Param, ...] = ()
+    # The line of the closing brace (0 for blocks the expansion writes).
+    end_line: int = 0
 
 
 @dataclass(frozen=True)
