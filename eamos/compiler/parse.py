@@ -130,7 +130,7 @@ class _Reader(LoopReader):
                 if ident is not None:
                     name = text(ident)
             elif kind == "var_declaration":
-                for decl in self._var_specs(node):
+                for decl in self.var_specs(node):
                     first = drones.get(decl.name) or groups.get(decl.name)
                     if first is not None:
                         what = "group" if decl.name in groups else "drone"
@@ -209,46 +209,6 @@ class _Reader(LoopReader):
             types=types,
             groups=groups,
         )
-
-    def _var_specs(self, node: Node) -> list[DroneDecl | GroupDecl]:
-        specs = [c for c in node.named_children if c.type == "var_spec"]
-        for group in (c for c in node.named_children if c.type == "var_spec_list"):
-            specs.extend(c for c in group.named_children if c.type == "var_spec")
-        out: list[DroneDecl | GroupDecl] = []
-        for spec in specs:
-            names = [c for c in spec.children_by_field_name("name")]
-            type_node = spec.child_by_field_name("type")
-            if spec.child_by_field_name("value") is not None or type_node is None:
-                self.error(
-                    spec,
-                    "a drone declaration names a drone and its type",
-                    "write: var Drone1 DroneType1, or a group: var Team [20]Quadcopter",
-                )
-                continue
-            if type_node.type == "array_type" and not self.prefix:
-                out.extend(self.group_spec(spec, names, type_node))
-                continue
-            if type_node.type not in ("type_identifier", "qualified_type"):
-                self.error(
-                    type_node, "a drone type is a plain name", "write: var Drone1 Quadcopter"
-                )
-                continue
-            if self.prefix:
-                self.error(
-                    spec,
-                    "a library declares no drones",
-                    "give its blocks drone parameters: func SEQ_Hop(d Quadcopter) { ... }",
-                )
-                continue
-            kind = (
-                text(type_node)
-                if type_node.type == "type_identifier"
-                else self.type_name(type_node)
-            )
-            if kind is None:
-                continue
-            out.extend(DroneDecl(text(n), kind, self.loc(n), self.loc(type_node)) for n in names)
-        return out
 
     def _function(self, node: Node) -> Block | None:
         name_node = node.child_by_field_name("name")

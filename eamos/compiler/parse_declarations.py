@@ -12,7 +12,8 @@ from __future__ import annotations
 from ..program.uniform import DRONE_TYPES
 from .constants import FoldError, fold, is_constant
 from .errors import Diagnostic, SourceLocation
-from .parse_expressions import Node, NodeReader, text
+from .parse_conditions import ConditionReader
+from .parse_expressions import Node, text
 from .source import SourceText
 from .syntax import (
     GROUP_PREFIX,
@@ -29,7 +30,7 @@ from .syntax import (
 )
 
 
-class DeclarationReader(NodeReader):
+class DeclarationReader(ConditionReader):
     """Imports, drone types, parameters and the arguments of calls, in one file."""
 
     def __init__(self, source_text: SourceText, file: str = "", package: str = "") -> None:

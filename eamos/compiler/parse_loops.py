@@ -1,6 +1,7 @@
-"""Reading groups and loops: ``var Team [20]Quadcopter`` and Go ``for`` statements.
+"""Reading drones, groups and loops: ``var Team [20]Quadcopter``, Go ``for`` statements.
 
-The part of the parser's reader (:mod:`.parse`) for fleets: a group declaration
+The part of the parser's reader (:mod:`.parse`) for fleets: ``var`` declares
+drones (``var D1 Quadcopter``) and groups; a group declaration
 gives ``size`` drones of one type, addressed ``Team[i]``; a ``for`` inside a
 block is read into a :class:`~.syntax.ForLoop`, expanded later
 (:mod:`.instantiate`) into the statements it stands for.  Three Go forms are
@@ -23,7 +24,7 @@ from .errors import Diagnostic
 from .limits import MAX_DRONES, MAX_LOOP_DEPTH, name_error
 from .parse_declarations import DeclarationReader
 from .parse_expressions import Node, text
-from .syntax import Expr, ForLoop, GroupDecl, Name, Num, Slice, Statement, Unary
+from .syntax import DroneDecl, Expr, ForLoop, GroupDecl, Name, Num, Slice, Statement, Unary
 
 _FORMS = (
     "for i, d := range Team { ... }, for i := range 10 { ... } or for i := 0; i < 10; i++ { ... }"
@@ -32,7 +33,7 @@ _COMPARISONS = ("<", "<=", ">", ">=", "!=")
 
 
 class LoopReader(DeclarationReader):
-    """Group declarations and ``for`` statements of one file."""
+    """Drone and group declarations and ``for`` statements of one file."""
 
     loop_depth = 0
 
@@ -40,7 +41,48 @@ class LoopReader(DeclarationReader):
         """The statements of a ``{ ... }`` body, and whether none was lost to an error."""
         raise NotImplementedError  # pragma: no cover - the reader defines it
 
-    # -- groups ---------------------------------------------------------------
+    # -- drones and groups ---------------------------------------------------------------
+
+    def var_specs(self, node: Node) -> list[DroneDecl | GroupDecl]:
+        """The drones and groups of a ``var`` declaration (``var ( ... )`` too)."""
+        specs = [c for c in node.named_children if c.type == "var_spec"]
+        for group in (c for c in node.named_children if c.type == "var_spec_list"):
+            specs.extend(c for c in group.named_children if c.type == "var_spec")
+        out: list[DroneDecl | GroupDecl] = []
+        for spec in specs:
+            names = [c for c in spec.children_by_field_name("name")]
+            type_node = spec.child_by_field_name("type")
+            if spec.child_by_field_name("value") is not None or type_node is None:
+                self.error(
+                    spec,
+                    "a drone declaration names a drone and its type",
+                    "write: var Drone1 DroneType1, or a group: var Team [20]Quadcopter",
+                )
+                continue
+            if type_node.type == "array_type" and not self.prefix:
+                out.extend(self.group_spec(spec, names, type_node))
+                continue
+            if type_node.type not in ("type_identifier", "qualified_type"):
+                self.error(
+                    type_node, "a drone type is a plain name", "write: var Drone1 Quadcopter"
+                )
+                continue
+            if self.prefix:
+                self.error(
+                    spec,
+                    "a library declares no drones",
+                    "give its blocks drone parameters: func SEQ_Hop(d Quadcopter) { ... }",
+                )
+                continue
+            kind = (
+                text(type_node)
+                if type_node.type == "type_identifier"
+                else self.type_name(type_node)
+            )
+            if kind is None:
+                continue
+            out.extend(DroneDecl(text(n), kind, self.loc(n), self.loc(type_node)) for n in names)
+        return out
 
     def group_spec(self, spec: Node, names: list[Node], type_node: Node) -> list[GroupDecl]:
         """``var Team [20]Quadcopter``: a group per name, or nothing (reported)."""

@@ -583,3 +583,31 @@ def test_the_100_drone_example_is_30_lines_and_compiles_cleanly() -> None:
 def test_the_100_drone_example_compiles_to_the_graphs_of_the_mission_written_out() -> None:
     text = FLEET100.read_text(encoding="utf-8")
     assert_same_compilation(fleet100_written_out(), text, rename=str)
+
+
+# -- the language reference ----------------------------------------------------------------
+
+
+def _groups_section() -> str:
+    text = (REPO / "docs" / "mission-language.md").read_text(encoding="utf-8")
+    start = text.index("## Groups of drones and loops")
+    return text[start : text.index("## Blocks with parameters")]
+
+
+def test_the_examples_of_the_groups_section_are_missions_that_compile() -> None:
+    examples = re.findall(r"```go\n(.*?)```", _groups_section(), re.S)
+    assert len(examples) == 3
+    for i, example in enumerate(examples):
+        compiled = compile_mission(example, str(REPO / "missions" / f"doc{i}.go"))
+        assert compiled.warnings == ()
+    labels = {a["label"] for _, a in compiled.amt.nodes(data=True)}
+    assert {"PAR_Forward(Team[3:6], 5)", "PAR_Up(Team, 2)[d=Team_0]"} <= labels
+
+
+def test_the_error_example_of_the_groups_section_is_real_output() -> None:
+    (shown,) = re.findall(r"```text\n(m\.go:.*?)```", _groups_section(), re.S)
+    source = TEAM + "func SEQ_A() {\n\tfor i := 0; i < 4; i++ {\n\t\tTeam[i+1].Arm()\n\t}\n}\n"
+    with pytest.raises(MissionError) as info:
+        compile_mission(source, "m.go")
+    printed = info.value.render("m.go", source)
+    assert printed.startswith(shown.rstrip("\n")), printed
