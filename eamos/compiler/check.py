@@ -427,7 +427,7 @@ class _Checker(GroupChecks, _WholeMission):
                 elif ref.args:
                     self.block_call(BlockCall(ref.name, ref.loc, ref.args))
         if ctl.count_expr is not None:
-            self.numbers_only(ctl.count_expr, "RepeatFor's count")
+            self.numbers_only(ctl.count_expr, "RepeatFor's counts")
         if ctl.pick is not None:
             self.member_ref(ctl.pick)
         elif ctl.drone is not None:

@@ -164,7 +164,7 @@ class CallChecks:
         if dtype is None:
             self.not_a_group(member.group, member.loc)
             return None
-        if not self.numbers_only(member.index, "an index"):
+        if not self.numbers_only(member.index, "indices"):
             return None
         size = self.group_size(member.group)
         if size is not None and is_constant(member.index):
@@ -180,7 +180,7 @@ class CallChecks:
         if isinstance(ref, Slice):
             size = self.group_size(ref.group)
             for bound in (ref.low, ref.high):
-                if bound is None or not self.numbers_only(bound, "the bounds of a group's part"):
+                if bound is None or not self.numbers_only(bound, "the bounds of a part of a group"):
                     continue
                 if size is not None and is_constant(bound):
                     self.index_in_range(bound, size, ref.group, inclusive=True)

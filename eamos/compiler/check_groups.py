@@ -171,7 +171,7 @@ class GroupChecks(CallChecks):
                     f"write for i := range {over.name}",
                 )
                 return False
-            return None if self.numbers_only(over, "a range") else False
+            return None if self.numbers_only(over, "ranges over a count") else False
         if isinstance(over, Name | Slice):
             element = self.group_ref(over)
             return False if element is None else element

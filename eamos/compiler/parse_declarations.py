@@ -72,7 +72,11 @@ class DeclarationReader(ConditionReader):
                     )
                     return None
                 return f"{text(package)}.{text(name)}"
-        self.error(node, "a type is a plain name", "e.g. Quadcopter, float64 or lib.Inspector")
+        self.error(
+            node,
+            "a type is a plain name, or a group's: []Name",
+            "e.g. Quadcopter, float64, int, lib.Inspector, or []Quadcopter for a group",
+        )
         return None
 
     def _imports(self, root: Node) -> list[Import]:

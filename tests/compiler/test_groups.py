@@ -341,6 +341,62 @@ CASES = [
         "parameter 'r' (int) is a whole number, got 1.5",
     ),
     Bad(
+        "5 000 nested loops: refused at the eleventh, without recursing further",
+        TEAM
+        + "func SEQ_A() {\n"
+        + "for range 1 {\n" * 5000
+        + "Team[0].Arm()\n"
+        + "}\n" * 5000
+        + "}\n",
+        "13:1",
+        "loops nest more than 10 deep",
+    ),
+    Bad(
+        "a decimal step that would run forever",
+        TEAM + "func SEQ_A() {\n\tfor x := 0; x < 10; x += 0.0000001 {\n"
+        "\t\tTeam[0].FlyByX(x)\n\t}\n}\n",
+        "3:2",
+        "the loops run more than 50 000 iterations",
+    ),
+    Bad(
+        "a group of no drone",
+        "var Team [0]Quadcopter\nfunc SEQ_A() {\n\tD1.Arm()\n}\n",
+        "1:11",
+        "a group has 1 to 1000 drones, not 0",
+    ),
+    Bad(
+        "a group's size from a name",
+        "var Team [n]Quadcopter\nfunc SEQ_A() {\n\tD1.Arm()\n}\n",
+        "1:11",
+        "a group's size is a number written in the declaration",
+    ),
+    Bad(
+        "an index of a member",
+        TEAM + "func SEQ_A() {\n\tTeam[0][1].Arm()\n}\n",
+        "3:2",
+        "only a group's name is indexed",
+    ),
+    Bad(
+        "a member as an index",
+        TEAM + "func SEQ_A() {\n\tTeam[Team[0]].Arm()\n}\n",
+        "3:7",
+        "'Team[...]' is a drone, not a number",
+        "indices are numbers",
+    ),
+    Bad(
+        "a range over a drone",
+        "var D1 Quadcopter\nfunc SEQ_A() {\n\tfor _, d := range D1 {\n\t\td.Arm()\n\t}\n}\n",
+        "3:20",
+        "'D1' is not a group of drones",
+    ),
+    Bad(
+        "an array parameter instead of a group's",
+        "func SEQ_A() {\n\tD1.Arm()\n}\nfunc SEQ_B(g [3]Quadcopter) {\n\tg[0].Arm()\n}\n",
+        "4:14",
+        "a type is a plain name, or a group's: []Name",
+        "[]Quadcopter for a group",
+    ),
+    Bad(
         "a group loop on an unknown group",
         TEAM + "func SEQ_A() {\n\tfor _, d := range Tam {\n\t\td.Arm()\n\t}\n}\n",
         "3:20",
