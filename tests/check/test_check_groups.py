@@ -84,3 +84,25 @@ def test_the_100_drone_example_passes_the_check() -> None:
     report = check_mission(compiled)
     assert report.ok, [f.message for f in report.findings][:5]
     assert report.findings == ()
+
+
+def test_fleet_files_name_the_members_as_the_programs_do(tmp_path: Path) -> None:
+    import pytest
+
+    from eamos.config import ConfigError, FleetConfig
+
+    source = CONVERGE.replace("SPREAD", "2")
+    compiled = compile_mission(source, "fleet.go")
+    path = tmp_path / "fleet.toml"
+    # Team[1]'s home 1 m from Team[0]'s: they take off too close together.
+    path.write_text(
+        "[drones.Team_0]\nhome_m = [0.0, 0.0]\n[drones.Team_1]\nhome_m = [0.0, 1.0]\n",
+        encoding="utf-8",
+    )
+    report = check_mission(compiled, FleetConfig.load(path))
+    found = [f for f in report.findings if f.check == "separation"]
+    assert found and {p.drone for p in found[0].places} == {"Team_0", "Team_1"}
+    # A table for a member the group does not have is refused, naming the members.
+    path.write_text("[drones.Team_4]\nhome_m = [0.0, 0.0]\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="drones.Team_4: not a drone of the mission"):
+        check_mission(compiled, FleetConfig.load(path))
