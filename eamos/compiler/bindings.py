@@ -38,14 +38,28 @@ from .syntax import (
 
 @dataclass(frozen=True)
 class Group:
-    """A group as a binding holds it: its members' drone names, and how it is written."""
+    """A group as a binding holds it: members ``start`` .. of the declared group ``name``."""
 
     members: tuple[str, ...]
-    shown: str
+    name: str
+    start: int = 0
+    size: int = 0  # the declared group's
 
     @staticmethod
     def declared(decl: GroupDecl) -> Group:
-        return Group(tuple(member_name(decl.name, i) for i in range(decl.size)), decl.name)
+        members = tuple(member_name(decl.name, i) for i in range(decl.size))
+        return Group(members, decl.name, 0, decl.size)
+
+    @property
+    def shown(self) -> str:
+        """How copies' names and labels show it: ``Team``, or a part, ``Team[2:5]``."""
+        if self.start == 0 and len(self.members) == self.size:
+            return self.name
+        return f"{self.name}[{self.start}:{self.start + len(self.members)}]"
+
+    def part(self, low: int, high: int) -> Group:
+        """Its members ``low`` .. ``high - 1`` (Go's slice)."""
+        return Group(self.members[low:high], self.name, self.start + low, self.size)
 
 
 @dataclass(frozen=True)
@@ -116,12 +130,11 @@ class Resolver:
         high = size if ref.high is None else self.whole(ref.high, "a bound")
         if not 0 <= low <= high <= size:
             raise FoldError(
-                f"{whole.shown}[{low}:{high}] is not a part of {whole.shown}, whose members "
-                f"are {whole.shown}[0] .. {whole.shown}[{size - 1}]",
+                f"{name}[{low}:{high}] is not a part of {name}, whose members are "
+                f"{name}[0] .. {name}[{size - 1}]",
                 ref.loc,
             )
-        base, offset = _base(whole)
-        return Group(whole.members[low:high], f"{base}[{offset + low}:{offset + high}]")
+        return whole.part(low, high)
 
     def member(self, pick: Member) -> str:
         """The drone name of ``Team[i]`` (raises FoldError out of range)."""
@@ -184,7 +197,7 @@ class Resolver:
         if isinstance(expr, Len):
             return Num(float(self.size(expr.group)), expr.loc)
         if isinstance(expr, Prop):
-            return self._prop(expr, each, compact=compact)
+            return self._prop(expr, each)
         if isinstance(expr, Unary):
             return dataclasses.replace(
                 expr, operand=self._bind(expr.operand, each, compact=compact)
@@ -208,7 +221,7 @@ class Resolver:
             return Name(prop.drone, prop.loc)
         return None
 
-    def _prop(self, prop: Prop, each: tuple[str, str] | None, *, compact: bool) -> Prop:
+    def _prop(self, prop: Prop, each: tuple[str, str] | None) -> Prop:
         if each is not None and self._group_read(prop) is not None:
             return Prop(each[1], prop.name, prop.loc)
         if isinstance(prop.pick, Member):
@@ -230,15 +243,6 @@ class Resolver:
         terms = [self._bind(expr.cond, (name, m), compact=False) for m in group.members]
         op = {"All": "&&", "Any": "||", "Count": "+"}[expr.kind]
         return _balanced(op, terms, expr)
-
-
-def _base(group: Group) -> tuple[str, int]:
-    """The declared group a (part of a) group is written from, and where the part starts."""
-    shown = group.shown
-    if "[" not in shown:
-        return shown, 0
-    base, _, rest = shown.partition("[")
-    return base, int(rest.split(":", 1)[0])
 
 
 def _balanced(op: str, terms: list[Expr], at: Quantifier) -> Expr:

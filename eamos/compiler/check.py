@@ -463,10 +463,10 @@ class _Checker(GroupChecks, _WholeMission):
         if isinstance(expr, Len):
             return "number" if self.group_ref(expr.group) is not None else None
         if isinstance(expr, Prop):
-            member = self.read_drone(expr)
-            if member is None:
+            grouped, member = self.group_read(expr)
+            if grouped and member is None:
                 return None
-            param_type = self.drone_param(expr.drone) if member is True else member
+            param_type = member if grouped else self.drone_param(expr.drone)
             if expr.drone not in self.types and expr.drone != GROUND_STATION and param_type is None:
                 self.error(
                     expr.loc,

@@ -19,7 +19,7 @@ from __future__ import annotations
 import re
 
 from ..program.uniform import GROUND_STATION, DroneType
-from .check_calls import CallChecks, is_group_type
+from .check_calls import CallChecks
 from .errors import SourceLocation, did_you_mean
 from .syntax import (
     NUMBER_TYPES,
@@ -239,29 +239,27 @@ class GroupChecks(CallChecks):
             return None
         return "number" if expr.kind == "Count" else "bool"
 
-    def read_drone(self, prop: Prop) -> DroneType | bool | None:
-        """The type of the drone a property read names if it is a group's member or a group
-        read by a group condition; True if it is an ordinary drone; None if reported."""
+    def group_read(self, prop: Prop) -> tuple[bool, DroneType | None]:
+        """Whether a property read names a member, a group or part of one (``True``) or
+        a drone (``False``: the checker's own case), and then the members' type (None:
+        a mistake, reported)."""
         if isinstance(prop.pick, Slice):
             if self.quantified == prop.drone:
-                return self.group_type(prop.drone)
+                return True, self.group_type(prop.drone)
             self.error(
                 prop.loc,
                 f"'{_group_text(prop)}' is several drones",
                 f"read one member, {prop.drone}[i].{prop.name}(), or all of them: "
                 f"All({_group_text(prop)}.{prop.name}() > 2)",
             )
-            return None
+            return True, None
         if prop.pick is not None:
-            return self.member_ref(prop.pick)
+            return True, self.member_ref(prop.pick)
         if self.quantified == prop.drone:
-            return self.group_type(prop.drone)
+            return True, self.group_type(prop.drone)
         if self.group_as_drone(prop.drone, prop.loc, "read"):
-            return None
-        param = self.scope.get(prop.drone)
-        if param is not None and is_group_type(param.type):  # pragma: no cover - above
-            return None
-        return True
+            return True, None
+        return False, None
 
 
 def _group_text(prop: Prop) -> str:

@@ -273,8 +273,8 @@ class _Expander:
         value = start
         while holds(value, limit):
             values.append(value)
-            if len(values) > MAX_TREE_NODES - self.iterations:
-                self.spend(loop.loc, resolver.b, iterations=len(values))
+            if self.iterations + len(values) > MAX_TREE_NODES:
+                break  # one past the cap: spend() reports it
             value = value + step
         self.spend(loop.loc, resolver.b, iterations=len(values))
         return values

@@ -104,5 +104,5 @@ def test_fleet_files_name_the_members_as_the_programs_do(tmp_path: Path) -> None
     assert found and {p.drone for p in found[0].places} == {"Team_0", "Team_1"}
     # A table for a member the group does not have is refused, naming the members.
     path.write_text("[drones.Team_4]\nhome_m = [0.0, 0.0]\n", encoding="utf-8")
-    with pytest.raises(ConfigError, match="drones.Team_4: not a drone of the mission"):
+    with pytest.raises(ConfigError, match=r"drones\.Team_4: not a drone of the mission"):
         check_mission(compiled, FleetConfig.load(path))
