@@ -9,6 +9,7 @@ blocks, empty blocks, blocks never reached.  Returns the warnings; raises one
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 
@@ -602,11 +603,29 @@ def collect_diagnostics(mission: Mission) -> list[Diagnostic]:
 
 
 def instance_warnings(mission: Mission) -> list[Diagnostic]:
-    """The checks that need every call expanded (drones known): two motions at once."""
+    """The checks that need every call expanded (drones known): two motions at once.
+
+    A statement in a loop is one place for many drones: its warning is given once,
+    saying for how many more drones it holds.
+    """
     checker = _Checker(mission)
     checker.diags = []
     checker.par_motions()
-    return checker.diags
+    first: dict[tuple[str, int, int], int] = {}
+    more: dict[int, int] = {}
+    for i, d in enumerate(checker.diags):
+        at = (d.loc.file, d.loc.line, d.loc.col)
+        if at in first:
+            more[first[at]] = more.get(first[at], 0) + 1
+        else:
+            first[at] = i
+    return [
+        dataclasses.replace(d, hint=f"{d.hint} (the same for {more[i]} more drones here)")
+        if i in more
+        else d
+        for i, d in enumerate(checker.diags)
+        if first[(d.loc.file, d.loc.line, d.loc.col)] == i
+    ]
 
 
 def check_mission(mission: Mission) -> list[Diagnostic]:

@@ -667,3 +667,14 @@ def test_the_error_example_of_the_groups_section_is_real_output() -> None:
         compile_mission(source, "m.go")
     printed = info.value.render("m.go", source)
     assert printed.startswith(shown.rstrip("\n")), printed
+
+
+def test_two_motions_at_once_in_a_loop_are_one_warning_for_all_the_members() -> None:
+    source = TEAM + (
+        "func PAR_A() {\n\tfor _, d := range Team {\n\t\td.FlyByX(1)\n\t}\n"
+        "\tfor _, d := range Team {\n\t\td.FlyByY(1)\n\t}\n}\n"
+    )
+    (warning,) = compile_mission(source, "m.go").warnings
+    assert (warning.loc.line, warning.loc.col) == (7, 3)
+    assert "Team_0.FlyByY runs in PAR_A together with Team_0.FlyByX (line 4)" in warning.message
+    assert warning.hint.endswith("(the same for 3 more drones here)")
