@@ -9,6 +9,7 @@ the process.
 
     python scripts/bench_compile.py            # a table
     python scripts/bench_compile.py --json     # a JSON list, one object per mission
+    python scripts/bench_compile.py --json --mission missions/fleets/fleet100.go
 
 The paper's figures: a 1-drone mission with a 34-node MEG compiled in 50 ms
 and 4.4 MB; a 20-drone mission with more than 5000 MEG nodes in 2.34 s and
@@ -31,6 +32,7 @@ REPO = Path(__file__).resolve().parents[1]
 # then once more phase by phase for the per-phase times.
 _CHILD = r"""
 import gc, json, sys, time
+from pathlib import Path
 
 def rss(field):
     with open("/proc/self/status") as f:
@@ -43,6 +45,8 @@ from eamos.compiler import compile_mission
 from eamos.compiler.check import check_mission, drone_types
 from eamos.compiler.dependency_graph import fleet, slice_dependency_graphs
 from eamos.compiler.execution_graph import build_execution_graph
+from eamos.compiler.instantiate import instantiate
+from eamos.compiler.libraries import load_libraries
 from eamos.compiler.mission_tree import build_mission_tree
 from eamos.compiler.parse import parse_with_warnings
 from eamos.compiler.synthesis import synthesize_program
@@ -52,7 +56,7 @@ compile_mission("func SEQ_W() {\n\tDrone1.Arm()\n}\n", "warmup.go")
 gc.collect()
 base = rss("VmRSS")
 t0 = time.perf_counter()
-compiled = compile_mission(text, "bench.go")
+compiled = compile_mission(text, sys.argv[1])
 seconds = time.perf_counter() - t0
 peak = rss("VmHWM")
 meg_nodes = compiled.meg.number_of_nodes()
@@ -64,10 +68,14 @@ gc.collect()
 phases = {}
 t = time.perf_counter()
 mission, _ = parse_with_warnings(text)
+mission = load_libraries(mission, Path(sys.argv[1]).parent).mission
 phases["parse_seconds"] = time.perf_counter() - t
 t = time.perf_counter()
 check_mission(mission)
 phases["check_seconds"] = time.perf_counter() - t
+t = time.perf_counter()
+mission, _ = instantiate(mission)  # block copies, loops and groups written out
+phases["expand_seconds"] = time.perf_counter() - t
 t = time.perf_counter()
 amt = build_mission_tree(mission)
 phases["amt_seconds"] = time.perf_counter() - t
@@ -159,9 +167,14 @@ def cases() -> list[tuple[str, str]]:
     ]
 
 
-def measure(text: str, timeout: float = 600.0) -> dict[str, object]:
-    """Compile ``text`` in a fresh interpreter and return its figures."""
-    with tempfile.NamedTemporaryFile("w", suffix=".go", delete=False, encoding="utf-8") as f:
+def measure(text: str, timeout: float = 600.0, folder: Path | None = None) -> dict[str, object]:
+    """Compile ``text`` in a fresh interpreter and return its figures.
+
+    ``folder``: where the mission's libraries are looked up first (its own folder).
+    """
+    with tempfile.NamedTemporaryFile(
+        "w", suffix=".go", delete=False, encoding="utf-8", dir=folder
+    ) as f:
         f.write(text)
         path = f.name
     try:
@@ -195,15 +208,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print a JSON list")
     parser.add_argument("--quick", action="store_true", help="skip the 10000/20000-node missions")
     parser.add_argument("--write", metavar="DIR", help="also write the generated missions to DIR")
+    parser.add_argument("--mission", metavar="FILE", help="measure this mission file instead")
     args = parser.parse_args(argv)
     selected = cases()[:2] if args.quick else cases()
+    if args.mission:
+        selected = [(Path(args.mission).name, Path(args.mission).read_text(encoding="utf-8"))]
     results = []
     for name, text in selected:
         if args.write:
             Path(args.write).mkdir(parents=True, exist_ok=True)
             slug = name.split(",")[0].replace(" ", "_") + f"_{text.count(chr(10))}lines.go"
             (Path(args.write) / slug).write_text(text, encoding="utf-8")
-        figures = measure(text)
+        figures = measure(text, folder=Path(args.mission).parent if args.mission else None)
         results.append(figures)
         if not args.json:
             f = figures

@@ -9,6 +9,7 @@ blocks, empty blocks, blocks never reached.  Returns the warnings; raises one
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 
@@ -22,8 +23,10 @@ from ..program.uniform import (
     PROPERTIES,
     DroneType,
 )
-from .check_calls import CallChecks, drone_arguments, signature
+from .check_calls import drone_arguments, signature
+from .check_groups import GroupChecks
 from .check_handlers import handler_errors
+from .constants import names_in
 from .drone_names import misspelt_drones
 from .drone_types import Vocabulary, implemented_actions, plugin_argument_problem, vocabulary
 from .errors import Diagnostic, MissionError, SourceLocation, did_you_mean
@@ -39,20 +42,28 @@ from .limits import (
 from .syntax import (
     ActionCall,
     Binary,
+    Block,
     BlockCall,
     BlockRef,
     Bool,
     Control,
     Expr,
+    ForLoop,
+    Len,
     Mission,
     Name,
     Num,
     Param,
     Prop,
+    Quantifier,
     Unary,
+    expansion_needed,
+    flat_statements,
+    props_in,
+    scoped_statements,
 )
 
-_ARITH = {"+", "-", "*", "/"}
+_ARITH = {"+", "-", "*", "/", "%"}
 _COMPARE = {"<", "<=", ">", ">="}
 _EQUALITY = {"==", "!="}
 _LOGIC = {"&&", "||"}
@@ -70,15 +81,18 @@ def drone_types(mission: Mission, vocab: Vocabulary | None = None) -> dict[str, 
         types[decl.name] = known.get(decl.type, default)
     for block in mission.blocks.values():
         params = {p.name for p in block.params}
-        for stmt in block.statements:
+        for stmt, loops in scoped_statements(block.statements):
             if (
                 isinstance(stmt, ActionCall)
                 and stmt.drone is not None
+                and stmt.pick is None
                 and stmt.drone not in types
                 and stmt.drone not in params
+                and stmt.drone not in loops
+                and stmt.drone not in mission.groups
             ):
                 types[stmt.drone] = default
-    if any(b.params for b in mission.blocks.values()):
+    if expansion_needed(mission):
         for name, _ in drone_arguments(mission):
             types.setdefault(name.name, default)
     return types
@@ -91,6 +105,11 @@ def _refs(stmt: object) -> Iterator[BlockRef | BlockCall]:
         for ref in (stmt.body, stmt.orelse, stmt.exit):
             if ref is not None:
                 yield ref
+
+
+def _block_refs(block: Block) -> list[BlockRef | BlockCall]:
+    """The blocks a block names, those in its loops included."""
+    return [r for s in flat_statements(block.statements) for r in _refs(s)]
 
 
 class _WholeMission:
@@ -121,7 +140,7 @@ class _WholeMission:
                 continue
             state[root] = 1
             path.append(root)
-            stack = [iter([r for s in blocks[root].statements for r in _refs(s)])]
+            stack = [iter(_block_refs(blocks[root]))]
             while stack:
                 for ref in stack[-1]:
                     if ref.name not in blocks:
@@ -137,9 +156,7 @@ class _WholeMission:
                     elif ref.name not in state:
                         state[ref.name] = 1
                         path.append(ref.name)
-                        stack.append(
-                            iter([r for s in blocks[ref.name].statements for r in _refs(s)])
-                        )
+                        stack.append(iter(_block_refs(blocks[ref.name])))
                         break
                 else:
                     stack.pop()
@@ -153,11 +170,10 @@ class _WholeMission:
         seen = {self.mission.entry}
         todo = [self.mission.entry]
         while todo:
-            for stmt in blocks[todo.pop()].statements:
-                for ref in _refs(stmt):
-                    if ref.name in blocks and ref.name not in seen:
-                        seen.add(ref.name)
-                        todo.append(ref.name)
+            for ref in _block_refs(blocks[todo.pop()]):
+                if ref.name in blocks and ref.name not in seen:
+                    seen.add(ref.name)
+                    todo.append(ref.name)
         for name, block in blocks.items():
             if name not in seen and not block.loc.file:  # a library's blocks are offered
                 self.warn(
@@ -167,7 +183,7 @@ class _WholeMission:
                 )
 
 
-class _Checker(CallChecks, _WholeMission):
+class _Checker(GroupChecks, _WholeMission):
     def __init__(self, mission: Mission) -> None:
         self.mission = mission
         self.vocab, self.diags = vocabulary(mission)
@@ -198,6 +214,7 @@ class _Checker(CallChecks, _WholeMission):
                     "name the drone differently",
                 )
             self.unimplemented(decl.name, decl.type, decl.type_loc or decl.loc)
+        self.group_declarations()
         for name, block in m.blocks.items():
             if not block.statements and name not in self.mission.incomplete_blocks:
                 self.error(
@@ -217,27 +234,17 @@ class _Checker(CallChecks, _WholeMission):
             # Only a mission without cycles has a finite size to count.
             self.diags.extend(block_limit_errors(m))
         self.reachability()
-        if not any(b.params for b in m.blocks.values()):
-            # With parameters, which drone moves is known once calls are expanded:
+        if not expansion_needed(m):
+            # With parameters or loops, which drone moves is known once they are expanded:
             # the same check then runs on the expanded mission (instance_warnings).
             self.par_motions()
-        used = {
-            s.drone
-            for b in m.blocks.values()
-            for s in b.statements
-            if isinstance(s, ActionCall) and s.drone is not None
-        }
-        used |= {
-            p.drone
-            for b in m.blocks.values()
-            for s in b.statements
-            if isinstance(s, Control)
-            for p in _props(s.cond)
-        }
-        used |= {name.name for name, _ in drone_arguments(m)}
+        used = _used_names(m)
         for decl in m.drones.values():
             if decl.name not in used:
                 self.warn(decl.loc, f"drone '{decl.name}' is declared but never used")
+        for group in m.groups.values():
+            if group.name not in used:
+                self.warn(group.loc, f"group '{group.name}' is declared but never used")
         return self.diags
 
     # -- one motion per drone at a time ---------------------------------------
@@ -307,6 +314,8 @@ class _Checker(CallChecks, _WholeMission):
             self.action(stmt)
         elif isinstance(stmt, Control):
             self.control(stmt)
+        elif isinstance(stmt, ForLoop):
+            self.for_loop(stmt)
 
     def block_ref(self, name: str, loc: SourceLocation) -> None:
         if name not in self.mission.blocks:
@@ -322,12 +331,19 @@ class _Checker(CallChecks, _WholeMission):
 
     def action(self, call: ActionCall) -> None:
         spec = self.vocab.actions.get(call.action)
+        dtype: DroneType | None = None
         if call.drone is None:
             if call.action != "PauseFor":  # pragma: no cover - the parser only makes bare PauseFor
                 self.error(
                     call.loc, f"'{call.action}' needs a drone", f"write Drone1.{call.action}(...)"
                 )
                 return
+        elif call.pick is not None:
+            dtype = self.member_ref(call.pick)
+            if dtype is None:
+                return
+        elif self.group_as_drone(call.drone, call.loc, "give"):
+            return
         elif call.drone == GROUND_STATION:
             self.error(
                 call.loc,
@@ -339,7 +355,10 @@ class _Checker(CallChecks, _WholeMission):
             self.error(
                 call.loc,
                 f"'{call.drone}' is a number, not a drone",
-                "actions are called on drones or on drone parameters",
+                f"a range loop's first variable is the index: for _, {call.drone} := range ... "
+                "gives the members"
+                if call.drone in self.range_indices
+                else "actions are called on drones or on drone parameters",
                 len(call.drone),
             )
             return
@@ -352,11 +371,12 @@ class _Checker(CallChecks, _WholeMission):
             )
             return
         if call.drone is not None:
-            dtype = self.drone_param(call.drone) or self.types[call.drone]
+            dtype = dtype or self.drone_param(call.drone) or self.types[call.drone]
             if call.action not in dtype.actions:
+                shown = f"{call.drone}[...]" if call.pick is not None else call.drone
                 self.error(
                     call.action_loc or call.loc,
-                    f"{call.drone} ({dtype.name}) has no action '{call.action}'",
+                    f"{shown} ({dtype.name}) has no action '{call.action}'",
                     did_you_mean(call.action, dtype.actions)
                     if call.action not in self.vocab.actions
                     else f"{dtype.name} offers: {', '.join(sorted(dtype.actions))}",
@@ -409,9 +429,15 @@ class _Checker(CallChecks, _WholeMission):
                 elif ref.args:
                     self.block_call(BlockCall(ref.name, ref.loc, ref.args))
         if ctl.count_expr is not None:
-            self.numbers_only(ctl.count_expr, "RepeatFor's count")
-        if ctl.drone is not None:
-            if ctl.drone == GROUND_STATION or self.drone_param(ctl.drone) is not None:
+            self.numbers_only(ctl.count_expr, "RepeatFor's counts")
+        if ctl.pick is not None:
+            self.member_ref(ctl.pick)
+        elif ctl.drone is not None:
+            if (
+                ctl.drone == GROUND_STATION
+                or self.drone_param(ctl.drone) is not None
+                or self.group_as_drone(ctl.drone, ctl.loc, "wait on")
+            ):
                 pass
             elif ctl.drone not in self.types:
                 self.error(
@@ -434,8 +460,15 @@ class _Checker(CallChecks, _WholeMission):
             return "bool"
         if isinstance(expr, Name):
             return "number" if self.numbers_only(expr, "names in conditions") else None
+        if isinstance(expr, Quantifier):
+            return self.quantifier_type(expr)
+        if isinstance(expr, Len):
+            return "number" if self.group_ref(expr.group) is not None else None
         if isinstance(expr, Prop):
-            param_type = self.drone_param(expr.drone)
+            grouped, member = self.group_read(expr)
+            if grouped and member is None:
+                return None
+            param_type = member if grouped else self.drone_param(expr.drone)
             if expr.drone not in self.types and expr.drone != GROUND_STATION and param_type is None:
                 self.error(
                     expr.loc,
@@ -485,8 +518,38 @@ class _Checker(CallChecks, _WholeMission):
             if left != "number" or right != "number":
                 self.error(expr.loc, f"'{expr.op}' needs numbers on both sides")
                 return None
+            if expr.op == "%" and (props_read(expr.left) or props_read(expr.right)):
+                self.error(
+                    expr.loc,
+                    "'%' is computed when the mission is compiled: it cannot read a property",
+                    "use it on loop counters and numbers, e.g. Team[i].Z() > 2 + i % 3",
+                )
+                return None
             return "bool" if expr.op in _COMPARE else "number"
         return None  # pragma: no cover
+
+
+def _used_names(mission: Mission) -> set[str]:
+    """The drones and groups the blocks name (a superset: names in scope count too)."""
+    used: set[str] = set()
+    for block in mission.blocks.values():
+        for stmt in flat_statements(block.statements):
+            exprs: list[Expr] = []
+            if isinstance(stmt, ActionCall):
+                used.add(stmt.drone or "")
+                exprs.extend(stmt.exprs)
+            elif isinstance(stmt, Control):
+                used.add(stmt.drone or "")
+                used.update(p.drone for p in props_in(stmt.cond))
+                exprs.extend(a for r in (stmt.body, stmt.orelse, stmt.exit) if r for a in r.args)
+                exprs.extend(e for e in (stmt.cond, stmt.count_expr) if e is not None)
+            elif isinstance(stmt, BlockCall):
+                exprs.extend(stmt.args)
+            elif isinstance(stmt, ForLoop):
+                exprs.extend(e for e in (stmt.over, stmt.limit, stmt.start) if e is not None)
+            used.update(n.name for e in exprs for n in names_in(e))
+    used.discard("")
+    return used
 
 
 def _shorten(cycle: list[str]) -> list[str]:
@@ -530,21 +593,9 @@ def argument_problem(action: str, param: str, value: float) -> str:
     return ""
 
 
-def _props(expr: Expr | None) -> Iterator[Prop]:
-    if expr is None:
-        return
-    if isinstance(expr, Prop):
-        yield expr
-    elif isinstance(expr, Unary):
-        yield from _props(expr.operand)
-    elif isinstance(expr, Binary):
-        yield from _props(expr.left)
-        yield from _props(expr.right)
-
-
 def props_read(expr: Expr | None) -> list[Prop]:
     """Every property read in a condition, in source order."""
-    return list(_props(expr))
+    return list(props_in(expr))
 
 
 def collect_diagnostics(mission: Mission) -> list[Diagnostic]:
@@ -553,11 +604,29 @@ def collect_diagnostics(mission: Mission) -> list[Diagnostic]:
 
 
 def instance_warnings(mission: Mission) -> list[Diagnostic]:
-    """The checks that need every call expanded (drones known): two motions at once."""
+    """The checks that need every call expanded (drones known): two motions at once.
+
+    A statement in a loop is one place for many drones: its warning is given once,
+    saying for how many more drones it holds.
+    """
     checker = _Checker(mission)
     checker.diags = []
     checker.par_motions()
-    return checker.diags
+    first: dict[tuple[str, int, int], int] = {}
+    more: dict[int, int] = {}
+    for i, d in enumerate(checker.diags):
+        at = (d.loc.file, d.loc.line, d.loc.col)
+        if at in first:
+            more[first[at]] = more.get(first[at], 0) + 1
+        else:
+            first[at] = i
+    return [
+        dataclasses.replace(d, hint=f"{d.hint} (the same for {more[i]} more drones here)")
+        if i in more
+        else d
+        for i, d in enumerate(checker.diags)
+        if first[(d.loc.file, d.loc.line, d.loc.col)] == i
+    ]
 
 
 def check_mission(mission: Mission) -> list[Diagnostic]:

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from .errors import Diagnostic
-from .syntax import BlockCall, BlockRef, Control, Mission
+from .syntax import BlockCall, BlockRef, Control, Mission, flat_statements
 
 
 def _refs(stmt: object, handlers: bool) -> Iterator[BlockRef | BlockCall]:
@@ -41,7 +41,7 @@ def _outside_handlers(mission: Mission) -> set[str]:
         if name in seen or name not in mission.blocks:
             continue
         seen.add(name)
-        for stmt in mission.blocks[name].statements:
+        for stmt in flat_statements(mission.blocks[name].statements):
             stack.extend(ref.name for ref in _refs(stmt, handlers=False))
     return seen
 
@@ -51,8 +51,12 @@ def handler_errors(mission: Mission) -> list[Diagnostic]:
     out: list[Diagnostic] = []
     outside = _outside_handlers(mission) if mission.entry else set()
     for name, block in mission.blocks.items():
-        for index, stmt in enumerate(block.statements):
+        top = set(map(id, block.statements))  # a Whenever in a loop is the loop checks' concern
+        for stmt in flat_statements(block.statements):
             if not isinstance(stmt, Control):
+                continue
+            index = block.statements.index(stmt) if id(stmt) in top else -1
+            if stmt.kind == "Whenever" and index < 0:
                 continue
             if stmt.kind == "Whenever" and block.mode == "PAR":
                 out.append(

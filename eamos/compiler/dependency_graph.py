@@ -28,6 +28,8 @@ Edge attributes: ``kind`` (the MEG arc kind) and ``external``.
 
 from __future__ import annotations
 
+import re
+
 import networkx as nx
 
 from ..program.uniform import GROUND_STATION
@@ -149,10 +151,20 @@ class _Slicer:
         return self.mdg
 
 
+def natural_key(name: str) -> tuple[str | int, ...]:
+    """Drone2 before Drone10, Team_9 before Team_10: numbers in names compare as numbers."""
+    return tuple(int(p) if p.isdigit() else p for p in re.split(r"(\d+)", name))
+
+
 def fleet(meg: nx.DiGraph) -> list[str]:
-    """Every participant hosting MEG nodes: the ground station first, then drones by name."""
+    """Every participant hosting MEG nodes: the ground station first, then drones by name.
+
+    Names in natural order (:func:`natural_key`), so that a group's members
+    ``Team_0 .. Team_99`` and numbered drones ``D1 .. D100`` stand in that order
+    (the default homes follow it, docs/safety.md).
+    """
     drones = {a["drone"] for _, a in meg.nodes(data=True) if a["kind"] != "fork"}
-    return [GROUND_STATION, *sorted(drones - {GROUND_STATION})]
+    return [GROUND_STATION, *sorted(drones - {GROUND_STATION}, key=natural_key)]
 
 
 def slice_dependency_graphs(meg: nx.DiGraph) -> dict[str, nx.DiGraph]:

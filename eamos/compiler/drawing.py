@@ -46,6 +46,7 @@ from typing import Any, Literal
 import networkx as nx
 
 from ..program.uniform import GROUND_STATION
+from .dependency_graph import natural_key
 
 # The built-in renderer lives in .svg_layout; its names stay importable from here.
 from .svg_layout import builtin_svg, parse_dot
@@ -165,14 +166,9 @@ def to_graphml(graph: nx.DiGraph, path: Path | str) -> Path:
 # -- colours and labels ------------------------------------------------------------
 
 
-def _natural_key(name: str) -> tuple[Any, ...]:
-    """Drone2 before Drone10."""
-    return tuple(int(p) if p.isdigit() else p for p in re.split(r"(\d+)", name))
-
-
 def drone_colours(drones: Iterable[str]) -> dict[str, str]:
     """A fill colour per participant: GCS grey, drones by the palette in natural name order."""
-    names = sorted({d for d in drones if d and d != GROUND_STATION}, key=_natural_key)
+    names = sorted({d for d in drones if d and d != GROUND_STATION}, key=natural_key)
     colours = {GROUND_STATION: GROUND_COLOUR, "": UNASSIGNED_COLOUR}
     for i, name in enumerate(names):
         if i < len(PALETTE):

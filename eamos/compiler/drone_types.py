@@ -27,10 +27,7 @@ from ..program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from ..program.uniform import ACTIONS, DRONE_TYPES, ActionSpec, DroneType
 from .errors import Diagnostic, SourceLocation, did_you_mean
 from .limits import MAX_DRONE_TYPES
-from .syntax import Mission, TypeDecl
-
-#: The parameter type of numbers.
-NUMBER = "float64"
+from .syntax import NUMBER_TYPES, Mission, TypeDecl
 
 
 @functools.cache
@@ -132,7 +129,7 @@ class _Resolver:
                         f"declare it as {method.name}({sig})",
                     )
                 )
-        if decl.name in DRONE_TYPES or decl.name == NUMBER:
+        if decl.name in DRONE_TYPES or decl.name in NUMBER_TYPES:
             self.diags.append(
                 Diagnostic(
                     "error",

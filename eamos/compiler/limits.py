@@ -17,7 +17,16 @@ from collections.abc import Iterator
 
 from ..program.conditions import MAX_DEPTH as _CONDITION_DEPTH
 from .errors import Diagnostic, SourceLocation
-from .syntax import ActionCall, Block, BlockCall, BlockRef, Control, Mission
+from .syntax import (
+    ActionCall,
+    Block,
+    BlockCall,
+    BlockRef,
+    Control,
+    Mission,
+    flat_statements,
+    scoped_statements,
+)
 
 #: Largest mission file, in UTF-8 bytes.
 MAX_SOURCE_BYTES = 2_000_000
@@ -55,6 +64,11 @@ MAX_LIBRARIES = 64
 MAX_LIBRARY_FILES = 100
 #: Most parameters of one block.
 MAX_PARAMS = 32
+#: Most ``for`` loops nested in each other inside one block.
+MAX_LOOP_DEPTH = 10
+#: Largest whole number the compiler computes with (loop counters, indices): 2^53, so that
+#: every one is also exact as a float64 on the drones.
+MAX_WHOLE = 2**53
 
 # Sizes above this are only "very large": no need to carry 2^100000 around.
 _SATURATE = 10**15
@@ -76,7 +90,7 @@ def _own_nodes(block: Block) -> int:
     """
     return 1 + sum(
         2 if isinstance(s, Control) and s.kind == "Whenever" else 1
-        for s in block.statements
+        for s in flat_statements(block.statements)
         if isinstance(s, ActionCall | Control)
     )
 
@@ -98,7 +112,8 @@ class _BlockSizes:
             self._walk(mission.entry)
 
     def _callees(self, name: str) -> list[BlockRef | BlockCall]:
-        return [r for s in self.blocks[name].statements for r in _refs(s) if r.name in self.blocks]
+        statements = flat_statements(self.blocks[name].statements)
+        return [r for s in statements for r in _refs(s) if r.name in self.blocks]
 
     def _walk(self, entry: str) -> None:
         on_path: set[str] = {entry}
@@ -203,16 +218,38 @@ def _too_big(mission: Mission, sizes: _BlockSizes, entry: str, culprit: str) -> 
 
 
 def fleet_limit_error(mission: Mission) -> Diagnostic | None:
-    """An error at the first drone past :data:`MAX_DRONES`, in order of appearance."""
+    """An error at the first drone past :data:`MAX_DRONES`, in order of appearance.
+
+    A group counts its members (declared groups first: their members are drones).
+    """
+    members = 0
+    for group in mission.groups.values():
+        members += group.size
+        if members > MAX_DRONES:
+            return Diagnostic(
+                "error",
+                group.loc,
+                f"the mission commands more than {MAX_DRONES:,} drones; group "
+                f"'{group.name}' ({group.size}) crosses the limit".replace(",", " "),
+                "split the fleet into several missions",
+                group.loc.col + len(group.name),
+            )
     seen: dict[str, SourceLocation] = {d.name: d.loc for d in mission.drones.values()}
-    if len(seen) <= MAX_DRONES:
+    if len(seen) + members <= MAX_DRONES:
         for block in mission.blocks.values():
-            for stmt in block.statements:
-                if isinstance(stmt, ActionCall) and stmt.drone is not None:
+            params = {p.name for p in block.params}
+            for stmt, loops in scoped_statements(block.statements):
+                if (
+                    isinstance(stmt, ActionCall)
+                    and stmt.drone is not None
+                    and stmt.pick is None
+                    and stmt.drone not in params
+                    and stmt.drone not in loops
+                ):
                     seen.setdefault(stmt.drone, stmt.loc)
-    if len(seen) <= MAX_DRONES:
+    if len(seen) + members <= MAX_DRONES:
         return None
-    name, loc = list(seen.items())[MAX_DRONES]
+    name, loc = list(seen.items())[MAX_DRONES - members]
     return Diagnostic(
         "error",
         loc,

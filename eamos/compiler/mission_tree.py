@@ -230,7 +230,9 @@ class _Builder:
         }
         if ctl.cond is not None:
             attrs["cond"] = condition_of(ctl.cond)
-            attrs["label"] = f"{ctl.kind} {to_text(attrs['cond'])}"  # type: ignore[arg-type]
+            # A group condition is labelled as written (All(Team.Z() > 2)), not member by member.
+            shown = ctl.text or to_text(attrs["cond"])  # type: ignore[arg-type]
+            attrs["label"] = f"{ctl.kind} {shown}"
         elif kind == "try":
             attrs["label"] = f"Try {ctl.body.name if ctl.body else ''}"
         elif kind == "whenever":  # pragma: no cover - a Whenever always has a condition

@@ -2,7 +2,7 @@
 
 tree-sitter-go gives a concrete syntax tree even for broken input, so this
 phase reports every syntax error and every Go construct missions do not
-support (``for``, ``if``, ``go``, assignments ...) in one pass, each with the
+support (``if``, ``go``, assignments ...) in one pass, each with the
 control structure to use instead.
 """
 
@@ -19,6 +19,7 @@ from .source import SourceText
 from .syntax import (
     Block,
     DroneDecl,
+    GroupDecl,
     Mission,
     Statement,
     TypeDecl,
@@ -47,7 +48,7 @@ def _go_parser() -> Any:
 
 class _Reader(StatementReader):
     """Walks one tree-sitter tree, collecting diagnostics instead of stopping: the file's
-    top level (package, drones, drone types, blocks) here, each block's statements in
+    top level (package, drones, groups, drone types, blocks) here, each block's statements in
     :class:`~.parse_statements.StatementReader`."""
 
     def __init__(
@@ -63,6 +64,7 @@ class _Reader(StatementReader):
         name = "mission"
         blocks: dict[str, Block] = {}
         drones: dict[str, DroneDecl] = {}
+        groups: dict[str, GroupDecl] = {}
         order: list[str] = []
         imports = self._imports(root)
         types: dict[str, TypeDecl] = {}
@@ -77,17 +79,23 @@ class _Reader(StatementReader):
                 if ident is not None:
                     name = text(ident)
             elif kind == "var_declaration":
-                for decl in self._var_specs(node):
-                    if decl.name in drones:
+                for decl in self.var_specs(node):
+                    first = drones.get(decl.name) or groups.get(decl.name)
+                    if first is not None:
+                        what = "group" if decl.name in groups else "drone"
                         self.diags.append(
                             Diagnostic(
                                 "error",
                                 decl.loc,
-                                f"drone '{decl.name}' is declared twice",
-                                f"first declared at line {drones[decl.name].loc.line}",
+                                f"{what} '{decl.name}' is declared twice",
+                                f"first declared at line {first.loc.line}",
                             )
                         )
-                    drones[decl.name] = decl
+                        continue
+                    if isinstance(decl, GroupDecl):
+                        groups[decl.name] = decl
+                    else:
+                        drones[decl.name] = decl
             elif kind == "function_declaration":
                 block = self._function(node)
                 if block is None:
@@ -148,44 +156,8 @@ class _Reader(StatementReader):
             incomplete_blocks=frozenset(self.incomplete),
             imports=tuple(imports),
             types=types,
+            groups=groups,
         )
-
-    def _var_specs(self, node: Node) -> list[DroneDecl]:
-        specs = [c for c in node.named_children if c.type == "var_spec"]
-        for group in (c for c in node.named_children if c.type == "var_spec_list"):
-            specs.extend(c for c in group.named_children if c.type == "var_spec")
-        out: list[DroneDecl] = []
-        for spec in specs:
-            names = [c for c in spec.children_by_field_name("name")]
-            type_node = spec.child_by_field_name("type")
-            if spec.child_by_field_name("value") is not None or type_node is None:
-                self.error(
-                    spec,
-                    "a drone declaration names a drone and its type",
-                    "write: var Drone1 DroneType1",
-                )
-                continue
-            if type_node.type not in ("type_identifier", "qualified_type"):
-                self.error(
-                    type_node, "a drone type is a plain name", "write: var Drone1 Quadcopter"
-                )
-                continue
-            if self.prefix:
-                self.error(
-                    spec,
-                    "a library declares no drones",
-                    "give its blocks drone parameters: func SEQ_Hop(d Quadcopter) { ... }",
-                )
-                continue
-            kind = (
-                text(type_node)
-                if type_node.type == "type_identifier"
-                else self.type_name(type_node)
-            )
-            if kind is None:
-                continue
-            out.extend(DroneDecl(text(n), kind, self.loc(n), self.loc(type_node)) for n in names)
-        return out
 
     def _function(self, node: Node) -> Block | None:
         name_node = node.child_by_field_name("name")
@@ -214,12 +186,9 @@ class _Reader(StatementReader):
         body = node.child_by_field_name("body")
         statements: list[Statement] = []
         if body is not None:
-            for stmt_node in self._statement_nodes(body):
-                stmt = self._statement(stmt_node)
-                if stmt is not None:
-                    statements.append(stmt)
-                else:
-                    self.incomplete.add(name)
+            statements, complete = self.statements_of(body)
+            if not complete:
+                self.incomplete.add(self.qualify(name))
         self.param_names = frozenset()
         return Block(
             name=self.qualify(name),
@@ -227,6 +196,7 @@ class _Reader(StatementReader):
             statements=tuple(statements),
             loc=self.loc(name_node),
             params=params,
+            end_line=node.end_point.row + 1,
         )
 
 

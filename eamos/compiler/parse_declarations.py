@@ -10,14 +10,27 @@ files never mix.
 from __future__ import annotations
 
 from ..program.uniform import DRONE_TYPES
-from .constants import FoldError, fold, names_in
+from .constants import FoldError, fold, is_constant
 from .errors import Diagnostic, SourceLocation
-from .parse_expressions import Node, NodeReader, text
+from .parse_conditions import ConditionReader
+from .parse_expressions import Node, text
 from .source import SourceText
-from .syntax import ActionCall, BlockCall, BlockRef, Expr, Import, MethodDecl, Param, TypeDecl
+from .syntax import (
+    GROUP_PREFIX,
+    NUMBER_TYPES,
+    ActionCall,
+    BlockCall,
+    BlockRef,
+    Expr,
+    Import,
+    Member,
+    MethodDecl,
+    Param,
+    TypeDecl,
+)
 
 
-class DeclarationReader(NodeReader):
+class DeclarationReader(ConditionReader):
     """Imports, drone types, parameters and the arguments of calls, in one file."""
 
     def __init__(self, source_text: SourceText, file: str = "", package: str = "") -> None:
@@ -31,12 +44,22 @@ class DeclarationReader(NodeReader):
         return self.prefix + name
 
     def type_name(self, node: Node) -> str | None:
-        """A drone or parameter type: ``Quadcopter``, ``float64``, ``Inspector``, ``lib.T``."""
+        """A drone or parameter type: ``Quadcopter``, ``float64``, ``int``, ``Inspector``,
+        ``lib.T``, or a group of one, ``[]Flyer``."""
         if node.type == "type_identifier":
             name = text(node)
-            if name == "float64" or name in DRONE_TYPES:
+            if name in NUMBER_TYPES or name in DRONE_TYPES:
                 return name
             return self.qualify(name)
+        if node.type == "slice_type":
+            element = node.child_by_field_name("element")
+            inner = self.type_name(element) if element is not None else None
+            if inner is None:
+                return None
+            if inner in NUMBER_TYPES or inner.startswith(GROUP_PREFIX):
+                self.error(node, "a group parameter is a group of drones", "e.g. g []Quadcopter")
+                return None
+            return GROUP_PREFIX + inner
         if node.type == "qualified_type":
             package = node.child_by_field_name("package")
             name = node.child_by_field_name("name")
@@ -49,7 +72,11 @@ class DeclarationReader(NodeReader):
                     )
                     return None
                 return f"{text(package)}.{text(name)}"
-        self.error(node, "a type is a plain name", "e.g. Quadcopter, float64 or lib.Inspector")
+        self.error(
+            node,
+            "a type is a plain name, or a group's: []Name",
+            "e.g. Quadcopter, float64, int, lib.Inspector, or []Quadcopter for a group",
+        )
         return None
 
     def _imports(self, root: Node) -> list[Import]:
@@ -204,7 +231,13 @@ class DeclarationReader(NodeReader):
         return BlockCall(name, self.loc(function), tuple(read[0]))
 
     def _action_call(
-        self, drone: str | None, action: str, call: Node, args: list[Node], name_node: Node
+        self,
+        drone: str | None,
+        action: str,
+        call: Node,
+        args: list[Node],
+        name_node: Node,
+        member: Member | None = None,
     ) -> ActionCall | None:
         """An action whose arguments are constant expressions, folded here if they can be."""
         read = self._arguments(args)
@@ -213,8 +246,8 @@ class DeclarationReader(NodeReader):
         exprs, locs = read
         values: list[float] = []
         for expr, arg in zip(exprs, args, strict=True):
-            if any(True for _ in names_in(expr)):
-                # Reads a block parameter: folded when the block is expanded.
+            if not is_constant(expr):
+                # Reads a block parameter or a loop variable: folded when it is expanded.
                 return ActionCall(
                     drone,
                     action,
@@ -223,14 +256,27 @@ class DeclarationReader(NodeReader):
                     tuple(locs),
                     self.loc(name_node),
                     tuple(exprs),
+                    member,
                 )
             try:
                 values.append(fold(expr, {}))
             except FoldError as exc:
-                self.error(arg, str(exc), "numbers must be finite; see the limits in docs")
+                hint = (
+                    "% gives the remainder of whole numbers: loop counters, int parameters, "
+                    "len(...) and numbers written without a point"
+                    if "%" in str(exc)
+                    else "numbers must be finite; see the limits in docs"
+                )
+                self.error(arg, str(exc), hint)
                 return None
         return ActionCall(
-            drone, action, tuple(values), self.loc(call), tuple(locs), self.loc(name_node)
+            drone,
+            action,
+            tuple(values),
+            self.loc(call),
+            tuple(locs),
+            self.loc(name_node),
+            pick=member,
         )
 
     def control_refs(self, kind: str, sig: str, args: list[Node]) -> list[BlockRef] | None:

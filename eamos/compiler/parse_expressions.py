@@ -1,8 +1,10 @@
-"""Reading tree-sitter nodes: locations, syntax errors, names, numbers and conditions.
+"""Reading tree-sitter nodes: locations, syntax errors, names, numbers and arguments.
 
 The base of the parser's reader (:mod:`.parse`): every located diagnostic,
-syntax error, over-long name, number and condition of a mission is read here.  Locations are
-character columns (see :mod:`.source`).  Numbers must be finite; conditions
+syntax error, over-long name, number and argument (a constant expression, a
+group's member or part, ``len``) of a mission is read here; conditions in
+:mod:`.parse_conditions`.  Locations are character columns (see
+:mod:`.source`).  Numbers must be finite; conditions
 and arguments nest at most :data:`~.limits.MAX_EXPRESSION_DEPTH` operators and
 parentheses, checked by an explicit-stack walk *before* the recursive reading,
 so no input reaches Python's recursion limit.
@@ -14,15 +16,24 @@ import math
 import re
 from typing import Any
 
-from ..program.uniform import PROPERTIES
 from .errors import Diagnostic, SourceLocation
 from .limits import MAX_EXPRESSION_DEPTH, MAX_NAME_BYTES, MAX_NAME_CHARS, name_error
 from .source import SourceText, display_line, split_lines
-from .syntax import Binary, Bool, Expr, Name, Num, Prop, Unary
+from .syntax import (
+    Binary,
+    Expr,
+    Len,
+    Member,
+    Name,
+    Num,
+    Slice,
+    Unary,
+)
 
 Node = Any  # tree_sitter.Node; typed loosely so the module imports without it
 
-_BINARY_OPS = {"&&", "||", "==", "!=", "<", "<=", ">", ">=", "+", "-", "*", "/"}
+_BINARY_OPS = {"&&", "||", "==", "!=", "<", "<=", ">", ">=", "+", "-", "*", "/", "%"}
+_ARITHMETIC = ("+", "-", "*", "/", "%")
 # The node kinds that nest an expression one level deeper, as a person counts them.
 _NESTING = frozenset({"unary_expression", "binary_expression", "parenthesized_expression"})
 
@@ -196,17 +207,19 @@ class NodeReader:
         return None
 
     def const_expr(self, node: Node) -> Expr | None:
-        """An argument: numbers and names joined by ``+ - * /``, unary minus, parentheses.
+        """An argument: numbers and names joined by ``+ - * / %``, unary minus, parentheses.
 
-        Names are block parameters (or drones, for a block's drone parameters);
-        what they stand for is checked later.  Call :meth:`too_deep` first.
+        Names are block parameters and loop variables (or drones and groups, for a
+        block's drone and group parameters), ``len(Team)`` a group's size, ``Team[i]`` a
+        member and ``Team[a:b]`` part of a group; what they stand for is checked later.
+        Call :meth:`too_deep` first.
         """
         if node is None:
             return None
         kind = node.type
         if kind in ("int_literal", "float_literal"):
             value = self.number(node)
-            return None if value is None else Num(value, self.loc(node))
+            return None if value is None else Num(value, self.loc(node), kind == "int_literal")
         if kind == "identifier":
             return Name(text(node), self.loc(node))
         if kind == "parenthesized_expression":
@@ -223,12 +236,16 @@ class NodeReader:
         if kind == "binary_expression":
             operator = node.child_by_field_name("operator")
             op = text(operator)
-            if op in ("+", "-", "*", "/"):
+            if op in _ARITHMETIC:
                 left = self.const_expr(node.child_by_field_name("left"))
                 right = self.const_expr(node.child_by_field_name("right"))
                 if left is None or right is None:
                     return None
                 return Binary(op, left, right, self.loc(operator))
+        if kind in ("index_expression", "slice_expression"):
+            return self.pick(node)
+        if kind == "call_expression" and text(node.child_by_field_name("function")) == "len":
+            return self.length(node)
         what = {
             "interpreted_string_literal": "a string",
             "raw_string_literal": "a string",
@@ -238,108 +255,53 @@ class NodeReader:
         self.error(
             node,
             f"action arguments are literal numbers, not {what}",
-            "write the value itself, e.g. Drone1.Takeoff(1.5), or an expression of numbers "
-            "and the block's parameters with + - * /",
+            "write the value itself, e.g. Drone1.Takeoff(1.5), or an expression of numbers, "
+            "the block's parameters and loop variables with + - * / %",
         )
         return None
 
-    # -- conditions ---------------------------------------------------------
+    # -- groups -------------------------------------------------------------
 
-    def expr(self, node: Node | None) -> Expr | None:
-        """A condition (call :meth:`too_deep` on its root first: this recurses)."""
-        if node is None:
-            return None
-        kind = node.type
-        loc = self.loc(node)
-        if kind == "parenthesized_expression":
-            inner = [c for c in node.named_children if c.type != "comment"]
-            return self.expr(inner[0]) if len(inner) == 1 else None
-        if kind in ("int_literal", "float_literal"):
-            value = self.number(node)
-            return None if value is None else Num(value, loc)
-        if kind in ("true", "false"):
-            return Bool(kind == "true", loc)
-        if kind == "unary_expression":
-            return self._unary(node, loc)
-        if kind == "binary_expression":
-            return self._binary(node)
-        if kind == "call_expression":
-            return self._property(node, loc)
-        if kind == "identifier":
-            name = text(node)
-            if name in self.param_names:
-                return Name(name, loc)
-            hint = (
-                f"read it from a drone: Drone1.{name}()"
-                if name in PROPERTIES
-                else f"did you mean {name}.X()? properties are called with ()"
-            )
-            self.error(node, f"'{name}' is a bare name; conditions read drone properties", hint)
-            return None
-        if kind == "selector_expression":
-            self.error(node, "a property is read by calling it", f"write {text(node)}()")
-            return None
-        self.error(
-            node,
-            "this expression is not supported in conditions",
-            "use numbers, drone properties like D3.X(), comparisons, &&, ||, !",
-        )
-        return None
-
-    def _unary(self, node: Node, loc: SourceLocation) -> Expr | None:
-        op = text(node.child_by_field_name("operator"))
-        operand = self.expr(node.child_by_field_name("operand"))
-        if operand is None:
-            return None
-        if op == "+":
-            return operand
-        if op not in ("!", "-"):
+    def pick(self, node: Node) -> Member | Slice | None:
+        """``Team[i]`` (a member) or ``Team[a:b]`` (part of a group), or None (reported)."""
+        operand = node.child_by_field_name("operand")
+        if operand is None or operand.type != "identifier":
             self.error(
                 node,
-                f"operator '{op}' is not supported in conditions",
-                "use numbers, comparisons, &&, ||, ! and + - * /",
+                "only a group's name is indexed",
+                "write Team[i] for one member, Team[a:b] for several",
             )
             return None
-        return Unary(op, operand, loc)  # type: ignore[arg-type]
+        group = text(operand)
+        if node.type == "index_expression":
+            index_node = node.child_by_field_name("index")
+            index = self.const_expr(index_node) if index_node is not None else None
+            return None if index is None else Member(group, index, self.loc(node))
+        if node.child_by_field_name("capacity") is not None:
+            self.error(node, "a part of a group is written Team[a:b]", "remove the third bound")
+            return None
+        bounds: list[Expr | None] = []
+        for name in ("start", "end"):
+            bound_node = node.child_by_field_name(name)
+            if bound_node is None:
+                bounds.append(None)
+                continue
+            bound = self.const_expr(bound_node)
+            if bound is None:
+                return None
+            bounds.append(bound)
+        return Slice(group, bounds[0], bounds[1], self.loc(node))
 
-    def _binary(self, node: Node) -> Expr | None:
-        operator = node.child_by_field_name("operator")
-        op = text(operator)
-        left = self.expr(node.child_by_field_name("left"))
-        right = self.expr(node.child_by_field_name("right"))
-        if operator is None:
-            return None
-        if op not in _BINARY_OPS:
-            self.error(
-                operator,
-                f"operator '{op}' is not supported in conditions",
-                "use comparisons, &&, ||, ! and + - * /",
-            )
-            return None
-        if left is None or right is None:
-            return None
-        return Binary(op, left, right, self.loc(operator))
-
-    def _property(self, node: Node, loc: SourceLocation) -> Expr | None:
-        fn = node.child_by_field_name("function")
+    def length(self, node: Node) -> Len | None:
+        """``len(Team)`` or ``len(Team[a:b])``, or None (reported)."""
         args = node.child_by_field_name("arguments")
-        if fn is not None and fn.type == "selector_expression":
-            operand = fn.child_by_field_name("operand")
-            field = fn.child_by_field_name("field")
-            if operand is not None and operand.type == "identifier" and field is not None:
-                if args is not None and args.named_child_count:
-                    self.error(
-                        args,
-                        "drone properties take no arguments",
-                        f"write {text(operand)}.{text(field)}()",
-                    )
-                    return None
-                return Prop(text(operand), text(field), loc)
-        self.error(
-            node,
-            "only drone properties can be called in a condition",
-            "e.g. D3.X() > 10 && Drone1.Battery() > 30",
-        )
+        given = [a for a in args.named_children if a.type != "comment"] if args else []
+        if len(given) == 1 and given[0].type == "identifier":
+            return Len(Name(text(given[0]), self.loc(given[0])), self.loc(node))
+        if len(given) == 1 and given[0].type == "slice_expression":
+            part = self.pick(given[0])
+            return None if not isinstance(part, Slice) else Len(part, self.loc(node))
+        self.error(node, "len takes one group", "e.g. len(Team)")
         return None
 
 

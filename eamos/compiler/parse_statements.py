@@ -1,9 +1,9 @@
-"""Reading the statements of a block: block calls, drone actions and control structures.
+"""Reading the statements of a block: block calls, drone actions, loops and control structures.
 
 The part of the parser's reader (:mod:`.parse`) for what a block contains.  Every Go
-statement a mission does not support (``for``, ``if``, ``go``, assignments ...) is
-reported with the control structure to use instead, and a control structure's
-arguments are checked against its signature.
+statement a mission does not support (``if``, ``go``, assignments ...) is reported with
+the control structure to use instead, a ``for`` is read by :class:`~.parse_loops.LoopReader`,
+and a control structure's arguments are checked against its signature.
 """
 
 from __future__ import annotations
@@ -11,18 +11,14 @@ from __future__ import annotations
 from ..program.uniform import ACTIONS
 from .errors import Diagnostic
 from .limits import MAX_REPEAT
-from .parse_declarations import DeclarationReader
 from .parse_expressions import Node, text
-from .syntax import CONTROL_KINDS, Control, Expr, Statement
+from .parse_loops import LoopReader
+from .syntax import CONTROL_KINDS, Control, Expr, Member, Statement
 
 __all__ = ["StatementReader"]
 
 # Go statements a mission cannot contain, and what to write instead.
 _UNSUPPORTED_STATEMENTS = {
-    "for_statement": (
-        "a Go 'for' loop",
-        "use RepeatWhile(cond, Body), RepeatUntil or RepeatFor(n, Body)",
-    ),
     "if_statement": (
         "a Go 'if' statement",
         "use If(cond, Then, Else) with blocks named Then and Else",
@@ -70,8 +66,20 @@ _CONTROL_SIGNATURES = {
 }
 
 
-class StatementReader(DeclarationReader):
-    """The statements of one block, each a block call, a drone action or a control."""
+class StatementReader(LoopReader):
+    """The statements of a block (the file's top level is :class:`~.parse._Reader`'s)."""
+
+    def statements_of(self, body: Node) -> tuple[list[Statement], bool]:
+        """The statements of a ``{ ... }`` body, and whether none was lost to an error."""
+        statements: list[Statement] = []
+        complete = True
+        for stmt_node in self._statement_nodes(body):
+            stmt = self._statement(stmt_node)
+            if stmt is not None:
+                statements.append(stmt)
+            else:
+                complete = False
+        return statements, complete
 
     def _statement_nodes(self, body: Node) -> list[Node]:
         out: list[Node] = []
@@ -82,9 +90,13 @@ class StatementReader(DeclarationReader):
                 out.append(child)
         return [c for c in out if c.type not in ("comment", "empty_statement")]
 
+    # -- statements ---------------------------------------------------------
+
     def _statement(self, node: Node) -> Statement | None:
         if node.type == "ERROR":
             return None
+        if node.type == "for_statement":
+            return self.for_loop(node)
         if node.type in _UNSUPPORTED_STATEMENTS:
             what, hint = _UNSUPPORTED_STATEMENTS[node.type]
             self.error(node, f"{what} is not supported in missions", hint)
@@ -128,16 +140,27 @@ class StatementReader(DeclarationReader):
         if function.type == "selector_expression":
             operand = function.child_by_field_name("operand")
             field = function.child_by_field_name("field")
-            if operand is None or field is None or operand.type != "identifier":
+            member: Member | None = None
+            if operand is not None and operand.type == "index_expression" and field is not None:
+                if self.too_deep(operand, "this index"):
+                    return None
+                picked = self.pick(operand)  # Team[i].Arm(): a member of a group
+                if not isinstance(picked, Member):
+                    return None
+                member = picked
+            elif operand is None or field is None or operand.type != "identifier":
                 self.error(
-                    function, "an action is called on a drone by name", "e.g. Drone1.Takeoff(1.5)"
+                    function,
+                    "an action is called on a drone by name",
+                    "e.g. Drone1.Takeoff(1.5), or Team[i].Takeoff(1.5) on a group's member",
                 )
                 return None
-            drone, action = text(operand), text(field)
-            if drone in self.packages:
+            drone = member.group if member is not None else text(operand)
+            action = text(field)
+            if drone in self.packages and member is None:
                 return self._block_call(f"{drone}.{action}", call, args, function)
             if action in ("PauseWhile", "PauseUntil"):
-                return self._control(action, drone, call, args)
+                return self._control(action, drone, call, args, member)
             if action in CONTROL_KINDS:
                 self.error(
                     field,
@@ -145,7 +168,7 @@ class StatementReader(DeclarationReader):
                     f"write {_CONTROL_SIGNATURES[action]}",
                 )
                 return None
-            return self._action_call(drone, action, call, args, field)
+            return self._action_call(drone, action, call, args, field, member)
         self.error(
             function,
             "a statement is a block call, a drone action or a control structure",
@@ -154,7 +177,12 @@ class StatementReader(DeclarationReader):
         return None
 
     def _control(
-        self, kind: str, drone: str | None, call: Node, args: list[Node]
+        self,
+        kind: str,
+        drone: str | None,
+        call: Node,
+        args: list[Node],
+        member: Member | None = None,
     ) -> Control | None:
         sig = _CONTROL_SIGNATURES[kind]
         loc = self.loc(call)
@@ -234,6 +262,7 @@ class StatementReader(DeclarationReader):
             exit=rest,
             drone=drone,
             count_expr=count_expr,
+            pick=member,
         )
 
 

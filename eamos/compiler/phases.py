@@ -26,6 +26,7 @@ from .errors import Diagnostic, MissionError, SourceLocation, with_source_lines
 from .execution_graph import build_execution_graph
 from .instantiate import instantiate
 from .libraries import load_libraries
+from .limits import block_limit_errors
 from .mission_tree import build_mission_tree
 from .parse import parse_partial
 from .syntax import LibraryFile, Mission
@@ -115,6 +116,9 @@ def _check(source: str, source_file: str) -> tuple[Mission, Mission, list[Diagno
     if not mission.entry:
         raise MissionError([Diagnostic("error", SourceLocation(1, 1), "the mission has no blocks")])
     expanded, problems = instantiate(mission)
+    if expanded is not mission and not problems:
+        # Loops and copies are counted again, written out: the limits are the expanded tree's.
+        problems = block_limit_errors(expanded)
     if problems:
         raise MissionError(with_source_lines(problems, source, loaded.texts))
     if expanded is not mission:

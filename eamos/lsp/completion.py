@@ -14,6 +14,7 @@ from typing import Literal
 from ..program.uniform import ACTIONS, CONTROL_STRUCTURES, DRONE_TYPES, PROPERTIES
 from .document import MissionIndex, blank_comments
 from .libraries import available_libraries
+from .names import in_scope
 from .vocabulary import (
     action_help,
     action_snippet,
@@ -23,7 +24,18 @@ from .vocabulary import (
     type_help,
 )
 
-ItemKind = Literal["action", "property", "control", "block", "drone", "type", "keyword", "library"]
+ItemKind = Literal[
+    "action",
+    "property",
+    "control",
+    "block",
+    "drone",
+    "type",
+    "keyword",
+    "library",
+    "group",
+    "variable",
+]
 
 
 @dataclass(frozen=True)
@@ -38,6 +50,9 @@ class Item:
 
 
 _MEMBER = re.compile(r"([^\W\d]\w*)\s*\.\s*(\w*)$")
+# ``Team[i + 1].`` or ``Team[0:10].``: a member (or a part of a group, in All(...)).
+_PICKED = re.compile(r"([^\W\d]\w*)\s*\[[^\[\]]*\]\s*\.\s*(\w*)$")
+_LEN = re.compile(r"\blen\s*\(\s*(\w*)$")
 _VAR_TYPE = re.compile(r"^\s*var\s+[^\W\d]\w*\s+(\w*)$")
 _GROUP_TYPE = re.compile(r"^\s*[^\W\d]\w*\s+(\w*)$")  # a line of ``var ( ... )``
 _VAR_GROUP = re.compile(r"\bvar\s*\(([^()]*)$")
@@ -70,8 +85,8 @@ def _open_parens(prefix: str) -> int:
     return prefix.count("(") - prefix.count(")")
 
 
-def _actions(index: MissionIndex, drone: str) -> list[Item]:
-    dtype = index.drone_type(drone)
+def _actions(index: MissionIndex, drone: str, line: int = 0) -> list[Item]:
+    dtype = index.group_type(drone, line) or index.drone_type(drone, line)
     items = [
         Item(name, "action", f"{dtype.name} action", action_help(spec), action_snippet(spec))
         for name, spec in ACTIONS.items()
@@ -86,8 +101,8 @@ def _actions(index: MissionIndex, drone: str) -> list[Item]:
     return items
 
 
-def _properties(index: MissionIndex, drone: str) -> list[Item]:
-    dtype = index.drone_type(drone)
+def _properties(index: MissionIndex, drone: str, line: int = 0) -> list[Item]:
+    dtype = index.group_type(drone, line) or index.drone_type(drone, line)
     return [
         Item(
             name,
@@ -118,6 +133,51 @@ def _drones(index: MissionIndex) -> list[Item]:
         Item(name, "drone", index.declared_type(name) or index.drone_type(name).name)
         for name in sorted(index.drones)
     ]
+
+
+def _groups(index: MissionIndex) -> list[Item]:
+    return [
+        Item(name, "group", f"[{g.size}]{g.type}", f"a group of {g.size} {g.type} drones")
+        for name, g in sorted(index.groups.items())
+    ]
+
+
+def _variables(index: MissionIndex, line: int) -> list[Item]:
+    """The loop variables and parameters in scope on ``line`` (the innermost of a name)."""
+    seen: dict[str, Item] = {}
+    for var in in_scope(index.variables, line):
+        what = {"member": f"each member of {var.over}", "index": f"index in {var.over}"}.get(
+            var.role, var.type
+        )
+        seen[var.name] = Item(var.name, "variable", f"{var.role}: {what}")
+    return list(seen.values())
+
+
+_LOOPS = [
+    Item(
+        "for",
+        "keyword",
+        "a loop over a group",
+        "Each iteration runs its statements in order; the iterations run as the block's "
+        "statements (at once in a PAR_ block, one after the other in a SEQ_ block).",
+        "for ${1:i}, ${2:d} := range ${3:Team} {\n\t$0\n}",
+    ),
+    Item(
+        "for",
+        "keyword",
+        "a counting loop",
+        "for i := 0; i < 10; i++ { ... }: i takes 0 .. 9.",
+        "for ${1:i} := ${2:0}; ${1:i} < ${3:10}; ${1:i}++ {\n\t$0\n}",
+    ),
+]
+_GROUP_CONDITIONS = [
+    Item(name, "control", f"{name}(Team.Z() > 2)", doc, f"{name}(${{1:Team}}.$0)")
+    for name, doc in (
+        ("All", "True when the condition holds for every member of the group."),
+        ("Any", "True when the condition holds for at least one member."),
+        ("Count", "The number of members for which the condition holds (compare it)."),
+    )
+]
 
 
 def _controls() -> list[Item]:
@@ -196,14 +256,24 @@ def completions(index: MissionIndex, line: int, col: int) -> list[Item]:
     imports = _import_context(index, line, prefix)
     if imports is not None:
         return imports
+    if _LEN.search(prefix):
+        params = _variables(index, line)
+        return _groups(index) + [v for v in params if v.detail.startswith("parameter: []")]
+    picked = _PICKED.search(prefix)
+    if picked and (picked.group(1) in index.groups or index.variable(picked.group(1), line)):
+        if _open_parens(prefix[: picked.start()]) > 0:
+            return _properties(index, picked.group(1), line)
+        return _actions(index, picked.group(1), line)
     member = _MEMBER.search(prefix)
     if member:
         drone = member.group(1)
         if drone in index.packages:
             return _library_blocks(index, drone)
         if _open_parens(prefix[: member.start()]) > 0:
-            return _properties(index, drone)  # inside a condition
-        return _actions(index, drone)
+            return _properties(index, drone, line)  # inside a condition
+        if index.group_type(drone, line) is not None:
+            return []  # a group takes no action: Team[i].Arm(), or a loop
+        return _actions(index, drone, line)
     if _VAR_TYPE.match(prefix):
         return _types()
     before = "\n".join([*index.lines.lines[: max(line - 1, 0)], prefix])
@@ -214,6 +284,12 @@ def completions(index: MissionIndex, line: int, col: int) -> list[Item]:
         return [
             Item("func", "keyword", "a block", snippet="func ${1:SEQ_Name}() {\n\t$0\n}"),
             Item("var", "keyword", "a drone", snippet="var ${1:Drone1} ${2:Quadcopter}"),
+            Item(
+                "var",
+                "keyword",
+                "a group of drones",
+                snippet="var ${1:Team} [${2:10}]${3:Quadcopter}",
+            ),
             Item("import", "keyword", "a library", snippet='import "${1:shapes}"'),
         ]
     args = _CONTROL_ARG.search(prefix)
@@ -224,6 +300,15 @@ def completions(index: MissionIndex, line: int, col: int) -> list[Item]:
             return []  # a whole number
         if param is not None and param != "cond":
             return _blocks(index, call=False)  # Body, Then, Else, Exit, OnFailure, ...
-        return _drones(index)  # a condition reads drone properties
+        # A condition reads drone properties: of drones, members, or a group in All(...).
+        return _drones(index) + _groups(index) + _variables(index, line) + _GROUP_CONDITIONS
     # The start of a statement inside a block.
-    return _drones(index) + _packages(index) + _blocks(index, call=True) + _controls()
+    return (
+        _drones(index)
+        + _groups(index)
+        + _variables(index, line)
+        + _packages(index)
+        + _blocks(index, call=True)
+        + _controls()
+        + _LOOPS
+    )

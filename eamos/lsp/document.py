@@ -19,22 +19,25 @@ from ..compiler import CompilerBug, Diagnostic, MissionError, check_source, comp
 from ..compiler.errors import SourceLocation
 from ..compiler.parse import parse_partial
 from ..compiler.syntax import (
+    GROUP_PREFIX,
     ActionCall,
-    Binary,
     BlockCall,
     Control,
     Expr,
+    GroupDecl,
     Import,
     Mission,
     Prop,
-    Unary,
+    flat_statements,
+    props_in,
 )
 from ..program.uniform import DEFAULT_DRONE_TYPE, DRONE_TYPES, GROUND_STATION, DroneType
 from ..program.uniform import GROUND_TYPE as _GROUND_TYPE
 from .libraries import LibraryBlock, imported_blocks
+from .names import Variable, in_scope, names_in_scope
 from .positions import LineIndex
 
-SymbolKind = Literal["block", "drone"]
+SymbolKind = Literal["block", "drone", "group", "variable"]
 
 
 @dataclass(frozen=True, order=True)
@@ -48,12 +51,17 @@ class Span:
 
 @dataclass(frozen=True)
 class Occurrence:
-    """A block or drone name where it stands in the text, defined or used."""
+    """A block, drone, group or variable name where it stands in the text, defined or used.
+
+    ``key`` tells variables of one name apart (two loops' ``i``): see
+    :attr:`~.names.Variable.key`.
+    """
 
     name: str
     kind: SymbolKind
     span: Span
     definition: bool
+    key: str = ""
 
 
 @dataclass(frozen=True)
@@ -134,15 +142,7 @@ def checked_findings(text: str, path: str = "<mission>") -> list[Finding]:
 
 
 def _props(expr: Expr | None) -> Iterator[Prop]:
-    stack = [expr]
-    while stack:  # a loop: conditions may nest deep
-        node = stack.pop()
-        if isinstance(node, Prop):
-            yield node
-        elif isinstance(node, Unary):
-            stack.append(node.operand)
-        elif isinstance(node, Binary):
-            stack.extend((node.right, node.left))
+    return props_in(expr)
 
 
 class MissionIndex:
@@ -160,30 +160,67 @@ class MissionIndex:
         self.imports = self.mission.imports if self.mission is not None else _imports(text)
         #: Package names the mission imports: ``shapes`` in ``shapes.SEQ_Square(D1, 5)``.
         self.packages = {imp.path.rsplit("/", 1)[-1] for imp in self.imports}
+        #: Groups by name, and the loop variables and block parameters of the file.
+        self.groups: dict[str, GroupDecl] = (
+            dict(self.mission.groups) if self.mission is not None else _lexical_groups(self.lines)
+        )
+        self.variables: list[Variable] = []
         found: list[Occurrence] = []
         if self.mission is not None:
-            found = list(self._from_syntax(self.mission))
+            found = list(self._scoped_names(self.mission))
+            named = {f.span for f in found}
+            found += [o for o in self._from_syntax(self.mission) if o.span not in named]
         taken = {f.span for f in found}
         found.extend(o for o in _lexical(self.lines) if o.span not in taken)
-        # ``shapes.`` reads like a drone's member to the lexical scan: a package is not one.
-        found = [o for o in found if not (o.kind == "drone" and o.name in self.packages)]
+        # ``shapes.`` reads like a drone's member to the lexical scan: a package is not one,
+        # nor is a group or a loop variable.
+        found = [
+            o
+            for o in found
+            if not (o.kind == "drone" and (o.name in self.packages or self._not_drone(o)))
+        ]
         self.occurrences = sorted(found, key=lambda o: o.span)
         self.blocks = {o.name for o in self.occurrences if o.kind == "block" and o.definition}
         self.drones = {o.name for o in self.occurrences if o.kind == "drone"}
 
     def _occurrence(
-        self, name: str, kind: SymbolKind, line: int, col: int, definition: bool
+        self, name: str, kind: SymbolKind, line: int, col: int, definition: bool, key: str = ""
     ) -> Iterator[Occurrence]:
         # Only where the text really holds the name: a location from a broken tree is skipped.
         if self.lines.line(line)[col - 1 : col - 1 + len(name)] == name and name:
-            yield Occurrence(name, kind, Span(line, col, col + len(name)), definition)
+            yield Occurrence(name, kind, Span(line, col, col + len(name)), definition, key)
+
+    def _not_drone(self, occ: Occurrence) -> bool:
+        """A lexical ``NAME.`` that is a group or a variable in scope there."""
+        if occ.name in self.groups:
+            return True
+        return any(v.name == occ.name for v in in_scope(self.variables, occ.span.line))
+
+    def _scoped_names(self, mission: Mission) -> Iterator[Occurrence]:
+        """Groups and loop variables (and parameters), defined and used (:mod:`.names`)."""
+        for group in mission.groups.values():
+            yield from self._occurrence(group.name, "group", group.loc.line, group.loc.col, True)
+        variables, uses = names_in_scope(mission)
+        self.variables = variables
+        defined = {(v.loc.line, v.loc.col) for v in variables}
+        for var in variables:
+            if var.role == "parameter":
+                yield from self._occurrence(
+                    var.name, "variable", var.loc.line, var.loc.col, True, var.key
+                )
+        for use in uses:
+            kind: SymbolKind = use.kind  # type: ignore[assignment]
+            definition = use.kind == "variable" and (use.loc.line, use.loc.col) in defined
+            yield from self._occurrence(
+                use.name, kind, use.loc.line, use.loc.col, definition, use.key
+            )
 
     def _from_syntax(self, mission: Mission) -> Iterator[Occurrence]:
         for decl in mission.drones.values():
             yield from self._occurrence(decl.name, "drone", decl.loc.line, decl.loc.col, True)
         for block in mission.blocks.values():
             yield from self._occurrence(block.name, "block", block.loc.line, block.loc.col, True)
-            for stmt in block.statements:
+            for stmt in flat_statements(block.statements):
                 if isinstance(stmt, BlockCall):
                     yield from self._occurrence(
                         stmt.name, "block", stmt.loc.line, stmt.loc.col, False
@@ -231,13 +268,42 @@ class MissionIndex:
         return None
 
     def of(self, name: str, kind: SymbolKind) -> list[Occurrence]:
-        """Every occurrence of one block or drone, in source order."""
+        """Every occurrence of one block, drone or group, in source order."""
         return [o for o in self.occurrences if o.name == name and o.kind == kind]
 
-    def drone_type(self, drone: str) -> DroneType:
-        """A drone's type as the compiler sees it (undeclared or unknown: the default)."""
+    def same(self, occ: Occurrence) -> list[Occurrence]:
+        """Every occurrence of what ``occ`` names (one variable: the same declaration)."""
+        return [o for o in self.of(occ.name, occ.kind) if o.key == occ.key]
+
+    def variable(self, name: str, line: int) -> Variable | None:
+        """The loop variable or parameter ``name`` in scope on ``line`` (the innermost)."""
+        found = [v for v in in_scope(self.variables, line) if v.name == name]
+        return max(found, key=lambda v: v.first) if found else None
+
+    def group_type(self, name: str, line: int = 0) -> DroneType | None:
+        """The members' type of the group ``name`` (a group parameter in scope too)."""
+        var = self.variable(name, line) if line else None
+        if var is not None:
+            if not var.type.startswith(GROUP_PREFIX):
+                return None
+            return self._type(var.type.removeprefix(GROUP_PREFIX))
+        group = self.groups.get(name)
+        return self._type(group.type) if group is not None else None
+
+    def _type(self, name: str) -> DroneType:
+        return DRONE_TYPES.get(name, DRONE_TYPES[DEFAULT_DRONE_TYPE])
+
+    def drone_type(self, drone: str, line: int = 0) -> DroneType:
+        """A drone's type as the compiler sees it (undeclared or unknown: the default).
+
+        With ``line``, a loop's member variable or a drone parameter in scope there has
+        its own type (a member: its group's).
+        """
         if drone == GROUND_STATION:
             return _GROUND_TYPE
+        var = self.variable(drone, line) if line else None
+        if var is not None and var.type and not var.type.startswith(GROUP_PREFIX):
+            return self._type(var.type)
         declared = self.declared_type(drone)
         return DRONE_TYPES.get(declared or "", DRONE_TYPES[DEFAULT_DRONE_TYPE])
 
@@ -258,6 +324,22 @@ def _parse(text: str) -> Mission | None:
     except MissionError:
         return None  # empty, binary or too large: nothing to index
     return mission
+
+
+_GROUP_DECL = re.compile(r"^\s*(?:var\s+)?([^\W\d]\w*)\s*\[\s*(\d+)\s*\]\s*([\w.]+)")
+
+
+def _lexical_groups(lines: LineIndex) -> dict[str, GroupDecl]:
+    """``var Team [20]Quadcopter`` lines of a text the parser cannot read."""
+    out: dict[str, GroupDecl] = {}
+    for number, line in enumerate(lines.lines, start=1):
+        match = _GROUP_DECL.match(line)
+        if match:
+            loc = SourceLocation(number, match.start(1) + 1)
+            out[match.group(1)] = GroupDecl(
+                match.group(1), match.group(3), int(match.group(2)), loc
+            )
+    return out
 
 
 _IMPORT = re.compile(r'\bimport\s*(?:"([^"\n]*)"|\(([^)]*)\)?)')

@@ -45,6 +45,8 @@ _KINDS = {
     "type": lsp.CompletionItemKind.Class,
     "keyword": lsp.CompletionItemKind.Keyword,
     "library": lsp.CompletionItemKind.Module,
+    "group": lsp.CompletionItemKind.Variable,
+    "variable": lsp.CompletionItemKind.Variable,
 }
 
 
@@ -292,7 +294,9 @@ def build_server() -> MissionServer:
         out = []
         for symbol in symbols(index):
             where = to_range(lines, symbol.span)
-            kind = lsp.SymbolKind.Variable if symbol.kind == "drone" else lsp.SymbolKind.Function
+            kind = {"drone": lsp.SymbolKind.Variable, "group": lsp.SymbolKind.Array}.get(
+                symbol.kind, lsp.SymbolKind.Function
+            )
             detail = f"{symbol.kind}: {symbol.detail}" if symbol.detail else symbol.kind
             out.append(lsp.DocumentSymbol(symbol.name, kind, where, where, detail=detail))
         return out

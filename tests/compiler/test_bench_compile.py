@@ -40,3 +40,13 @@ def test_measure_runs_a_fresh_process() -> None:
     assert figures["meg_nodes"] == 34 and figures["drones"] == 1
     assert 0 < figures["seconds"] < 5 and figures["peak_rss_mb"] > 0
     assert {"parse_seconds", "slice_seconds", "synthesis_seconds"} <= set(figures)
+
+
+def test_measure_goes_through_every_phase_of_a_mission_with_groups() -> None:
+    # The phase-by-phase figures expand loops and load libraries, as compile_mission does.
+    fleet100 = REPO / "missions" / "fleets" / "fleet100.go"
+    figures = _bench().measure(
+        fleet100.read_text(encoding="utf-8"), timeout=300, folder=fleet100.parent
+    )
+    assert figures["drones"] == 100 and figures["meg_nodes"] == 914
+    assert "expand_seconds" in figures

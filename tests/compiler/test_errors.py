@@ -85,10 +85,10 @@ CASES = [
         "RepeatWhile/RepeatFor",
     ),
     Bad(
-        "Go for",
-        "func SEQ_A() {\n\tfor i := 0; i < 3; i++ {\n\t\tDrone1.Arm()\n\t}\n}\n",
+        "Go for while a condition holds",
+        "func SEQ_A() {\n\tfor Drone1.X() < 3 {\n\t\tDrone1.Arm()\n\t}\n}\n",
         "2:2",
-        "a Go 'for' loop is not supported",
+        "a for loop in a mission repeats a known number of times",
         "RepeatWhile(cond, Body)",
     ),
     Bad(

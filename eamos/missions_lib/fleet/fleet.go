@@ -1,8 +1,12 @@
-// Package fleet: take-off-all and land-all for two to four drones, and the Flyer type.
+// Package fleet: take off and land a group of drones, at once or one after the other,
+// and the Flyer type.
 //
 //	import "fleet"
-//	fleet.PAR_TakeOff2(D1, D2, 2.5)
-//	fleet.PAR_Land2(D1, D2)
+//	var Team [10]Quadcopter
+//	fleet.PAR_TakeOff(Team, 2.5)     // every member at once
+//	fleet.SEQ_Land(Team[0:5])        // the first five, one after the other
+//
+// PAR_TakeOff2/3/4 and PAR_Land2/3/4 take two to four drones by name (before groups).
 package fleet
 
 // Flyer is any drone that flies with the uniform API's flight actions: every
@@ -28,6 +32,40 @@ func SEQ_Up(d Flyer, height_m float64) {
 // SEQ_Down lands one drone where it is.
 func SEQ_Down(d Flyer) {
 	d.Land()
+}
+
+// SEQ_Park lands one drone where it is and disarms it.
+func SEQ_Park(d Flyer) {
+	d.Land()
+	d.Disarm()
+}
+
+// PAR_TakeOff arms every drone of the group and climbs it to height_m, all at once.
+func PAR_TakeOff(g []Flyer, height_m float64) {
+	for _, d := range g {
+		SEQ_Up(d, height_m)
+	}
+}
+
+// SEQ_TakeOff arms and climbs the drones of the group one after the other (a relay).
+func SEQ_TakeOff(g []Flyer, height_m float64) {
+	for _, d := range g {
+		SEQ_Up(d, height_m)
+	}
+}
+
+// PAR_Land lands every drone of the group where it is and disarms it, all at once.
+func PAR_Land(g []Flyer) {
+	for _, d := range g {
+		SEQ_Park(d)
+	}
+}
+
+// SEQ_Land lands and disarms the drones of the group one after the other.
+func SEQ_Land(g []Flyer) {
+	for _, d := range g {
+		SEQ_Park(d)
+	}
 }
 
 func PAR_TakeOff2(a Flyer, b Flyer, height_m float64) {
