@@ -35,8 +35,11 @@ HAPPENED_AT = "_happened_at"
 LOG_FILE = "_log_file"
 
 
-#: ``json.dumps(line, default=str)``, its encoder made once rather than per line.
-_ENCODE = json.JSONEncoder(default=str).encode
+#: ``json.dumps(line, default=str)``, its encoder made once rather than per line.  No
+#: cycle check: a line's fields are plain values the runtime made.
+_ENCODE = json.JSONEncoder(default=str, check_circular=False).encode
+_add_log_level = structlog.processors.add_log_level
+_format_exc_info = structlog.processors.format_exc_info
 
 
 def render_line(logger: Any, method: str, event: MutableMapping[str, Any]) -> str:
@@ -54,11 +57,11 @@ def render_line(logger: Any, method: str, event: MutableMapping[str, Any]) -> st
     """
     event.pop(LOG_FILE, None)
     at = event.pop(HAPPENED_AT, None)
-    event = structlog.processors.add_log_level(logger, method, event)
+    event = _add_log_level(logger, method, event)
     if "ts" not in event:
         event["ts"] = round(time.time() if at is None else at, 6)
     if "exc_info" in event:
-        event = structlog.processors.format_exc_info(logger, method, event)
+        event = _format_exc_info(logger, method, event)
     return _ENCODE(event)
 
 
