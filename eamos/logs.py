@@ -1,20 +1,24 @@
 """Per-drone JSON-lines logs (paper Table 5): mission, uniform and adapter logs.
 
-Loggers are built per runtime with :func:`structlog.wrap_logger` instead of
-structlog's global configuration, so two drone runtimes in one process (as in
-tests) write to their own files.  The schema is documented in ``docs/logs.md``.
+structlog is used as its documentation describes, per runtime rather than through
+its global configuration, so that two drone runtimes in one process (as in tests)
+write to their own files.  :func:`make_logger` wraps a *logger* in structlog's sense
+(an object with one method per level, handed the rendered line): a :class:`LogFile`,
+or a :class:`BatchedLogFile` from a :class:`LogWriter` (a logger factory), with
+:func:`structlog.wrap_logger`, a bound logger class from
+:func:`structlog.make_filtering_bound_logger` and the processors :data:`PROCESSORS`.
+The schema is documented in ``docs/logs.md``.
 """
 
 from __future__ import annotations
 
 import atexit
 import json
-import json.encoder
 import logging
 import sys
 import threading
 import time
-from collections.abc import Callable, MutableMapping
+from collections.abc import MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Protocol
@@ -23,101 +27,51 @@ import structlog
 
 LOG_NAMES = ("mission", "uniform", "adapter")
 
+#: A field :func:`log_line` passes: when what the line tells of happened (epoch seconds).
+#: :func:`render_line` takes it out of the line and makes it the line's ``ts``.
+HAPPENED_AT = "_happened_at"
+#: The context key of the file behind a :func:`make_logger` logger (for
+#: :func:`close_logger` and :func:`write_errors`); never written.
+LOG_FILE = "_log_file"
 
-#: Method names that are not their level's name (as structlog's ``add_log_level``).
-_LEVEL_OF = {"warn": "warning", "exception": "error"}
+
+#: ``json.dumps(line, default=str)``, its encoder made once rather than per line.  No
+#: cycle check: a line's fields are plain values the runtime made.
+_ENCODE = json.JSONEncoder(default=str, check_circular=False).encode
+_add_log_level = structlog.processors.add_log_level
+_format_exc_info = structlog.processors.format_exc_info
 
 
-def _line_encoder() -> Callable[[Any], str]:
-    """``json.dumps(obj, default=str)``, with its C encoder built once, not per line.
+def render_line(logger: Any, method: str, event: MutableMapping[str, Any]) -> str:
+    """The one structlog processor of a :func:`make_logger` logger: the line.
 
-    Without cycle checks: a log line's fields are plain values the runtime made.
+    What structlog's ``add_log_level``, a ``ts`` stamp, ``format_exc_info`` and
+    ``JSONRenderer(default=str)`` write, in one step: the context, the fields,
+    ``event``, ``level`` (``warn`` is ``warning``, ``exception`` is ``error``), ``ts``
+    (epoch seconds to the microsecond; kept if the caller gave one), and ``exception``
+    (a traceback), one JSON object; a value JSON does not know is written as its
+    ``str``.  One processor rather than four: every trigger writes several lines
+    (``scripts/bench_logs.py`` times both).  :data:`HAPPENED_AT` (from
+    :func:`log_line`) is taken out and becomes ``ts``; the bound :data:`LOG_FILE` is
+    not written.
     """
-    c_make_encoder = getattr(json.encoder, "c_make_encoder", None)
-    if c_make_encoder is None:  # a Python without the C accelerator
-        return json.JSONEncoder(default=str).encode
-    chunks = c_make_encoder(
-        None, str, json.encoder.encode_basestring_ascii, None, ": ", ", ", False, False, True
-    )
-    return lambda obj: "".join(chunks(obj, 0))
-
-
-_ENCODE = _line_encoder()
-
-
-def _render_line(
-    logger: Any, method: str, event: MutableMapping[str, Any], at: float | None = None
-) -> str:
-    """structlog's ``add_log_level``, the ``ts`` stamp, ``format_exc_info`` and
-    ``JSONRenderer(sort_keys=False, default=str)`` in one step: same line, same key
-    order, a quarter of the calls (every trigger writes several lines).  ``at``:
-    the stamp of a line written after the moment it tells of (default now)."""
-    event["level"] = _LEVEL_OF.get(method, method)
+    event.pop(LOG_FILE, None)
+    at = event.pop(HAPPENED_AT, None)
+    event = _add_log_level(logger, method, event)
     if "ts" not in event:
         event["ts"] = round(time.time() if at is None else at, 6)
     if "exc_info" in event:
-        event = structlog.processors.format_exc_info(logger, method, event)
+        event = _format_exc_info(logger, method, event)
     return _ENCODE(event)
 
 
-def _event_dict(bound: Any, event: str, fields: dict[str, Any]) -> dict[str, Any]:
-    """What structlog hands its processors: the bound context, the fields, ``event``."""
-    event_dict: dict[str, Any] = bound._context.copy()
-    event_dict.update(fields)
-    event_dict["event"] = event
-    return event_dict
+class LogFile:
+    """A structlog logger writing each line to a file shared by threads, at once.
 
-
-def _fast_method(name: str, slow: Callable[..., Any]) -> Callable[..., Any]:
-    """A bound logger's ``name`` method: :func:`_render_line` called directly.
-
-    What structlog's own method does when the processor chain is ``[_render_line]``
-    (the context, the keywords, then ``event``; the sink's method of that name gets
-    the line), without its generic chain: that took half the cost of a line, and
-    every trigger writes several.  Positional arguments (``%`` interpolation) take
-    structlog's way (``slow``).
-    """
-
-    def method(self: Any, event: str, *args: Any, **kw: Any) -> Any:
-        if args:
-            return slow(self, event, *args, **kw)
-        sink = self._logger
-        return getattr(sink, name)(_render_line(sink, name, _event_dict(self, event, kw)))
-
-    return method
-
-
-def _fast_wrapper(level: int) -> type[Any]:
-    """structlog's filtering bound logger for ``level``, its enabled methods made direct."""
-    base = structlog.make_filtering_bound_logger(level)
-    methods: dict[str, Any] = {}
-    for name, value in _LEVELS.items():
-        if value >= level:
-            methods[name] = _fast_method(name, getattr(base, name))
-    for alias, name in (("warn", "warning"), ("fatal", "critical"), ("msg", "info")):
-        if name in methods:
-            methods[alias] = methods[name]
-    return type(f"Direct{base.__name__}", (base,), methods)
-
-
-_LEVELS = {
-    "debug": logging.DEBUG,
-    "info": logging.INFO,
-    "warning": logging.WARNING,
-    "error": logging.ERROR,
-    "critical": logging.CRITICAL,
-}
-#: Level -> bound-logger class of :func:`make_logger` (built once, for the named levels).
-_WRAPPERS: dict[int, type[Any]] = {value: _fast_wrapper(value) for value in _LEVELS.values()}
-
-
-class _LockedFile:
-    """A line-buffered file shared by threads; one write per event keeps lines whole.
-
-    A write error (a full disk, a vanished folder) is never raised into the
-    thread that logged: logging must not stop a flight.  The lost lines are
-    counted (:attr:`write_errors`) and the first error is told once on stderr,
-    naming the file.
+    One write per event under a lock keeps lines whole.  A write error (a full
+    disk, a vanished folder) is never raised into the thread that logged: logging
+    must not stop a flight.  The lost lines are counted (:attr:`write_errors`) and
+    the first error is told once on stderr, naming the file.
     """
 
     def __init__(self, stream: IO[str], path: Path | None = None) -> None:
@@ -137,7 +91,7 @@ class _LockedFile:
             except OSError as exc:
                 self._failed(exc)
 
-    log = debug = info = warn = warning = error = critical = exception = msg
+    log = debug = info = warn = warning = error = critical = exception = fatal = msg
 
     def write_lines(self, lines: list[str]) -> None:
         """Write ``lines`` (each without its newline) with one write and one flush."""
@@ -175,6 +129,8 @@ LOG_BATCH_MAX = 4096
 class LogWriter:
     """Writes the lines of many log files in batches, from one thread (one per process).
 
+    A logger factory in structlog's sense: ``writer(path)`` is a
+    :class:`BatchedLogFile`, a logger whose lines this writer puts in ``path``.
     A line is rendered on the thread that logs it and queued here; the writer's
     thread writes every file's queued lines with one write and one flush each,
     at most :data:`LOG_FLUSH_DELAY_S` after the first of them was queued (it
@@ -190,14 +146,18 @@ class LogWriter:
         self.delay_s = delay_s
         self._lock = threading.Lock()  # guards the queue
         self._write_lock = threading.Lock()  # one batch at a time, taken and written in order
-        self._queue: list[tuple[_LockedFile, str]] = []
+        self._queue: list[tuple[LogFile, str]] = []
         self._queued = threading.Event()  # the queue is not empty
         self._hurry = threading.Event()  # write now (full batch, flush, close)
         self._closed = False
         self._thread: threading.Thread | None = None
         atexit.register(self.close)
 
-    def put(self, sink: _LockedFile, line: str) -> None:
+    def __call__(self, path: Path) -> BatchedLogFile:
+        """A logger appending to ``path`` through this writer (its folder made)."""
+        return BatchedLogFile(open_log_file(path), self)
+
+    def put(self, sink: LogFile, line: str) -> None:
         """Queue one line for ``sink``'s file (written within the delay)."""
         with self._lock:
             if self._closed:
@@ -248,18 +208,18 @@ class LogWriter:
                     return
 
     @staticmethod
-    def _write(batch: list[tuple[_LockedFile, str]]) -> None:
-        per_file: dict[_LockedFile, list[str]] = {}
+    def _write(batch: list[tuple[LogFile, str]]) -> None:
+        per_file: dict[LogFile, list[str]] = {}
         for sink, line in batch:
             per_file.setdefault(sink, []).append(line)
         for sink, lines in per_file.items():
             sink.write_lines(lines)
 
 
-class _BatchedFile:
-    """A logger sink that hands its lines to a :class:`LogWriter` (errors: written at once)."""
+class BatchedLogFile:
+    """A structlog logger handing its lines to a :class:`LogWriter` (errors: written at once)."""
 
-    def __init__(self, file: _LockedFile, writer: LogWriter) -> None:
+    def __init__(self, file: LogFile, writer: LogWriter) -> None:
         self._file = file
         self._writer = writer
         self.path = file.path
@@ -280,11 +240,17 @@ class _BatchedFile:
         self._writer.put(self._file, message)
         self._writer.flush()
 
-    error = critical = exception = urgent
+    error = critical = exception = fatal = urgent
 
     def close(self) -> None:
         self._writer.flush()
         self._file.close()
+
+
+def open_log_file(path: Path) -> LogFile:
+    """A :class:`LogFile` appending to ``path`` (its folder made)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return LogFile(path.open("a", encoding="utf-8"), path)
 
 
 def report_write_error(path: Path | None, exc: OSError, consequence: str) -> None:
@@ -300,20 +266,13 @@ def report_write_error(path: Path | None, exc: OSError, consequence: str) -> Non
         pass
 
 
-def write_errors(logger: Any) -> int:
-    """How many lines the file behind a :func:`make_logger` logger could not write."""
-    sink = getattr(logger, "_logger", None)
-    return int(getattr(sink, "write_errors", 0))
-
-
 class _Discard:
+    """A structlog logger that writes nothing (a :func:`make_logger` without a path)."""
+
     def msg(self, message: str) -> None:
         pass
 
-    log = debug = info = warn = warning = error = critical = exception = msg
-
-    def close(self) -> None:
-        pass
+    log = debug = info = warn = warning = error = critical = exception = fatal = msg
 
 
 def make_logger(
@@ -328,27 +287,45 @@ def make_logger(
     trigger) cost nothing unless asked for with ``level=logging.DEBUG``.  With a
     ``writer`` the lines are written in batches by it (see :class:`LogWriter`);
     without, each line is written and flushed by the thread that logs it.
+    ``context`` is bound: every line carries it, first.
     """
-    sink: _LockedFile | _BatchedFile | _Discard
+    sink: LogFile | BatchedLogFile | _Discard
     if path is None:
         sink = _Discard()
     else:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        sink = _LockedFile(path.open("a", encoding="utf-8"), path)
-        if writer is not None:
-            sink = _BatchedFile(sink, writer)
-    logger = structlog.wrap_logger(
+        sink = open_log_file(path) if writer is None else writer(path)
+        # Bound first (and dropped by the first processor), so that close_logger and
+        # write_errors find the file of this logger and of every logger bound from it.
+        context = {LOG_FILE: sink, **context}
+    logger: structlog.typing.FilteringBoundLogger = structlog.wrap_logger(
         sink,
-        processors=[
-            # No contextvars merge: no part of EAMOS binds context variables, and
-            # the copy of the context it makes per line is a cost on every trigger.
-            _render_line,
-        ],
-        # The processors are [_render_line] only: the direct methods do the same.
-        wrapper_class=_WRAPPERS.get(level) or structlog.make_filtering_bound_logger(level),
+        # No contextvars merge: no part of EAMOS binds context variables.
+        processors=[render_line],
+        wrapper_class=structlog.make_filtering_bound_logger(level),
         cache_logger_on_first_use=False,
     )
-    return logger.bind(**context)  # type: ignore[no-any-return]
+    return logger.bind(**context)
+
+
+def _log_file(logger: Any) -> LogFile | BatchedLogFile | None:
+    """The file behind a :func:`make_logger` logger (None for any other logger)."""
+    if not isinstance(logger, structlog.BoundLoggerBase):
+        return None
+    sink = structlog.get_context(logger).get(LOG_FILE)
+    return sink if isinstance(sink, LogFile | BatchedLogFile) else None
+
+
+def write_errors(logger: Any) -> int:
+    """How many lines the file behind a :func:`make_logger` logger could not write."""
+    sink = _log_file(logger)
+    return 0 if sink is None else sink.write_errors
+
+
+def close_logger(logger: Any) -> None:
+    """Close the file behind a logger made by :func:`make_logger` (or bound from one)."""
+    sink = _log_file(logger)
+    if sink is not None:
+        sink.close()
 
 
 #: A log line held back by its caller: (logger, method, event, fields, its time.time()),
@@ -366,21 +343,10 @@ def log_line(
     with the time of writing: a node writes its turn's lines once its triggers to
     other drones went out (:mod:`eamos.actors.node`), each with its own time.
     """
-    enabled = getattr(logger, "is_enabled_for", None)  # None: not one of make_logger's
-    if enabled is None or method not in _LEVELS or "exc_info" in fields:
-        getattr(logger, method)(event, **fields)  # a traceback is rendered where it is
-        return
-    if not enabled(_LEVELS[method]):
-        return
-    sink = logger._logger
-    getattr(sink, method)(_render_line(sink, method, _event_dict(logger, event, fields), at))
-
-
-def close_logger(logger: Any) -> None:
-    """Close the file behind a logger made by :func:`make_logger`."""
-    sink = getattr(logger, "_logger", None)
-    if sink is not None and hasattr(sink, "close"):
-        sink.close()
+    if at is None:
+        getattr(logger, method)(event, **fields)
+    else:
+        getattr(logger, method)(event, **fields, **{HAPPENED_AT: at})
 
 
 @dataclass

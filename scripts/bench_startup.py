@@ -45,15 +45,14 @@ than the wall times.
 Also ``importtime_total_ms``: the ``-X importtime`` total of everything a real node
 imports, at start and later (top-level entries summed, one extra run; the tracing
 inflates it), ``modules``: how many modules ``import eamos.cli.node`` loads, and
-whether any of ``rich``, ``pygments``, ``networkx``, ``importlib.metadata``,
-``asyncio``, ``email`` is among them.
+which of the parts a drone's node must not carry (:data:`NOT_ON_THE_NODE`: the
+compiler, the ground station, the language server, the monitor's web server and the
+libraries only they use) are among them (``not_on_the_node``: none expected).
 
 ``floor_ms``, in the same run and environment, the medians of a process doing
 nothing (``python -c pass``) and of one importing only the
-libraries a node cannot do without (pyzmq, pykka, msgpack, tomllib and structlog,
-as the node imports them: structlog without its console extras, and with the cyclic
-garbage collector paused), each from
-``Popen`` to a stamp written as its last statement; and
+libraries a node cannot do without (pyzmq, pykka, msgpack, tomllib and structlog),
+each from ``Popen`` to a stamp written as its last statement; and
 ``node_beyond_libraries_ms``: ``ready_ms``'s median minus the latter, what this
 project's own code, configuration and start-up cost.
 
@@ -104,16 +103,23 @@ PHASES = (
     "ready_wait",
     "ground",
 )
-#: Modules the node should not load (the lean-import test in tests/startup checks the same).
-HEAVY = ("rich", "pygments", "networkx", "importlib.metadata", "asyncio", "email")
+#: Parts a drone's node does not carry (tests/startup/test_node_imports.py checks the same).
+NOT_ON_THE_NODE = (
+    "networkx",
+    "tree_sitter",
+    "eamos.compiler",
+    "eamos.ground",
+    "eamos.lsp",
+    "pygls",
+    "eamos.monitor",
+    "starlette",
+    "uvicorn",
+)
 READY_TIMEOUT_S = 60.0
 #: The floors (see the docstring): an empty process, and the libraries alone.
 FLOORS = {
     "interpreter": "pass",
-    # As the node imports them: with the cyclic collector paused (eamos/cli/node.py).
-    "libraries": (
-        "import gc; gc.disable(); import eamos.cli.node_imports, zmq, pykka, msgpack, tomllib"
-    ),
+    "libraries": "import structlog, zmq, pykka, msgpack, tomllib",
 }
 
 
@@ -360,7 +366,9 @@ def main() -> None:
         ),
         "importtime_total_ms": round(traced_ms, 1),
         "modules": len(modules),
-        "heavy_modules": [m for m in HEAVY if m in modules],
+        "not_on_the_node": [
+            n for n in NOT_ON_THE_NODE if any(m == n or m.startswith(n + ".") for m in modules)
+        ],
         "failures": [r for r in runs if r not in ok],
     }
     print(json.dumps(report, indent=1))

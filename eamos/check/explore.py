@@ -19,7 +19,7 @@ from ..config import ConfigError, FleetConfig, SafetySettings, fleet_order
 from ..hal.api import AdapterError
 from ..hal.sim import SimCore, SimSettings
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry
-from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun, collector_paused
+from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun
 from ..virtual.decisions import FailHook
 from ..virtual.vehicles import Clock
 from .branches import Oracle
@@ -79,15 +79,14 @@ def run_once(
         recorders[drone] = rec
         return rec
 
-    with collector_paused():
-        run = VirtualMission(
-            compiled.programs,
-            make,
-            time_limit_s,
-            decide=decide,
-            fail=fail,
-            battery_floor_pct=battery_floor_pct,
-        ).run()
+    run = VirtualMission(
+        compiled.programs,
+        make,
+        time_limit_s,
+        decide=decide,
+        fail=fail,
+        battery_floor_pct=battery_floor_pct,
+    ).run()
     return run, {d: r.track() for d, r in recorders.items()}
 
 
@@ -139,12 +138,8 @@ def check_mission(
     """Simulate ``compiled`` in virtual time with the fleet's models and check every run.
 
     Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use.
-    The cyclic garbage collector is paused throughout (see
-    :func:`~eamos.virtual.collector_paused`): the runs and their rules allocate
-    much and free it all by reference counting.
     """
-    with collector_paused():
-        return _check_mission(compiled, fleet, time_limit_s, max_runs, min_separation_m)
+    return _check_mission(compiled, fleet, time_limit_s, max_runs, min_separation_m)
 
 
 def _check_mission(

@@ -24,42 +24,22 @@ used, 4 internal error.
 
 from __future__ import annotations
 
+import argparse
 import gc
+import signal
+import sys
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
 
-# The node's modules load with the cyclic garbage collector paused.  Loading them (with
-# the libraries) makes some 28 000 objects that live as long as the process: modules,
-# classes, functions.  The collector ran about 60 times over them, found nothing to free
-# and took ~11 ms of the node's ~130 ms of imports (docs/performance.md).  Afterwards
-# they are frozen (moved out of every later collection: the first would otherwise scan
-# them all at once, and each full one again, holding the GIL on a trigger's path) and the
-# collector resumes, whatever happens.
-_COLLECTING = gc.isenabled()
-gc.disable()
-try:
-    import argparse
-    import os
-    import signal
-    import sys
-    import threading
-    from collections.abc import Callable
-    from pathlib import Path
-    from types import FrameType
-
-    # First: structlog without rich and pygments (see there); the rest imports structlog.
-    import eamos.cli.node_imports  # noqa: F401
-
-    # isort: split
-    from eamos import __version__
-    from eamos.actors.drone import DroneEnd, load_node_program, run_drone
-    from eamos.cli.errors import run_reported
-    from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EXIT_OK
-    from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
-    from eamos.logs import LogWriter
-    from eamos.program.uniform import GROUND_STATION
-finally:
-    if _COLLECTING:
-        gc.freeze()
-        gc.enable()
+from eamos import __version__
+from eamos.actors.drone import DroneEnd, load_node_program, run_drone
+from eamos.cli.errors import run_reported
+from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EXIT_OK
+from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
+from eamos.logs import LogWriter
+from eamos.program.uniform import GROUND_STATION
 
 EXITS = {
     DroneEnd.DONE: EXIT_OK,
@@ -91,38 +71,13 @@ used (e.g. a peer never listened), 4 internal error, 130 interrupted.
 """
 
 
-def terminal_columns() -> int:
-    """The terminal's width as :func:`shutil.get_terminal_size` finds it (80 if unknown)."""
-    try:
-        columns = int(os.environ["COLUMNS"])
-    except (KeyError, ValueError):
-        columns = 0
-    if columns <= 0:
-        try:
-            columns = os.get_terminal_size(sys.__stdout__.fileno()).columns  # type: ignore[union-attr]
-        except (AttributeError, ValueError, OSError):
-            columns = 0
-    return columns if columns > 0 else 80
-
-
-class HelpFormatter(argparse.RawDescriptionHelpFormatter):
-    """argparse's formatter, given the terminal's width as argparse itself computes it.
-
-    Left to find it, argparse imports :mod:`shutil` (with ``bz2``, ``lzma``, ``zlib``:
-    ~3 ms of a node's start-up) for every ``add_argument``, only to read the width.
-    """
-
-    def __init__(self, prog: str) -> None:
-        super().__init__(prog, width=terminal_columns() - 2)  # argparse's own margin
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``eamos-node`` argument parser."""
     parser = argparse.ArgumentParser(
         prog="eamos-node",
         description="Run one drone's part of an EAMOS mission (its compiled drone program).",
         epilog=NODE_CONFIG_HELP,
-        formatter_class=HelpFormatter,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument(
         "--config",
@@ -197,6 +152,12 @@ def guarded(body: Callable[[], int], verbose: bool, who: str = "") -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Console entry point of ``eamos-node``."""
+    # What is loaded by now (modules, classes, functions: tens of thousands of objects)
+    # lives as long as the process.  Frozen, the cyclic collector leaves it out of every
+    # later collection, which would otherwise walk all of it again, holding the GIL,
+    # while the node's threads carry triggers.  Here, in the process's entry point, not
+    # at import: what the collector does is the whole process's business.
+    gc.freeze()
     args = build_parser().parse_args(argv)
     stop = threading.Event()
 

@@ -10,7 +10,6 @@ Each phase raises :class:`~.errors.MissionError` for the user's mistakes and
 from __future__ import annotations
 
 import dataclasses
-import gc
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,22 +64,14 @@ def mission_identity(source: str, libraries: tuple[LibraryFile, ...] = ()) -> st
 
 def compile_mission(source: str, source_file: str = "<mission>") -> CompiledMission:
     """Compile mission text through every phase; raise MissionError listing all problems."""
-    # The phases allocate many small, acyclic objects (graph nodes, dataclasses); the
-    # cyclic garbage collector would walk them again and again for nothing.
-    was_enabled = gc.isenabled()
-    gc.disable()
     try:
         compiled = _compile(source, source_file)
     except MissionError as exc:
         # Each diagnostic keeps its line, so printing many of them stays linear.
         exc.diagnostics = with_source_lines(exc.diagnostics, source)
         raise
-    else:
-        warnings = with_source_lines(list(compiled.warnings), source)
-        return dataclasses.replace(compiled, warnings=tuple(warnings))
-    finally:
-        if was_enabled:
-            gc.enable()
+    warnings = with_source_lines(list(compiled.warnings), source)
+    return dataclasses.replace(compiled, warnings=tuple(warnings))
 
 
 def _mission_dir(source_file: str) -> Path | None:

@@ -14,7 +14,7 @@ reads it back.
 
 How the keys are used (see :mod:`eamos.net.bridges`): every Out-Bridge (XPUB)
 is a CURVE *server* with its participant's key pair, and a ZAP handler
-(:class:`FleetAuthenticator`, a ZAP handler: :mod:`eamos.net.zap`)
+(:class:`FleetAuthenticator`, pyzmq's ZAP authenticator: :mod:`eamos.net.zap`)
 lets in only clients whose public key is one of the fleet's.  Every In-Bridge
 socket is a CURVE *client* with its own key pair and the public key of the
 one peer it connects to, so it only accepts that peer: an impostor at the
@@ -40,7 +40,7 @@ import zmq
 import zmq.auth
 
 from eamos.logs import make_logger
-from eamos.net.zap import ZapHandler
+from eamos.net.zap import start_authenticator
 
 __all__ = [
     "ZAP_DOMAIN",
@@ -213,7 +213,7 @@ def plain_refusal(endpoints: Iterable[str]) -> str | None:
 
 
 class _FleetCredentials:
-    """ZAP callback: lets in the fleet's public keys, logs (rate-limited) the others."""
+    """pyzmq's credentials provider: admits the fleet's keys, logs (rate-limited) the others."""
 
     def __init__(self, keys: FleetKeys, log: Any) -> None:
         self._allowed = frozenset(keys.fleet.values())
@@ -239,7 +239,7 @@ class _FleetCredentials:
 
 
 class FleetAuthenticator:
-    """The ZAP handler of one ZeroMQ context, letting in only the fleet.
+    """The ZAP authenticator of one ZeroMQ context, letting in only the fleet.
 
     ZAP handlers are per context (they bind ``inproc://zeromq.zap.01``), so a
     context can host one fleet's CURVE servers; a second authenticator on the
@@ -253,7 +253,7 @@ class FleetAuthenticator:
         self.credentials = _FleetCredentials(keys, self._log)
         # The domain must be the one the sockets name (ZAP_ENFORCE_DOMAIN).
         try:
-            self._auth = ZapHandler(context, ZAP_DOMAIN, self.credentials.callback)
+            self._auth = start_authenticator(context, ZAP_DOMAIN, self.credentials)
         except zmq.ZMQError as exc:
             raise KeysError(
                 f"cannot start the ZAP authenticator ({exc}); one CURVE participant per "
@@ -268,7 +268,7 @@ class FleetAuthenticator:
             return sum(self.credentials.denied.values())
 
     def stop(self) -> None:
-        """Stop the ZAP thread and close its socket (before ``Context.term``); idempotent."""
+        """Stop the authenticator and close its sockets (before ``Context.term``); idempotent."""
         if not self._stopped:
             self._stopped = True
             self._auth.stop()

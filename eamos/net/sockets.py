@@ -6,13 +6,13 @@ Everything here runs on the thread that owns the socket (see
 
 from __future__ import annotations
 
-import struct
 import threading
 import uuid
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final, Self
 
 import zmq
+from zmq.utils.monitor import recv_monitor_message
 
 from eamos.net.settings import DEFAULT_HEARTBEAT_MS
 
@@ -94,39 +94,22 @@ MONITOR_EVENTS: Final = (
     | zmq.EVENT_CONNECT_RETRIED
 )
 
-# ZMQ_EVENTS and its POLLIN bit as plain ints: pyzmq's enum members cost a
-# microsecond more per call, on every message.
+# ZMQ_EVENTS and its POLLIN bit as plain ints (the bridges test them on every message).
 EVENTS_OPT: Final = int(zmq.EVENTS)
 POLLIN_BIT: Final = int(zmq.POLLIN)
 
-# pyzmq's compiled socket methods, called past its pure-Python layer: the
-# layer's ``send_multipart`` type-checks every part and forwards keyword
-# arguments (1.6 of the 2 us a two-frame send costs in a hot loop, several
-# times that on a trigger's path with cold caches); ``recv_multipart`` looks up
-# RCVMORE as an enum member per frame.  Frames here are always bytes.
-_SEND = zmq.backend.Socket.send
-_RECV = zmq.backend.Socket.recv
-_GET = zmq.backend.Socket.get
-SNDMORE_BIT: Final = int(zmq.SNDMORE)
-NOBLOCK_BIT: Final = int(zmq.NOBLOCK)
-RCVMORE_OPT: Final = int(zmq.RCVMORE)
-
 
 def send_message(sock: zmq.Socket[Any], frames: list[bytes]) -> None:
-    """``sock.send_multipart(frames)`` (``frames`` bytes, at least one) without pyzmq's
-    per-call checks; raises what ``send`` raises.  The caller owns ``sock``."""
-    for frame in frames[:-1]:
-        _SEND(sock, frame, SNDMORE_BIT)
-    _SEND(sock, frames[-1], 0)
+    """Send the frames of one message (bytes, at least one); raises what ``send`` raises.
+
+    The caller owns ``sock``.
+    """
+    sock.send_multipart(frames)
 
 
 def recv_message(sock: zmq.Socket[Any]) -> list[bytes]:
-    """``sock.recv_multipart(zmq.NOBLOCK)``, cheaper; raises :class:`zmq.Again` if
-    nothing waits (the frames of a message arrive together, so only the first can)."""
-    frames: list[bytes] = [_RECV(sock, NOBLOCK_BIT)]
-    while _GET(sock, RCVMORE_OPT):
-        frames.append(_RECV(sock, NOBLOCK_BIT))
-    return frames
+    """The frames of one waiting message; raises :class:`zmq.Again` if none waits."""
+    return sock.recv_multipart(zmq.NOBLOCK)
 
 
 # Control-pipe commands (first frame).  Never on the network.
@@ -171,18 +154,6 @@ def connection_options(sock: zmq.Socket[Any], heartbeat_ms: int) -> None:
     sock.setsockopt(zmq.RECONNECT_IVL_MAX, RECONNECT_IVL_MAX_MS)
 
 
-def parse_monitor_event(frames: list[bytes]) -> tuple[int, int, bytes]:
-    """A socket monitor's event: (event id, value, endpoint); ValueError if malformed.
-
-    Read here rather than with ``zmq.utils.monitor``, which imports asyncio
-    (15 ms of every drone's start-up) for a 6-byte header.
-    """
-    if len(frames) != 2 or len(frames[0]) != 6:
-        raise ValueError(f"not a monitor event: {len(frames)} frame(s)")
-    kind, value = struct.unpack("=hi", frames[0])
-    return kind, value, bytes(frames[1])
-
-
 class Monitor:
     """Reads one socket's monitor events on the bridge thread; logs handshake failures."""
 
@@ -208,14 +179,11 @@ class Monitor:
     def drain(self) -> None:
         while True:
             try:
-                frames = self.socket.recv_multipart(zmq.NOBLOCK)
+                event = recv_monitor_message(self.socket, zmq.NOBLOCK)
             except zmq.Again:
                 return
-            try:
-                kind, value, raw = parse_monitor_event(frames)
-            except ValueError:  # pragma: no cover - libzmq wrote it
-                continue
-            endpoint = raw.decode("utf-8", "replace")
+            kind, value = int(event["event"]), int(event["value"])
+            endpoint = event["endpoint"].decode("utf-8", "replace")
             if kind in AUTH_FAILURES:
                 self.failures += 1
                 if should_log(self.failures):

@@ -9,7 +9,7 @@ and the pre-flight checker build on it.
 """
 
 from .decisions import Decide, install_decide
-from .driver import TIME_LIMIT_S, VirtualMission, collector_paused, run_virtual, telemetry_values
+from .driver import TIME_LIMIT_S, VirtualMission, run_virtual, telemetry_values
 from .result import DroneOutcome, VirtualRun, Waiting
 from .vehicles import STEP_S, IdleVehicle, QuietLog, Vehicle, VehicleFactory, sim_vehicles
 
@@ -25,7 +25,6 @@ __all__ = [
     "VirtualMission",
     "VirtualRun",
     "Waiting",
-    "collector_paused",
     "install_decide",
     "run_virtual",
     "sim_vehicles",

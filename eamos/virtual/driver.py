@@ -16,10 +16,8 @@ paper experiment takes milliseconds to a few hundred of CPU.
 
 from __future__ import annotations
 
-import contextlib
-import gc
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -208,8 +206,7 @@ class VirtualMission:
         if self._ran:
             raise RuntimeError("a VirtualMission runs once; build another")
         self._ran = True
-        with collector_paused():
-            return self._run()
+        return self._run()
 
     def _run(self) -> VirtualRun:
         for drone, vehicle in self._vehicles:
@@ -444,23 +441,6 @@ class VirtualMission:
         return tuple(out)
 
 
-@contextlib.contextmanager
-def collector_paused() -> Iterator[None]:
-    """Pause Python's cyclic garbage collector during a run, as it was after.
-
-    A run allocates many small objects and frees them by reference counting;
-    the collector's generation scans, triggered by the allocations alone,
-    cost about a third of a large run and find nothing to free.
-    """
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if enabled:
-            gc.enable()
-
-
 def _why_waiting(logic: NodeLogic) -> str | None:
     reasons: list[str] = []
     if isinstance(logic, ActionLogic) and logic.running:
@@ -485,5 +465,4 @@ def run_virtual(
     simulator core, :func:`~eamos.virtual.vehicles.sim_vehicles`); the run
     stops at ``time_limit_s`` virtual seconds if not every participant resolved.
     """
-    with collector_paused():
-        return VirtualMission(programs, vehicles, time_limit_s, log).run()
+    return VirtualMission(programs, vehicles, time_limit_s, log).run()

@@ -1,4 +1,4 @@
-"""send_message / recv_message: pyzmq's multipart send and receive without its per-call checks."""
+"""send_message / recv_message: the frames of one message out and in, whole (pyzmq multipart)."""
 
 from __future__ import annotations
 

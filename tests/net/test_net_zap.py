@@ -1,107 +1,127 @@
-"""eamos.net.zap: the ZAP handler's answers (pure), and real CURVE handshakes through it."""
+"""eamos.net.zap: pyzmq's authenticator on a context, through real CURVE handshakes.
+
+Real sockets on loopback: a client whose key the provider admits gets its messages
+through; a client with another key, a client without keys, and a client whose
+check raised are refused, and the authenticator goes on serving.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
 import zmq
-from zmq.utils import z85
 
-from eamos.net.zap import ZapHandler, zap_reply
+from eamos.net.zap import start_authenticator
 
 pytestmark = pytest.mark.timeout(60)
 
-KEY = bytes(range(32))
-Z85 = z85.encode(KEY)
+WAIT_MS = 10_000
 
 
-def request(mechanism: bytes, *credentials: bytes, domain: bytes = b"eamos") -> list[bytes]:
-    return [b"1.0", b"id7", domain, b"127.0.0.1", b"", mechanism, *credentials]
+class Allowed:
+    """A credentials provider admitting ``keys`` (z85); it records what it was asked."""
+
+    def __init__(self, *keys: bytes, broken: bytes = b"") -> None:
+        self.keys = set(keys)
+        self.broken = broken  # a key whose check raises
+        self.asked: list[tuple[str, bytes]] = []
+
+    def callback(self, domain: str, key: bytes) -> bool:
+        self.asked.append((domain, key))
+        if key == self.broken:
+            raise RuntimeError("a bug in the check")
+        return key in self.keys
 
 
-def only(key: bytes) -> Any:
-    return lambda domain, k: k == key
+@pytest.fixture
+def ctx() -> Iterator[zmq.Context[Any]]:
+    context: zmq.Context[Any] = zmq.Context()
+    yield context
+    context.destroy(linger=0)
 
 
-def test_a_fleet_key_is_admitted_with_its_key_as_user_id() -> None:
-    assert zap_reply(request(b"CURVE", KEY), "eamos", only(Z85)) == [
-        b"1.0", b"id7", b"200", b"OK", Z85, b""
-    ]  # fmt: skip
+def server(ctx: zmq.Context[Any], public: bytes, secret: bytes) -> tuple[Any, int]:
+    """A CURVE server in domain ``eamos`` that refuses everyone without a ZAP handler."""
+    sock = ctx.socket(zmq.PULL)
+    sock.curve_server = True
+    sock.curve_secretkey = secret
+    sock.curve_publickey = public
+    sock.zap_domain = b"eamos"
+    sock.setsockopt(zmq.ZAP_ENFORCE_DOMAIN, 1)
+    sock.linger = 0
+    return sock, sock.bind_to_random_port("tcp://127.0.0.1")
 
 
-@pytest.mark.parametrize(
-    ("req", "text"),
-    [
-        (request(b"CURVE", bytes(32)), b"Unknown key"),
-        (request(b"CURVE", KEY, domain=b"other"), b"Unknown domain"),
-        (request(b"CURVE", KEY, KEY), b"Invalid credentials"),
-        (request(b"CURVE", b"short"), b"Invalid credentials"),
-        (request(b"PLAIN", b"user", b"pw"), b"NO ACCESS"),
-        ([b"2.0", *request(b"CURVE", KEY)[1:]], b"Invalid version"),
-        ([b"1.0", b"id7", b"eamos"], b"Not enough frames"),
-    ],
-)
-def test_everything_else_is_refused(req: list[bytes], text: bytes) -> None:
-    reply = zap_reply(req, "eamos", only(Z85))
-    assert reply is not None and reply[1] == b"id7" and reply[2:4] == [b"400", text]
-    assert reply[4] == b""
-
-
-def test_null_is_let_through_and_a_request_without_id_is_not_answered() -> None:
-    assert zap_reply(request(b"NULL"), "eamos", only(Z85))[2] == b"200"  # type: ignore[index]
-    assert zap_reply([b"1.0"], "eamos", only(Z85)) is None
-
-
-def _pair(ctx: zmq.Context[Any], server_secret: bytes, server_public: bytes) -> Any:
-    server = ctx.socket(zmq.PULL)
-    server.curve_server = True
-    server.curve_secretkey = server_secret
-    server.curve_publickey = server_public
-    server.zap_domain = b"eamos"
-    server.setsockopt(zmq.ZAP_ENFORCE_DOMAIN, 1)
-    server.linger = 0
-    port = server.bind_to_random_port("tcp://127.0.0.1")
-    return server, port
-
-
-def _client(ctx: zmq.Context[Any], port: int, server_public: bytes) -> Any:
+def client(ctx: zmq.Context[Any], port: int, server_key: bytes | None) -> tuple[Any, bytes]:
+    """A PUSH client with a fresh key pair (``server_key`` None: no CURVE at all)."""
     public, secret = zmq.curve_keypair()
-    client = ctx.socket(zmq.PUSH)
-    client.curve_serverkey = server_public
-    client.curve_publickey = public
-    client.curve_secretkey = secret
-    client.linger = 0
-    client.connect(f"tcp://127.0.0.1:{port}")
-    return client, public
+    sock = ctx.socket(zmq.PUSH)
+    if server_key is not None:
+        sock.curve_serverkey = server_key
+        sock.curve_publickey = public
+        sock.curve_secretkey = secret
+    sock.linger = 0
+    sock.connect(f"tcp://127.0.0.1:{port}")
+    return sock, public
 
 
-def test_handshakes_through_the_handler_admit_only_the_allowed_key() -> None:
-    ctx: zmq.Context[Any] = zmq.Context()
-    allowed: set[bytes] = set()
-    asked: list[bytes] = []
-
-    def allow(domain: str, key: bytes) -> bool:
-        asked.append(key)
-        return key in allowed
-
-    handler = ZapHandler(ctx, "eamos", allow)
+def test_only_an_admitted_key_gets_through(ctx: zmq.Context[Any]) -> None:
+    server_public, server_secret = zmq.curve_keypair()
+    provider = Allowed()
+    auth = start_authenticator(ctx, "eamos", provider)
     try:
-        with pytest.raises(zmq.ZMQError):
-            ZapHandler(ctx, "eamos", allow)  # one handler per context
-        server_public, server_secret = zmq.curve_keypair()
-        server, port = _pair(ctx, server_secret, server_public)
-        good, good_key = _client(ctx, port, server_public)
-        bad, _ = _client(ctx, port, server_public)
-        allowed.add(good_key)
+        pull, port = server(ctx, server_public, server_secret)
+        good, good_key = client(ctx, port, server_public)
+        wrong, wrong_key = client(ctx, port, server_public)
+        keyless, _ = client(ctx, port, None)
+        provider.keys.add(good_key)
+        wrong.send(b"from outside")
+        keyless.send(b"no keys at all")
         good.send(b"from the fleet")
-        bad.send(b"from outside")
-        assert server.poll(10_000) and server.recv() == b"from the fleet"
-        assert not server.poll(1_000)  # the intruder's message never arrives
-        assert good_key in asked and len(set(asked)) == 2
-        for sock in (server, good, bad):
+        assert pull.poll(WAIT_MS) and pull.recv() == b"from the fleet"
+        assert not pull.poll(1_000)  # neither of the others ever arrives
+        asked = {key for _, key in provider.asked}
+        assert {good_key, wrong_key} <= asked  # each CURVE client was asked about
+        assert {domain for domain, _ in provider.asked} == {"eamos"}
+        for sock in (pull, good, wrong, keyless):
             sock.close()
     finally:
-        handler.stop()
-        handler.stop()  # idempotent
-        ctx.term()
+        auth.stop()
+
+
+def test_a_check_that_raises_refuses_and_the_authenticator_goes_on(
+    ctx: zmq.Context[Any],
+) -> None:
+    server_public, server_secret = zmq.curve_keypair()
+    provider = Allowed()
+    auth = start_authenticator(ctx, "eamos", provider)
+    try:
+        pull, port = server(ctx, server_public, server_secret)
+        first, first_key = client(ctx, port, server_public)
+        provider.broken = first_key
+        first.send(b"checked by a broken check")
+        assert not pull.poll(1_000)
+        assert any(key == first_key for _, key in provider.asked)
+        second, second_key = client(ctx, port, server_public)
+        provider.keys.add(second_key)
+        second.send(b"after the bug")
+        assert pull.poll(WAIT_MS) and pull.recv() == b"after the bug"
+        for sock in (pull, first, second):
+            sock.close()
+    finally:
+        auth.stop()
+
+
+def test_one_authenticator_per_context_and_nothing_left_open(ctx: zmq.Context[Any]) -> None:
+    auth = start_authenticator(ctx, "eamos", Allowed())
+    try:
+        with pytest.raises(zmq.ZMQError):
+            start_authenticator(ctx, "eamos", Allowed())
+    finally:
+        auth.stop()
+        auth.stop()  # idempotent
+    # Every socket both made is closed: the context terminates (the fixture's destroy
+    # would close leftovers; term does not, it would hang).
+    ctx.term()
