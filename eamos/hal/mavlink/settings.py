@@ -56,6 +56,11 @@ class MavlinkSettings:
     #: MAVLink 2 signing: the fleet's key file (signing.py); provision it with SETUP_SIGNING.
     signing_key: str | None = None
     signing_setup: bool = False
+    #: "required": with a key, a vehicle that does not sign is refused; "off": this
+    #: vehicle's link is not signed even when the fleet has a key (PX4 main cannot sign).
+    signing: Literal["required", "off"] = "required"
+    #: How long a vehicle may take to sign after SETUP_SIGNING (signing_setup), vehicle s.
+    signing_timeout_s: float = 10.0
 
     def scaled(self, seconds: float) -> float:
         """``seconds`` of vehicle time in wall seconds (``speedup``)."""
@@ -144,4 +149,6 @@ class MavlinkSettings:
             brake_timeout_s=num("brake_timeout_s", gt=0),
             signing_key=text("signing_key"),
             signing_setup=flag("signing_setup"),
+            signing=choice("signing", ("required", "off")),
+            signing_timeout_s=num("signing_timeout_s", gt=0),
         )

@@ -117,6 +117,14 @@ class LinkState:
     ack_serial: int = 0
     statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
     statustext_serial: int = 0
+    #: Vehicle HEARTBEATs the link refused for their signature (signing.refused_frame):
+    #: how many, whether the latest was signed (with another key) and by which autopilot.
+    refused_heartbeats: int = 0
+    refused_signed: bool = False
+    refused_autopilot: int | None = None
+    refused_at: float = -math.inf
+    #: Messages heard from the vehicle so far, by type (rates.py measures their rates).
+    counts: dict[str, int] = field(default_factory=dict)
     closed: bool = False
 
     def window(self, now: float, span_s: float) -> tuple[tuple[float, float, float], float] | None:
@@ -199,10 +207,36 @@ class StateTracker:
             st.gap_ended_at = now
             events.append(("link.gap", {"silent_s": round(now - st.last_rx, 3)}))
         st.last_rx = now
+        st.counts[kind] = st.counts.get(kind, 0) + 1
         handler = getattr(self, f"_on_{kind.lower()}", None)
         if handler is not None:
             handler(msg, now, events)
             self._notify()
+
+    def refused(self, frame: Any, now: float, events: Events) -> None:
+        """A frame the link refused for its signature (a :class:`~.signing.RefusedFrame`):
+        counted when it is the vehicle's HEARTBEAT (who it is, as for a good one)."""
+        st = self.state
+        if not frame.vehicle_heartbeat:
+            return
+        if frame.component_id != self._component_id and not (
+            self._component_id == 0 and frame.component_id == 1
+        ):
+            return
+        if st.system_id is not None and frame.system_id != st.system_id:
+            return
+        st.refused_heartbeats += 1
+        st.refused_signed = frame.signed
+        st.refused_autopilot = frame.autopilot
+        st.refused_at = now
+        if st.refused_heartbeats == 1:
+            events.append(
+                (
+                    "link.refused",
+                    {"system_id": frame.system_id, "signed": frame.signed},
+                )
+            )
+        self._notify()
 
     def _is_vehicle_heartbeat(self, msg: Any, src: int, comp: int) -> bool:
         st = self.state

@@ -20,11 +20,16 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
-from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
+from eamos.hal.api import POSITION_LOG_HZ, AdapterError, AdapterNotice, TakenOver, Telemetry
 from eamos.hal.kinematics import GeoFrame
-from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
+from eamos.hal.mavlink.autopilots import (
+    MAV_AUTOPILOT_PX4,
+    Autopilot,
+    autopilot_from_heartbeat,
+    autopilot_named,
+)
 from eamos.hal.mavlink.command_protocol import CommandProtocol
 from eamos.hal.mavlink.estimator import (
     MSG_EKF_STATUS_REPORT,
@@ -41,7 +46,15 @@ from eamos.hal.mavlink.link import (
     MavlinkLink,
     result_name,
 )
+from eamos.hal.mavlink.rates import RateKeeper
 from eamos.hal.mavlink.signing import SigningKeyError, read_key
+from eamos.hal.mavlink.state import Events
+from eamos.hal.mavlink.takeover import (
+    FAILSAFE_GRACE_S,
+    FAILSAFE_WINDOW_S,
+    ModeChange,
+    TakeoverWatch,
+)
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
     TYPE_MASK_VELOCITY,
@@ -67,6 +80,13 @@ MSG_EXTENDED_SYS_STATE = 245
 MSG_BATTERY_STATUS = 147
 MSG_HOME_POSITION = 242
 MSG_ATTITUDE = 30
+#: The messages the adapter flies by, at ``telemetry_hz``: re-requested when a second
+#: ground station lowers their rate (rates.py).
+RATE_WATCHED = {
+    "LOCAL_POSITION_NED": MSG_LOCAL_POSITION_NED,
+    "GLOBAL_POSITION_INT": MSG_GLOBAL_POSITION_INT,
+    "ATTITUDE": MSG_ATTITUDE,
+}
 TELEMETRY_INTERVALS: dict[int, float | None] = {
     MSG_LOCAL_POSITION_NED: None,
     MSG_GLOBAL_POSITION_INT: None,
@@ -86,16 +106,45 @@ GROUND_Z_M = 0.1
 TARGET_REFRESH_S = 1.0
 #: The adapter log gets the vehicle's position this often while it changes.
 POSITION_LOG_S = 1.0 / POSITION_LOG_HZ
+#: How often a mode change waiting for a failsafe's STATUSTEXT is looked at again.
+TAKEOVER_TICK_S = 0.1
+#: How often the telemetry rates are looked at (a window ends every RATE_WINDOW_S).
+RATE_TICK_S = 0.25
 
 
 def _signing_key(settings: MavlinkSettings) -> bytes | None:
-    """The fleet's signing key from ``hal.signing_key`` (never logged), or None."""
-    if settings.signing_key is None:
+    """The fleet's signing key from ``hal.signing_key`` (never logged), or None (no key,
+    or ``hal.signing = "off"`` for this vehicle)."""
+    if settings.signing_key is None or settings.signing == "off":
         return None
     try:
         return read_key(Path(settings.signing_key).expanduser())
     except SigningKeyError as exc:
         raise field_error("hal.signing_key", str(exc)) from None
+
+
+#: Refused (unsigned or wrongly signed) vehicle HEARTBEATs that end the wait to connect.
+REFUSED_HEARTBEATS = 2
+#: What a PX4 vehicle's refusal adds: PX4 main has no MAVLink signing.
+NO_SIGNING_HINT = (
+    " (PX4 has no MAVLink signing: it ignores SETUP_SIGNING; give this drone "
+    'hal.signing = "off" to fly it unsigned)'
+)
+
+
+def refused_reason(st: LinkState, connection: str) -> str:
+    """Why a vehicle whose HEARTBEATs were all refused for their signature is refused."""
+    hint = NO_SIGNING_HINT if st.refused_autopilot == MAV_AUTOPILOT_PX4 else ""
+    if st.refused_signed:
+        return (
+            f"the vehicle on {connection} signs its messages with another key than "
+            f"hal.signing_key (or a timestamp more than a minute old){hint}"
+        )
+    return (
+        f"signing required, the vehicle sends unsigned messages (on {connection}; "
+        f"hal.signing_key is set{'' if hint else ': provision it with hal.signing_setup = true'})"
+        f"{hint}"
+    )
 
 
 class MavlinkVehicle:
@@ -137,9 +186,31 @@ class MavlinkVehicle:
         self.stream_yaw: float | None = None  # heading the PX4 stream asks for (Yaw), degrees
         #: Horizontal speed the vehicle was told (the drone type's, then SetSpeed's).
         self.horizontal_speed_mps = settings.horizontal_speed_mps
-        self.keeper = ParamKeeper(self.link, settings, log)  # speeds set, to restore
+        # Speeds (and fence parameters) set, to restore; never written once a pilot has it.
+        self.keeper = ParamKeeper(self.link, settings, log, lambda: self.taken_over is not None)
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
+        #: Whose every mode change is (takeover.py); a pilot's ends our commanding for good.
+        self.takeover = TakeoverWatch(
+            "px4",
+            grace_s=settings.scaled(FAILSAFE_GRACE_S),
+            window_s=settings.scaled(FAILSAFE_WINDOW_S),
+            link_grace_s=settings.heartbeat_timeout_s,
+        )
+        #: Set once a pilot took the vehicle: nothing is sent to it any more but heartbeats.
+        self.taken_over: TakenOver | None = None
+        #: Told (on the link's threads, outside the condition) when a pilot took it.
+        self.on_taken_over: Callable[[TakenOver], None] | None = None
+        self.link.observe = self._observe
+        #: What the operator must hear (taken over, slow telemetry), drained by notices().
+        self.notices: list[AdapterNotice] = []
+        self.rates = RateKeeper(
+            self.link,
+            log,
+            settings.speedup,
+            tell=lambda text: self.notify("warning", text),
+            blocked=lambda: self.taken_over is not None,
+        )
         self._was_armed = False
         self._last_position_key: tuple[float | bool, ...] | None = None
 
@@ -158,6 +229,8 @@ class MavlinkVehicle:
         self.link.every(1.0 / s.setpoint_hz, self._steer_tick, "setpoints")
         self.link.every(TARGET_REFRESH_S, self._refresh_tick, "target-refresh")
         self.link.every(POSITION_LOG_S, self._position_log_tick, "position-log")
+        self.link.every(TAKEOVER_TICK_S, self._takeover_tick, "takeover")
+        self.link.every(RATE_TICK_S, self.rates.tick, "rates")
         for period, job, name in extra_jobs:
             self.link.every(period, job, name)
         try:
@@ -170,11 +243,18 @@ class MavlinkVehicle:
                     f"{s.connect_timeout_s:g} s ({exc})"
                 ) from exc
             raise AdapterError(f"{self.drone}: {exc}") from exc
-        if not self.link.wait_for(lambda: self.state.heartbeats > 0, deadline):
+        st = self.state
+        if not self.link.wait_for(
+            lambda: st.heartbeats > 0 or st.refused_heartbeats >= REFUSED_HEARTBEATS, deadline
+        ):
             self.link.close()
             raise AdapterError(
                 f"{self.drone}: no heartbeat from {s.connection} within {s.connect_timeout_s:g} s"
             )
+        if st.heartbeats == 0:
+            self.link.close()
+            raise AdapterError(f"{self.drone}: {refused_reason(st, s.connection)}")
+        self._await_signing()
         with self.cond:
             detected, sysid = self.state.autopilot or 0, self.state.system_id
         try:
@@ -189,12 +269,33 @@ class MavlinkVehicle:
                 f"is {s.autopilot!r} but the vehicle's HEARTBEAT "
                 f"announces {found.name} ({detected})",
             )
-        self.autopilot = found
+        with self.cond:
+            self.autopilot = found
+            self.takeover.set_autopilot(found.name)
         self.log.info(
             "adapter.connected", system_id=sysid, autopilot=found.name, mode=self.mode_name()
         )
         self._request_intervals(deadline)
         self.apply_speeds()
+
+    def _await_signing(self) -> None:
+        """Provisioning (``hal.signing_setup``): the vehicle signs within
+        ``signing_timeout_s``, or the adapter refuses it (never flies unsigned)."""
+        s = self.settings
+        if not self.link.provisioning():
+            self.log.info("adapter.signing", signed=self.link.signing, setup=False)
+            return
+        limit = s.scaled(s.signing_timeout_s)
+        if not self.link.wait_for(lambda: not self.link.provisioning(), time.monotonic() + limit):
+            with self.cond:
+                autopilot = self.state.autopilot
+            self.link.close()
+            hint = NO_SIGNING_HINT if autopilot == MAV_AUTOPILOT_PX4 else ""
+            raise AdapterError(
+                f"{self.drone}: signing setup failed: the vehicle still sends unsigned "
+                f"messages {s.signing_timeout_s:g} s after SETUP_SIGNING{hint}"
+            )
+        self.log.info("adapter.signing", signed=True, setup=True)
 
     def _request_intervals(self, deadline: float) -> None:
         """Ask for the telemetry the adapter reads (best effort; each answer is logged)."""
@@ -214,6 +315,12 @@ class MavlinkVehicle:
                 retries=1,
             )
             self.log.info("adapter.interval", message=msg_id, hz=rate, result=result_name(result))
+        self.rates.start({name: (msg_id, s.telemetry_hz) for name, msg_id in RATE_WATCHED.items()})
+
+    def notify(self, kind: Literal["taken_over", "warning"], text: str) -> None:
+        """Queue something for the operator (AdapterNotice; any thread)."""
+        with self.cond:
+            self.notices.append(AdapterNotice(kind, text))
 
     def close(self) -> None:
         """Close the link (its threads end; waiters wake and see ``state.closed``)."""
@@ -350,8 +457,11 @@ class MavlinkVehicle:
 
     def lost_reason(self) -> str:
         """Why an action ends when HEARTBEATs stop."""
-        text = self.state.last_statustext
+        st = self.state
+        text = st.last_statustext
         why = f" (last STATUSTEXT: {text})" if text else ""
+        if st.refused_at > st.last_heartbeat:
+            why = f" ({refused_reason(st, self.settings.connection)})"
         return (
             f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
             f"{self.settings.heartbeat_timeout_s:g} s{why}"
@@ -393,6 +503,8 @@ class MavlinkVehicle:
 
     def _steer_tick(self) -> None:
         with self.cond:
+            if self.taken_over is not None:
+                return  # a pilot has it: no setpoint ever again
             if self._was_armed and not self.state.armed:
                 # Disarmed (landed, auto-disarm, or by someone else): stop steering.
                 self.stop_steering()
@@ -405,12 +517,62 @@ class MavlinkVehicle:
 
     def _refresh_tick(self) -> None:
         with self.cond:
-            target = self.guided_target
+            target = None if self.taken_over is not None else self.guided_target
         if target is not None:
             self.send_guided_target(target)
 
     def _position_log_tick(self) -> None:
         _log_position(self)
+
+    # -- whose mode change (takeover.py) ---------------------------------------------
+
+    def _observe(self, events: Events, now: float) -> None:
+        """The link's hook (condition held): the takeover watch sees mode changes,
+        failsafe texts, link gaps and disarms before any waiter wakes to them."""
+        watch = self.takeover
+        for name, fields in list(events):
+            change: ModeChange | None = None
+            if name == "vehicle.mode":
+                change = watch.mode_seen(
+                    self.autopilot.mode_name(fields["previous"]),
+                    self.autopilot.mode_name(fields["custom_mode"]),
+                    self.state.armed,
+                    now,
+                )
+            elif name == "vehicle.statustext":
+                change = watch.statustext(str(fields["text"]), now)
+            elif name == "link.gap":
+                watch.link_gap(now)
+            elif name == "vehicle.armed" and not fields["armed"]:
+                watch.disarmed()
+            if change is not None:
+                self._classified(change, events)
+
+    def _takeover_tick(self) -> None:
+        events: Events = []
+        with self.cond:
+            change = self.takeover.tick(time.monotonic())
+            if change is not None:
+                self._classified(change, events)
+                self.cond.notify_all()
+        for name, fields in events:
+            self._on_link_event(name, fields)
+
+    def _classified(self, change: ModeChange, events: Events) -> None:
+        """A mode change classified (condition held): a pilot's ends all steering now."""
+        fields = {"mode": change.mode, "previous": change.previous}
+        if change.verdict == "pilot" and self.taken_over is None:
+            taken = TakenOver(change.mode)
+            if self.state.local is not None:
+                x, y, z = self.mission_position()
+                taken = TakenOver(change.mode, round(x, 2), round(y, 2), round(z, 2))
+            self.taken_over = taken
+            self.stop_steering()
+            events.append(("vehicle.taken_over", fields))
+        elif change.verdict == "failsafe":
+            events.append(("vehicle.failsafe", {**fields, "statustext": change.why}))
+        elif change.verdict == "pending":
+            events.append(("vehicle.mode_unexplained", fields))
 
     def _on_link_event(self, name: str, event: dict[str, Any]) -> None:
         """Copy what the link saw into the adapter log (reader/ticker threads)."""
@@ -426,6 +588,22 @@ class MavlinkVehicle:
             self.log.info("adapter.statustext", **event)
         elif name == "vehicle.ack":
             self.log.debug("adapter.ack", **event)
+        elif name == "vehicle.taken_over":
+            taken = self.taken_over
+            assert taken is not None
+            self.log.error(
+                "adapter.taken_over",
+                mode=taken.mode,
+                previous=event["previous"],
+                x_m=taken.x_m,
+                y_m=taken.y_m,
+                z_m=taken.z_m,
+                note="a pilot has the vehicle: EAMOS never commands it again in this run",
+            )
+            if self.on_taken_over is not None:
+                self.on_taken_over(taken)
+        elif name == "vehicle.failsafe":
+            self.log.warning("adapter.failsafe", **event)
         elif name in ("link.lost", "link.transport_error", "link.job_error", "link.send_error"):
             self.log.warning(f"adapter.{name}", **event)
         else:

@@ -1,0 +1,196 @@
+"""The telemetry rates a shared link delivers, asked for again when someone lowers them.
+
+The adapter asks the vehicle for the messages it flies by (LOCAL_POSITION_NED,
+GLOBAL_POSITION_INT, ATTITUDE, EXTENDED_SYS_STATE) at ``telemetry_hz`` with
+MAV_CMD_SET_MESSAGE_INTERVAL.  A second ground station on the same MAVLink
+channel can lower them: MAVProxy's ``set streamrate 1`` (REQUEST_DATA_STREAM, which
+on ArduPilot resets every message of a stream to the new rate on that channel), or
+any client's own SET_MESSAGE_INTERVAL.  Moves then complete late and brakes start
+late, silently.  :class:`RateWatch` compares what arrives with what was asked for,
+window by window (vehicle time: a SITL at speed-up K sends K times faster), and
+says what to do: ask again for a message that comes too slowly, and, when it
+stays too slow after being asked again, report it once.
+
+:class:`RateWatch` is pure: counts and times are passed in.  :class:`RateKeeper`
+runs it on the link's ticker: it sends the requests (without waiting for their
+acknowledgement: the ticker also streams PX4's setpoints), logs
+``adapter.rate.request`` and ``adapter.rate.low``, and tells the operator once.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+if TYPE_CHECKING:
+    from eamos.hal.mavlink.link import MavlinkLink
+    from eamos.logs import EventLog
+
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+
+#: The window over which rates are measured (vehicle seconds).
+RATE_WINDOW_S = 2.0
+#: A message arriving slower than this fraction of the rate asked for is too slow.
+LOW_FRACTION = 0.6
+#: Windows still too slow after asking again before the rate is reported.
+REPORT_AFTER = 2
+
+
+@dataclass(frozen=True)
+class RateFinding:
+    """What a window showed for one message: ask again, or report that it stays slow."""
+
+    action: Literal["request", "report"]
+    message: str
+    msg_id: int
+    seen_hz: float  # vehicle time
+    wanted_hz: float
+
+
+class RateWatch:
+    """Measures each wanted message's rate per window (see the module docstring).
+
+    ``wanted`` maps a message name to (its id, the rate asked for in Hz of vehicle
+    time); ``speedup`` is the vehicle's clock rate.  :meth:`window` takes the
+    messages counted so far (by name) and the time, and returns the findings of a
+    window that just ended (none before it ends).
+    """
+
+    def __init__(
+        self,
+        wanted: Mapping[str, tuple[int, float]],
+        speedup: float = 1.0,
+        window_s: float = RATE_WINDOW_S,
+    ) -> None:
+        self.wanted = dict(wanted)
+        self.speedup = speedup
+        self.window_s = window_s
+        self._start: float | None = None
+        self._counts: dict[str, int] = {}
+        self._slow_since_request: dict[str, int] = {}  # windows too slow since asked again
+        self.reported: set[str] = set()
+
+    def restart(self) -> None:
+        """Start a new window at the next :meth:`window` (after the link was silent)."""
+        self._start = None
+
+    def window(self, counts: Mapping[str, int], now: float) -> list[RateFinding]:
+        """Findings when a window ends at ``now`` (wall seconds, monotonic); else []."""
+        if self._start is None:
+            self._start, self._counts = now, dict(counts)
+            return []
+        elapsed = (now - self._start) * self.speedup  # vehicle seconds
+        if elapsed < self.window_s:
+            return []
+        out: list[RateFinding] = []
+        for name, (msg_id, wanted_hz) in self.wanted.items():
+            seen_hz = (counts.get(name, 0) - self._counts.get(name, 0)) / elapsed
+            if seen_hz >= LOW_FRACTION * wanted_hz:
+                self._slow_since_request.pop(name, None)
+                continue
+            slow = self._slow_since_request.get(name)
+            if slow is not None and slow + 1 >= REPORT_AFTER and name not in self.reported:
+                self.reported.add(name)
+                out.append(RateFinding("report", name, msg_id, round(seen_hz, 2), wanted_hz))
+            self._slow_since_request[name] = 0 if slow is None else slow + 1
+            out.append(RateFinding("request", name, msg_id, round(seen_hz, 2), wanted_hz))
+        self._start, self._counts = now, dict(counts)
+        return out
+
+
+class RateKeeper:
+    """Runs a :class:`RateWatch` on a link's ticker (see the module docstring).
+
+    ``tell(text)`` reaches the operator (once per message that stays slow);
+    ``blocked()`` is true once the adapter may no longer command the vehicle (a
+    pilot took it): no request is sent then.
+    """
+
+    def __init__(
+        self,
+        link: MavlinkLink,
+        log: EventLog,
+        speedup: float,
+        tell: Callable[[str], None],
+        blocked: Callable[[], bool],
+    ) -> None:
+        self.link = link
+        self.log = log
+        self.speedup = speedup
+        self.tell = tell
+        self.blocked = blocked
+        self.watch: RateWatch | None = None
+
+    def start(self, wanted: Mapping[str, tuple[int, float]]) -> None:
+        """Watch ``wanted`` (name -> (message id, Hz asked for)) from now on."""
+        self.watch = RateWatch(wanted, self.speedup)
+
+    def tick(self) -> None:
+        """One look at the rates (the link's ticker thread)."""
+        watch = self.watch
+        if watch is None or self.blocked():
+            return
+        link = self.link
+        with link.cond:
+            counts, ok = dict(link.state.counts), link.state.link_ok
+        if not ok:
+            watch.restart()  # a silent link is not a slow one
+            return
+        for finding in watch.window(counts, time.monotonic()):
+            if finding.action == "request":
+                self._request(finding)
+            else:
+                self._report(finding)
+
+    def _request(self, finding: RateFinding) -> None:
+        system, component = self.link.target
+        interval_us = 1e6 / finding.wanted_hz
+        # Fire and forget: the ticker must not wait (its ack is logged like any other).
+        self.link.send(
+            "command_long",
+            system,
+            component,
+            MAV_CMD_SET_MESSAGE_INTERVAL,
+            0,
+            float(finding.msg_id),
+            interval_us,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        )
+        self.log.info(
+            "adapter.rate.request",
+            message=finding.message,
+            seen_hz=finding.seen_hz,
+            hz=finding.wanted_hz,
+        )
+
+    def _report(self, finding: RateFinding) -> None:
+        text = (
+            f"{finding.message} arrives at {finding.seen_hz:g} Hz, below the "
+            f"{finding.wanted_hz:g} Hz the adapter needs, although asked for again "
+            "(another ground station on this link lowering the rates?): moves complete "
+            "and brakes start later"
+        )
+        self.log.warning(
+            "adapter.rate.low",
+            message=finding.message,
+            seen_hz=finding.seen_hz,
+            hz=finding.wanted_hz,
+            note=text,
+        )
+        self.tell(text)
+
+
+__all__ = [
+    "LOW_FRACTION",
+    "RATE_WINDOW_S",
+    "REPORT_AFTER",
+    "RateFinding",
+    "RateKeeper",
+    "RateWatch",
+]
