@@ -162,6 +162,8 @@ class MavlinkAdapter:
             system_id=s.system_id,
             source_system=s.source_system,
             source_component=s.source_component,
+            # Where the fleet places its home (the check, monitor, report and replay too).
+            home_m=None if s.home_m is None else list(s.home_m),
         )
         self.vehicle.connect(
             extra_jobs=((1.0 / s.telemetry_hz, self._telemetry.publish, "telemetry"),)
@@ -318,12 +320,15 @@ class MavlinkAdapter:
 
     def facts(self) -> dict[str, Any]:
         """What the run's summary records about this vehicle (the Adapter protocol's
-        optional part): the autopilot, whether the link was signed, a takeover."""
+        optional part): the autopilot, whether the link was signed, whether the fleet's
+        geofence went on the vehicle (None: the fleet has none), a takeover."""
         with self._cond:
             taken = self.vehicle.taken_over
+            fence = self.vehicle.geofence
             out: dict[str, Any] = {
                 "autopilot": self.vehicle.autopilot.name if self._started else None,
                 "signed": self.vehicle.link.signed,
+                "fence": fence.uploaded if fence.wanted else None,
             }
         if taken is not None:
             out["taken_over"] = taken.to_json()

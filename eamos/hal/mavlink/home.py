@@ -32,6 +32,29 @@ class HomeOwner(Protocol):
     log: EventLog
 
 
+#: A vehicle's HOME_POSITION this far (m) from the fleet's home_lla is reported.
+HOME_MISMATCH_M = 5.0
+
+
+def check_home(home: tuple[float, float, float], home_lla: tuple[float, ...] | None) -> str:
+    """Why the vehicle's HOME_POSITION (lat, lon, alt) disagrees with the fleet's
+    ``home_lla`` for it ("" when it agrees, or the fleet gives none).  The check, the
+    monitor and the report place the drone at the fleet's home; the vehicle flies
+    from its own."""
+    if home_lla is None:
+        return ""
+    frame = GeoFrame(home_lla[0], home_lla[1], 0.0)
+    north, east, _ = frame.from_lla(home[0], home[1], 0.0)
+    off = math.hypot(north, east)
+    if off <= HOME_MISMATCH_M:
+        return ""
+    return (
+        f"the vehicle's home (HOME_POSITION {home[0]:.7f}, {home[1]:.7f}) is {off:.1f} m "
+        f"from the fleet's home_lla ({home_lla[0]:.7f}, {home_lla[1]:.7f}): the check, the "
+        "monitor and the report place it at the fleet's; fix home_lla in the fleet file"
+    )
+
+
 def capture_home(self: HomeOwner, ground: bool = False) -> None:
     """Record home at the first (settled) fix and, with ``ground``, the ground height
     before arming (condition held)."""
@@ -71,4 +94,4 @@ def capture_home(self: HomeOwner, ground: bool = False) -> None:
         self.geo = GeoFrame(lat0, lon0, g.alt_amsl_m - z)
 
 
-__all__ = ["HomeOwner", "capture_home"]
+__all__ = ["HOME_MISMATCH_M", "HomeOwner", "capture_home", "check_home"]

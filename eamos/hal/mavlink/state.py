@@ -125,6 +125,10 @@ class LinkState:
     refused_at: float = -math.inf
     #: Messages heard from the vehicle so far, by type (rates.py measures their rates).
     counts: dict[str, int] = field(default_factory=dict)
+    #: The mission protocol's answers addressed to us (MISSION_COUNT, MISSION_REQUEST(_INT),
+    #: MISSION_ITEM_INT, MISSION_ACK), each with its serial number (mission_protocol.py).
+    mission: deque[tuple[int, Any]] = field(default_factory=lambda: deque(maxlen=64))
+    mission_serial: int = 0
     closed: bool = False
 
     def window(self, now: float, span_s: float) -> tuple[tuple[float, float, float], float] | None:
@@ -290,6 +294,16 @@ class StateTracker:
         self.state.local = (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
         self.state.local_count += 1
         self.state.recent.append((now, self.state.local))
+
+    def _mission(self, msg: Any, now: float, events: Events) -> None:
+        if getattr(msg, "target_system", 0) not in (0, self._source_system):
+            return  # another ground station's mission exchange on a shared port
+        st = self.state
+        st.mission_serial += 1
+        st.mission.append((st.mission_serial, msg))
+
+    _on_mission_count = _on_mission_request = _on_mission_request_int = _mission
+    _on_mission_item_int = _on_mission_ack = _mission
 
     def _on_param_value(self, msg: Any, now: float, events: Events) -> None:
         raw = msg.param_id

@@ -37,7 +37,8 @@ from eamos.hal.mavlink.estimator import (
     estimator_message,
 )
 from eamos.hal.mavlink.frames import NedOrigin, Vector, ned_to_mission
-from eamos.hal.mavlink.home import capture_home
+from eamos.hal.mavlink.geofence import GeofenceKeeper
+from eamos.hal.mavlink.home import capture_home, check_home
 from eamos.hal.mavlink.keeper import ParamKeeper
 from eamos.hal.mavlink.link import (
     MAV_SYS_STATUS_PREARM_CHECK,
@@ -46,15 +47,10 @@ from eamos.hal.mavlink.link import (
     MavlinkLink,
     result_name,
 )
+from eamos.hal.mavlink.pilot import PilotHand
 from eamos.hal.mavlink.rates import RateKeeper
 from eamos.hal.mavlink.signing import SigningKeyError, read_key
-from eamos.hal.mavlink.state import Events
-from eamos.hal.mavlink.takeover import (
-    FAILSAFE_GRACE_S,
-    FAILSAFE_WINDOW_S,
-    ModeChange,
-    TakeoverWatch,
-)
+from eamos.hal.mavlink.takeover import FAILSAFE_GRACE_S, FAILSAFE_WINDOW_S, TakeoverWatch
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
     TYPE_MASK_VELOCITY,
@@ -201,9 +197,11 @@ class MavlinkVehicle:
         self.taken_over: TakenOver | None = None
         #: Told (on the link's threads, outside the condition) when a pilot took it.
         self.on_taken_over: Callable[[TakenOver], None] | None = None
-        self.link.observe = self._observe
+        self.pilot = PilotHand(self)
+        self.link.observe = self.pilot.observe
         #: What the operator must hear (taken over, slow telemetry), drained by notices().
         self.notices: list[AdapterNotice] = []
+        self.geofence = GeofenceKeeper(self)
         self.rates = RateKeeper(
             self.link,
             log,
@@ -212,6 +210,7 @@ class MavlinkVehicle:
             blocked=lambda: self.taken_over is not None,
         )
         self._was_armed = False
+        self._home_checked = False
         self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
@@ -229,8 +228,9 @@ class MavlinkVehicle:
         self.link.every(1.0 / s.setpoint_hz, self._steer_tick, "setpoints")
         self.link.every(TARGET_REFRESH_S, self._refresh_tick, "target-refresh")
         self.link.every(POSITION_LOG_S, self._position_log_tick, "position-log")
-        self.link.every(TAKEOVER_TICK_S, self._takeover_tick, "takeover")
+        self.link.every(TAKEOVER_TICK_S, self.pilot.tick, "takeover")
         self.link.every(RATE_TICK_S, self.rates.tick, "rates")
+        self.link.every(1.0, self._home_tick, "home")
         for period, job, name in extra_jobs:
             self.link.every(period, job, name)
         try:
@@ -498,8 +498,10 @@ class MavlinkVehicle:
         self.keeper.apply_speeds(self.autopilot.name)
 
     def restore_params(self) -> None:
-        """Write back the parameters :meth:`apply_speeds` changed."""
+        """Write back the parameters the adapter changed (speeds, fence), then the
+        vehicle's own fence (geofence.py)."""
         self.keeper.restore()
+        self.geofence.restore()
 
     def _steer_tick(self) -> None:
         with self.cond:
@@ -524,55 +526,24 @@ class MavlinkVehicle:
     def _position_log_tick(self) -> None:
         _log_position(self)
 
-    # -- whose mode change (takeover.py) ---------------------------------------------
-
-    def _observe(self, events: Events, now: float) -> None:
-        """The link's hook (condition held): the takeover watch sees mode changes,
-        failsafe texts, link gaps and disarms before any waiter wakes to them."""
-        watch = self.takeover
-        for name, fields in list(events):
-            change: ModeChange | None = None
-            if name == "vehicle.mode":
-                change = watch.mode_seen(
-                    self.autopilot.mode_name(fields["previous"]),
-                    self.autopilot.mode_name(fields["custom_mode"]),
-                    self.state.armed,
-                    now,
-                )
-            elif name == "vehicle.statustext":
-                change = watch.statustext(str(fields["text"]), now)
-            elif name == "link.gap":
-                watch.link_gap(now)
-            elif name == "vehicle.armed" and not fields["armed"]:
-                watch.disarmed()
-            if change is not None:
-                self._classified(change, events)
-
-    def _takeover_tick(self) -> None:
-        events: Events = []
+    def _home_tick(self) -> None:
+        """The vehicle's HOME_POSITION, once: logged, and compared with the fleet's home_lla."""
         with self.cond:
-            change = self.takeover.tick(time.monotonic())
-            if change is not None:
-                self._classified(change, events)
-                self.cond.notify_all()
-        for name, fields in events:
-            self._on_link_event(name, fields)
-
-    def _classified(self, change: ModeChange, events: Events) -> None:
-        """A mode change classified (condition held): a pilot's ends all steering now."""
-        fields = {"mode": change.mode, "previous": change.previous}
-        if change.verdict == "pilot" and self.taken_over is None:
-            taken = TakenOver(change.mode)
-            if self.state.local is not None:
-                x, y, z = self.mission_position()
-                taken = TakenOver(change.mode, round(x, 2), round(y, 2), round(z, 2))
-            self.taken_over = taken
-            self.stop_steering()
-            events.append(("vehicle.taken_over", fields))
-        elif change.verdict == "failsafe":
-            events.append(("vehicle.failsafe", {**fields, "statustext": change.why}))
-        elif change.verdict == "pending":
-            events.append(("vehicle.mode_unexplained", fields))
+            home, checked = self.state.home, self._home_checked
+            self._home_checked = checked or home is not None
+        if home is None or checked:
+            return
+        note = check_home(home, self.settings.home_lla)
+        self.log.info(
+            "adapter.home.vehicle",
+            lat_deg=round(home[0], 7),
+            lon_deg=round(home[1], 7),
+            alt_m=round(home[2], 2),
+            home_m=None if self.settings.home_m is None else list(self.settings.home_m),
+        )
+        if note:
+            self.log.warning("adapter.home.mismatch", note=note)
+            self.notify("warning", note)
 
     def _on_link_event(self, name: str, event: dict[str, Any]) -> None:
         """Copy what the link saw into the adapter log (reader/ticker threads)."""
@@ -588,22 +559,8 @@ class MavlinkVehicle:
             self.log.info("adapter.statustext", **event)
         elif name == "vehicle.ack":
             self.log.debug("adapter.ack", **event)
-        elif name == "vehicle.taken_over":
-            taken = self.taken_over
-            assert taken is not None
-            self.log.error(
-                "adapter.taken_over",
-                mode=taken.mode,
-                previous=event["previous"],
-                x_m=taken.x_m,
-                y_m=taken.y_m,
-                z_m=taken.z_m,
-                note="a pilot has the vehicle: EAMOS never commands it again in this run",
-            )
-            if self.on_taken_over is not None:
-                self.on_taken_over(taken)
-        elif name == "vehicle.failsafe":
-            self.log.warning("adapter.failsafe", **event)
+        elif self.pilot.event(name, event):
+            pass  # a takeover, a failsafe (pilot.py)
         elif name in ("link.lost", "link.transport_error", "link.job_error", "link.send_error"):
             self.log.warning(f"adapter.{name}", **event)
         else:
