@@ -41,6 +41,7 @@ from eamos.hal.mavlink.takeover import (
 )
 from eamos.logs import make_logger
 from eamos.net import wire
+from eamos.program.plugins import EMPTY_PLUGINS
 from eamos.program.uniform import Command
 
 # -- whose mode change (takeover.py) -------------------------------------------------------------
@@ -184,7 +185,7 @@ def test_refused_frames_say_who_sent_them_and_whether_they_were_signed():
     assert refused_frame(b"\x01\x02") is None
 
 
-# -- the fence plan and home (geofence.py, home.py) -------------------------------------------------
+# -- the fence plan and home (geofence.py, home.py) --------------------------------------------
 
 
 def test_the_fleet_fence_is_placed_from_the_vehicles_home_in_the_fleet_frame():
@@ -240,6 +241,7 @@ class PilotsAdapter:
 
     drone = "D2"
     family = "mavlink"
+    plugins = EMPTY_PLUGINS
 
     def __init__(self) -> None:
         self.taken_over = TakenOver("LOITER", 1.0, 2.0, 1.5)

@@ -272,7 +272,7 @@ def test_a_replay_played_forward_equals_one_built_from_scratch():
 
 def test_a_drone_a_pilot_took_over_says_so_whatever_its_telemetry_or_report():
     state = MonitorState(setup(), 0.0)
-    words = "taken over by the pilot in LOITER at (1.00, 2.00, 1.50): EAMOS no longer commands it"
+    words = "taken over by the pilot in LOITER at (1.00, 2.00, 1.50): no longer commanded"
     taken = wire.Progress(
         mission=MID,
         sender="D2",
