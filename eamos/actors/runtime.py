@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import pykka
 import zmq
 
-from ..hal.api import Adapter, AdapterError, AdapterNotice, vehicle_facts
+from ..hal.api import Adapter, AdapterError, AdapterNotice, taken_over, vehicle_facts
 from ..logs import DroneLogs, EventLog, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
@@ -265,9 +265,15 @@ class DroneRuntime:
         self._to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
     def wait_landed(self, timeout_s: float) -> bool:
-        """Wait (on telemetry, not polling) until the vehicle reports it is on the ground."""
+        """Wait (on telemetry, not polling) until the vehicle reports it is on the ground.
+
+        False at once for a vehicle a pilot took over: nobody here lands it.
+        """
         if self.board is None:
             return True
+        if taken_over(self.adapter) is not None:
+            self.log.warning("mission.abort.taken_over", note="the pilot has it: not landed")
+            return False
         event = threading.Event()
         self.board.tell(WhenLanded(event))
         return event.wait(timeout_s)

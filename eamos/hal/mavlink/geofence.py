@@ -115,6 +115,22 @@ def fence_plan(
     return FencePlan(items, tuple(params))
 
 
+def inside(point: tuple[float, float], polygon: Sequence[tuple[float, float]]) -> bool:
+    """Whether ``point`` is inside (or on) ``polygon`` (even-odd rule; pure)."""
+    x, y = point
+    hit = False
+    n = len(polygon)
+    for i in range(n):
+        (x1, y1), (x2, y2) = polygon[i], polygon[(i + 1) % n]
+        if (y1 > y) != (y2 > y):
+            cross = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
+            if x == cross:
+                return True
+            if x < cross:
+                hit = not hit
+    return hit
+
+
 class GeofenceKeeper:
     """Puts the fleet's fence on one vehicle before its first arming, and back at close."""
 
@@ -158,6 +174,24 @@ class GeofenceKeeper:
         self.uploaded = True
         v.log.info("adapter.fence", autopilot=autopilot, **plan.to_json())
 
+    def check_target(self, target: tuple[float, float, float]) -> None:
+        """:class:`Failed` when a move's ``target`` (mission frame) is outside the fleet's
+        fence or above its ceiling: the autopilot would refuse it (ArduCopter ignores a
+        GUIDED target outside its fence) or stop the vehicle at the fence."""
+        s = self.v.settings
+        if not self.wanted:
+            return
+        home = s.home_m or (0.0, 0.0)
+        north, east = target[0] + home[0], target[1] + home[1]
+        where = f"({target[0]:.2f}, {target[1]:.2f}, {target[2]:.2f})"
+        if s.max_altitude_m is not None and target[2] > s.max_altitude_m:
+            raise Failed(f"target {where} is above the fleet's ceiling {s.max_altitude_m:g} m")
+        if s.geofence_m and not inside((north, east), s.geofence_m):
+            raise Failed(
+                f"target {where} is outside the fleet's geofence (at {north:.2f}, {east:.2f} "
+                "in the fleet frame): the autopilot would refuse or stop it"
+            )
+
     def restore(self) -> None:
         """Put the vehicle's own fence back (or clear ours); its parameters are restored
         with the others (keeper.restore).  Logged; never raises."""
@@ -173,4 +207,4 @@ class GeofenceKeeper:
         self.v.log.info("adapter.fence.restore", vertices=len(before))
 
 
-__all__ = ["FencePlan", "GeofenceKeeper", "fence_plan"]
+__all__ = ["FencePlan", "GeofenceKeeper", "fence_plan", "inside"]

@@ -7,9 +7,11 @@ channel can lower them: MAVProxy's ``set streamrate 1`` (REQUEST_DATA_STREAM, wh
 on ArduPilot resets every message of a stream to the new rate on that channel), or
 any client's own SET_MESSAGE_INTERVAL.  Moves then complete late and brakes start
 late, silently.  :class:`RateWatch` compares what arrives with what was asked for,
-window by window (vehicle time: a SITL at speed-up K sends K times faster), and
-says what to do: ask again for a message that comes too slowly, and, when it
-stays too slow after being asked again, report it once.
+window by window of the vehicle's own clock (the messages' ``time_boot_ms``: a
+SITL asked to run K times faster runs slower than that on a loaded machine, so
+wall time times K would see rates drop that did not), and says what to do: ask
+again for a message that comes too slowly, and, when it stays too slow after
+being asked again, report it once.
 
 :class:`RateWatch` is pure: counts and times are passed in.  :class:`RateKeeper`
 runs it on the link's ticker: it sends the requests (without waiting for their
@@ -19,7 +21,6 @@ acknowledgement: the ticker also streams PX4's setpoints), logs
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
@@ -53,19 +54,15 @@ class RateWatch:
     """Measures each wanted message's rate per window (see the module docstring).
 
     ``wanted`` maps a message name to (its id, the rate asked for in Hz of vehicle
-    time); ``speedup`` is the vehicle's clock rate.  :meth:`window` takes the
-    messages counted so far (by name) and the time, and returns the findings of a
-    window that just ended (none before it ends).
+    time).  :meth:`window` takes the messages counted so far (by name) and the
+    vehicle's clock (seconds since its boot), and returns the findings of a window
+    that just ended (none before it ends).
     """
 
     def __init__(
-        self,
-        wanted: Mapping[str, tuple[int, float]],
-        speedup: float = 1.0,
-        window_s: float = RATE_WINDOW_S,
+        self, wanted: Mapping[str, tuple[int, float]], window_s: float = RATE_WINDOW_S
     ) -> None:
         self.wanted = dict(wanted)
-        self.speedup = speedup
         self.window_s = window_s
         self._start: float | None = None
         self._counts: dict[str, int] = {}
@@ -76,16 +73,18 @@ class RateWatch:
         """Start a new window at the next :meth:`window` (after the link was silent)."""
         self._start = None
 
-    def window(self, counts: Mapping[str, int], now: float) -> list[RateFinding]:
-        """Findings when a window ends at ``now`` (wall seconds, monotonic); else []."""
-        if self._start is None:
-            self._start, self._counts = now, dict(counts)
+    def window(self, counts: Mapping[str, int], vehicle_s: float) -> list[RateFinding]:
+        """Findings when a window ends at ``vehicle_s`` (the vehicle's clock); else []."""
+        if self._start is None or vehicle_s < self._start:  # first, or the vehicle rebooted
+            self._start, self._counts = vehicle_s, dict(counts)
             return []
-        elapsed = (now - self._start) * self.speedup  # vehicle seconds
+        elapsed = vehicle_s - self._start
         if elapsed < self.window_s:
             return []
         out: list[RateFinding] = []
         for name, (msg_id, wanted_hz) in self.wanted.items():
+            if not self._counts.get(name, 0):
+                continue  # not flowing yet (ArduPilot: no LOCAL_POSITION_NED before its EKF)
             seen_hz = (counts.get(name, 0) - self._counts.get(name, 0)) / elapsed
             if seen_hz >= LOW_FRACTION * wanted_hz:
                 self._slow_since_request.pop(name, None)
@@ -96,7 +95,7 @@ class RateWatch:
                 out.append(RateFinding("report", name, msg_id, round(seen_hz, 2), wanted_hz))
             self._slow_since_request[name] = 0 if slow is None else slow + 1
             out.append(RateFinding("request", name, msg_id, round(seen_hz, 2), wanted_hz))
-        self._start, self._counts = now, dict(counts)
+        self._start, self._counts = vehicle_s, dict(counts)
         return out
 
 
@@ -112,20 +111,18 @@ class RateKeeper:
         self,
         link: MavlinkLink,
         log: EventLog,
-        speedup: float,
         tell: Callable[[str], None],
         blocked: Callable[[], bool],
     ) -> None:
         self.link = link
         self.log = log
-        self.speedup = speedup
         self.tell = tell
         self.blocked = blocked
         self.watch: RateWatch | None = None
 
     def start(self, wanted: Mapping[str, tuple[int, float]]) -> None:
         """Watch ``wanted`` (name -> (message id, Hz asked for)) from now on."""
-        self.watch = RateWatch(wanted, self.speedup)
+        self.watch = RateWatch(wanted)
 
     def tick(self) -> None:
         """One look at the rates (the link's ticker thread)."""
@@ -134,11 +131,11 @@ class RateKeeper:
             return
         link = self.link
         with link.cond:
-            counts, ok = dict(link.state.counts), link.state.link_ok
-        if not ok:
+            counts, ok, boot_ms = dict(link.state.counts), link.state.link_ok, link.state.boot_ms
+        if not ok or boot_ms is None:
             watch.restart()  # a silent link is not a slow one
             return
-        for finding in watch.window(counts, time.monotonic()):
+        for finding in watch.window(counts, boot_ms / 1000.0):
             if finding.action == "request":
                 self._request(finding)
             else:

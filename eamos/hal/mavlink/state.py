@@ -125,6 +125,8 @@ class LinkState:
     refused_at: float = -math.inf
     #: Messages heard from the vehicle so far, by type (rates.py measures their rates).
     counts: dict[str, int] = field(default_factory=dict)
+    #: The vehicle's clock: the latest ``time_boot_ms`` it sent (ms since its boot).
+    boot_ms: int | None = None
     #: The mission protocol's answers addressed to us (MISSION_COUNT, MISSION_REQUEST(_INT),
     #: MISSION_ITEM_INT, MISSION_ACK), each with its serial number (mission_protocol.py).
     mission: deque[tuple[int, Any]] = field(default_factory=lambda: deque(maxlen=64))
@@ -212,6 +214,9 @@ class StateTracker:
             events.append(("link.gap", {"silent_s": round(now - st.last_rx, 3)}))
         st.last_rx = now
         st.counts[kind] = st.counts.get(kind, 0) + 1
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if isinstance(boot_ms, int) and boot_ms > 0:
+            st.boot_ms = boot_ms
         handler = getattr(self, f"_on_{kind.lower()}", None)
         if handler is not None:
             handler(msg, now, events)

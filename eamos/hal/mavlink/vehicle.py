@@ -205,7 +205,6 @@ class MavlinkVehicle:
         self.rates = RateKeeper(
             self.link,
             log,
-            settings.speedup,
             tell=lambda text: self.notify("warning", text),
             blocked=lambda: self.taken_over is not None,
         )
