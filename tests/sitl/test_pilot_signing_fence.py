@@ -448,7 +448,15 @@ class Relay:
 
     def __init__(self, vehicle: str, clients: int) -> None:
         host, port = vehicle.split(":")[1:]
-        self.tcp = socket.create_connection((host, int(port)), timeout=30)
+        deadline = time.monotonic() + WAIT_S
+        while True:  # the SITL listens a moment after it starts
+            try:
+                self.tcp = socket.create_connection((host, int(port)), timeout=30)
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                threading.Event().wait(0.5)
         self.udp = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(clients)]
         self.ports = []
         for sock in self.udp:
