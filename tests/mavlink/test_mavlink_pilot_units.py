@@ -61,6 +61,12 @@ def test_modes_the_adapter_asked_for_are_its_own():
     assert watch.taken is None
 
 
+def test_a_change_into_the_companion_mode_hands_the_vehicle_to_the_adapter():
+    watch = flying("px4")
+    watch.expect_command(MAV_CMD_NAV_LAND, 1.0)
+    assert watch.mode_seen("AUTO.LAND", "OFFBOARD", True, 60.0).verdict == "ours"
+
+
 def test_px4_takeoff_switching_itself_to_hold_is_not_a_pilot():
     watch = flying("px4")
     watch.expect_command(MAV_CMD_NAV_TAKEOFF, 1.0)

@@ -69,6 +69,10 @@ FOLLOW_ON: dict[str, frozenset[tuple[str, str]]] = {
         }
     ),
 }
+#: The mode each autopilot follows a companion computer in: a change into it hands the
+#: vehicle to the adapter (PX4 returns to OFFBOARD by itself once setpoints flow again),
+#: never takes it away.
+COMPANION_MODES: dict[str, str] = {"ardupilot": "GUIDED", "px4": "OFFBOARD"}
 #: STATUSTEXTs that announce a failsafe (lower case; see the module docstring).
 _FAILSAFE_TEXT = re.compile(r"failsafe|ekf variance|fence|breach|dead reckoning")
 
@@ -220,7 +224,7 @@ class TakeoverWatch:
         return self._pending
 
     def _caused(self, previous: str, mode: str, now: float) -> bool:
-        if mode in self._latest:
+        if mode in self._latest or mode == COMPANION_MODES.get(self.autopilot):
             return True
         asked = self._requested.get(mode)
         if asked is not None and now - asked <= REQUEST_MEMORY_S:
@@ -235,6 +239,7 @@ class TakeoverWatch:
 
 __all__ = [
     "COMMAND_MODES",
+    "COMPANION_MODES",
     "FAILSAFE_GRACE_S",
     "FAILSAFE_WINDOW_S",
     "FOLLOW_ON",
