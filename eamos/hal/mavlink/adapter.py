@@ -96,6 +96,7 @@ from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.flight import Flight
 from eamos.hal.mavlink.frames import Vector
+from eamos.hal.mavlink.geofence import GeofenceError
 from eamos.hal.mavlink.manoeuvres import MANOEUVRES, perform_manoeuvre
 from eamos.hal.mavlink.payload import payload_context
 from eamos.hal.mavlink.publisher import TelemetryPublisher
@@ -381,7 +382,7 @@ class MavlinkAdapter:
             if run.kind == "motion":
                 self._flight.brakes.start_hold(f"mavlink-{self.drone}-hold")
             result = ActionResult("failed", str(exc))
-        except (Failed, CommandRejected) as exc:
+        except (Failed, CommandRejected, GeofenceError) as exc:
             result = ActionResult("failed", str(exc))
         except Exception as exc:  # a bug must still answer the caller
             self._log.exception("adapter.error", action=run.handle.action, error=repr(exc))

@@ -31,9 +31,10 @@ over the vehicle's link.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.mission_protocol import (
@@ -42,10 +43,12 @@ from eamos.hal.mavlink.mission_protocol import (
     MissionItem,
     MissionProtocol,
 )
-from eamos.hal.mavlink.waits import Failed
 
 if TYPE_CHECKING:
-    from eamos.hal.mavlink.vehicle import MavlinkVehicle
+    from eamos.hal.mavlink.keeper import ParamKeeper
+    from eamos.hal.mavlink.link import MavlinkLink
+    from eamos.hal.mavlink.settings import MavlinkSettings
+    from eamos.logs import EventLog
 
 MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION = 5001
 MAV_FRAME_GLOBAL = 0
@@ -131,10 +134,26 @@ def inside(point: tuple[float, float], polygon: Sequence[tuple[float, float]]) -
     return hit
 
 
+class GeofenceError(Exception):
+    """The fence cannot go on the vehicle, or a move would leave it: the action fails."""
+
+
+class FenceOwner(Protocol):
+    """What :class:`GeofenceKeeper` needs of the vehicle (a :class:`.vehicle.MavlinkVehicle`)."""
+
+    settings: MavlinkSettings
+    link: MavlinkLink
+    cond: threading.Condition
+    geo: GeoFrame | None
+    autopilot: Any  # an autopilots.Autopilot: its ``name``
+    log: EventLog
+    keeper: ParamKeeper
+
+
 class GeofenceKeeper:
     """Puts the fleet's fence on one vehicle before its first arming, and back at close."""
 
-    def __init__(self, vehicle: MavlinkVehicle) -> None:
+    def __init__(self, vehicle: FenceOwner) -> None:
         self.v = vehicle
         s = vehicle.settings
         self.wanted = s.fence and (bool(s.geofence_m) or s.max_altitude_m is not None)
@@ -146,15 +165,17 @@ class GeofenceKeeper:
         self._before: list[MissionItem] | None = None  # the vehicle's own fence
 
     def before_arming(self, abandon: Callable[[], bool]) -> None:
-        """Upload the fence and set its parameters, once; :class:`Failed` when the vehicle
-        refuses (an Arm then fails: never fly without the fence the fleet asked for)."""
+        """Upload the fence and set its parameters, once; :class:`GeofenceError` when the
+        vehicle refuses (an Arm then fails: never fly without the fence the fleet asked for)."""
         if not self.wanted or self.plan is not None:
             return
         v, s = self.v, self.v.settings
         with v.cond:
             geo, autopilot = v.geo, v.autopilot.name
         if geo is None:
-            raise Failed("cannot place the geofence: no GLOBAL_POSITION_INT from the vehicle")
+            raise GeofenceError(
+                "cannot place the geofence: no GLOBAL_POSITION_INT from the vehicle"
+            )
         plan = fence_plan(autopilot, s.geofence_m, s.max_altitude_m, s.home_m or (0.0, 0.0), geo)
         try:
             if plan.items:
@@ -162,7 +183,7 @@ class GeofenceKeeper:
                 self.protocol.upload(plan.items, MAV_MISSION_TYPE_FENCE, abandon)
         except MissionError as exc:
             v.log.error("adapter.fence.failed", error=str(exc))
-            raise Failed(
+            raise GeofenceError(
                 f"geofence upload failed: {exc} (the fleet's [safety] fence goes on every "
                 "MAVLink vehicle; hal.fence = false flies this one without it)"
             ) from exc
@@ -170,12 +191,12 @@ class GeofenceKeeper:
         for name, value in plan.params:
             if not v.keeper.set_param(name, value):
                 v.log.error("adapter.fence.failed", error=f"parameter {name} not set")
-                raise Failed(f"geofence: the vehicle did not take {name} = {value:g}")
+                raise GeofenceError(f"geofence: the vehicle did not take {name} = {value:g}")
         self.uploaded = True
         v.log.info("adapter.fence", autopilot=autopilot, **plan.to_json())
 
     def check_target(self, target: tuple[float, float, float]) -> None:
-        """:class:`Failed` when a move's ``target`` (mission frame) is outside the fleet's
+        """:class:`GeofenceError` when a move's ``target`` (mission frame) is outside the fleet's
         fence or above its ceiling: the autopilot would refuse it (ArduCopter ignores a
         GUIDED target outside its fence) or stop the vehicle at the fence."""
         s = self.v.settings
@@ -185,9 +206,11 @@ class GeofenceKeeper:
         north, east = target[0] + home[0], target[1] + home[1]
         where = f"({target[0]:.2f}, {target[1]:.2f}, {target[2]:.2f})"
         if s.max_altitude_m is not None and target[2] > s.max_altitude_m:
-            raise Failed(f"target {where} is above the fleet's ceiling {s.max_altitude_m:g} m")
+            raise GeofenceError(
+                f"target {where} is above the fleet's ceiling {s.max_altitude_m:g} m"
+            )
         if s.geofence_m and not inside((north, east), s.geofence_m):
-            raise Failed(
+            raise GeofenceError(
                 f"target {where} is outside the fleet's geofence (at {north:.2f}, {east:.2f} "
                 "in the fleet frame): the autopilot would refuse or stop it"
             )
@@ -207,4 +230,4 @@ class GeofenceKeeper:
         self.v.log.info("adapter.fence.restore", vertices=len(before))
 
 
-__all__ = ["FencePlan", "GeofenceKeeper", "fence_plan", "inside"]
+__all__ = ["FenceOwner", "FencePlan", "GeofenceError", "GeofenceKeeper", "fence_plan", "inside"]

@@ -13,21 +13,57 @@ was, and the adapter is told (``on_taken_over``: its running actions fail with
 
 from __future__ import annotations
 
+import threading
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol
 
 from eamos.hal.api import TakenOver
-from eamos.hal.mavlink.state import Events
-from eamos.hal.mavlink.takeover import ModeChange
+from eamos.hal.mavlink.frames import Vector
+from eamos.hal.mavlink.state import Events, LinkState
+from eamos.hal.mavlink.takeover import (
+    FAILSAFE_GRACE_S,
+    FAILSAFE_WINDOW_S,
+    ModeChange,
+    TakeoverWatch,
+)
 
 if TYPE_CHECKING:
-    from eamos.hal.mavlink.vehicle import MavlinkVehicle
+    from eamos.hal.mavlink.settings import MavlinkSettings
+    from eamos.logs import EventLog
+
+
+def takeover_watch(settings: MavlinkSettings) -> TakeoverWatch:
+    """A vehicle's watch, its windows in vehicle seconds (``speedup``); PX4 until the
+    HEARTBEAT names the autopilot (``set_autopilot``)."""
+    return TakeoverWatch(
+        "px4",
+        grace_s=settings.scaled(FAILSAFE_GRACE_S),
+        window_s=settings.scaled(FAILSAFE_WINDOW_S),
+        link_grace_s=settings.heartbeat_timeout_s,
+    )
+
+
+class PilotOwner(Protocol):
+    """What :class:`PilotHand` needs of the vehicle (a :class:`.vehicle.MavlinkVehicle`)."""
+
+    takeover: TakeoverWatch
+    taken_over: TakenOver | None
+    on_taken_over: Callable[[TakenOver], None] | None
+    autopilot: Any  # an autopilots.Autopilot: its ``mode_name``
+    state: LinkState
+    cond: threading.Condition
+    log: EventLog
+
+    def mission_position(self, st: LinkState | None = None) -> Vector: ...
+
+    def stop_steering(self) -> None: ...
 
 
 class PilotHand:
     """Feeds one vehicle's takeover watch and acts on its verdicts (module docstring)."""
 
-    def __init__(self, vehicle: MavlinkVehicle) -> None:
+    def __init__(self, vehicle: PilotOwner) -> None:
         self.v = vehicle
 
     def observe(self, events: Events, now: float) -> None:
@@ -108,4 +144,4 @@ class PilotHand:
         return False
 
 
-__all__ = ["PilotHand"]
+__all__ = ["PilotHand", "PilotOwner", "takeover_watch"]

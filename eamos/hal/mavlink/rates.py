@@ -21,15 +21,84 @@ acknowledgement: the ticker also streams PX4's setpoints), logs
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
+from eamos.hal.mavlink.estimator import (
+    MSG_EKF_STATUS_REPORT,
+    MSG_ESTIMATOR_STATUS,
+    estimator_message,
+)
+from eamos.hal.mavlink.state import result_name
+
 if TYPE_CHECKING:
+    from eamos.hal.mavlink.command_protocol import CommandProtocol
     from eamos.hal.mavlink.link import MavlinkLink
+    from eamos.hal.mavlink.settings import MavlinkSettings
     from eamos.logs import EventLog
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
+#: Messages requested with MAV_CMD_SET_MESSAGE_INTERVAL, and their rate in Hz
+#: (None: ``telemetry_hz``).
+MSG_LOCAL_POSITION_NED = 32
+MSG_GLOBAL_POSITION_INT = 33
+MSG_SYS_STATUS = 1
+MSG_EXTENDED_SYS_STATE = 245
+MSG_BATTERY_STATUS = 147
+MSG_HOME_POSITION = 242
+MSG_ATTITUDE = 30
+#: The messages the adapter flies by, at ``telemetry_hz``: re-requested when a second
+#: ground station lowers their rate (:class:`RateKeeper`).
+RATE_WATCHED = {
+    "LOCAL_POSITION_NED": MSG_LOCAL_POSITION_NED,
+    "GLOBAL_POSITION_INT": MSG_GLOBAL_POSITION_INT,
+    "ATTITUDE": MSG_ATTITUDE,
+}
+TELEMETRY_INTERVALS: dict[int, float | None] = {
+    MSG_LOCAL_POSITION_NED: None,
+    MSG_GLOBAL_POSITION_INT: None,
+    MSG_EXTENDED_SYS_STATE: None,
+    MSG_ATTITUDE: None,  # the heading (Yaw, Orbit)
+    MSG_SYS_STATUS: 2.0,
+    MSG_BATTERY_STATUS: 1.0,
+    MSG_HOME_POSITION: 0.5,
+    MSG_ESTIMATOR_STATUS: 2.0,  # PX4 only
+    MSG_EKF_STATUS_REPORT: 2.0,  # ArduPilot only
+}
+
+
+def watched(telemetry_hz: float) -> dict[str, tuple[int, float]]:
+    """:data:`RATE_WATCHED` with the rate each is asked for (``telemetry_hz``)."""
+    return {name: (msg_id, telemetry_hz) for name, msg_id in RATE_WATCHED.items()}
+
+
+def request_intervals(
+    commands: CommandProtocol,
+    autopilot: str,
+    settings: MavlinkSettings,
+    log: EventLog,
+    deadline: float,
+) -> None:
+    """Ask for the telemetry the adapter reads (best effort; each answer is logged)."""
+    s = settings
+    for msg_id, hz in TELEMETRY_INTERVALS.items():
+        if time.monotonic() >= deadline:
+            break
+        if msg_id in (MSG_ESTIMATOR_STATUS, MSG_EKF_STATUS_REPORT) and msg_id != (
+            estimator_message(autopilot)
+        ):
+            continue  # the other autopilot's estimator report
+        rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
+        result = commands.request(
+            MAV_CMD_SET_MESSAGE_INTERVAL,
+            (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
+            timeout_s=s.command_timeout_s,
+            retries=1,
+        )
+        log.info("adapter.interval", message=msg_id, hz=rate, result=result_name(result))
+
 
 #: The window over which rates are measured (vehicle seconds).
 RATE_WINDOW_S = 2.0
@@ -102,7 +171,7 @@ class RateWatch:
 class RateKeeper:
     """Runs a :class:`RateWatch` on a link's ticker (see the module docstring).
 
-    ``tell(text)`` reaches the operator (once per message that stays slow);
+    ``tell("warning", text)`` reaches the operator (once per message that stays slow);
     ``blocked()`` is true once the adapter may no longer command the vehicle (a
     pilot took it): no request is sent then.
     """
@@ -111,7 +180,7 @@ class RateKeeper:
         self,
         link: MavlinkLink,
         log: EventLog,
-        tell: Callable[[str], None],
+        tell: Callable[[Literal["taken_over", "warning"], str], None],
         blocked: Callable[[], bool],
     ) -> None:
         self.link = link
@@ -180,14 +249,18 @@ class RateKeeper:
             hz=finding.wanted_hz,
             note=text,
         )
-        self.tell(text)
+        self.tell("warning", text)
 
 
 __all__ = [
     "LOW_FRACTION",
+    "RATE_WATCHED",
     "RATE_WINDOW_S",
     "REPORT_AFTER",
+    "TELEMETRY_INTERVALS",
     "RateFinding",
     "RateKeeper",
     "RateWatch",
+    "request_intervals",
+    "watched",
 ]

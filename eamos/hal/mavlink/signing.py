@@ -46,9 +46,16 @@ import binascii
 import os
 import stat
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
+
+from eamos.hal.api import AdapterError
+
+if TYPE_CHECKING:
+    from eamos.hal.mavlink.state import LinkState
+    from eamos.logs import EventLog
 
 #: RADIO_STATUS: the only message accepted unsigned.
 MSG_RADIO_STATUS = 109
@@ -61,6 +68,7 @@ KEY_BYTES = 32
 MSG_HEARTBEAT = 0
 _MAV_TYPE_GCS = 6
 _MAV_AUTOPILOT_INVALID = 8
+_MAV_AUTOPILOT_PX4 = 12
 #: MAVLink 2's "signed" incompatibility flag.
 _MAVLINK_IFLAG_SIGNED = 0x01
 
@@ -175,6 +183,68 @@ def create_signing_key(out: Path, force: bool = False) -> Path:
     return path
 
 
+#: Refused (unsigned or wrongly signed) vehicle HEARTBEATs that end the wait to connect.
+REFUSED_HEARTBEATS = 2
+#: What a PX4 vehicle's refusal adds: PX4 main has no MAVLink signing.
+NO_SIGNING_HINT = (
+    " (PX4 has no MAVLink signing: it ignores SETUP_SIGNING; give this drone "
+    'hal.signing = "off" to fly it unsigned)'
+)
+
+
+def refused_reason(st: LinkState, connection: str) -> str:
+    """Why a vehicle whose HEARTBEATs were all refused for their signature is refused."""
+    hint = NO_SIGNING_HINT if st.refused_autopilot == _MAV_AUTOPILOT_PX4 else ""
+    if st.refused_signed:
+        return (
+            f"the vehicle on {connection} signs its messages with another key than "
+            f"hal.signing_key (or a timestamp more than a minute old){hint}"
+        )
+    return (
+        f"signing required, the vehicle sends unsigned messages (on {connection}; "
+        f"hal.signing_key is set{'' if hint else ': provision it with hal.signing_setup = true'})"
+        f"{hint}"
+    )
+
+
+class SigningLink(Protocol):
+    """What :func:`await_signing` needs of the link (a :class:`.link.MavlinkLink`)."""
+
+    cond: Any
+    state: LinkState
+
+    @property
+    def signing(self) -> bool: ...
+
+    def provisioning(self) -> bool: ...
+
+    def wait_for(self, predicate: Callable[[], bool], deadline: float) -> bool: ...
+
+    def close(self) -> None: ...
+
+
+def await_signing(
+    link: SigningLink, timeout_s: float, speedup: float, drone: str, log: EventLog
+) -> None:
+    """Provisioning (``hal.signing_setup``): the vehicle signs within ``timeout_s`` of its
+    own seconds (``speedup`` times faster than the wall clock), or it is refused:
+    :class:`~eamos.hal.api.AdapterError` (the link closed); never flown unsigned."""
+    if not link.provisioning():
+        log.info("adapter.signing", signed=link.signing, setup=False)
+        return
+    deadline = time.monotonic() + timeout_s / speedup
+    if not link.wait_for(lambda: not link.provisioning(), deadline):
+        with link.cond:
+            autopilot = link.state.autopilot
+        link.close()
+        hint = NO_SIGNING_HINT if autopilot == _MAV_AUTOPILOT_PX4 else ""
+        raise AdapterError(
+            f"{drone}: signing setup failed: the vehicle still sends unsigned "
+            f"messages {timeout_s:g} s after SETUP_SIGNING{hint}"
+        )
+    log.info("adapter.signing", signed=True, setup=True)
+
+
 class LinkSigning:
     """The signing rules on one link: sign what goes out, refuse what comes in unsigned,
     keep the outgoing timestamp up with the clock, provision a vehicle without the key.
@@ -218,15 +288,20 @@ class LinkSigning:
 __all__ = [
     "MSG_HEARTBEAT",
     "MSG_RADIO_STATUS",
+    "NO_SIGNING_HINT",
+    "REFUSED_HEARTBEATS",
     "SIGNING_KEY_FILE",
     "LinkSigning",
     "RefusedFrame",
     "SigningKeyError",
+    "SigningLink",
+    "await_signing",
     "create_signing_key",
     "parse_key",
     "radio_status_only",
     "read_key",
     "refresh_timestamp",
     "refused_frame",
+    "refused_reason",
     "signing_timestamp",
 ]

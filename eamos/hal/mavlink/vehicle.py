@@ -24,33 +24,27 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from eamos.hal.api import POSITION_LOG_HZ, AdapterError, AdapterNotice, TakenOver, Telemetry
 from eamos.hal.kinematics import GeoFrame
-from eamos.hal.mavlink.autopilots import (
-    MAV_AUTOPILOT_PX4,
-    Autopilot,
-    autopilot_from_heartbeat,
-    autopilot_named,
-)
+from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
 from eamos.hal.mavlink.command_protocol import CommandProtocol
-from eamos.hal.mavlink.estimator import (
-    MSG_EKF_STATUS_REPORT,
-    MSG_ESTIMATOR_STATUS,
-    estimator_message,
-)
 from eamos.hal.mavlink.frames import NedOrigin, Vector, ned_to_mission
 from eamos.hal.mavlink.geofence import GeofenceKeeper
-from eamos.hal.mavlink.home import capture_home, check_home
+from eamos.hal.mavlink.home import VehicleHomeCheck, capture_home
 from eamos.hal.mavlink.keeper import ParamKeeper
 from eamos.hal.mavlink.link import (
     MAV_SYS_STATUS_PREARM_CHECK,
     LinkError,
     LinkState,
     MavlinkLink,
-    result_name,
 )
-from eamos.hal.mavlink.pilot import PilotHand
-from eamos.hal.mavlink.rates import RateKeeper
-from eamos.hal.mavlink.signing import SigningKeyError, read_key
-from eamos.hal.mavlink.takeover import FAILSAFE_GRACE_S, FAILSAFE_WINDOW_S, TakeoverWatch
+from eamos.hal.mavlink.pilot import PilotHand, takeover_watch
+from eamos.hal.mavlink.rates import RateKeeper, request_intervals, watched
+from eamos.hal.mavlink.signing import (
+    REFUSED_HEARTBEATS,
+    SigningKeyError,
+    await_signing,
+    read_key,
+    refused_reason,
+)
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
     TYPE_MASK_VELOCITY,
@@ -67,33 +61,6 @@ if TYPE_CHECKING:
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_LANDED_STATE_ON_GROUND = 1
-#: Messages requested with MAV_CMD_SET_MESSAGE_INTERVAL, and their rate in Hz
-#: (None: ``telemetry_hz``).
-MSG_LOCAL_POSITION_NED = 32
-MSG_GLOBAL_POSITION_INT = 33
-MSG_SYS_STATUS = 1
-MSG_EXTENDED_SYS_STATE = 245
-MSG_BATTERY_STATUS = 147
-MSG_HOME_POSITION = 242
-MSG_ATTITUDE = 30
-#: The messages the adapter flies by, at ``telemetry_hz``: re-requested when a second
-#: ground station lowers their rate (rates.py).
-RATE_WATCHED = {
-    "LOCAL_POSITION_NED": MSG_LOCAL_POSITION_NED,
-    "GLOBAL_POSITION_INT": MSG_GLOBAL_POSITION_INT,
-    "ATTITUDE": MSG_ATTITUDE,
-}
-TELEMETRY_INTERVALS: dict[int, float | None] = {
-    MSG_LOCAL_POSITION_NED: None,
-    MSG_GLOBAL_POSITION_INT: None,
-    MSG_EXTENDED_SYS_STATE: None,
-    MSG_ATTITUDE: None,  # the heading (Yaw, Orbit)
-    MSG_SYS_STATUS: 2.0,
-    MSG_BATTERY_STATUS: 1.0,
-    MSG_HOME_POSITION: 0.5,
-    MSG_ESTIMATOR_STATUS: 2.0,  # PX4 only
-    MSG_EKF_STATUS_REPORT: 2.0,  # ArduPilot only
-}
 #: Below this height (m above the take-off ground) a vehicle without
 #: EXTENDED_SYS_STATE counts as on the ground.
 GROUND_Z_M = 0.1
@@ -119,27 +86,16 @@ def _signing_key(settings: MavlinkSettings) -> bytes | None:
         raise field_error("hal.signing_key", str(exc)) from None
 
 
-#: Refused (unsigned or wrongly signed) vehicle HEARTBEATs that end the wait to connect.
-REFUSED_HEARTBEATS = 2
-#: What a PX4 vehicle's refusal adds: PX4 main has no MAVLink signing.
-NO_SIGNING_HINT = (
-    " (PX4 has no MAVLink signing: it ignores SETUP_SIGNING; give this drone "
-    'hal.signing = "off" to fly it unsigned)'
-)
-
-
-def refused_reason(st: LinkState, connection: str) -> str:
-    """Why a vehicle whose HEARTBEATs were all refused for their signature is refused."""
-    hint = NO_SIGNING_HINT if st.refused_autopilot == MAV_AUTOPILOT_PX4 else ""
-    if st.refused_signed:
-        return (
-            f"the vehicle on {connection} signs its messages with another key than "
-            f"hal.signing_key (or a timestamp more than a minute old){hint}"
-        )
+def heartbeat_lost(st: LinkState, settings: MavlinkSettings) -> str:
+    """Why an action ends when HEARTBEATs stop: the last STATUSTEXT, or that the vehicle's
+    messages come unsigned (or signed with another key) since the last good HEARTBEAT."""
+    text = st.last_statustext
+    why = f" (last STATUSTEXT: {text})" if text else ""
+    if st.refused_at > st.last_heartbeat:
+        why = f" ({refused_reason(st, settings.connection)})"
     return (
-        f"signing required, the vehicle sends unsigned messages (on {connection}; "
-        f"hal.signing_key is set{'' if hint else ': provision it with hal.signing_setup = true'})"
-        f"{hint}"
+        f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
+        f"{settings.heartbeat_timeout_s:g} s{why}"
     )
 
 
@@ -186,30 +142,18 @@ class MavlinkVehicle:
         self.keeper = ParamKeeper(self.link, settings, log, lambda: self.taken_over is not None)
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
-        #: Whose every mode change is (takeover.py); a pilot's ends our commanding for good.
-        self.takeover = TakeoverWatch(
-            "px4",
-            grace_s=settings.scaled(FAILSAFE_GRACE_S),
-            window_s=settings.scaled(FAILSAFE_WINDOW_S),
-            link_grace_s=settings.heartbeat_timeout_s,
-        )
-        #: Set once a pilot took the vehicle: nothing is sent to it any more but heartbeats.
+        # Whose every mode change is (pilot.py): once a pilot's, nothing but heartbeats is
+        # sent any more (taken_over set; on_taken_over told, outside the condition).
+        self.takeover = takeover_watch(settings)
         self.taken_over: TakenOver | None = None
-        #: Told (on the link's threads, outside the condition) when a pilot took it.
         self.on_taken_over: Callable[[TakenOver], None] | None = None
         self.pilot = PilotHand(self)
         self.link.observe = self.pilot.observe
-        #: What the operator must hear (taken over, slow telemetry), drained by notices().
-        self.notices: list[AdapterNotice] = []
+        self.notices: list[AdapterNotice] = []  # for the operator, drained by notices()
         self.geofence = GeofenceKeeper(self)
-        self.rates = RateKeeper(
-            self.link,
-            log,
-            tell=lambda text: self.notify("warning", text),
-            blocked=lambda: self.taken_over is not None,
-        )
+        self.rates = RateKeeper(self.link, log, self.notify, lambda: self.taken_over is not None)
+        self.home_check = VehicleHomeCheck(self.link, settings, log, self.notify)
         self._was_armed = False
-        self._home_checked = False
         self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
@@ -229,7 +173,7 @@ class MavlinkVehicle:
         self.link.every(POSITION_LOG_S, self._position_log_tick, "position-log")
         self.link.every(TAKEOVER_TICK_S, self.pilot.tick, "takeover")
         self.link.every(RATE_TICK_S, self.rates.tick, "rates")
-        self.link.every(1.0, self._home_tick, "home")
+        self.link.every(1.0, self.home_check.tick, "home")
         for period, job, name in extra_jobs:
             self.link.every(period, job, name)
         try:
@@ -253,7 +197,7 @@ class MavlinkVehicle:
         if st.heartbeats == 0:
             self.link.close()
             raise AdapterError(f"{self.drone}: {refused_reason(st, s.connection)}")
-        self._await_signing()
+        await_signing(self.link, s.signing_timeout_s, s.speedup, self.drone, self.log)
         with self.cond:
             detected, sysid = self.state.autopilot or 0, self.state.system_id
         try:
@@ -274,47 +218,9 @@ class MavlinkVehicle:
         self.log.info(
             "adapter.connected", system_id=sysid, autopilot=found.name, mode=self.mode_name()
         )
-        self._request_intervals(deadline)
+        request_intervals(self.commands, self.autopilot.name, s, self.log, deadline)
+        self.rates.start(watched(s.telemetry_hz))
         self.apply_speeds()
-
-    def _await_signing(self) -> None:
-        """Provisioning (``hal.signing_setup``): the vehicle signs within
-        ``signing_timeout_s``, or the adapter refuses it (never flies unsigned)."""
-        s = self.settings
-        if not self.link.provisioning():
-            self.log.info("adapter.signing", signed=self.link.signing, setup=False)
-            return
-        limit = s.scaled(s.signing_timeout_s)
-        if not self.link.wait_for(lambda: not self.link.provisioning(), time.monotonic() + limit):
-            with self.cond:
-                autopilot = self.state.autopilot
-            self.link.close()
-            hint = NO_SIGNING_HINT if autopilot == MAV_AUTOPILOT_PX4 else ""
-            raise AdapterError(
-                f"{self.drone}: signing setup failed: the vehicle still sends unsigned "
-                f"messages {s.signing_timeout_s:g} s after SETUP_SIGNING{hint}"
-            )
-        self.log.info("adapter.signing", signed=True, setup=True)
-
-    def _request_intervals(self, deadline: float) -> None:
-        """Ask for the telemetry the adapter reads (best effort; each answer is logged)."""
-        s = self.settings
-        for msg_id, hz in TELEMETRY_INTERVALS.items():
-            if time.monotonic() >= deadline:
-                break
-            if msg_id in (MSG_ESTIMATOR_STATUS, MSG_EKF_STATUS_REPORT) and msg_id != (
-                estimator_message(self.autopilot.name)
-            ):
-                continue  # the other autopilot's estimator report
-            rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
-            result = self.commands.request(
-                MAV_CMD_SET_MESSAGE_INTERVAL,
-                (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
-                timeout_s=s.command_timeout_s,
-                retries=1,
-            )
-            self.log.info("adapter.interval", message=msg_id, hz=rate, result=result_name(result))
-        self.rates.start({name: (msg_id, s.telemetry_hz) for name, msg_id in RATE_WATCHED.items()})
 
     def notify(self, kind: Literal["taken_over", "warning"], text: str) -> None:
         """Queue something for the operator (AdapterNotice; any thread)."""
@@ -455,16 +361,8 @@ class MavlinkVehicle:
         )
 
     def lost_reason(self) -> str:
-        """Why an action ends when HEARTBEATs stop."""
-        st = self.state
-        text = st.last_statustext
-        why = f" (last STATUSTEXT: {text})" if text else ""
-        if st.refused_at > st.last_heartbeat:
-            why = f" ({refused_reason(st, self.settings.connection)})"
-        return (
-            f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
-            f"{self.settings.heartbeat_timeout_s:g} s{why}"
-        )
+        """Why an action ends when HEARTBEATs stop (:func:`heartbeat_lost`)."""
+        return heartbeat_lost(self.state, self.settings)
 
     # -- steering (link ticker thread) -------------------------------------------------
 
@@ -524,25 +422,6 @@ class MavlinkVehicle:
 
     def _position_log_tick(self) -> None:
         _log_position(self)
-
-    def _home_tick(self) -> None:
-        """The vehicle's HOME_POSITION, once: logged, and compared with the fleet's home_lla."""
-        with self.cond:
-            home, checked = self.state.home, self._home_checked
-            self._home_checked = checked or home is not None
-        if home is None or checked:
-            return
-        note = check_home(home, self.settings.home_lla)
-        self.log.info(
-            "adapter.home.vehicle",
-            lat_deg=round(home[0], 7),
-            lon_deg=round(home[1], 7),
-            alt_m=round(home[2], 2),
-            home_m=None if self.settings.home_m is None else list(self.settings.home_m),
-        )
-        if note:
-            self.log.warning("adapter.home.mismatch", note=note)
-            self.notify("warning", note)
 
     def _on_link_event(self, name: str, event: dict[str, Any]) -> None:
         """Copy what the link saw into the adapter log (reader/ticker threads)."""
