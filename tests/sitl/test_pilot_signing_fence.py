@@ -214,6 +214,19 @@ def events(path: Path, name: str | None = None) -> list[dict[str, Any]]:
     return [e for e in lines if name is None or e["event"] == name]
 
 
+def dial(connection: str, sysid: int = 250) -> RawClient:
+    """A plain pymavlink client, once the vehicle listens (a SITL opens its ports a moment
+    after it starts; ArduCopter its SERIAL1/2 only once SERIAL0 has a client)."""
+    deadline = time.monotonic() + WAIT_S
+    while True:
+        try:
+            return RawClient(connection, sysid)
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            threading.Event().wait(0.5)
+
+
 class Pilot(RawClient):
     """A second ground station (sysid 255, ArduCopter's SYSID_MYGCS): heartbeats, and once
     it takes the vehicle (:meth:`take`) the sticks centred by RC override, as a pilot with
@@ -384,7 +397,7 @@ def test_ardupilot_signed_flight_on_an_enforced_channel(sitl, adapters, tmp_path
     vehicle = sitl("arducopter", AP)
     serial0, serial1, serial2 = vehicle.serial
     path = key(tmp_path)
-    clock = RawClient(serial0)  # ArduCopter's clock waits for a client on SERIAL0
+    clock = dial(serial0)  # ArduCopter's clock waits for a client on SERIAL0
     try:
         refused = adapters(serial1, drone="D0", signing_key=str(path))
         t0 = time.monotonic()
@@ -398,7 +411,7 @@ def test_ardupilot_signed_flight_on_an_enforced_channel(sitl, adapters, tmp_path
         ok(adapter, "Takeoff", 1.5)
         ok(adapter, "FlyByX", 2.0)
         # A plain pymavlink client without the key: ignored on SERIAL2 ...
-        intruder = RawClient(serial2)
+        intruder = dial(serial2)
         try:
             intruder.mav.command_long_send(AP + 1, 1, DO_SET_MODE, 0, 1, LOITER, 0, 0, 0, 0, 0)
             with pytest.raises(AssertionError, match="no COMMAND_ACK"):
@@ -619,7 +632,7 @@ def test_the_fleet_fence_is_on_the_vehicle_stops_a_rogue_move_and_goes_away(
     restored = {e["name"] for e in events(log, "adapter.param.restore")}
     wanted = {"FENCE_ENABLE", "FENCE_TYPE"} if autopilot == "arducopter" else {"GF_ACTION"}
     assert wanted <= restored, restored
-    check = RawClient(conn) if autopilot == "arducopter" else RawClient(conn, sysid=246)
+    check = dial(conn, sysid=246)
     try:
         check.heartbeat()
         system = (AP if autopilot == "arducopter" else PX4) + 1
