@@ -165,11 +165,12 @@ class TakeoverWatch:
         """A STATUSTEXT arrived; a pending change it explains is a failsafe (returned)."""
         if not announces_failsafe(text):
             return None
-        self._failsafe_text, self._failsafe_at = text, now
+        # PX4 ends its texts with a tab (the rest belongs to its events protocol).
+        self._failsafe_text, self._failsafe_at = text.strip(), now
         pending, self._pending = self._pending, None
         if pending is None:
             return None
-        change = ModeChange("failsafe", pending.mode, pending.previous, text)
+        change = ModeChange("failsafe", pending.mode, pending.previous, text.strip())
         self.failsafe = change
         return change
 
