@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import pykka
 import zmq
 
-from ..hal.api import Adapter, AdapterError
+from ..hal.api import Adapter, AdapterError, AdapterNotice, taken_over, vehicle_facts
 from ..logs import DroneLogs, EventLog, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
@@ -46,7 +46,7 @@ from .dispatch import Dispatcher
 from .errors import DroneRuntimeError
 from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
 from .executive import DroneExecutive as DroneExecutive
-from .failure import FailurePolicy, RuntimeFailure
+from .failure import FailurePolicy, RuntimeFailure, tell_operator
 from .inbound import InRouter
 from .logic.telemetry import stale_values as stale_values
 from .logic.telemetry import telemetry_values as telemetry_values
@@ -175,6 +175,7 @@ class DroneRuntime:
         self.services = build.services()
         self.board = board = build.start_board(self.services, outbox)
         self.uniform = space = build.uniform_space()
+        space.on_notice = self._notice  # a pilot's takeover, slow telemetry: to the ground
         self.hal, self.adapter_error = build.start_uniform_api(space, board)
         if self.adapter_error is not None:  # an unusable adapter stops the start
             raise DroneRuntimeError(f"{self.drone}: {self.adapter_error}")
@@ -227,6 +228,13 @@ class DroneRuntime:
             except pykka.ActorDeadError:
                 continue
 
+    def _notice(self, notice: AdapterNotice) -> None:
+        """What the adapter has for the operator (a pilot took the vehicle, telemetry
+        too slow): the mission log, this node's stderr and the ground station's display."""
+        self.log.warning("mission.adapter_notice", kind=notice.kind, text=notice.text)
+        tell_operator(self.drone, notice.text)
+        self._to_ground(notice_progress(self.program, notice))
+
     def _fail_safe(self, failure: RuntimeFailure) -> None:
         """The failure policy's reaction to the first exception in a part of this runtime.
 
@@ -257,9 +265,15 @@ class DroneRuntime:
         self._to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
     def wait_landed(self, timeout_s: float) -> bool:
-        """Wait (on telemetry, not polling) until the vehicle reports it is on the ground."""
+        """Wait (on telemetry, not polling) until the vehicle reports it is on the ground.
+
+        False at once for a vehicle a pilot took over: nobody here lands it.
+        """
         if self.board is None:
             return True
+        if taken_over(self.adapter) is not None:
+            self.log.warning("mission.abort.taken_over", note="the pilot has it: not landed")
+            return False
         event = threading.Event()
         self.board.tell(WhenLanded(event))
         return event.wait(timeout_s)
@@ -298,6 +312,7 @@ class DroneRuntime:
             aborted=self.aborted.is_set(),
             abort_reason=self.abort_reason,
             adapter_error=str(self.adapter_error) if self.adapter_error else "",
+            vehicle=vehicle_facts(self.adapter),
         )
 
     def report(self) -> dict[str, Any]:
@@ -335,6 +350,23 @@ def land_now(hal: pykka.ActorRef[UniformAPI] | None, adapter: Adapter, log: Even
         adapter.abort()
     except Exception as exc:  # nothing else can land it: say so loudly
         log.error("mission.abort.adapter_error", error=repr(exc))
+
+
+#: The action column of an adapter notice's progress line, by kind.
+NOTICE_ACTIONS = {"taken_over": "the pilot has the vehicle", "warning": "adapter warning"}
+
+
+def notice_progress(program: DroneProgram, notice: AdapterNotice) -> wire.Progress:
+    """The progress line the ground station shows for an adapter's notice
+    (state ``taken_over`` or ``warning``; the words in ``detail``)."""
+    return wire.Progress(
+        mission=program.mission_id,
+        sender=program.drone,
+        state=notice.kind,
+        node="",
+        action=NOTICE_ACTIONS.get(notice.kind, notice.kind),
+        detail={"detail": notice.text, "at": time.time()},
+    )
 
 
 def stranded_progress(program: DroneProgram, reason: str, policy: str) -> wire.Progress:

@@ -45,7 +45,7 @@ from .display import Display, make_display
 from .flight import Limits, fly, ground_runtime, hurried
 from .station import GroundStation
 from .summary import RunSummary, summarize
-from .vehicles import start_sim_vehicles
+from .vehicles import fleet_lla_homes, mavlink_fleet_settings, start_sim_vehicles
 
 #: The command line of one drone's node (``eamos-node`` in this Python).
 NODE_MODULE = "eamos.cli.node"
@@ -473,10 +473,18 @@ def _fly_local(
     # encrypted and only this run's participants can connect (docs/network.md).
     keys_dir = create_fleet_keys(fresh_keys_folder(run_dir), names)
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
-    vehicles = start_sim_vehicles({n: fleet.hal_for(n) for n in drones}, run_dir / "logs", speedup)
+    # Every drone stands at its home in the fleet frame, as the check saw it: simulated
+    # drones and simulated MAVLink vehicles are placed there; a MAVLink drone's node is
+    # told where, and the fleet's fence (vehicles.py).
+    order = fleet_order(mission.programs)
+    homes = fleet.homes(order)
+    vehicles = start_sim_vehicles(
+        {n: fleet.hal_for(n) for n in drones},
+        run_dir / "logs",
+        speedup,
+        homes=fleet_lla_homes(fleet, order),
+    )
     hals: dict[str, dict[str, Any]] = {}
-    # Simulated drones stand at their homes in the fleet frame, as the check saw them.
-    homes = fleet.homes(fleet_order(mission.programs))
     try:
         for name in drones:
             hal = vehicles.hal_for(name)
@@ -484,6 +492,8 @@ def _fly_local(
                 hal["home_m"] = list(homes[name])
                 if speedup is not None:
                     hal["speedup"] = speedup
+            elif hal.get("adapter") == "mavlink":
+                hal = {**mavlink_fleet_settings(fleet, name, order), **hal}
             check_hal_settings(name, hal, fleet.path)
             hals[name] = hal
     except ConfigError:

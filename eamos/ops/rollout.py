@@ -51,9 +51,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..compiler import CompiledMission, compile_file, write_artifacts
-from ..config import FleetConfig
+from ..config import FleetConfig, fleet_order
 from ..ground import check_hal_settings
 from ..ground.local import new_run_dir, telemetry_links, use_run_dir
+from ..ground.vehicles import mavlink_fleet_settings
 from ..program.uniform import GROUND_STATION
 from .identity import execution_digest, fleet_mission_id, folder_digest, restamp
 from .plan import (
@@ -142,6 +143,8 @@ def _plans(
         hal = dict(targets.hal[name])
         if opts.speedup is not None and hal.get("adapter", "sim") == "sim":
             hal["speedup"] = opts.speedup
+        if hal.get("adapter") == "mavlink":  # its fleet home and the [safety] fence, as eamos run
+            hal = {**mavlink_fleet_settings(fleet, name, fleet_order(compiled.programs)), **hal}
         check_hal_settings(name, hal, fleet.path)
         program = compiled.programs[name]
         config = drone_config(

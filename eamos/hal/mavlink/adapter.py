@@ -87,13 +87,16 @@ from eamos.hal.api import (
     ActionHandle,
     ActionResult,
     AdapterError,
+    AdapterNotice,
     DoneCallback,
+    TakenOver,
     TelemetryCallback,
 )
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.flight import Flight
 from eamos.hal.mavlink.frames import Vector
+from eamos.hal.mavlink.geofence import GeofenceError
 from eamos.hal.mavlink.manoeuvres import MANOEUVRES, perform_manoeuvre
 from eamos.hal.mavlink.payload import payload_context
 from eamos.hal.mavlink.publisher import TelemetryPublisher
@@ -134,6 +137,7 @@ class MavlinkAdapter:
         self._closed = False
         self._aborting = False
         self._abort_thread: threading.Thread | None = None
+        self.vehicle.on_taken_over = self._on_taken_over
 
     # -- Adapter protocol ----------------------------------------------------
 
@@ -159,6 +163,8 @@ class MavlinkAdapter:
             system_id=s.system_id,
             source_system=s.source_system,
             source_component=s.source_component,
+            # Where the fleet places its home (the check, monitor, report and replay too).
+            home_m=None if s.home_m is None else list(s.home_m),
         )
         self.vehicle.connect(
             extra_jobs=((1.0 / s.telemetry_hz, self._telemetry.publish, "telemetry"),)
@@ -175,16 +181,18 @@ class MavlinkAdapter:
         elif isinstance(command, Disarm):
             kind = "disarm"
         run = Run(handle, done, kind, time.monotonic(), command)
-        missing: str | None = None  # a plugin action without a "mavlink" implementation
+        refused: str | None = None  # a plugin action without a "mavlink" implementation
         if isinstance(command, PluginAction):
             try:
                 self.plugins.implementation(command.name, self.family)
             except PluginError as exc:
-                missing = str(exc)
+                refused = str(exc)
         with self._cond:
             if self._closed:
                 raise AdapterError(f"{self.drone}: adapter closed")
-            immediate = self._actions.admit(run, self._started, self._aborting, missing)
+            if self.vehicle.taken_over is not None:
+                refused = self.vehicle.taken_over.reason()  # never command it again
+            immediate = self._actions.admit(run, self._started, self._aborting, refused)
         if immediate is not None:
             self._actions.finish(run, immediate)
             return handle
@@ -206,6 +214,7 @@ class MavlinkAdapter:
         if (
             self._actions.finish(run, ActionResult("cancelled", "cancelled"))
             and run.kind == "motion"
+            and self.taken_over is None  # the pilot's vehicle is not braked by us
         ):
             self._flight.brakes.start_hold(f"mavlink-{self.drone}-hold")
 
@@ -214,11 +223,16 @@ class MavlinkAdapter:
         with self._cond:
             if self._closed or not self._started:
                 return
-            self._aborting = True
+            taken = self.vehicle.taken_over
+            self._aborting = taken is None
             runs = self._actions.all_running()
         self._log.info("adapter.abort", running=len(runs))
         for run in runs:
             self._actions.finish(run, ActionResult("cancelled", "aborted"))
+        if taken is not None:
+            # A pilot has it: no landing, no disarm (adapter.taken_over said so).
+            self._log.warning("adapter.abort.skipped", reason=taken.reason())
+            return
         thread = threading.Thread(
             target=self._abort, name=f"mavlink-{self.drone}-abort", daemon=True
         )
@@ -247,13 +261,79 @@ class MavlinkAdapter:
         if started:
             if abort is not None:
                 abort.join(self.settings.scaled(self.settings.action_timeout_s))
-            self._flight.landing.land_at_close()
             with self._cond:
                 link_ok = self.vehicle.state.link_ok
-            if link_ok:
-                self.vehicle.restore_params()
+                taken = self.vehicle.taken_over
+            if taken is not None:
+                self._leave_to_pilot(taken)
+            else:
+                self._flight.landing.land_at_close()
+                if link_ok:
+                    self.vehicle.restore_params()
         self.vehicle.close()
         self._log.info("adapter.close")
+
+    # -- a pilot's takeover (takeover.py) ---------------------------------------
+
+    @property
+    def taken_over(self) -> TakenOver | None:
+        """The pilot's takeover, once seen (the Adapter protocol's optional part)."""
+        with self._cond:
+            return self.vehicle.taken_over
+
+    def _on_taken_over(self, taken: TakenOver) -> None:
+        """A pilot took the vehicle (link thread): every running action fails with it,
+        and the operator hears it at once."""
+        left = self._params_left()
+        kept = f"; parameters left as EAMOS set them: {left}" if left else ""
+        self.vehicle.notify(
+            "taken_over",
+            f"{taken.describe()}: EAMOS no longer commands it (no land, no disarm, "
+            f"no mode change){kept}",
+        )
+        with self._cond:
+            runs = self._actions.all_running()
+        for run in runs:
+            self._actions.finish(run, ActionResult("failed", taken.reason()))
+        self._telemetry.publish()
+
+    def _params_left(self) -> str:
+        """The parameters the adapter changed, as they stay on a vehicle a pilot has."""
+        return ", ".join(
+            f"{c.name} = {c.after:g} (was {c.before:g})" for c in self.vehicle.keeper.changes
+        )
+
+    def _leave_to_pilot(self, taken: TakenOver) -> None:
+        """At close, a vehicle a pilot has: not landed, not disarmed, nothing restored;
+        the log says which parameters stay as the adapter set them."""
+        self._log.warning(
+            "adapter.close.taken_over",
+            mode=taken.mode,
+            params_left=self._params_left(),
+            note="left to the pilot: not landed, not disarmed, parameters not restored",
+        )
+
+    def notices(self) -> list[AdapterNotice]:
+        """What the operator must hear, each once (the Adapter protocol's optional part)."""
+        with self._cond:
+            out, self.vehicle.notices = self.vehicle.notices, []
+        return out
+
+    def facts(self) -> dict[str, Any]:
+        """What the run's summary records about this vehicle (the Adapter protocol's
+        optional part): the autopilot, whether the link was signed, whether the fleet's
+        geofence went on the vehicle (None: the fleet has none), a takeover."""
+        with self._cond:
+            taken = self.vehicle.taken_over
+            fence = self.vehicle.geofence
+            out: dict[str, Any] = {
+                "autopilot": self.vehicle.autopilot.name if self._started else None,
+                "signed": self.vehicle.link.signed,
+                "fence": fence.uploaded if fence.wanted else None,
+            }
+        if taken is not None:
+            out["taken_over"] = taken.to_json()
+        return out
 
     # -- observation (tests, tools) ------------------------------------------
 
@@ -302,7 +382,7 @@ class MavlinkAdapter:
             if run.kind == "motion":
                 self._flight.brakes.start_hold(f"mavlink-{self.drone}-hold")
             result = ActionResult("failed", str(exc))
-        except (Failed, CommandRejected) as exc:
+        except (Failed, CommandRejected, GeofenceError) as exc:
             result = ActionResult("failed", str(exc))
         except Exception as exc:  # a bug must still answer the caller
             self._log.exception("adapter.error", action=run.handle.action, error=repr(exc))

@@ -153,6 +153,7 @@ class Arming:
         with v.cond:
             v.capture_origin(ground=True)
             here = v.here_ned()
+        v.geofence.before_arming(lambda: run.finished)  # the fleet's fence, once (geofence.py)
         v.autopilot.prepare_arm(ctl, here)
         while True:
             try:

@@ -57,9 +57,12 @@ class RunControl:
 
     def command(self, command: int, params: tuple[float, ...], frame: int | None = None) -> None:
         v, run, s = self.v, self.run, self.v.settings
+        # A mode change nobody explained yet may be a pilot's: know before commanding.
+        self.waiter.settle_mode(run)
         with v.cmd_lock:
             with v.cond:
                 self.waiter.raise_if_over(run)
+                v.takeover.expect_command(command, time.monotonic())
                 text_seen = v.state.statustext_serial
             result = v.commands.request(
                 command,
@@ -86,6 +89,9 @@ class RunControl:
     def set_mode(self, mode: str) -> None:
         if self.mode() == mode:
             return  # "already in that mode" is success
+        with self.v.cond:
+            # Ours, when the HEARTBEAT shows it (a mode nobody asked for is a pilot's).
+            self.v.takeover.expect({mode}, time.monotonic())
         self.command(MAV_CMD_DO_SET_MODE, (*self.v.autopilot.mode_params(mode), 0.0, 0.0, 0.0, 0.0))
         # An accepted mode change shows in the next HEARTBEAT; confirm it there.
         self.waiter.wait(

@@ -11,6 +11,7 @@ values are speeds, never secrets.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from eamos.hal.mavlink.param_protocol import ParamProtocol
@@ -31,8 +32,17 @@ if TYPE_CHECKING:
 class ParamKeeper:
     """The parameters the adapter changed on one vehicle (see module docstring)."""
 
-    def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: EventLog) -> None:
+    def __init__(
+        self,
+        link: MavlinkLink,
+        settings: MavlinkSettings,
+        log: EventLog,
+        blocked: Callable[[], bool] = lambda: False,
+    ) -> None:
         self.link = link
+        #: True once the adapter may no longer command the vehicle (a pilot took it):
+        #: nothing is written then.
+        self.blocked = blocked
         self.params = ParamProtocol(link)
         self.settings = settings
         self.log = log
@@ -44,6 +54,8 @@ class ParamKeeper:
     ) -> ParamChange | None:
         """Read ``name`` (``value`` None) or set it; what the vehicle answers, or None."""
         s = self.settings
+        if value is not None and self.blocked():
+            return None  # a pilot has the vehicle: never written again
         write = None if value is None else (to_wire(value, param_type, self._bytewise), param_type)
         answer = self.params.request(
             name,

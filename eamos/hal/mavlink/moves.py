@@ -49,6 +49,7 @@ class Moves:
                 raise Failed(f"{command.action} has no target")
             if target[2] <= 0:
                 raise Failed(f"target z {target[2]:.2f} m is not above ground (use Land)")
+            v.geofence.check_target(target)  # outside the fleet's fence: fail, do not send
             v.commanded = target
             target_ned = mission_to_ned(target, v.origin)
         if lla is not None:

@@ -56,6 +56,21 @@ class MavlinkSettings:
     #: MAVLink 2 signing: the fleet's key file (signing.py); provision it with SETUP_SIGNING.
     signing_key: str | None = None
     signing_setup: bool = False
+    #: "required": with a key, a vehicle that does not sign is refused; "off": this
+    #: vehicle's link is not signed even when the fleet has a key (PX4 main cannot sign).
+    signing: Literal["required", "off"] = "required"
+    #: How long a vehicle may take to sign after SETUP_SIGNING (signing_setup), vehicle s.
+    signing_timeout_s: float = 10.0
+    #: Where this drone's home is in the fleet frame (north, east m): eamos run writes the
+    #: fleet's (FleetConfig.homes), as the check, the monitor and the report place it.
+    home_m: tuple[float, float] | None = None
+    #: The fleet's home_lla for this drone (lat, lon[, alt]): compared with the vehicle's own.
+    home_lla: tuple[float, ...] | None = None
+    #: The fleet's [safety] geofence (fleet frame) and ceiling (m above home), put on the
+    #: vehicle before its first arming (geofence.py) unless ``fence = false``.
+    geofence_m: tuple[tuple[float, float], ...] = ()
+    max_altitude_m: float | None = None
+    fence: bool = True
 
     def scaled(self, seconds: float) -> float:
         """``seconds`` of vehicle time in wall seconds (``speedup``)."""
@@ -115,6 +130,29 @@ class MavlinkSettings:
                 )
             return value
 
+        def points(key: str, count: int | None) -> tuple[tuple[float, ...], ...]:
+            """``[[a, b], ...]`` (``count`` None) or one ``[a, b(, c)]`` as a 1-tuple."""
+            value: Any = mapping.get(key)
+            rows: Any = value if count is None else [value]
+            lengths = (2,) if count is None else (2, count)
+
+            def number_row(row: Any) -> bool:
+                return (
+                    isinstance(row, list | tuple)
+                    and len(row) in lengths
+                    and all(isinstance(c, int | float) and not isinstance(c, bool) for c in row)
+                )
+
+            if not isinstance(rows, list | tuple) or not all(number_row(r) for r in rows):
+                shape = "[[north_m, east_m], ...]" if count is None else "[a, b] or [a, b, c]"
+                raise field_error(f"{prefix}.{key}", f"expected {shape}, got {value!r}")
+            return tuple(tuple(float(c) for c in row) for row in rows)
+
+        home_m = points("home_m", 2)[0] if "home_m" in mapping else None
+        home_lla = points("home_lla", 3)[0] if "home_lla" in mapping else None
+        fence = points("geofence_m", None) if "geofence_m" in mapping else ()
+        if 0 < len(fence) < 3:
+            raise field_error(f"{prefix}.geofence_m", "a polygon needs at least 3 points")
         return cls(
             connection=connection,
             system_id=integer("system_id", 1, 255, None),
@@ -144,4 +182,11 @@ class MavlinkSettings:
             brake_timeout_s=num("brake_timeout_s", gt=0),
             signing_key=text("signing_key"),
             signing_setup=flag("signing_setup"),
+            signing=choice("signing", ("required", "off")),
+            signing_timeout_s=num("signing_timeout_s", gt=0),
+            home_m=None if home_m is None else (home_m[0], home_m[1]),
+            home_lla=home_lla,
+            geofence_m=tuple((p[0], p[1]) for p in fence),
+            max_altitude_m=optional("max_altitude_m"),
+            fence=flag("fence"),
         )
