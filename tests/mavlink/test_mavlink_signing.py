@@ -25,7 +25,7 @@ from eamos.hal.mavlink.signing import (
 
 from .mavlink_helpers import RawClient
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
 ARM = 400
 KEY = bytes(range(32))
