@@ -42,6 +42,7 @@ TIERS = (
     "test_sizes.py",
     "test_docs_tables.py",
     "test_readme.py",
+    "test_suite_rules.py",
     "test_config_toml.py",
     "compiler",
     "config",
@@ -96,5 +97,5 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 
 # Fixtures shared across test packages live in tests/support and load as a plugin, so no
-# test ever imports a conftest.
-pytest_plugins = ["tests.support.sim_fixtures"]
+# test ever imports a conftest; pytester runs the suite's own rules on a small suite.
+pytest_plugins = ["tests.support.sim_fixtures", "pytester"]
