@@ -1,5 +1,6 @@
-"""The suite's own rule for CI (tests/conftest.py): with ``EAMOS_NO_SKIP=1`` a skipped test
-fails the run, also when pytest-xdist runs it on a worker process (the default options)."""
+"""The suite's own rules (tests/conftest.py, pyproject.toml): with ``EAMOS_NO_SKIP=1`` a
+skipped test fails the run, also when pytest-xdist runs it on a worker process (the default
+options); the tests of one ``xdist_group`` share one worker (and its module fixtures)."""
 
 from __future__ import annotations
 
@@ -42,3 +43,30 @@ def test_a_skip_fails_the_run_only_under_eamos_no_skip(
     laptop = pytester.runpytest_subprocess("-n", "0", *argv)
     assert laptop.ret == pytest.ExitCode.OK, laptop.stdout.str()
     laptop.assert_outcomes(passed=1, skipped=1)
+
+
+GROUPED = """
+import os
+
+import pytest
+
+pytestmark = pytest.mark.xdist_group("one-lab")
+
+
+@pytest.mark.parametrize("i", range(6))
+def test_in_the_group(i):
+    with open({out!r}, "a") as f:
+        f.write(os.environ["PYTEST_XDIST_WORKER"] + "\\n")
+"""
+
+
+def test_the_tests_of_one_xdist_group_share_one_worker(pytester: pytest.Pytester) -> None:
+    # Ungrouped, two workers share six tests; pytest 9.2 with xdist 3.8 silently did that.
+    out = pytester.path / "workers.txt"
+    pytester.makepyfile(test_grouped=GROUPED.format(out=str(out)))
+    result = pytester.runpytest_subprocess(
+        "-n", "2", "--dist", "loadgroup", "-p", "no:cacheprovider"
+    )
+    result.assert_outcomes(passed=6)
+    workers = out.read_text().split()
+    assert len(workers) == 6 and len(set(workers)) == 1, workers
