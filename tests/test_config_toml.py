@@ -59,7 +59,8 @@ def plain_configs(draw: st.DrawFn, folder: Path) -> NodeConfig:
     where = draw(st.sampled_from(["configs", "deep/er/configs", "."]))
     path = folder / where / "node.toml"
     program = draw(st.sampled_from(["programs/X.program.json", "../p.json", "/abs/p q.json"]))
-    log_dir = draw(st.sampled_from(["logs/X", "../../logs", "/var/log/eamos"]))
+    # An absolute folder of our own: /var/log is writable only by root.
+    log_dir = draw(st.sampled_from(["logs/X", "../../logs", str(folder / "var" / "log")]))
     peers = draw(st.dictionaries(NAME, LOCAL, max_size=4))
     give_up = draw(st.none() | seconds(86_400).map(float))
     return NodeConfig(

@@ -248,21 +248,21 @@ def test_twenty_thousand_warnings_print_in_linear_time() -> None:
     assert outcome.compiled is not None
     warnings = outcome.compiled.warnings
     assert len(warnings) == 2 * 10_000 - 1
-    start = time.monotonic()
+    start = time.process_time()
     one_by_one = "\n".join(w.render("w.go", text) for w in warnings)  # as the CLI prints them
-    assert time.monotonic() - start < 5  # was 82 s (the source split once per warning)
-    start = time.monotonic()
+    assert time.process_time() - start < 5  # was 82 s (the source split once per warning)
+    start = time.process_time()
     assert render_diagnostics(warnings, "w.go", text) == one_by_one
-    assert time.monotonic() - start < 5
+    assert time.process_time() - start < 5
 
 
 def test_a_long_line_prints_a_window_around_each_mistake() -> None:
     text = "func SEQ_M() { " + "; ".join(f"D1.Foo{i}()" for i in range(20_000)) + " }\n"
     outcome = compile_checked(text)
     assert outcome.error is not None and len(outcome.error.diagnostics) == 20_000
-    start = time.monotonic()
+    start = time.process_time()
     rendered = outcome.error.render("long.go", text).splitlines()
-    assert time.monotonic() - start < 5
+    assert time.process_time() - start < 5
     assert max(len(line) for line in rendered) < 200
     index = next(i for i, line in enumerate(rendered) if "unknown action 'Foo15000'" in line)
     excerpt, caret = rendered[index + 1], rendered[index + 2]

@@ -21,7 +21,7 @@ import pytest
 
 from .fleet_lab import REPO, Lab
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("fleet-lab")]
 MISSION = REPO / "missions" / "experiment_b.go"
 ACTION = re.compile(r"  (Arm|Takeoff|FlyBy[XYZ]|Land|Disarm)\(")  # an action in progress
 STEP_LINE = re.compile(r"^(compile|probe|deploy|launch) (\d+\.\d+) s$", re.M)

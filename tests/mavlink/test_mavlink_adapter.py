@@ -12,7 +12,7 @@ from eamos.hal.kinematics import GeoFrame
 
 from .mavlink_helpers import WAIT_S
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
 AUTOPILOTS = ["px4", "ardupilot"]
 

@@ -23,6 +23,8 @@ from eamos.hal.sitl.wire import ESTIMATOR_SETTLED_FLAGS, ESTIMATOR_UNSETTLED_FLA
 
 from .test_sim_vehicle_core import Rig
 
+pytestmark = pytest.mark.e2e
+
 SETTLE_S = 8.0
 BIAS_M = 3.0
 

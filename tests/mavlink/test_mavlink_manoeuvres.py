@@ -28,7 +28,7 @@ from eamos.hal.sitl.manoeuvres import turn_towards
 
 from .test_sim_vehicle_core import Rig, command
 
-pytestmark = pytest.mark.timeout(240)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(240)]
 
 AUTOPILOTS = ["px4", "ardupilot"]
 RTL, CONDITION_YAW, DO_ORBIT, DO_CHANGE_SPEED = 20, 115, 34, 178

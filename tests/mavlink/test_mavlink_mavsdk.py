@@ -33,7 +33,7 @@ from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions
 
 from .mavlink_helpers import connections
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 #: Bound of one whole MAVSDK flight (wall seconds).
 FLIGHT_S = 120.0
 M_PER_DEG_LAT = 111_320.0

@@ -22,7 +22,7 @@ from eamos.program.uniform import decode_command
 
 from .mavlink_helpers import WAIT_S, Done, Flight
 
-pytestmark = pytest.mark.timeout(240)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(240)]
 
 AUTOPILOTS = ["px4", "ardupilot"]
 #: The autopilots' fastest stops as the simulated vehicle models them (m/s/s):

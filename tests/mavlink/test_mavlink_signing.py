@@ -26,7 +26,7 @@ from eamos.hal.mavlink.signing import (
 
 from .mavlink_helpers import RawClient, connections
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
 ARM = 400
 KEY = bytes(range(32))

@@ -27,7 +27,7 @@ from eamos.hal.sitl.vehicle import (
 
 from .mavlink_helpers import WAIT_S, RawClient, connections
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
 
 ARM, SET_MODE, TAKEOFF, LAND = 400, 176, 22, 21
 SET_INTERVAL, REQUEST_MESSAGE = 511, 512

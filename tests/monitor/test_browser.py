@@ -25,7 +25,7 @@ from eamos.ground.summary import RunSummary
 from tests.monitor.live import URL, start_live_run
 from tests.support.runs import REPO
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("monitor-browser")]
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")

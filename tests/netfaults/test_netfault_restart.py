@@ -15,7 +15,7 @@ import pytest
 
 from eamos.program.uniform import GROUND_STATION
 
-pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(600)]
 
 DEPENDENT = """
 func SEQ_Main() {
