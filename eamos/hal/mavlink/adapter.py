@@ -61,9 +61,9 @@ Calibrate...) are acknowledged at once; ``PauseFor`` is a timer.
 Telemetry: x/y/z from LOCAL_POSITION_NED (mission frame), lat/lon/alt from
 GLOBAL_POSITION_INT (alt = relative_alt), battery from SYS_STATUS or
 BATTERY_STATUS, armed from the HEARTBEAT, landed from EXTENDED_SYS_STATE (or
-z below 0.1 m without it); sampled at ``telemetry_hz`` and sent only when it
-changed, plus one sample when an action ends, so whoever reacts to the end
-already sees the state it ended in.
+z below 0.1 m without it); sampled at ``telemetry_hz`` of vehicle time (scaled by
+``speedup``) and sent only when it changed, plus one sample when an action ends,
+so whoever reacts to the end already sees the state it ended in.
 
 Adapter log events: ``adapter.start``, ``adapter.connected``,
 ``adapter.interval``, ``adapter.home``, ``adapter.action.start``/``.end``,
@@ -161,7 +161,9 @@ class MavlinkAdapter:
             source_component=s.source_component,
         )
         self.vehicle.connect(
-            extra_jobs=((1.0 / s.telemetry_hz, self._telemetry.publish, "telemetry"),)
+            # At the vehicle's own rate: a condition is seen as early in vehicle time at
+            # a speed-up of 10 as at 1 (telemetry_hz of wall time was a tenth of it).
+            extra_jobs=((s.wall_period(s.telemetry_hz), self._telemetry.publish, "telemetry"),)
         )
 
     def run(self, command: Command, done: DoneCallback) -> ActionHandle:

@@ -1,10 +1,13 @@
 """Stopping a MAVLink vehicle now, waiting until it is at rest, and holding there.
 
-A position target at the current spot does not stop a fast vehicle (ArduCopter
-overshot 9.4 m at 5 m/s, braking at WPNAV_ACCEL), and LAND brakes gently (10 m
-on ArduCopter, 14 m on PX4).  :func:`brake_to_rest` asks the autopilot for its
-fastest documented stop (:meth:`~eamos.hal.mavlink.autopilots.Autopilot.brake`:
-PX4 a zero-velocity setpoint, ArduPilot BRAKE mode) and waits on the vehicle's
+A position target at the current spot does not stop a fast vehicle well (ArduCopter
+overshot 9.4 m at 5 m/s and came back), LAND brakes gently (10 m on ArduCopter, 14 m on
+PX4), ArduCopter's BRAKE mode decelerates at only ~0.7 m/s/s (3.4 m from 2 m/s) and a
+zero-velocity target is no better (1.8 m on ArduCopter, 5.6 m on PX4: both measured on
+the SITLs).  What stops both soonest is a position target where the vehicle comes to
+rest when it brakes at its own acceleration limit (:func:`stopping_point`): 0.9 m
+(ArduCopter) and 0.7 m (PX4) from 2 m/s.  :func:`brake_to_rest` sends that
+(:meth:`~eamos.hal.mavlink.autopilots.Autopilot.brake`) and waits on the vehicle's
 condition until the settle window shows it at rest.  :class:`Brakes` does that for a
 cancel (then holds where the vehicle came to rest, on a thread of its own), for Land
 and for an abort.
@@ -19,6 +22,7 @@ from collections.abc import Callable
 
 from eamos.hal.mavlink.autopilots import CommandRejected, Controller
 from eamos.hal.mavlink.control import RunControl
+from eamos.hal.mavlink.frames import Vector, ned_to_mission
 from eamos.hal.mavlink.state import LinkState
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.hal.mavlink.waits import Ended, Failed, Run, Waiter
@@ -27,17 +31,36 @@ from eamos.hal.mavlink.waits import Ended, Failed, Run, Waiter
 Wait = Callable[[Callable[[LinkState], bool], float, Callable[[LinkState], str]], None]
 
 
+def stopping_distance_m(speed_mps: float, decel_mps2: float) -> float:
+    """How far a vehicle at ``speed_mps`` flies braking at ``decel_mps2``: v^2 / 2a (pure)."""
+    return speed_mps**2 / (2.0 * decel_mps2)
+
+
+def stopping_point(position_ned: Vector, velocity_ned: Vector, decel_mps2: float) -> Vector:
+    """Where a vehicle comes to rest braking horizontally at ``decel_mps2`` (NED; pure)."""
+    vn, ve = velocity_ned[0], velocity_ned[1]
+    speed = math.hypot(vn, ve)
+    if speed == 0:
+        return position_ned
+    ahead = stopping_distance_m(speed, decel_mps2) / speed
+    return (position_ned[0] + vn * ahead, position_ned[1] + ve * ahead, position_ned[2])
+
+
 def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
-    """Stop now if flying faster than the settle speed: the autopilot's fastest stop
-    (PX4: a zero-velocity setpoint; ArduPilot: BRAKE mode), then wait
-    (``brake_timeout_s``) until the vehicle is at rest over the settle window."""
+    """Stop now if flying faster than the settle speed: a position target at the
+    stopping point (:func:`stopping_point`), then wait (``brake_timeout_s``) until the
+    vehicle is at rest over the settle window."""
     with v.cond:
         st = v.state
         if st.local is None or v.on_ground(st) or v.speed(st) <= v.settle_speed_mps:
             return
         speed, position = v.speed(st), v.mission_position()
+        local = st.local
+        stop_ned = stopping_point(local[:3], local[3:6], v.autopilot.brake_decel_mps2)
+        if v.origin is not None:
+            v.commanded = ned_to_mission(stop_ned, v.origin)
     t0 = time.monotonic()
-    braking = v.autopilot.brake(ctl)
+    braking = v.autopilot.brake(ctl, stop_ned)
     v.log.info(
         "adapter.brake",
         braking=braking,

@@ -18,6 +18,7 @@ from eamos.hal.mavlink.frames import NedOrigin, ned_to_mission
 from eamos.hal.mavlink.state import LinkState
 
 if TYPE_CHECKING:
+    from eamos.hal.mavlink.autopilots import Autopilot
     from eamos.logs import EventLog
 
 
@@ -30,6 +31,7 @@ class HomeOwner(Protocol):
     flown: bool
     geo: GeoFrame | None
     log: EventLog
+    autopilot: Autopilot
 
 
 def capture_home(self: HomeOwner, ground: bool = False) -> None:
@@ -38,7 +40,7 @@ def capture_home(self: HomeOwner, ground: bool = False) -> None:
     st = self.state
     if st.local is None:
         return
-    settled = verdict(st.estimator_flags)
+    settled = verdict(st.estimator_flags, self.autopilot.name, landed=not st.armed)
     again = (
         ground
         and not st.armed

@@ -1,15 +1,16 @@
 """What the adapter tells a vehicle to fly to: SET_POSITION_TARGET_* messages.
 
-Three kinds, all with yaw and acceleration ignored so the vehicle keeps its
-heading: a local NED position (PX4 OFFBOARD setpoints, ArduPilot GUIDED
-targets), a WGS84 position at a height above home (ArduPilot FlyToLLA), and a
-zero velocity (velocity only): "stop now", PX4's fastest stop in OFFBOARD
-(and a documented GUIDED stop on ArduCopter).
+A local NED position (PX4 OFFBOARD setpoints, ArduPilot GUIDED targets) and a WGS84
+position at a height above home (ArduPilot FlyToLLA), both with the heading the
+vehicle holds once a Yaw set one (else yaw ignored, so the vehicle keeps its own);
+a point of a path with its velocity and heading (Orbit, :class:`CirclePath`); and a
+zero velocity (velocity only).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from eamos.hal.mavlink.frames import Vector
@@ -26,6 +27,8 @@ TYPE_MASK_POSITION = 0x0FF8
 TYPE_MASK_VELOCITY = 0x0DC7
 #: The "ignore yaw" bit of the type_mask.
 TYPE_MASK_YAW_IGNORE = 0x0400
+#: Position, velocity (feed-forward) and yaw; acceleration and yaw rate ignored: a path.
+TYPE_MASK_PATH = 0x09C0
 
 #: What the vehicle is told to go to: ("local", NED point) or ("global", (lat, lon, rel alt)).
 GuidedTarget = tuple[str, Vector]
@@ -55,22 +58,82 @@ def send_position(link: MavlinkLink, target: Vector, yaw_deg: float | None = Non
     )
 
 
-def send_global(link: MavlinkLink, point: Vector) -> None:
-    """SET_POSITION_TARGET_GLOBAL_INT (lat, lon in degrees, altitude above home)."""
+def send_global(link: MavlinkLink, point: Vector, yaw_deg: float | None = None) -> None:
+    """SET_POSITION_TARGET_GLOBAL_INT (lat, lon in degrees, altitude above home; and the
+    compass heading ``yaw_deg`` if given)."""
     system, component = link.target
     lat, lon, alt = point
+    mask, yaw = TYPE_MASK_POSITION, 0.0
+    if yaw_deg is not None:
+        mask &= ~TYPE_MASK_YAW_IGNORE
+        yaw = math.remainder(math.radians(yaw_deg), 2 * math.pi)
     link.send(
         "set_position_target_global_int",
         link.time_boot_ms(),
         system,
         component,
         MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-        TYPE_MASK_POSITION,
+        mask,
         round(lat * 1e7),
         round(lon * 1e7),
         alt,
-        *(0.0,) * 8,
+        *(0.0,) * 6,
+        yaw,
+        0.0,
     )
+
+
+def send_path(link: MavlinkLink, position: Vector, velocity: Vector, yaw_deg: float) -> None:
+    """SET_POSITION_TARGET_LOCAL_NED: a point of a path, with its velocity (feed-forward)
+    and heading (both autopilots follow it in GUIDED / OFFBOARD)."""
+    system, component = link.target
+    link.send(
+        "set_position_target_local_ned",
+        link.time_boot_ms(),
+        system,
+        component,
+        MAV_FRAME_LOCAL_NED,
+        TYPE_MASK_PATH,
+        *position,
+        *velocity,
+        0.0,
+        0.0,
+        0.0,
+        math.remainder(math.radians(yaw_deg), 2 * math.pi),
+        0.0,
+    )
+
+
+@dataclass(frozen=True)
+class CirclePath:
+    """A point going clockwise (seen from above) round a circle at a constant speed, the
+    nose to the centre, then staying where it ends (NED, metres; pure).
+
+    Orbit streams it on both autopilots in GUIDED / OFFBOARD: ArduCopter's CIRCLE mode
+    (like LOITER) takes its climb rate from the RC throttle and descends into the ground
+    without a transmitter (the notes), and one path for both is simpler than DO_ORBIT.
+    """
+
+    centre_n: float
+    centre_e: float
+    down: float
+    radius_m: float
+    speed_mps: float
+    #: Bearing (radians, from north towards east) of the start, seen from the centre.
+    start_bearing: float
+    #: How far round to go (radians).
+    angle_rad: float
+
+    def at(self, t_s: float) -> tuple[Vector, Vector, float]:
+        """(position, velocity, heading in degrees) ``t_s`` vehicle seconds after the start."""
+        flown = min(self.angle_rad, self.speed_mps / self.radius_m * max(0.0, t_s))
+        bearing = self.start_bearing + flown
+        n = self.centre_n + self.radius_m * math.cos(bearing)
+        e = self.centre_e + self.radius_m * math.sin(bearing)
+        speed = self.speed_mps if flown < self.angle_rad else 0.0
+        velocity = (-speed * math.sin(bearing), speed * math.cos(bearing), 0.0)
+        heading = math.degrees(math.atan2(self.centre_e - e, self.centre_n - n)) % 360.0
+        return (n, e, self.down), velocity, heading
 
 
 def send_stop(link: MavlinkLink) -> None:
@@ -89,10 +152,13 @@ def send_stop(link: MavlinkLink) -> None:
 
 __all__ = [
     "MAV_FRAME_LOCAL_NED",
+    "TYPE_MASK_PATH",
     "TYPE_MASK_POSITION",
     "TYPE_MASK_VELOCITY",
+    "CirclePath",
     "GuidedTarget",
     "send_global",
+    "send_path",
     "send_position",
     "send_stop",
 ]

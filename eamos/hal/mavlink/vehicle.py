@@ -26,6 +26,7 @@ from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
 from eamos.hal.mavlink.command_protocol import CommandProtocol
+from eamos.hal.mavlink.completion import Arrival
 from eamos.hal.mavlink.estimator import (
     MSG_EKF_STATUS_REPORT,
     MSG_ESTIMATOR_STATUS,
@@ -45,10 +46,11 @@ from eamos.hal.mavlink.signing import SigningKeyError, read_key
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
     TYPE_MASK_VELOCITY,
+    CirclePath,
     GuidedTarget,
     send_global,
+    send_path,
     send_position,
-    send_stop,
 )
 from eamos.hal.settings import field_error
 
@@ -133,8 +135,11 @@ class MavlinkVehicle:
         self.geo: GeoFrame | None = None  # home, in WGS84
         self.commanded: Vector | None = None  # last motion target, mission frame
         self.stream_target: Vector | None = None  # PX4 setpoint stream (NED)
-        self.stream_stop = False  # the stream carries a zero velocity instead (a brake)
-        self.stream_yaw: float | None = None  # heading the PX4 stream asks for (Yaw), degrees
+        #: A path streamed instead of a target, on both autopilots (Orbit), and since when.
+        self.path: CirclePath | None = None
+        self.path_since = 0.0
+        #: The heading every target carries once a Yaw set one (degrees); None: yaw ignored.
+        self.stream_yaw: float | None = None
         #: Horizontal speed the vehicle was told (the drone type's, then SetSpeed's).
         self.horizontal_speed_mps = settings.horizontal_speed_mps
         self.keeper = ParamKeeper(self.link, settings, log)  # speeds set, to restore
@@ -155,7 +160,7 @@ class MavlinkVehicle:
         """
         s = self.settings
         deadline = time.monotonic() + s.connect_timeout_s
-        self.link.every(1.0 / s.setpoint_hz, self._steer_tick, "setpoints")
+        self.link.every(s.wall_period(s.setpoint_hz), self._steer_tick, "setpoints")
         self.link.every(TARGET_REFRESH_S, self._refresh_tick, "target-refresh")
         self.link.every(POSITION_LOG_S, self._position_log_tick, "position-log")
         for period, job, name in extra_jobs:
@@ -282,7 +287,7 @@ class MavlinkVehicle:
 
     @property
     def tolerance_m(self) -> float:
-        """Completion tolerance: the settings', else the autopilot's."""
+        """Completion tolerance of a long move: the settings', else the autopilot's."""
         return self.settings.tolerance_m or self.autopilot.tolerance_m
 
     @property
@@ -290,30 +295,63 @@ class MavlinkVehicle:
         """Settle speed: the settings', else the autopilot's."""
         return self.settings.settle_speed_mps or self.autopilot.settle_speed_mps
 
-    def window(self, st: LinkState, now: float) -> tuple[Vector, float] | None:
+    @property
+    def settle_s(self) -> float:
+        """Settle window (vehicle seconds): the settings', else the autopilot's."""
+        s = self.settings.settle_s
+        return self.autopilot.settle_s if s is None else s
+
+    def arrival(
+        self, start: Vector, target: Vector, since: float, vertical: bool = False
+    ) -> Arrival:
+        """What "arrived" means for a move from ``start`` to ``target`` commanded at ``since``
+        (:mod:`eamos.hal.mavlink.completion`: the tolerance scaled for short moves)."""
+        return Arrival.of_move(start, target, self.tolerance_m, since, vertical)
+
+    def window(
+        self, st: LinkState, now: float, since: float | None = None
+    ) -> tuple[Vector, float] | None:
         """Mean mission position and speed over the settle window ending ``now``, or None
         until LOCAL_POSITION_NED has been heard for the whole window (a single sample of
-        a wandering estimate proves nothing)."""
-        seen = st.window(now, self.settings.scaled(self.settings.settle_s))
+        a wandering estimate proves nothing), or while the window reaches back before
+        ``since``."""
+        span = self.settings.scaled(self.settle_s)
+        if since is not None and now - span < since:
+            return None
+        seen = st.window(now, span)
         if seen is None or st.local is None:
             return None
         origin = self.origin or NedOrigin(st.local[0], st.local[1], st.local[2])
         return ned_to_mission(seen[0], origin), seen[1]
 
-    def settled(self, st: LinkState, target: Vector | None = None, vertical: bool = False) -> bool:
-        """At rest over the settle window (and within tolerance of ``target``, if given;
-        ``vertical``: of its height only)."""
+    def settled(self, st: LinkState) -> bool:
+        """At rest over the settle window."""
         seen = self.window(st, time.monotonic())
+        return seen is not None and seen[1] <= self.settle_speed_mps
+
+    def arrived(self, st: LinkState, arrival: Arrival) -> bool:
+        """Within ``arrival``'s tolerance of its target and slow, over a settle window
+        that lies wholly after the command."""
+        seen = self.window(st, time.monotonic(), arrival.since)
+        return seen is not None and arrival.reached(seen[0], seen[1], self.settle_speed_mps)
+
+    def log_arrival(self, action: str, arrival: Arrival) -> None:
+        """``adapter.arrived``: the settle window's mean position, its error and the
+        tolerance it met (what completed the move)."""
+        with self.cond:
+            seen = self.window(self.state, time.monotonic())
         if seen is None:
-            return False
-        position, speed = seen
-        if speed > self.settle_speed_mps:
-            return False
-        if target is None:
-            return True
-        if vertical:
-            return abs(position[2] - target[2]) <= self.tolerance_m
-        return math.dist(position, target) <= self.tolerance_m
+            return
+        mean, speed = seen
+        self.log.info(
+            "adapter.arrived",
+            action=action,
+            target=[round(c, 3) for c in arrival.target],
+            mean=[round(c, 3) for c in mean],
+            error_m=round(arrival.error_m(mean), 3),
+            tolerance_m=round(arrival.tolerance_m, 3),
+            speed_mps=round(speed, 3),
+        )
 
     def capture_origin(self, ground: bool = False) -> None:
         """Record home at the first (settled) fix and, with ``ground``, the ground height
@@ -366,21 +404,29 @@ class MavlinkVehicle:
         send_position(self.link, target, yaw)
 
     def send_guided_target(self, target: GuidedTarget) -> None:
-        """A local or global (relative altitude) position target."""
+        """A local or global (relative altitude) position target, with the held heading.
+
+        ArduCopter resets its yaw mode to ``WP_YAW_BEHAVIOR`` on every GUIDED target that
+        ignores yaw (the notes): a heading set by Yaw must travel inside each target.
+        """
+        with self.cond:
+            yaw = self.stream_yaw
         kind, point = target
         if kind == "local":
-            send_position(self.link, point)
+            send_position(self.link, point, yaw)
         else:
-            send_global(self.link, point)
+            send_global(self.link, point, yaw)
 
-    def send_stop(self) -> None:
-        """A zero-velocity target (velocity only): stop now."""
-        send_stop(self.link)
+    def send_path_point(self, path: CirclePath, since: float) -> None:
+        """The point of ``path`` for now (vehicle time since ``since``), with its velocity."""
+        t_s = (time.monotonic() - since) * self.settings.speedup
+        position, velocity, heading = path.at(t_s)
+        send_path(self.link, position, velocity, heading)
 
     def stop_steering(self) -> None:
-        """No more setpoints or position targets (condition held)."""
+        """No more setpoints, paths or position targets (condition held)."""
         self.stream_target = None
-        self.stream_stop = False
+        self.path = None
         self.guided_target = None
 
     def apply_speeds(self) -> None:
@@ -397,9 +443,9 @@ class MavlinkVehicle:
                 # Disarmed (landed, auto-disarm, or by someone else): stop steering.
                 self.stop_steering()
             self._was_armed = self.state.armed
-            target, stop = self.stream_target, self.stream_stop
-        if stop:
-            self.send_stop()
+            target, path, since = self.stream_target, self.path, self.path_since
+        if path is not None:
+            self.send_path_point(path, since)
         elif target is not None:
             self.send_setpoint(target)
 
