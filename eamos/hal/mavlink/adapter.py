@@ -235,7 +235,9 @@ class MavlinkAdapter:
         A vehicle still in the air is braked, landed and disarmed first
         (``land_on_close``; ``adapter.close_land.done``); when it cannot be (link
         lost, landing failed, ``land_on_close = false``) ``adapter.stranded`` is
-        logged at error level with where it was left and why.
+        logged at error level with where it was left and why.  A vehicle armed on the
+        ground is disarmed (``adapter.close_disarm``).  Last, a telemetry sample of the
+        state it ended in is published.
         """
         with self._cond:
             if self._closed:
@@ -254,6 +256,10 @@ class MavlinkAdapter:
                 link_ok = self.vehicle.state.link_ok
             if link_ok:
                 self.vehicle.restore_params()
+            # The state the vehicle ended in (every landing and disarm above seen in a
+            # HEARTBEAT) reaches the mission before the link closes: a summary must not
+            # say "armed" of a vehicle that disarmed.
+            self._telemetry.publish()
         self.vehicle.close()
         self._log.info("adapter.close")
 

@@ -162,8 +162,6 @@ class Autopilot(ABC):
     tolerance_m: float = 0.2
     settle_speed_mps: float = 0.2
     settle_s: float = 0.5
-    #: ReturnHome's mode.
-    rtl_mode: str
     #: The deceleration a brake plans with (m/s/s): the position target goes where the
     #: vehicle comes to rest at it (braking.py; ArduCopter WPNAV_ACCEL 2.5 m/s/s,
     #: PX4 MPC_ACC_HOR 3 m/s/s by default).
@@ -218,10 +216,6 @@ class Autopilot(ABC):
         return True
 
     @abstractmethod
-    def return_altitude(self, height_m: float) -> tuple[str, float]:
-        """The parameter (and its value) that makes RTL return at ``height_m``."""
-
-    @abstractmethod
     def speed_params(self, speed_mps: float) -> tuple[tuple[str, float], ...]:
         """The parameters (and values) that set the horizontal speed."""
 
@@ -239,7 +233,6 @@ class Px4(Autopilot):
     mavlink_id = MAV_AUTOPILOT_PX4
     motion_mode = "OFFBOARD"
     land_mode = "AUTO.LAND"
-    rtl_mode = "AUTO.RTL"
     # PX4 SIH's estimate wanders while hovering (the notes): a longer window averages it.
     tolerance_m = 0.25
     settle_speed_mps = 0.3
@@ -306,11 +299,6 @@ class Px4(Autopilot):
         if airborne and ctl.mode() != "OFFBOARD":
             self._offboard(ctl, here_ned)
 
-    def return_altitude(self, height_m: float) -> tuple[str, float]:
-        # RTL climbs to RTL_RETURN_ALT (60 m by default) when lower; at or below the
-        # current height it returns at the current height.
-        return ("RTL_RETURN_ALT", round(max(height_m, 0.5), 2))
-
     def speed_params(self, speed_mps: float) -> tuple[tuple[str, float], ...]:
         # MAV_CMD_DO_CHANGE_SPEED is ignored in OFFBOARD: the setpoints fly under
         # MPC_XY_VEL_MAX; MPC_XY_CRUISE is the AUTO modes' speed.
@@ -330,7 +318,6 @@ class ArduPilot(Autopilot):
     mavlink_id = MAV_AUTOPILOT_ARDUPILOTMEGA
     motion_mode = "GUIDED"
     land_mode = "LAND"
-    rtl_mode = "RTL"
 
     def mode_name(self, custom_mode: int) -> str:
         return _ARDU_BY_CUSTOM.get(custom_mode, f"ArduCopter({custom_mode})")
@@ -367,11 +354,6 @@ class ArduPilot(Autopilot):
             return
         self._guided(ctl)
         ctl.position_target(here_ned)
-
-    def return_altitude(self, height_m: float) -> tuple[str, float]:
-        # RTL_ALT (cm, at least 30): RTL climbs to it when lower, else returns at the
-        # current height.
-        return ("RTL_ALT", round(max(height_m * 100.0, 30.0)))
 
     def speed_params(self, speed_mps: float) -> tuple[tuple[str, float], ...]:
         # MAV_CMD_DO_CHANGE_SPEED holds only until the next mode change: WPNAV_SPEED too.

@@ -3,9 +3,8 @@
 =========== ============================================ ===========================================
 action      PX4                                          ArduCopter
 =========== ============================================ ===========================================
-ReturnHome  RTL_RETURN_ALT = current height (m), then    RTL_ALT = current height (cm), then
-            MAV_CMD_NAV_RETURN_TO_LAUNCH: AUTO.RTL flies MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL flies
-            over home, lands, disarms                    over home, lands, disarms
+ReturnHome  OFFBOARD back above home at the current     GUIDED back above home at the current
+            height, then Land (AUTO.LAND), it disarms    height, then Land (LAND), it disarms
 Hold        OFFBOARD, the setpoint stream at the point   GUIDED, a position target at the point
             where the drone is meant to be               where the drone is meant to be
 Yaw         every setpoint from then on carries the yaw  every GUIDED target from then on carries
@@ -21,7 +20,10 @@ Hold and Orbit stay in the mode where the adapter steers, with targets it stream
 ArduCopter's LOITER and CIRCLE take their climb rate from the RC throttle and, without
 a transmitter (a SITL, a companion-only vehicle), descended into the ground at 2.5 m/s
 (the notes); PX4's HOLD and ORBIT would do no harm, but one way for both is simpler to
-test.  Yaw travels inside the targets: ArduCopter resets its yaw mode on every GUIDED
+test.  ReturnHome flies home the same way and lands there: RTL climbs to its own return
+altitude unless a parameter says otherwise (PX4 60 m), and a parameter the vehicle
+refuses (PX4 main echoed no RTL_RETURN_ALT) must not send a drone up there.  Yaw
+travels inside the targets: ArduCopter resets its yaw mode on every GUIDED
 target that ignores yaw, which cancelled a MAV_CMD_CONDITION_YAW heading within a second.
 
 Every parameter changed is put back at close (:class:`~eamos.hal.mavlink.keeper.ParamKeeper`).
@@ -49,7 +51,6 @@ from eamos.program.uniform import Hold, Orbit, ReturnHome, SetSpeed, Yaw
 #: The commands :func:`perform_manoeuvre` runs.
 MANOEUVRES = (ReturnHome, Hold, Yaw, SetSpeed, Orbit)
 
-MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
 MAV_CMD_DO_CHANGE_SPEED = 178
 #: A Yaw is done within this many degrees of the heading.
 YAW_TOLERANCE_DEG = 2.0
@@ -132,24 +133,28 @@ def _set(flight: Flight, name: str, value: float) -> None:
 
 
 def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
-    """Back above home at the current height, land there and disarm (the autopilot's RTL)."""
+    """Back above home at the current height, land there and disarm (steered by the
+    adapter in GUIDED / OFFBOARD, then the autopilot's LAND)."""
     v, s, waiter = flight.v, flight.s, flight.waiter
-    flight.brakes.brake(run, ctl)  # at rest first: RTL's own turn would overshoot at speed
+    flight.brakes.brake(run, ctl)  # at rest first
     with v.cond:
-        height = v.mission_position()[2]
-    _set(flight, *v.autopilot.return_altitude(height))
-    ctl.command(MAV_CMD_NAV_RETURN_TO_LAUNCH, (0.0,) * 7)
-    with v.cond:
-        v.stop_steering()  # the autopilot flies now; our targets would fight it
-    modes = frozenset({v.autopilot.rtl_mode, v.autopilot.land_mode})
-    waiter.confirm_modes(run, modes, done=v.landed)
+        here = v.mission_position()
+        home = (0.0, 0.0, here[2])
+        v.commanded = home
+        arrival = v.arrival(here, home, time.monotonic())
+        assert v.origin is not None
+        home_ned = mission_to_ned(home, v.origin)
+    v.autopilot.goto(ctl, home_ned)
+    modes = frozenset({v.autopilot.motion_mode})
+    waiter.confirm_modes(run, modes, done=lambda st: False)
     waiter.wait(
         run,
-        v.landed,
+        lambda st: v.arrived(st, arrival),
         run.started + s.scaled(s.action_timeout_s),
-        waiter.timeout_reason("not back home and landed"),
-        guard=waiter.guard(modes, need_armed=False, unless=v.landed),
+        waiter.timeout_reason("not back above home"),
+        guard=waiter.guard(modes),
     )
+    flight.landing.land(run, ctl)
     waiter.wait(
         run,
         lambda st: not st.armed,
