@@ -29,6 +29,9 @@ ARDUPILOT_CAMERA = {
     "SERVO10_FUNCTION": 6.0,  # mount yaw (pan)
     "SERVO11_FUNCTION": 10.0,  # camera trigger
 }
+#: The speed-up each autopilot flies at in the tier: PX4 SIH at 10 takes a whole core
+#: (lockstep) and its estimate wanders more on a loaded machine; ArduCopter is light.
+SPEEDUP = {"arducopter": 10.0, "px4": 5.0}
 #: Generous for a loaded 2-core machine (vehicle seconds; the adapter scales them).
 HAL_TIMEOUTS = {"connect_timeout_s": 60, "armable_timeout_s": 120, "action_timeout_s": 120}
 
@@ -136,9 +139,7 @@ class Flown:
         return self.events(drone, "adapter.action.end")
 
 
-def fly(
-    tmp_path: Path, fleet: SitlFleet, mission: str | Path, timeout_s: float = 300
-) -> Flown:
+def fly(tmp_path: Path, fleet: SitlFleet, mission: str | Path, timeout_s: float = 300) -> Flown:
     """``eamos run MISSION --fleet FLEET`` at the fleet's speed-up, to its end."""
     import time
 

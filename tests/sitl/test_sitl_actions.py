@@ -17,11 +17,10 @@ from pathlib import Path
 
 import pytest
 
-from .flights import Flown, SitlFleet, assert_safe_end, fly, heights_during
+from .flights import SPEEDUP, Flown, SitlFleet, assert_safe_end, fly, heights_during
 
 pytestmark = [pytest.mark.sitl, pytest.mark.timeout(900)]
 
-SPEEDUP = 10
 MISSION = """\
 package Actions
 
@@ -105,7 +104,7 @@ def assert_actions(flown: Flown, autopilot: str) -> None:
 
 @pytest.mark.parametrize("autopilot", ["arducopter", "px4"])
 def test_every_action_and_a_whenever(sitl_fleet, tmp_path: Path, autopilot: str) -> None:
-    fleet: SitlFleet = sitl_fleet({"Drone1": autopilot}, SPEEDUP, camera=("Drone1",))
+    fleet: SitlFleet = sitl_fleet({"Drone1": autopilot}, SPEEDUP[autopilot], camera=("Drone1",))
     flown = fly(tmp_path, fleet, MISSION.format(camera=CAMERA[autopilot]))
     assert flown.returncode == 0, flown.output
     assert_actions(flown, autopilot)

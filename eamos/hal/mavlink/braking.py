@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable
 
 from eamos.hal.mavlink.autopilots import CommandRejected, Controller
+from eamos.hal.mavlink.completion import Arrival
 from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.frames import Vector, ned_to_mission
 from eamos.hal.mavlink.state import LinkState
@@ -70,8 +71,27 @@ def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
         z_m=round(position[2], 2),
         send_s=round(time.monotonic() - t0, 3),
     )
+    if braking and v.origin is not None:
+        # At rest at the stopping point: a vehicle that overshoots it turns round there
+        # (ArduCopter's jerk-limited path), and a settle window at that turn is not rest.
+        stop = ned_to_mission(stop_ned, v.origin)
+        arrival = Arrival(stop, v.tolerance_m, t0)
+        until: Callable[[LinkState], bool] = lambda st: v.arrived(st, arrival)  # noqa: E731
+    else:
+        until = v.settled
+    # How far along its way the vehicle got before it came back (it may overshoot).
+    vn, ve = local[3], local[4]
+    norm = math.hypot(vn, ve) or 1.0
+    furthest = [0.0]
+
+    def watched(st: LinkState) -> bool:
+        if st.local is not None:
+            along = ((st.local[0] - local[0]) * vn + (st.local[1] - local[1]) * ve) / norm
+            furthest[0] = max(furthest[0], along)
+        return until(st)
+
     wait(
-        lambda st: v.settled(st),
+        watched,
         time.monotonic() + v.settings.scaled(v.settings.brake_timeout_s),
         lambda st: f"vehicle still moving {v.speed(st):.1f} m/s after braking",
     )
@@ -83,6 +103,7 @@ def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
         y_m=round(rest[1], 2),
         z_m=round(rest[2], 2),
         overshoot_m=round(math.dist(rest, position), 2),
+        furthest_m=round(furthest[0], 2),
         duration_s=round(time.monotonic() - t0, 3),
     )
 

@@ -21,13 +21,15 @@ from eamos.hal.mavlink.frames import Vector
 
 #: A move's tolerance is at most this fraction of its length...
 SHORT_MOVE_FRACTION = 0.4
-#: ...and at least this (m): below it a SITL's estimate noise decides, not the flight.
+#: ...and at least this (m; an autopilot may need more: its estimate's noise decides
+#: below that, not the flight, Autopilot.min_tolerance_m).
 MIN_TOLERANCE_M = 0.05
 
 
-def move_tolerance(base_m: float, move_m: float) -> float:
-    """The tolerance of a move of ``move_m`` metres (the autopilot's ``base_m``, scaled)."""
-    return max(MIN_TOLERANCE_M, min(base_m, SHORT_MOVE_FRACTION * abs(move_m)))
+def move_tolerance(base_m: float, move_m: float, floor_m: float = MIN_TOLERANCE_M) -> float:
+    """The tolerance of a move of ``move_m`` metres (the autopilot's ``base_m``, scaled
+    down to :data:`SHORT_MOVE_FRACTION` of the move, never below ``floor_m``)."""
+    return max(floor_m, min(base_m, SHORT_MOVE_FRACTION * abs(move_m)))
 
 
 @dataclass(frozen=True)
@@ -43,11 +45,17 @@ class Arrival:
 
     @classmethod
     def of_move(
-        cls, start: Vector, target: Vector, base_m: float, since: float, vertical: bool = False
+        cls,
+        start: Vector,
+        target: Vector,
+        base_m: float,
+        since: float,
+        vertical: bool = False,
+        floor_m: float = MIN_TOLERANCE_M,
     ) -> Arrival:
         """The arrival of a move from ``start`` (where it was meant to begin) to ``target``."""
         length = abs(target[2] - start[2]) if vertical else math.dist(start, target)
-        return cls(target, move_tolerance(base_m, length), since, vertical)
+        return cls(target, move_tolerance(base_m, length, floor_m), since, vertical)
 
     def window_start(self, now: float, window_s: float) -> float | None:
         """Start of the settle window ending ``now``; None while it would reach back

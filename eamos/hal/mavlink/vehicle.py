@@ -306,7 +306,8 @@ class MavlinkVehicle:
     ) -> Arrival:
         """What "arrived" means for a move from ``start`` to ``target`` commanded at ``since``
         (:mod:`eamos.hal.mavlink.completion`: the tolerance scaled for short moves)."""
-        return Arrival.of_move(start, target, self.tolerance_m, since, vertical)
+        floor = min(self.tolerance_m, self.autopilot.min_tolerance_m)
+        return Arrival.of_move(start, target, self.tolerance_m, since, vertical, floor)
 
     def window(
         self, st: LinkState, now: float, since: float | None = None
