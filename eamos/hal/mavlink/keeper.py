@@ -106,15 +106,16 @@ class ParamKeeper:
         return True
 
     def restore(self) -> None:
-        """Write back what the adapter found (in reverse order), each confirmed by its
-        echo; log each.
+        """Write back what the adapter found, in the order it set them, each confirmed by
+        its echo; log each.
 
-        A value the vehicle echoes otherwise is written again after the others: PX4 keeps
-        MPC_XY_CRUISE at or below MPC_XY_VEL_MAX, so with both lowered (SetSpeed) the
-        cruise speed put back first came back clamped until the limit was back too.
+        In that order a limit comes back before what it limits: PX4 keeps MPC_XY_CRUISE
+        at or below MPC_XY_VEL_MAX (it clamps the cruise speed by itself, after the
+        echo), so putting the cruise speed back first left it clamped.  A value the
+        vehicle echoes otherwise is written again after the others.
         """
         changes, self.changes = self.changes, []
-        pending = list(reversed(changes))
+        pending = list(changes)
         for attempt in range(2):
             again: list[ParamChange] = []
             for change in pending:

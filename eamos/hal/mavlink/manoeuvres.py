@@ -273,12 +273,15 @@ def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: flo
     )
     ctl.follow(path)
     flown = AngleFlown(cx, cy)
+    # The path ends at the start and the vehicle follows it from behind: the angle it
+    # flew approaches the goal from below; within the position tolerance is round.
+    round_enough = goal - v.tolerance_m / radius_m
 
     def around(st: LinkState) -> bool:
         if st.local is None:
             return False
         x, y, _ = v.mission_position(st)
-        return flown.add(x, y) >= goal
+        return flown.add(x, y) >= round_enough
 
     lap_s = 2 * math.pi * radius_m / speed
     waiter.wait(

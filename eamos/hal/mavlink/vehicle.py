@@ -146,6 +146,7 @@ class MavlinkVehicle:
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
         self._was_armed = False
+        self._arrived_window: tuple[Vector, float] | None = None
         self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
@@ -334,13 +335,16 @@ class MavlinkVehicle:
         """Within ``arrival``'s tolerance of its target and slow, over a settle window
         that lies wholly after the command."""
         seen = self.window(st, time.monotonic(), arrival.since)
-        return seen is not None and arrival.reached(seen[0], seen[1], self.settle_speed_mps)
+        if seen is None or not arrival.reached(seen[0], seen[1], self.settle_speed_mps):
+            return False
+        self._arrived_window = seen  # what completed it, for log_arrival
+        return True
 
     def log_arrival(self, action: str, arrival: Arrival) -> None:
         """``adapter.arrived``: the settle window's mean position, its error and the
         tolerance it met (what completed the move)."""
         with self.cond:
-            seen = self.window(self.state, time.monotonic())
+            seen, self._arrived_window = self._arrived_window, None
         if seen is None:
             return
         mean, speed = seen
