@@ -175,9 +175,16 @@ def changed_params(flown: Flown, drone: str) -> dict[str, float]:
 def assert_safe_end(flown: Flown, fleet: SitlFleet) -> None:
     """Every vehicle landed and disarmed (its own word and the summary's), its parameters
     restored, no ArduCopter hit the ground, nothing stranded."""
-    for drone, vehicle in fleet.vehicles.items():
+    for drone in fleet.vehicles:
         final = flown.report(drone)["final"]
         assert final["landed"] and not final["armed"], (drone, final)
+    assert_vehicles_safe(flown, fleet)
+
+
+def assert_vehicles_safe(flown: Flown, fleet: SitlFleet) -> None:
+    """What the vehicles say after the run: landed and disarmed, their parameters
+    restored; no ArduCopter hit the ground; nothing stranded."""
+    for drone, vehicle in fleet.vehicles.items():
         params = changed_params(flown, drone)
         state = inspect_vehicle(vehicle, params)
         assert not state.armed, f"{drone}: the vehicle is still armed"
