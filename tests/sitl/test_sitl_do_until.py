@@ -118,7 +118,7 @@ def test_small_moves_on_px4_are_flown(sitl_fleet, tmp_path: Path) -> None:
         # Flown, not declared done at once: a whole settle window (2 s of vehicle time).
         assert end["duration_s"] >= 2.0 / SPEEDUP["px4"], end
         print(
-            f"px4 {action}({length}): target {target}, flown to {arrival['mean']} "
+            f"px4 {action}({length}): target {arrival['target']}, flown to {arrival['mean']} "
             f"(error {arrival['error_m']} m, tolerance {arrival['tolerance_m']} m), "
             f"{end['duration_s'] * SPEEDUP['px4']:.1f} s of vehicle time"
         )
