@@ -42,8 +42,8 @@ A mode change within ``heartbeat_timeout_s`` after a link gap or a
 "failsafe" STATUSTEXT is therefore tolerated for that long; any other mode
 change ends the action (a pilot took over).
 
-``cancel`` ends the action at once and brakes the vehicle the fastest way its
-autopilot documents (PX4: a zero-velocity setpoint; ArduPilot: BRAKE mode),
+``cancel`` ends the action at once and brakes the vehicle with a position target
+at its stopping point (what stopped both real autopilots soonest, braking.py),
 then holds where it came to rest; the next motion action waits for that
 (:class:`~eamos.hal.mavlink.braking.Brakes`).  ``abort`` cancels
 everything, brakes, lands and disarms.  :meth:`MavlinkAdapter.close` never
@@ -51,9 +51,11 @@ leaves a flying vehicle silently: it lands it first, or logs
 ``adapter.stranded`` at error level.  After connecting, the drone type's
 speeds are set on the vehicle and restored at close
 (:mod:`eamos.hal.mavlink.params`); a vehicle that disarmed itself after our
-Arm is armed again before Takeoff (``adapter.rearm``); Arm waits for a settled
-position estimate (:mod:`eamos.hal.mavlink.arming`).  ReturnHome, Hold, Yaw, SetSpeed
-and Orbit fly each autopilot's own way (:mod:`eamos.hal.mavlink.manoeuvres`).
+Arm is armed again before Takeoff (``adapter.rearm``); Arm waits for a position
+estimate good enough to fly, as the autopilot reports it (:mod:`eamos.hal.mavlink.arming`,
+:mod:`~eamos.hal.mavlink.estimator`).  ReturnHome, Hold, Yaw, SetSpeed and Orbit are
+flown in the motion mode with targets the adapter streams
+(:mod:`eamos.hal.mavlink.manoeuvres`).
 Plugin actions (TakePhoto, Gimbal...) run their "mavlink" implementation on the
 action's thread (:mod:`eamos.hal.mavlink.payload`); the fixed payload actions (TurnOn,
 Calibrate...) are acknowledged at once; ``PauseFor`` is a timer.

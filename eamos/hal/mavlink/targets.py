@@ -3,8 +3,7 @@
 A local NED position (PX4 OFFBOARD setpoints, ArduPilot GUIDED targets) and a WGS84
 position at a height above home (ArduPilot FlyToLLA), both with the heading the
 vehicle holds once a Yaw set one (else yaw ignored, so the vehicle keeps its own);
-a point of a path with its velocity and heading (Orbit, :class:`CirclePath`); and a
-zero velocity (velocity only).
+and a point of a path with its velocity and heading (Orbit, :class:`CirclePath`).
 """
 
 from __future__ import annotations
@@ -23,8 +22,6 @@ MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 6
 #: SET_POSITION_TARGET_* type_mask: use the position only (ignore velocity,
 #: acceleration, yaw and yaw rate), so the vehicle keeps its heading.
 TYPE_MASK_POSITION = 0x0FF8
-#: ...and the velocity only (ignore position, acceleration, yaw, yaw rate): a stop.
-TYPE_MASK_VELOCITY = 0x0DC7
 #: The "ignore yaw" bit of the type_mask.
 TYPE_MASK_YAW_IGNORE = 0x0400
 #: Position, velocity (feed-forward) and yaw; acceleration and yaw rate ignored: a path.
@@ -136,29 +133,13 @@ class CirclePath:
         return (n, e, self.down), velocity, heading
 
 
-def send_stop(link: MavlinkLink) -> None:
-    """SET_POSITION_TARGET_LOCAL_NED with a zero velocity (velocity only): stop now."""
-    system, component = link.target
-    link.send(
-        "set_position_target_local_ned",
-        link.time_boot_ms(),
-        system,
-        component,
-        MAV_FRAME_LOCAL_NED,
-        TYPE_MASK_VELOCITY,
-        *(0.0,) * 11,
-    )
-
-
 __all__ = [
     "MAV_FRAME_LOCAL_NED",
     "TYPE_MASK_PATH",
     "TYPE_MASK_POSITION",
-    "TYPE_MASK_VELOCITY",
     "CirclePath",
     "GuidedTarget",
     "send_global",
     "send_path",
     "send_position",
-    "send_stop",
 ]

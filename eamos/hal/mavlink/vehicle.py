@@ -45,7 +45,6 @@ from eamos.hal.mavlink.link import (
 from eamos.hal.mavlink.signing import SigningKeyError, read_key
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
-    TYPE_MASK_VELOCITY,
     CirclePath,
     GuidedTarget,
     send_global,
@@ -513,7 +512,6 @@ def _log_position(self: MavlinkVehicle) -> None:
 __all__ = [
     "GROUND_Z_M",
     "TYPE_MASK_POSITION",
-    "TYPE_MASK_VELOCITY",
     "GuidedTarget",
     "MavlinkVehicle",
 ]
