@@ -102,7 +102,7 @@ def test_arm_waits_for_the_settled_estimate_and_the_first_move_is_accurate(
     f.ok("Takeoff", 2.0)
     f.ok("FlyByX", 3.0)
     # The truth (the model's position, from the boot point) against the mission's target.
-    tolerance = f.adapter.vehicle.tolerance_m
+    tolerance = f.adapter.vehicle.settling.tolerance_m
     x, y, z = f.vehicle.position
     assert math.dist((x, y, z), (3.0, 0.0, 2.0)) <= tolerance, (x, y, z)
     vehicle_log = next(tmp_path.glob("vehicle-*.log"))

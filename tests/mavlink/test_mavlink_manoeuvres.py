@@ -79,7 +79,7 @@ def test_return_home_flies_back_lands_and_disarms(
     f.ok("FlyToXYZ", 4.0, 3.0, 3.0)
     f.ok("ReturnHome")
     x, y, z = f.vehicle.position
-    assert math.hypot(x, y) <= f.adapter.vehicle.tolerance_m, (x, y)
+    assert math.hypot(x, y) <= f.adapter.vehicle.settling.tolerance_m, (x, y)
     assert z == pytest.approx(0.0, abs=0.05) and not f.vehicle.armed
     # Flown home by the adapter, then landed: no RTL (its own return altitude).
     assert all(c != RTL for c, _ in f.vehicle.commands)
@@ -178,7 +178,7 @@ def test_orbit_circles_the_point_ahead_and_ends_where_it_started(
     assert min(p[1] for p in seen) - start[1] < -1.5  # ...then west
     radii = [math.dist(p[:2], centre) for p in seen if math.dist(p[:2], start[:2]) > 0.5]
     assert min(radii) > 1.3 and max(radii) < 2.7, (min(radii), max(radii))
-    assert math.dist(f.vehicle.position, start) <= f.adapter.vehicle.tolerance_m
+    assert math.dist(f.vehicle.position, start) <= f.adapter.vehicle.settling.tolerance_m
     # A path streamed in the motion mode: never CIRCLE nor ORBIT, no DO_ORBIT.
     assert not NEVER & set(vehicle_modes(tmp_path))
     assert f.vehicle.mode == MODES[autopilot]["motion"]

@@ -53,7 +53,7 @@ def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
     vehicle is at rest over the settle window."""
     with v.cond:
         st = v.state
-        if st.local is None or v.on_ground(st) or v.speed(st) <= v.settle_speed_mps:
+        if st.local is None or v.on_ground(st) or v.speed(st) <= v.settling.settle_speed_mps:
             return
         speed, position = v.speed(st), v.mission_position()
         local = st.local
@@ -75,10 +75,10 @@ def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
         # At rest at the stopping point: a vehicle that overshoots it turns round there
         # (ArduCopter's jerk-limited path), and a settle window at that turn is not rest.
         stop = ned_to_mission(stop_ned, v.origin)
-        arrival = Arrival(stop, v.tolerance_m, t0)
-        until: Callable[[LinkState], bool] = lambda st: v.arrived(st, arrival)  # noqa: E731
+        arrival = Arrival(stop, v.settling.tolerance_m, t0)
+        until: Callable[[LinkState], bool] = lambda st: v.settling.arrived(st, arrival)  # noqa: E731
     else:
-        until = v.settled
+        until = v.settling.settled
     # How far along its way the vehicle got before it came back (it may overshoot).
     vn, ve = local[3], local[4]
     norm = math.hypot(vn, ve) or 1.0

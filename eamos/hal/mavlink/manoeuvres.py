@@ -141,7 +141,7 @@ def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
         here = v.mission_position()
         home = (0.0, 0.0, here[2])
         v.commanded = home
-        arrival = v.arrival(here, home, time.monotonic())
+        arrival = v.settling.arrival(here, home, time.monotonic())
         assert v.origin is not None
         home_ned = mission_to_ned(home, v.origin)
     v.autopilot.goto(ctl, home_ned)
@@ -149,7 +149,7 @@ def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
     waiter.confirm_modes(run, modes, done=lambda st: False)
     waiter.wait(
         run,
-        lambda st: v.arrived(st, arrival),
+        lambda st: v.settling.arrived(st, arrival),
         run.started + s.scaled(s.action_timeout_s),
         waiter.timeout_reason("not back above home"),
         guard=waiter.guard(modes),
@@ -275,7 +275,7 @@ def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: flo
     flown = AngleFlown(cx, cy)
     # The path ends at the start and the vehicle follows it from behind: the angle it
     # flew approaches the goal from below; within the position tolerance is round.
-    round_enough = goal - v.tolerance_m / radius_m
+    round_enough = goal - v.settling.tolerance_m / radius_m
 
     def around(st: LinkState) -> bool:
         if st.local is None:
@@ -294,13 +294,13 @@ def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: flo
     # Back to where it started (the path ends there too), settled there.
     with v.cond:
         v.commanded = start
-        arrival = v.arrival(v.mission_position(), start, time.monotonic())
+        arrival = v.settling.arrival(v.mission_position(), start, time.monotonic())
         assert v.origin is not None
         start_ned = mission_to_ned(start, v.origin)
     v.autopilot.goto(ctl, start_ned)
     waiter.wait(
         run,
-        lambda st: v.arrived(st, arrival),
+        lambda st: v.settling.arrived(st, arrival),
         time.monotonic() + s.scaled(s.action_timeout_s),
         waiter.timeout_reason("orbit's start point not reached again"),
         guard=waiter.guard(modes),

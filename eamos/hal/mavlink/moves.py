@@ -54,7 +54,7 @@ class Moves:
                 raise Failed(f"target z {target[2]:.2f} m is not above ground (use Land)")
             v.commanded = target
             target_ned = mission_to_ned(target, v.origin)
-        arrival = v.arrival(start, target, time.monotonic())
+        arrival = v.settling.arrival(start, target, time.monotonic())
         if lla is not None:
             v.autopilot.goto_global(ctl, lla[0], lla[1], lla[2], target_ned)
         else:
@@ -64,12 +64,12 @@ class Moves:
 
         self.waiter.wait(
             run,
-            lambda st: v.arrived(st, arrival),
+            lambda st: v.settling.arrived(st, arrival),
             run.started + s.scaled(s.action_timeout_s),
             self.waiter.timeout_reason("target not reached"),
             guard=self.waiter.guard(modes),
         )
-        v.log_arrival(command.action, arrival)
+        v.settling.log_arrival(command.action, arrival)
         return ActionResult("ok")
 
 

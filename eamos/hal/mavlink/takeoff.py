@@ -64,19 +64,19 @@ class TakeOff:
             v.flown = True
             target_ned = mission_to_ned(v.commanded, v.origin)
         # Vertical only: a real take-off may drift a little sideways.
-        arrival = v.arrival((x, y, z), (x, y, height), time.monotonic(), vertical=True)
+        arrival = v.settling.arrival((x, y, z), (x, y, height), time.monotonic(), vertical=True)
         v.autopilot.takeoff(ctl, target_ned, height)
         modes = v.autopilot.takeoff_modes()
         self.waiter.confirm_modes(run, modes, done=lambda st: False)
 
         self.waiter.wait(
             run,
-            lambda st: v.arrived(st, arrival),
+            lambda st: v.settling.arrived(st, arrival),
             run.started + s.scaled(s.action_timeout_s),
             self.waiter.timeout_reason("take-off height not reached"),
             guard=self.waiter.guard(modes),
         )
-        v.log_arrival("Takeoff", arrival)
+        v.settling.log_arrival("Takeoff", arrival)
         return ActionResult("ok")
 
 

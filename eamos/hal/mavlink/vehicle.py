@@ -26,7 +26,6 @@ from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
 from eamos.hal.mavlink.command_protocol import CommandProtocol
-from eamos.hal.mavlink.completion import Arrival
 from eamos.hal.mavlink.estimator import (
     MSG_EKF_STATUS_REPORT,
     MSG_ESTIMATOR_STATUS,
@@ -42,6 +41,7 @@ from eamos.hal.mavlink.link import (
     MavlinkLink,
     result_name,
 )
+from eamos.hal.mavlink.settling import Settling
 from eamos.hal.mavlink.signing import SigningKeyError, read_key
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
@@ -145,7 +145,8 @@ class MavlinkVehicle:
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
         self._was_armed = False
-        self._arrived_window: tuple[Vector, float] | None = None
+        #: When it is at rest, when a move has arrived (settling.py).
+        self.settling = Settling(self)
         self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
@@ -284,78 +285,6 @@ class MavlinkVehicle:
         if self.commanded is not None:
             return self.commanded
         return self.mission_position()
-
-    @property
-    def tolerance_m(self) -> float:
-        """Completion tolerance of a long move: the settings', else the autopilot's."""
-        return self.settings.tolerance_m or self.autopilot.tolerance_m
-
-    @property
-    def settle_speed_mps(self) -> float:
-        """Settle speed: the settings', else the autopilot's."""
-        return self.settings.settle_speed_mps or self.autopilot.settle_speed_mps
-
-    @property
-    def settle_s(self) -> float:
-        """Settle window (vehicle seconds): the settings', else the autopilot's."""
-        s = self.settings.settle_s
-        return self.autopilot.settle_s if s is None else s
-
-    def arrival(
-        self, start: Vector, target: Vector, since: float, vertical: bool = False
-    ) -> Arrival:
-        """What "arrived" means for a move from ``start`` to ``target`` commanded at ``since``
-        (:mod:`eamos.hal.mavlink.completion`: the tolerance scaled for short moves)."""
-        floor = min(self.tolerance_m, self.autopilot.min_tolerance_m)
-        return Arrival.of_move(start, target, self.tolerance_m, since, vertical, floor)
-
-    def window(
-        self, st: LinkState, now: float, since: float | None = None
-    ) -> tuple[Vector, float] | None:
-        """Mean mission position and speed over the settle window ending ``now``, or None
-        until LOCAL_POSITION_NED has been heard for the whole window (a single sample of
-        a wandering estimate proves nothing), or while the window reaches back before
-        ``since``."""
-        span = self.settings.scaled(self.settle_s)
-        if since is not None and now - span < since:
-            return None
-        seen = st.window(now, span)
-        if seen is None or st.local is None:
-            return None
-        origin = self.origin or NedOrigin(st.local[0], st.local[1], st.local[2])
-        return ned_to_mission(seen[0], origin), seen[1]
-
-    def settled(self, st: LinkState) -> bool:
-        """At rest over the settle window."""
-        seen = self.window(st, time.monotonic())
-        return seen is not None and seen[1] <= self.settle_speed_mps
-
-    def arrived(self, st: LinkState, arrival: Arrival) -> bool:
-        """Within ``arrival``'s tolerance of its target and slow, over a settle window
-        that lies wholly after the command."""
-        seen = self.window(st, time.monotonic(), arrival.since)
-        if seen is None or not arrival.reached(seen[0], seen[1], self.settle_speed_mps):
-            return False
-        self._arrived_window = seen  # what completed it, for log_arrival
-        return True
-
-    def log_arrival(self, action: str, arrival: Arrival) -> None:
-        """``adapter.arrived``: the settle window's mean position, its error and the
-        tolerance it met (what completed the move)."""
-        with self.cond:
-            seen, self._arrived_window = self._arrived_window, None
-        if seen is None:
-            return
-        mean, speed = seen
-        self.log.info(
-            "adapter.arrived",
-            action=action,
-            target=[round(c, 3) for c in arrival.target],
-            mean=[round(c, 3) for c in mean],
-            error_m=round(arrival.error_m(mean), 3),
-            tolerance_m=round(arrival.tolerance_m, 3),
-            speed_mps=round(speed, 3),
-        )
 
     def capture_origin(self, ground: bool = False) -> None:
         """Record home at the first (settled) fix and, with ``ground``, the ground height
