@@ -17,8 +17,8 @@ and rules), :mod:`.autopilots` (what differs between PX4 and ArduPilot), :mod:`.
 (mission frame <-> NED), :mod:`.settings` (the ``hal`` section), :mod:`.params` and
 :mod:`.keeper` (the drone type's speeds set on the vehicle and restored),
 :mod:`.targets` (SET_POSITION_TARGET_* messages), :mod:`.estimator` and :mod:`.home` (a
-position estimate good enough to fly, per autopilot; home from it), :mod:`.payload` and :mod:`.camera` (plugin actions: the
-"mavlink" seam, the camera and gimbal).
+position estimate good enough to fly, per autopilot; home from it), :mod:`.payload`
+and :mod:`.camera` (plugin actions: the "mavlink" seam, the camera and gimbal).
 Importing this package does not load pymavlink; connecting does.
 """
 
