@@ -10,6 +10,7 @@ stops when the run is over and a cancel's hold has the last word.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.command_protocol import MAV_RESULT_ACCEPTED
@@ -113,16 +114,16 @@ class RunControl:
         with self.v.cond:
             self.v.stream_yaw = heading_deg
 
-    def follow(self, path: CirclePath) -> None:
-        """Stream ``path`` (both autopilots, in the motion mode) instead of a target."""
+    def follow(self, path: CirclePath, flown: Callable[[], float]) -> None:
+        """Stream ``path`` (both autopilots, in the motion mode) instead of a target;
+        ``flown()`` (condition held) says how far round the vehicle has got."""
         v = self.v
-        now = time.monotonic()
         with v.cmd_lock, v.cond:
             self.waiter.raise_if_over(self.run)
-            v.path, v.path_since = path, now
+            v.path, v.path_flown = path, flown
             v.stream_target = None
             v.guided_target = None
-        v.send_path_point(path, now)  # at once, not at the next tick
+        v.send_path_point(path)  # at once, not at the next tick
 
     def wait_stream_warm(self, seconds: float) -> None:
         with self.v.cond:

@@ -271,8 +271,8 @@ def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: flo
         math.radians(heading + 180.0),
         goal,
     )
-    ctl.follow(path)
     flown = AngleFlown(cx, cy)
+    ctl.follow(path, lambda: flown.total)
     # The path ends at the start and the vehicle follows it from behind: the angle it
     # flew approaches the goal from below; within the position tolerance is round.
     round_enough = goal - v.settling.tolerance_m / radius_m

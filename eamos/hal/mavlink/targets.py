@@ -101,14 +101,24 @@ def send_path(link: MavlinkLink, position: Vector, velocity: Vector, yaw_deg: fl
     )
 
 
+#: How far ahead of the vehicle (round the circle) a path's target runs: at most this
+#: many metres, and never more than an eighth of a turn.
+PATH_LEAD_M = 1.0
+
+
 @dataclass(frozen=True)
 class CirclePath:
-    """A point going clockwise (seen from above) round a circle at a constant speed, the
-    nose to the centre, then staying where it ends (NED, metres; pure).
+    """A target going clockwise (seen from above) round a circle just ahead of the
+    vehicle, the nose to the centre, until it has gone round ``angle_rad`` (NED, metres;
+    pure).
 
+    The target leads the vehicle by :data:`PATH_LEAD_M` along the circle, from the angle
+    the vehicle has flown so far, not from the clock: a vehicle slower than the path
+    (PX4 SIH flew 1.0 of the 1.5 m/s asked) would otherwise be left behind and cut
+    straight back to the end.  Its velocity (feed-forward) is tangent at ``speed_mps``.
     Orbit streams it on both autopilots in GUIDED / OFFBOARD: ArduCopter's CIRCLE mode
     (like LOITER) takes its climb rate from the RC throttle and descends into the ground
-    without a transmitter (the notes), and one path for both is simpler than DO_ORBIT.
+    without a transmitter (the notes).
     """
 
     centre_n: float
@@ -121,13 +131,15 @@ class CirclePath:
     #: How far round to go (radians).
     angle_rad: float
 
-    def at(self, t_s: float) -> tuple[Vector, Vector, float]:
-        """(position, velocity, heading in degrees) ``t_s`` vehicle seconds after the start."""
-        flown = min(self.angle_rad, self.speed_mps / self.radius_m * max(0.0, t_s))
-        bearing = self.start_bearing + flown
+    def at(self, flown_rad: float) -> tuple[Vector, Vector, float]:
+        """(position, velocity, heading in degrees) of the target once the vehicle has
+        flown ``flown_rad`` round the centre."""
+        lead = min(PATH_LEAD_M / self.radius_m, math.pi / 4)
+        ahead = min(self.angle_rad, max(0.0, flown_rad) + lead)
+        bearing = self.start_bearing + ahead
         n = self.centre_n + self.radius_m * math.cos(bearing)
         e = self.centre_e + self.radius_m * math.sin(bearing)
-        speed = self.speed_mps if flown < self.angle_rad else 0.0
+        speed = self.speed_mps if ahead < self.angle_rad else 0.0
         velocity = (-speed * math.sin(bearing), speed * math.cos(bearing), 0.0)
         heading = math.degrees(math.atan2(self.centre_e - e, self.centre_n - n)) % 360.0
         return (n, e, self.down), velocity, heading
@@ -135,6 +147,7 @@ class CirclePath:
 
 __all__ = [
     "MAV_FRAME_LOCAL_NED",
+    "PATH_LEAD_M",
     "TYPE_MASK_PATH",
     "TYPE_MASK_POSITION",
     "CirclePath",

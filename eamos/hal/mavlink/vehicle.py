@@ -136,7 +136,8 @@ class MavlinkVehicle:
         self.stream_target: Vector | None = None  # PX4 setpoint stream (NED)
         #: A path streamed instead of a target, on both autopilots (Orbit), and since when.
         self.path: CirclePath | None = None
-        self.path_since = 0.0
+        #: How far round the vehicle has flown so far (radians), for the path's target.
+        self.path_flown: Callable[[], float] = lambda: 0.0
         #: The heading every target carries once a Yaw set one (degrees); None: yaw ignored.
         self.stream_yaw: float | None = None
         #: Horizontal speed the vehicle was told (the drone type's, then SetSpeed's).
@@ -350,10 +351,11 @@ class MavlinkVehicle:
         else:
             send_global(self.link, point, yaw)
 
-    def send_path_point(self, path: CirclePath, since: float) -> None:
-        """The point of ``path`` for now (vehicle time since ``since``), with its velocity."""
-        t_s = (time.monotonic() - since) * self.settings.speedup
-        position, velocity, heading = path.at(t_s)
+    def send_path_point(self, path: CirclePath) -> None:
+        """The target of ``path`` just ahead of the vehicle, with its velocity."""
+        with self.cond:
+            flown = self.path_flown()
+        position, velocity, heading = path.at(flown)
         send_path(self.link, position, velocity, heading)
 
     def stop_steering(self) -> None:
@@ -376,9 +378,9 @@ class MavlinkVehicle:
                 # Disarmed (landed, auto-disarm, or by someone else): stop steering.
                 self.stop_steering()
             self._was_armed = self.state.armed
-            target, path, since = self.stream_target, self.path, self.path_since
+            target, path = self.stream_target, self.path
         if path is not None:
-            self.send_path_point(path, since)
+            self.send_path_point(path)
         elif target is not None:
             self.send_setpoint(target)
 
