@@ -42,8 +42,8 @@ A mode change within ``heartbeat_timeout_s`` after a link gap or a
 "failsafe" STATUSTEXT is therefore tolerated for that long; any other mode
 change ends the action (a pilot took over).
 
-``cancel`` ends the action at once and brakes the vehicle the fastest way its
-autopilot documents (PX4: a zero-velocity setpoint; ArduPilot: BRAKE mode),
+``cancel`` ends the action at once and brakes the vehicle with a position target
+at its stopping point (what stopped both real autopilots soonest, braking.py),
 then holds where it came to rest; the next motion action waits for that
 (:class:`~eamos.hal.mavlink.braking.Brakes`).  ``abort`` cancels
 everything, brakes, lands and disarms.  :meth:`MavlinkAdapter.close` never
@@ -51,9 +51,11 @@ leaves a flying vehicle silently: it lands it first, or logs
 ``adapter.stranded`` at error level.  After connecting, the drone type's
 speeds are set on the vehicle and restored at close
 (:mod:`eamos.hal.mavlink.params`); a vehicle that disarmed itself after our
-Arm is armed again before Takeoff (``adapter.rearm``); Arm waits for a settled
-position estimate (:mod:`eamos.hal.mavlink.arming`).  ReturnHome, Hold, Yaw, SetSpeed
-and Orbit fly each autopilot's own way (:mod:`eamos.hal.mavlink.manoeuvres`).
+Arm is armed again before Takeoff (``adapter.rearm``); Arm waits for a position
+estimate good enough to fly, as the autopilot reports it (:mod:`eamos.hal.mavlink.arming`,
+:mod:`~eamos.hal.mavlink.estimator`).  ReturnHome, Hold, Yaw, SetSpeed and Orbit are
+flown in the motion mode with targets the adapter streams
+(:mod:`eamos.hal.mavlink.manoeuvres`).
 Plugin actions (TakePhoto, Gimbal...) run their "mavlink" implementation on the
 action's thread (:mod:`eamos.hal.mavlink.payload`); the fixed payload actions (TurnOn,
 Calibrate...) are acknowledged at once; ``PauseFor`` is a timer.
@@ -61,9 +63,9 @@ Calibrate...) are acknowledged at once; ``PauseFor`` is a timer.
 Telemetry: x/y/z from LOCAL_POSITION_NED (mission frame), lat/lon/alt from
 GLOBAL_POSITION_INT (alt = relative_alt), battery from SYS_STATUS or
 BATTERY_STATUS, armed from the HEARTBEAT, landed from EXTENDED_SYS_STATE (or
-z below 0.1 m without it); sampled at ``telemetry_hz`` and sent only when it
-changed, plus one sample when an action ends, so whoever reacts to the end
-already sees the state it ended in.
+z below 0.1 m without it); sampled at ``telemetry_hz`` of vehicle time (scaled by
+``speedup``) and sent only when it changed, plus one sample when an action ends,
+so whoever reacts to the end already sees the state it ended in.
 
 Adapter log events: ``adapter.start``, ``adapter.connected``,
 ``adapter.interval``, ``adapter.home``, ``adapter.action.start``/``.end``,
@@ -167,7 +169,9 @@ class MavlinkAdapter:
             home_m=None if s.home_m is None else list(s.home_m),
         )
         self.vehicle.connect(
-            extra_jobs=((1.0 / s.telemetry_hz, self._telemetry.publish, "telemetry"),)
+            # At the vehicle's own rate: a condition is seen as early in vehicle time at
+            # a speed-up of 10 as at 1 (telemetry_hz of wall time was a tenth of it).
+            extra_jobs=((s.wall_period(s.telemetry_hz), self._telemetry.publish, "telemetry"),)
         )
 
     def run(self, command: Command, done: DoneCallback) -> ActionHandle:
@@ -247,7 +251,9 @@ class MavlinkAdapter:
         A vehicle still in the air is braked, landed and disarmed first
         (``land_on_close``; ``adapter.close_land.done``); when it cannot be (link
         lost, landing failed, ``land_on_close = false``) ``adapter.stranded`` is
-        logged at error level with where it was left and why.
+        logged at error level with where it was left and why.  A vehicle armed on the
+        ground is disarmed (``adapter.close_disarm``).  Last, a telemetry sample of the
+        state it ended in is published.
         """
         with self._cond:
             if self._closed:
@@ -270,6 +276,10 @@ class MavlinkAdapter:
                 self._flight.landing.land_at_close()
                 if link_ok:
                     self.vehicle.restore_params()
+            # The state the vehicle ended in (every landing and disarm above seen in a
+            # HEARTBEAT) reaches the mission before the link closes: a summary must not
+            # say "armed" of a vehicle that disarmed.
+            self._telemetry.publish()
         self.vehicle.close()
         self._log.info("adapter.close")
 

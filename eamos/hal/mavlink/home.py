@@ -19,6 +19,7 @@ from eamos.hal.mavlink.frames import NedOrigin, ned_to_mission
 from eamos.hal.mavlink.state import LinkState
 
 if TYPE_CHECKING:
+    from eamos.hal.mavlink.autopilots import Autopilot
     from eamos.hal.mavlink.link import MavlinkLink
     from eamos.hal.mavlink.settings import MavlinkSettings
     from eamos.logs import EventLog
@@ -33,6 +34,7 @@ class HomeOwner(Protocol):
     flown: bool
     geo: GeoFrame | None
     log: EventLog
+    autopilot: Autopilot
 
 
 #: A vehicle's HOME_POSITION this far (m) from the fleet's home_lla is reported.
@@ -104,7 +106,7 @@ def capture_home(self: HomeOwner, ground: bool = False) -> None:
     st = self.state
     if st.local is None:
         return
-    settled = verdict(st.estimator_flags)
+    settled = verdict(st.estimator_flags, self.autopilot.name, landed=not st.armed)
     again = (
         ground
         and not st.armed

@@ -118,15 +118,37 @@ class ParamKeeper:
         return True
 
     def restore(self) -> None:
-        """Write back what :meth:`apply_speeds` found (in reverse order); log each."""
+        """Write back what the adapter found, in the order it set them, each confirmed by
+        its echo; log each.
+
+        In that order a limit comes back before what it limits: PX4 keeps MPC_XY_CRUISE
+        at or below MPC_XY_VEL_MAX (it clamps the cruise speed by itself, after the
+        echo), so putting the cruise speed back first left it clamped.  A value the
+        vehicle echoes otherwise is written again after the others.
+        """
         changes, self.changes = self.changes, []
-        for change in reversed(changes):
-            if self._exchange(change.name, change.before, change.param_type) is None:
-                self.log.error(
-                    "adapter.param.restore_failed", name=change.name, value=change.before
-                )
-            else:
-                self.log.info("adapter.param.restore", name=change.name, value=change.before)
+        pending = list(changes)
+        for attempt in range(2):
+            again: list[ParamChange] = []
+            for change in pending:
+                answer = self._exchange(change.name, change.before, change.param_type)
+                if answer is None:
+                    self.log.error(
+                        "adapter.param.restore_failed", name=change.name, value=change.before
+                    )
+                elif not math.isclose(answer.before, change.before, rel_tol=1e-3, abs_tol=1e-3):
+                    if attempt == 0:
+                        again.append(change)
+                    else:
+                        self.log.error(
+                            "adapter.param.restore_failed",
+                            name=change.name,
+                            value=change.before,
+                            echoed=answer.before,
+                        )
+                else:
+                    self.log.info("adapter.param.restore", name=change.name, value=change.before)
+            pending = again
 
 
 __all__ = ["ParamKeeper"]

@@ -14,6 +14,9 @@ from eamos.hal.mavlink.autopilots import TakeoffMode
 from eamos.hal.mavlink.link import check_connection
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, number, require_mapping
 
+#: Periodic jobs (setpoints, telemetry samples) never run more often than this (wall Hz).
+MAX_WALL_HZ = 100.0
+
 
 @dataclass(frozen=True)
 class MavlinkSettings:
@@ -32,12 +35,13 @@ class MavlinkSettings:
     command_retries: int = 3
     heartbeat_timeout_s: float = 3.0
     action_timeout_s: float = 120.0
-    #: Completion: within ``tolerance_m`` of the target and slower than
-    #: ``settle_speed_mps`` on average over ``settle_s``; None: the autopilot's own
-    #: (autopilots.Autopilot.tolerance_m, PX4's estimate wanders more).
+    #: Completion: within ``tolerance_m`` of the target (scaled down for short moves,
+    #: completion.py) and slower than ``settle_speed_mps`` on average over ``settle_s``;
+    #: None: the autopilot's own (autopilots.Autopilot, measured on the SITLs).
     tolerance_m: float | None = None
     settle_speed_mps: float | None = None
-    settle_s: float = 0.5
+    settle_s: float | None = None
+    #: Rates in vehicle time (scaled by ``speedup``, at most MAX_WALL_HZ on the wall clock).
     setpoint_hz: float = 20.0
     telemetry_hz: float = 10.0
     #: The drone type's speeds, set on the vehicle (params.py) and restored at close.
@@ -75,6 +79,12 @@ class MavlinkSettings:
     def scaled(self, seconds: float) -> float:
         """``seconds`` of vehicle time in wall seconds (``speedup``)."""
         return seconds / self.speedup
+
+    def wall_period(self, hz: float) -> float:
+        """The wall-clock period of a job that runs ``hz`` times per vehicle second
+        (a SITL at speed-up 10 sends ten times as many samples per wall second), but
+        never more often than :data:`MAX_WALL_HZ`."""
+        return 1.0 / min(hz * self.speedup, MAX_WALL_HZ)
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "hal") -> MavlinkSettings:
@@ -169,7 +179,7 @@ class MavlinkSettings:
             action_timeout_s=num("action_timeout_s", gt=0),
             tolerance_m=optional("tolerance_m"),
             settle_speed_mps=optional("settle_speed_mps"),
-            settle_s=num("settle_s", ge=0),
+            settle_s=num("settle_s", ge=0) if "settle_s" in mapping else None,
             setpoint_hz=num("setpoint_hz", gt=2, le=100),
             telemetry_hz=num("telemetry_hz", ge=10, le=100),
             horizontal_speed_mps=num("horizontal_speed_mps", gt=0),

@@ -108,7 +108,7 @@ class LinkState:
     estimator_flags: int | None = None
     #: Compass heading from ATTITUDE.yaw (degrees, 0 north, 90 east); None: not heard.
     heading_deg: float | None = None
-    #: CAMERA_IMAGE_CAPTURED (latest first seen last), and how many were heard.
+    #: CAMERA_IMAGE_CAPTURED or ArduPilot's CAMERA_FEEDBACK (latest last), and how many.
     images: deque[CapturedImage] = field(default_factory=lambda: deque(maxlen=20))
     image_serial: int = 0
     #: The gimbal's pitch from GIMBAL_DEVICE_ATTITUDE_STATUS (degrees); None: not heard.
@@ -358,6 +358,19 @@ class StateTracker:
         st.images.append(image)
         st.image_serial += 1
         events.append(("vehicle.image", {"index": image.index, "ok": image.ok}))
+
+    def _on_camera_feedback(self, msg: Any, now: float, events: Events) -> None:
+        # ArduPilot's report of a photo (AP_Camera_Backend::log_picture): it never sends
+        # CAMERA_IMAGE_CAPTURED.  alt_msl / alt_rel are metres already.
+        st = self.state
+        image = CapturedImage(
+            int(msg.img_idx), msg.lat / 1e7, msg.lng / 1e7, msg.alt_msl, msg.alt_rel, True
+        )
+        st.images.append(image)
+        st.image_serial += 1
+        events.append(
+            ("vehicle.image", {"index": image.index, "ok": True, "via": "CAMERA_FEEDBACK"})
+        )
 
     def _on_gimbal_device_attitude_status(self, msg: Any, now: float, events: Events) -> None:
         w, x, y, z = msg.q

@@ -38,6 +38,7 @@ from eamos.hal.mavlink.link import (
 )
 from eamos.hal.mavlink.pilot import PilotHand, takeover_watch
 from eamos.hal.mavlink.rates import RateKeeper, request_intervals, watched
+from eamos.hal.mavlink.settling import Settling
 from eamos.hal.mavlink.signing import (
     REFUSED_HEARTBEATS,
     SigningKeyError,
@@ -47,11 +48,11 @@ from eamos.hal.mavlink.signing import (
 )
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
-    TYPE_MASK_VELOCITY,
+    CirclePath,
     GuidedTarget,
     send_global,
+    send_path,
     send_position,
-    send_stop,
 )
 from eamos.hal.settings import field_error
 
@@ -134,8 +135,12 @@ class MavlinkVehicle:
         self.geo: GeoFrame | None = None  # home, in WGS84
         self.commanded: Vector | None = None  # last motion target, mission frame
         self.stream_target: Vector | None = None  # PX4 setpoint stream (NED)
-        self.stream_stop = False  # the stream carries a zero velocity instead (a brake)
-        self.stream_yaw: float | None = None  # heading the PX4 stream asks for (Yaw), degrees
+        #: A path streamed instead of a target, on both autopilots (Orbit), and since when.
+        self.path: CirclePath | None = None
+        #: How far round the vehicle has flown so far (radians), for the path's target.
+        self.path_flown: Callable[[], float] = lambda: 0.0
+        #: The heading every target carries once a Yaw set one (degrees); None: yaw ignored.
+        self.stream_yaw: float | None = None
         #: Horizontal speed the vehicle was told (the drone type's, then SetSpeed's).
         self.horizontal_speed_mps = settings.horizontal_speed_mps
         # Speeds (and fence parameters) set, to restore; never written once a pilot has it.
@@ -154,6 +159,8 @@ class MavlinkVehicle:
         self.rates = RateKeeper(self.link, log, self.notify, lambda: self.taken_over is not None)
         self.home_check = VehicleHomeCheck(self.link, settings, log, self.notify)
         self._was_armed = False
+        #: When it is at rest, when a move has arrived (settling.py).
+        self.settling = Settling(self)
         self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
@@ -168,7 +175,7 @@ class MavlinkVehicle:
         """
         s = self.settings
         deadline = time.monotonic() + s.connect_timeout_s
-        self.link.every(1.0 / s.setpoint_hz, self._steer_tick, "setpoints")
+        self.link.every(s.wall_period(s.setpoint_hz), self._steer_tick, "setpoints")
         self.link.every(TARGET_REFRESH_S, self._refresh_tick, "target-refresh")
         self.link.every(POSITION_LOG_S, self._position_log_tick, "position-log")
         self.link.every(TAKEOVER_TICK_S, self.pilot.tick, "takeover")
@@ -292,41 +299,6 @@ class MavlinkVehicle:
             return self.commanded
         return self.mission_position()
 
-    @property
-    def tolerance_m(self) -> float:
-        """Completion tolerance: the settings', else the autopilot's."""
-        return self.settings.tolerance_m or self.autopilot.tolerance_m
-
-    @property
-    def settle_speed_mps(self) -> float:
-        """Settle speed: the settings', else the autopilot's."""
-        return self.settings.settle_speed_mps or self.autopilot.settle_speed_mps
-
-    def window(self, st: LinkState, now: float) -> tuple[Vector, float] | None:
-        """Mean mission position and speed over the settle window ending ``now``, or None
-        until LOCAL_POSITION_NED has been heard for the whole window (a single sample of
-        a wandering estimate proves nothing)."""
-        seen = st.window(now, self.settings.scaled(self.settings.settle_s))
-        if seen is None or st.local is None:
-            return None
-        origin = self.origin or NedOrigin(st.local[0], st.local[1], st.local[2])
-        return ned_to_mission(seen[0], origin), seen[1]
-
-    def settled(self, st: LinkState, target: Vector | None = None, vertical: bool = False) -> bool:
-        """At rest over the settle window (and within tolerance of ``target``, if given;
-        ``vertical``: of its height only)."""
-        seen = self.window(st, time.monotonic())
-        if seen is None:
-            return False
-        position, speed = seen
-        if speed > self.settle_speed_mps:
-            return False
-        if target is None:
-            return True
-        if vertical:
-            return abs(position[2] - target[2]) <= self.tolerance_m
-        return math.dist(position, target) <= self.tolerance_m
-
     def capture_origin(self, ground: bool = False) -> None:
         """Record home at the first (settled) fix and, with ``ground``, the ground height
         before arming (:func:`eamos.hal.mavlink.home.capture_home`; condition held)."""
@@ -373,21 +345,30 @@ class MavlinkVehicle:
         send_position(self.link, target, yaw)
 
     def send_guided_target(self, target: GuidedTarget) -> None:
-        """A local or global (relative altitude) position target."""
+        """A local or global (relative altitude) position target, with the held heading.
+
+        ArduCopter resets its yaw mode to ``WP_YAW_BEHAVIOR`` on every GUIDED target that
+        ignores yaw (the notes): a heading set by Yaw must travel inside each target.
+        """
+        with self.cond:
+            yaw = self.stream_yaw
         kind, point = target
         if kind == "local":
-            send_position(self.link, point)
+            send_position(self.link, point, yaw)
         else:
-            send_global(self.link, point)
+            send_global(self.link, point, yaw)
 
-    def send_stop(self) -> None:
-        """A zero-velocity target (velocity only): stop now."""
-        send_stop(self.link)
+    def send_path_point(self, path: CirclePath) -> None:
+        """The target of ``path`` just ahead of the vehicle, with its velocity."""
+        with self.cond:
+            flown = self.path_flown()
+        position, velocity, heading = path.at(flown)
+        send_path(self.link, position, velocity, heading)
 
     def stop_steering(self) -> None:
-        """No more setpoints or position targets (condition held)."""
+        """No more setpoints, paths or position targets (condition held)."""
         self.stream_target = None
-        self.stream_stop = False
+        self.path = None
         self.guided_target = None
 
     def apply_speeds(self) -> None:
@@ -408,9 +389,9 @@ class MavlinkVehicle:
                 # Disarmed (landed, auto-disarm, or by someone else): stop steering.
                 self.stop_steering()
             self._was_armed = self.state.armed
-            target, stop = self.stream_target, self.stream_stop
-        if stop:
-            self.send_stop()
+            target, path = self.stream_target, self.path
+        if path is not None:
+            self.send_path_point(path)
         elif target is not None:
             self.send_setpoint(target)
 
@@ -475,7 +456,6 @@ def _log_position(self: MavlinkVehicle) -> None:
 __all__ = [
     "GROUND_Z_M",
     "TYPE_MASK_POSITION",
-    "TYPE_MASK_VELOCITY",
     "GuidedTarget",
     "MavlinkVehicle",
 ]

@@ -127,6 +127,11 @@ class ArduPilotPersonality(Personality):
     def rtl_alt_m(self, v: VehicleCore) -> float:
         return v.params.value("RTL_ALT") / 100.0
 
+    def setpoint_yaw(self, v: VehicleCore, heading_deg: float) -> None:
+        # ArduCopter's GUIDED targets carry a yaw too (SET_POSITION_TARGET_*, yaw not ignored).
+        if v.mode == "GUIDED" and v.armed:
+            v.manoeuvres.yaw_to(heading_deg)
+
     def condition_yaw(self, v: VehicleCore, p: tuple[float, ...]) -> int:
         # param1 angle (deg), param2 rate, param3 direction (-1 ccw, 1 cw, 0 shortest),
         # param4 relative (1) or absolute (0).  GUIDED (and AUTO) only.
