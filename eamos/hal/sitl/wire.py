@@ -12,7 +12,6 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
 from typing import Any, Literal
 
 from eamos.hal.kinematics import Limits
@@ -137,8 +136,6 @@ OFFBOARD_LOSS_WALL_S = 0.5
 LAND_DISARM_S = 2.0
 #: How often an unready vehicle repeats why it cannot arm (simulated seconds).
 PREARM_TEXT_PERIOD_S = 10.0
-#: Most messages handled per tick (a flood must not starve the simulation).
-MAX_MESSAGES_PER_TICK = 200
 #: STATUSTEXT payload length; longer texts go out in chunks sharing an id.
 STATUSTEXT_LEN = 50
 
@@ -225,37 +222,6 @@ def parse_reject(specs: Iterable[str]) -> dict[int, int]:
             )
         out[command] = RESULTS[result_key]
     return out
-
-
-def tcp_server(mavutil: ModuleType, address: str, source_system: int) -> Any:
-    """pymavlink's TCP listener, able to accept a new client after one leaves."""
-
-    class TcpServer(mavutil.mavtcpin):  # type: ignore[name-defined,misc]
-        port: Any  # the client's socket, None while nobody is connected
-        fd: int
-
-        def recv(self, n: int | None = None) -> bytes:
-            if self.port is None:
-                try:
-                    self.port, _ = self.listen.accept()
-                except OSError:
-                    return b""
-                self.port.setblocking(False)
-                self.fd = self.port.fileno()
-            try:
-                data: bytes = self.port.recv(n or self.mav.bytes_needed())
-            except BlockingIOError:
-                return b""
-            except OSError:
-                data = b""
-            if not data:
-                # The client went away: accept the next one.
-                self.port.close()
-                self.port = None
-                self.fd = self.listen.fileno()
-            return data
-
-    return TcpServer(address, source_system=source_system, source_component=1)
 
 
 def param_int(value: float, default: int = 0) -> int:
