@@ -80,7 +80,7 @@ def test_return_home_flies_back_lands_and_disarms(
     name = "RTL_RETURN_ALT" if autopilot == "px4" else "RTL_ALT"
     scale = 1.0 if autopilot == "px4" else 100.0
     assert f.vehicle.params[name][0] == pytest.approx(3.0 * scale, rel=0.1)
-    original = 60.0 if autopilot == "px4" else 1500.0
+    original = 30.0 if autopilot == "px4" else 1500.0
     f.adapter.close()
     assert f.vehicle.params[name][0] == pytest.approx(original)  # put back at close
 

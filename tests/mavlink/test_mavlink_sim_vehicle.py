@@ -60,7 +60,9 @@ def test_ardupilot_heartbeat_and_quiet_link(make_vehicle, raw_client):
     hb = client.wait("HEARTBEAT")
     assert (hb.autopilot, hb.type, hb.custom_mode) == (3, 2, 0)  # STABILIZE
     client.wait("HEARTBEAT", after=2)
-    assert client.count("LOCAL_POSITION_NED") == 0  # nothing until asked
+    # Nothing until asked (ArduCopter SITL on SERIAL0: HEARTBEAT and STATUSTEXT only).
+    assert client.count("LOCAL_POSITION_NED") == 0
+    assert client.count("SYS_STATUS") == 0
     client.mav.request_data_stream_send(1, 1, 6, 4, 1)  # MAV_DATA_STREAM_POSITION at 4 Hz
     client.wait("GLOBAL_POSITION_INT")
     client.wait("LOCAL_POSITION_NED")
@@ -88,6 +90,7 @@ def test_arming_before_pre_arm_checks_pass(make_vehicle, raw_client, autopilot, 
     client.wait("HEARTBEAT")
     if autopilot == "ardupilot":
         client.wait("TEXT", lambda t: t == "ArduPilot Ready")
+        client.mav.request_data_stream_send(1, 1, 2, 2, 1)  # EXTENDED_STATUS: SYS_STATUS
     status = client.wait("SYS_STATUS")
     assert status.onboard_control_sensors_present & PREARM
     assert not status.onboard_control_sensors_health & PREARM

@@ -24,12 +24,14 @@ import math
 import random
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter
 from eamos.hal.sim.core import SIM_DT_S
+from eamos.hal.sitl.fence import Geofence
 from eamos.hal.sitl.manoeuvres import Manoeuvres
+from eamos.hal.sitl.missions import FENCE, MISSION, Dialect, MissionServer
 from eamos.hal.sitl.payload import CameraGimbal
 from eamos.hal.sitl.streams import Identity, Send, Status, Streams
 from eamos.hal.sitl.wire import (
@@ -64,6 +66,16 @@ LAND_SPEED_MPS = 0.7
 GIMBAL_STATUS_PERIOD_S = 0.2
 #: The wandering estimate's correlation time (seconds): slow, like an EKF's drift.
 WANDER_TAU_S = 2.0
+
+
+@dataclass(frozen=True)
+class FenceLimits:
+    """What an autopilot's fence parameters enable: a ceiling (m above home), a radius
+    around home (m), and the uploaded polygons and circles."""
+
+    ceiling_m: float | None = None
+    radius_m: float | None = None
+    uploaded: bool = True
 
 
 def stopping_point(
@@ -102,8 +114,12 @@ class Personality:
     refused: int
     #: Whether REQUEST_DATA_STREAM is understood.
     data_streams: bool = False
+    #: Whether MAV_CMD_DO_REPOSITION is understood as COMMAND_LONG too (not only COMMAND_INT).
+    reposition_long: bool = True
     #: The mode MAV_CMD_NAV_LAND switches to.
     land_mode: str
+    #: How it speaks the mission protocol (:mod:`eamos.hal.sitl.missions`).
+    mission_dialect: Dialect
     #: STATUSTEXT narration.
     text_armable: str
     text_not_ready: str
@@ -204,8 +220,10 @@ class Personality:
     def landing(self, v: VehicleCore) -> None:
         """MAV_CMD_NAV_LAND accepted: narrate it."""
 
-    def reposition_mode(self, v: VehicleCore, p: tuple[float, ...]) -> int | None:
-        """Enter the mode a reposition flies in; a MAV_RESULT if it is refused."""
+    def reposition_mode(
+        self, v: VehicleCore, p: tuple[float, ...], target: tuple[float, float, float]
+    ) -> int | None:
+        """Enter the mode a reposition to ``target`` flies in; a MAV_RESULT if it is refused."""
         raise NotImplementedError
 
     def setpoint(self, v: VehicleCore) -> None:
@@ -235,6 +253,26 @@ class Personality:
     def change_speed(self, v: VehicleCore, p: tuple[float, ...]) -> int:
         """MAV_CMD_DO_CHANGE_SPEED: the MAV_RESULT."""
         return UNSUPPORTED
+
+    # -- geofence (eamos.hal.sitl.fence) -------------------------------------------------------
+
+    def fence_limits(self, v: VehicleCore) -> FenceLimits | None:
+        """What its fence parameters enable now; None: no fence is enforced."""
+        return None
+
+    def fence_breached(self, v: VehicleCore, kind: str) -> None:
+        """The vehicle just left its fence (``kind``: altitude, circle, polygon): react."""
+
+    def fence_cleared(self, v: VehicleCore) -> None:
+        """The vehicle is back inside its fence."""
+
+    def armable_announced(self, v: VehicleCore) -> None:
+        """The pre-arm checks just passed (ArduPilot: home and origin are set then)."""
+
+    def coordinates_refused(self, v: VehicleCore) -> int | None:
+        """MAV_CMD_DO_REPOSITION to a latitude or longitude out of range: the MAV_RESULT,
+        or None if it accepts it (and the vehicle then holds where it is)."""
+        return None
 
 
 class ParamTable:
@@ -343,6 +381,11 @@ class VehicleCore:
             else personality.estimator_settle_s(o)
         )
         self.streams = Streams(identity, personality.default_rates, o, self.offset_m, send)
+        self.missions = MissionServer(
+            personality.mission_dialect, send, lambda: o.home, self._missions_changed
+        )
+        self.geofence = Geofence()
+        self.fence_breach: str | None = None  # what the vehicle is outside of, if anything
 
     # -- sending -------------------------------------------------------------------------
 
@@ -378,6 +421,7 @@ class VehicleCore:
             (tuple(error) if erring else None),  # type: ignore[arg-type]
             ESTIMATOR_SETTLED_FLAGS if self.estimator_settled() else ESTIMATOR_UNSETTLED_FLAGS,
             self.manoeuvres.heading_deg,
+            (self.missions.current, len(self.missions.lists[MISSION])),
         )
 
     def estimator_settled(self) -> bool:
@@ -411,6 +455,7 @@ class VehicleCore:
         if self.armable() and not self._armable_announced:
             self._armable_announced = True
             self.text(p.text_armable)
+            p.armable_announced(self)
         if not self.armable() and t >= self._next_prearm_text and t >= BOOT_S:
             self._next_prearm_text = t + PREARM_TEXT_PERIOD_S
             self.text(self.prearm_reason(), SEV_CRITICAL)
@@ -431,6 +476,8 @@ class VehicleCore:
             if not self.armed and model.armed:
                 model.disarm()  # a force-disarmed vehicle has now hit the ground
         self._was_landed = model.landed
+        self._check_fence()
+        self.missions.tick(self.wall())
         if (
             self.touchdown_at is not None
             and self.armed
@@ -439,6 +486,62 @@ class VehicleCore:
         ):
             self.disarm(p.text_land_disarm)
         self._log_position()
+
+    # -- geofence ----------------------------------------------------------------------------
+
+    def _missions_changed(self, mission_type: int) -> None:
+        if mission_type != FENCE:
+            return
+        try:
+            self.geofence = Geofence.from_items(self.missions.items(FENCE), self.frame)
+        except ValueError as exc:
+            self.geofence = Geofence()
+            self.text(f"Fence: {exc}", SEV_CRITICAL)
+            return
+        self.log.info(
+            "vehicle.fence",
+            inclusion=len(self.geofence.inclusion),
+            exclusion=len(self.geofence.exclusion),
+            circles=len(self.geofence.circles_in) + len(self.geofence.circles_out),
+            t_sim=round(self.t, 3),
+        )
+
+    def outside_fence(self, point: tuple[float, float, float]) -> str | None:
+        """What of the enforced fence ``point`` is outside of (altitude, circle, polygon)."""
+        limits = self.p.fence_limits(self)
+        if limits is None:
+            return None
+        x, y, z = point
+        if limits.ceiling_m is not None and z > limits.ceiling_m:
+            return "altitude"
+        if limits.radius_m is not None and math.hypot(x, y) > limits.radius_m:
+            return "circle"
+        if limits.uploaded:
+            return self.geofence.horizontal_breach((x, y))
+        return None
+
+    def _check_fence(self) -> None:
+        """A breach (leaving the fence while flying) is told to the personality once."""
+        if not self.armed or self.model.landed:
+            self.fence_breach = None
+            return
+        kind = self.outside_fence(self.model.position)
+        if kind is not None and self.fence_breach is None:
+            self.fence_breach = kind
+            st = self.model.state
+            self.log.warning(
+                "vehicle.fence.breach",
+                kind=kind,
+                x_m=round(st.x_m, 2),
+                y_m=round(st.y_m, 2),
+                z_m=round(st.z_m, 2),
+                t_sim=round(self.t, 3),
+            )
+            self.p.fence_breached(self, kind)
+        elif kind is None and self.fence_breach is not None:
+            self.fence_breach = None
+            self.log.info("vehicle.fence.cleared", t_sim=round(self.t, 3))
+            self.p.fence_cleared(self)
 
     def flight_limits(self) -> Limits:
         """The model's limits now: the autopilot's speed parameters, the mode's deceleration."""
@@ -565,6 +668,7 @@ __all__ = [
     "LAND_DECEL_MPS2",
     "LAND_MODES",
     "RTL_MODES",
+    "FenceLimits",
     "Param",
     "ParamTable",
     "Params",

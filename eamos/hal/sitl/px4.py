@@ -26,11 +26,11 @@ import math
 import struct
 
 from eamos.hal.mavlink.autopilots import MAV_AUTOPILOT_PX4, PX4_MODES, px4_custom_mode
-from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.core import FenceLimits, Params, Personality, VehicleCore
 from eamos.hal.sitl.manoeuvres import Orbit
+from eamos.hal.sitl.missions import PX4_DIALECT
 from eamos.hal.sitl.wire import (
     ACCEPTED,
-    DEFAULT_STREAM_RATES,
     DENIED,
     LAND_DISARM_S,
     MSG_ESTIMATOR_STATUS,
@@ -38,6 +38,7 @@ from eamos.hal.sitl.wire import (
     OFFBOARD_LOSS_WALL_S,
     PARAM_INT32,
     PARAM_REAL32,
+    PX4_ONBOARD_RATES,
     SEV_CRITICAL,
     SEV_NOTICE,
     TEMPORARILY_REJECTED,
@@ -71,9 +72,12 @@ class Px4Personality(Personality):
     target_mode = "OFFBOARD"
     modes = PX4_MODES
     default_ground_offset_m = 1.5
-    default_rates = DEFAULT_STREAM_RATES  # PX4's onboard link streams a lot by default
+    default_rates = PX4_ONBOARD_RATES  # PX4's onboard link streams a lot by default
+    mission_dialect = PX4_DIALECT
     refused = DENIED
     estimator_msg = MSG_ESTIMATOR_STATUS
+    #: MAV_CMD_DO_REPOSITION as COMMAND_LONG or COMMAND_INT.
+    reposition_long = True
     land_mode = "AUTO.LAND"
     text_armable = "Ready for takeoff!"
     text_not_ready = "Preflight Fail: ekf2 missing data"
@@ -112,7 +116,12 @@ class Px4Personality(Personality):
             "MPC_Z_VEL_MAX_DN": (1.5, PARAM_REAL32),
             "MPC_ACC_HOR": (3.0, PARAM_REAL32),
             "MPC_ACC_HOR_MAX": (5.0, PARAM_REAL32),
-            "RTL_RETURN_ALT": (60.0, PARAM_REAL32),
+            "RTL_RETURN_ALT": (30.0, PARAM_REAL32),  # PX4 main's default (read on its SITL)
+            # The geofence: GF_ACTION 2 holds on a breach (PX4 main's default); a ceiling
+            # and a radius around home when set above 0; uploaded polygons always.
+            "GF_ACTION": (2.0, PARAM_INT32),
+            "GF_MAX_HOR_DIST": (0.0, PARAM_REAL32),
+            "GF_MAX_VER_DIST": (0.0, PARAM_REAL32),
         }
 
     def speeds(self, v: VehicleCore) -> tuple[float, float, float]:
@@ -246,7 +255,9 @@ class Px4Personality(Personality):
     def landing(self, v: VehicleCore) -> None:
         v.text("Landing at current position")
 
-    def reposition_mode(self, v: VehicleCore, p: tuple[float, ...]) -> int | None:
+    def reposition_mode(
+        self, v: VehicleCore, p: tuple[float, ...], target: tuple[float, float, float]
+    ) -> int | None:
         if v.mode != "HOLD":
             v.enter_mode("HOLD", "reposition")
         return None
@@ -280,6 +291,35 @@ class Px4Personality(Personality):
         v.manoeuvres.speed_override_mps = min(speed, v.params.value("MPC_XY_VEL_MAX"))
         v.manoeuvres.start_orbit(v, Orbit(cx, cy, abs(radius), speed, clockwise=radius > 0))
         return ACCEPTED
+
+    # -- the geofence ---------------------------------------------------------------------------
+
+    def fence_limits(self, v: VehicleCore) -> FenceLimits | None:
+        value = v.params.value
+        if param_int(value("GF_ACTION")) == 0:
+            return None
+        ceiling, radius = value("GF_MAX_VER_DIST"), value("GF_MAX_HOR_DIST")
+        return FenceLimits(
+            ceiling_m=ceiling if ceiling > 0 else None,
+            radius_m=radius if radius > 0 else None,
+        )
+
+    def fence_breached(self, v: VehicleCore, kind: str) -> None:
+        v.text("Geofence violation: approaching or outside geofence", SEV_CRITICAL)
+        # GF_ACTION: 1 warning, 2 hold, 3 return, 4 terminate, 5 land.
+        action = param_int(v.params.value("GF_ACTION"))
+        if action < 2:
+            return
+        v.text("Failsafe activated", SEV_CRITICAL)
+        if action == 2:
+            v.enter_mode("HOLD", "geofence")
+            v.stop_at(self.accel(v))  # holds where its braking ends
+        elif action == 3:
+            v.enter_mode("AUTO.RTL", "geofence")
+        elif action == 4:
+            v.disarm("Flight termination active", force=True)
+        else:
+            v.enter_mode("AUTO.LAND", "geofence")
 
     def position_target(self, v: VehicleCore, target: tuple[float, float, float]) -> None:
         self._offboard_target = target

@@ -43,7 +43,9 @@ from eamos.hal.sitl.wire import (
     MSG_HEARTBEAT,
     MSG_HOME_POSITION,
     MSG_LOCAL_POSITION_NED,
+    MSG_MISSION_CURRENT,
     MSG_SYS_STATUS,
+    MSG_VFR_HUD,
     PREARM_CHECK,
     SENSORS,
     STREAMABLE,
@@ -74,6 +76,8 @@ class Status:
     estimator_flags: int = 0
     #: Compass heading (degrees, 0 north, 90 east).
     heading_deg: float = 0.0
+    #: The mission's current item and its length (MISSION_CURRENT).
+    mission: tuple[int, int] = (0, 0)
 
 
 @dataclass(frozen=True)
@@ -248,6 +252,16 @@ class Streams:
                 0,
             ),
             MSG_AUTOPILOT_VERSION: self._autopilot_version,
+            MSG_VFR_HUD: lambda: (
+                "vfr_hud",
+                st.horizontal_speed_mps,  # airspeed: no wind here
+                st.horizontal_speed_mps,
+                round(status.heading_deg) % 360,
+                (50 if not st.landed else 0) if status.armed else 0,  # throttle %
+                amsl,
+                st.vz_mps,
+            ),
+            MSG_MISSION_CURRENT: lambda: ("mission_current", status.mission[0], status.mission[1]),
             MSG_ESTIMATOR_STATUS: lambda: (
                 "estimator_status",
                 int(t * 1e6),

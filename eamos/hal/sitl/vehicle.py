@@ -362,6 +362,7 @@ class SimVehicle:
         msg = getattr(links.mav, f"{message}_encode")(*args)
         links.send(msg)
 
+
 __all__ = [
     "ACCEPTED",
     "DENIED",
