@@ -311,6 +311,10 @@ class Inbox:
         if self._for_us(msg):
             self.v.missions.on_item(self._client(msg), _item_fields(msg, False), self.v.wall())
 
+    def _on_mission_ack(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_ack(self._client(msg), msg.type, _mission_type(msg))
+
     def _on_mission_request_list(self, msg: Any) -> None:
         if self._for_us(msg):
             self.v.missions.on_request_list(self._client(msg), _mission_type(msg))

@@ -20,6 +20,8 @@ docs/flying-real-drones.md), a :class:`Dialect` says how:
   item 0 of the mission, reports global frames without ``_INT`` (frame 6 comes
   back as 3, 5 as 0), and refuses an item whose latitude or longitude is out of
   range (MAV_MISSION_INVALID_PARAM5_X / _PARAM6_Y), keeping the list it had;
+* both ask again with MISSION_REQUEST_INT when a client answers MISSION_REQUEST with
+  MAV_MISSION_UNSUPPORTED (MAVSDK does: it speaks only the ``_INT`` messages);
 * PX4 asks with MISSION_REQUEST until the client has sent a MISSION_ITEM_INT,
   keeps frames as sent, marks item 0 current, and stores out-of-range
   coordinates as they come (PX4 main accepted a latitude of -214.7 degrees).
@@ -41,7 +43,7 @@ from typing import Any
 MISSION, FENCE, RALLY, ALL_TYPES = 0, 1, 2, 255
 MISSION_TYPES = (MISSION, FENCE, RALLY)
 #: MAV_MISSION_RESULT.
-MISSION_ACCEPTED, MISSION_ERROR, MISSION_UNSUPPORTED_FRAME = 0, 1, 2
+MISSION_ACCEPTED, MISSION_ERROR, MISSION_UNSUPPORTED_FRAME, MISSION_UNSUPPORTED = 0, 1, 2, 3
 MISSION_NO_SPACE, MISSION_INVALID_PARAM5_X, MISSION_INVALID_PARAM6_Y = 4, 10, 11
 MISSION_INVALID_SEQUENCE, MISSION_OPERATION_CANCELLED = 13, 15
 #: MAV_FRAME: the global ones, and ArduPilot's report of the ``_INT`` ones.
@@ -209,7 +211,7 @@ class MissionServer:
         """MISSION_ITEM_INT (``fields["int"]`` true) or MISSION_ITEM: the next item of an upload."""
         up = self._upload
         item = _item_from(fields)
-        if fields.get("int"):
+        if fields.get("int") and self.dialect.request_int_once_seen:
             self._int_clients.add(client)
         if up is None or up.client != client or item.mission_type != up.mission_type:
             return  # not part of an upload from this client: ignored, as PX4 and ArduPilot do
@@ -232,6 +234,20 @@ class MissionServer:
         self._upload = None
         self._replace(up.mission_type, up.items)
         self._ack(client, MISSION_ACCEPTED, up.mission_type)
+
+    def on_ack(self, client: tuple[int, int], result: int, mission_type: int) -> None:
+        """MISSION_ACK from a client.  During its upload, MAV_MISSION_UNSUPPORTED answers a
+        MISSION_REQUEST (MAVSDK speaks only the ``_INT`` messages): ask again with
+        MISSION_REQUEST_INT, as both autopilots do (MAVSDK uploads to both SITLs).  Any
+        other result from the uploading client abandons the upload."""
+        up = self._upload
+        if up is None or up.client != client or mission_type != up.mission_type:
+            return  # the end of a download, or not ours
+        if result == MISSION_UNSUPPORTED and client not in self._int_clients:
+            self._int_clients.add(client)
+            self._request(len(up.items))
+            return
+        self._upload = None
 
     def on_request_list(self, client: tuple[int, int], mission_type: int) -> None:
         """MISSION_REQUEST_LIST: how many items the list has."""
@@ -314,7 +330,7 @@ class MissionServer:
     def _request(self, seq: int) -> None:
         up = self._upload
         assert up is not None
-        as_int = self.dialect.request_int_once_seen and up.client in self._int_clients
+        as_int = up.client in self._int_clients
         kind = "mission_request_int" if as_int else "mission_request"
         self._send(kind, up.client[0], up.client[1], seq, up.mission_type)
 

@@ -305,15 +305,21 @@ class Px4Personality(Personality):
         )
 
     def fence_breached(self, v: VehicleCore, kind: str) -> None:
-        v.text("Geofence violation: approaching or outside geofence", SEV_CRITICAL)
+        if kind == "altitude":
+            v.text("Geofence violation: exceeding maximum altitude above Home", SEV_CRITICAL)
+        else:
+            v.text("Geofence violation: approaching or outside geofence", SEV_CRITICAL)
         # GF_ACTION: 1 warning, 2 hold, 3 return, 4 terminate, 5 land.
         action = param_int(v.params.value("GF_ACTION"))
         if action < 2:
             return
         v.text("Failsafe activated", SEV_CRITICAL)
         if action == 2:
+            # PX4 main held about 1 m past the fence it crossed at 6 m/s (its SITL):
+            # it brakes, then comes back to about where it crossed.
+            here = v.model.position
             v.enter_mode("HOLD", "geofence")
-            v.stop_at(self.accel(v))  # holds where its braking ends
+            v.steer(*here)
         elif action == 3:
             v.enter_mode("AUTO.RTL", "geofence")
         elif action == 4:

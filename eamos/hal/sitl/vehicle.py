@@ -75,7 +75,9 @@ from eamos.hal.mavlink.signing import radio_status_only, refresh_timestamp
 from eamos.hal.sim.adapter import paced_ticks
 from eamos.hal.sitl.ardupilot import ArduPilotPersonality
 from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.fence import Geofence
 from eamos.hal.sitl.inbox import Inbox
+from eamos.hal.sitl.missions import MISSION, MissionItem
 from eamos.hal.sitl.px4 import Px4Personality
 from eamos.hal.sitl.transport import Links
 from eamos.hal.sitl.wire import (
@@ -240,6 +242,17 @@ class SimVehicle:
         """The model's 3-D speed."""
         with self._lock:
             return self._core.model.state.speed_mps
+
+    @property
+    def geofence(self) -> Geofence:
+        """The fence uploaded to the vehicle (empty: none)."""
+        with self._lock:
+            return self._core.geofence
+
+    def mission_items(self, mission_type: int = MISSION) -> list[MissionItem]:
+        """The items of one of the vehicle's lists (0 mission, 1 fence, 2 rally points)."""
+        with self._lock:
+            return self._core.missions.items(mission_type)
 
     @property
     def params(self) -> Params:
