@@ -422,6 +422,8 @@ class VehicleCore:
             ESTIMATOR_SETTLED_FLAGS if self.estimator_settled() else ESTIMATOR_UNSETTLED_FLAGS,
             self.manoeuvres.heading_deg,
             (self.missions.current, len(self.missions.lists[MISSION])),
+            self.p.fence_limits(self) is not None,
+            self.fence_breach is not None,
         )
 
     def estimator_settled(self) -> bool:

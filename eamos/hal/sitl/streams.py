@@ -46,6 +46,7 @@ from eamos.hal.sitl.wire import (
     MSG_MISSION_CURRENT,
     MSG_SYS_STATUS,
     MSG_VFR_HUD,
+    GEOFENCE,
     PREARM_CHECK,
     SENSORS,
     STREAMABLE,
@@ -78,6 +79,9 @@ class Status:
     heading_deg: float = 0.0
     #: The mission's current item and its length (MISSION_CURRENT).
     mission: tuple[int, int] = (0, 0)
+    #: A fence is enforced, and the vehicle is outside it (SYS_STATUS's GEOFENCE bits).
+    fence_enforced: bool = False
+    fence_breached: bool = False
 
 
 @dataclass(frozen=True)
@@ -284,8 +288,11 @@ class Streams:
 
     def _sys_status(self, status: Status) -> tuple[Any, ...]:
         report = self._options.report_prearm
-        reported = SENSORS | (PREARM_CHECK if report else 0)
-        health = SENSORS | (PREARM_CHECK if status.armable and report else 0)
+        fence = GEOFENCE if status.fence_enforced else 0
+        reported = SENSORS | fence | (PREARM_CHECK if report else 0)
+        # As ArduPilot: the geofence is healthy unless breached (MAVProxy says "fence breach").
+        health = SENSORS | (0 if status.fence_breached else GEOFENCE)
+        health |= PREARM_CHECK if status.armable and report else 0
         battery = round(status.state.battery_pct)
         current = 500 if status.armed else 50
         return ("sys_status", reported, reported, health, 250, 12600, current, battery) + (0,) * 6

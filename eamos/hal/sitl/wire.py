@@ -146,6 +146,7 @@ SENSORS = (
     | 0x2000000  # AHRS, battery
 )
 PREARM_CHECK = 0x10000000
+GEOFENCE = 0x100000  # MAV_SYS_STATUS_GEOFENCE
 
 #: Simulated seconds from start to the first HEARTBEAT (both SITLs take ~1 s).
 BOOT_S = 1.0
