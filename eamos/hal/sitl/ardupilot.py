@@ -39,6 +39,17 @@ from eamos.hal.sitl.wire import (
 
 #: BRAKE mode's deceleration (ArduCopter's BRAKE_MODE_DECEL_RATE, 750 cm/s/s).
 BRAKE_DECEL_MPS2 = 7.5
+#: Measured on ArduCopter 4.7 SITL (experiment A, tests/sitl/test_sim_vehicle_vs_sitl.py):
+#: GUIDED NAV_TAKEOFF leaves the ground this long after the command (spool-up, take-off ramp)...
+TAKEOFF_LIFTOFF_S = 3.6
+#: ...its jerk-limited position controller flies a move of d metres as a trapezoid of
+#: acceleration JERK_ACCEL_FACTOR * d^(1/3) would (1 m legs: 0.83 m/s/s, 2.5 s each; 10 m
+#: at 5 m/s: 1.8, about 5 s, as the notes say), never above WPNAV_ACCEL...
+JERK_ACCEL_FACTOR = 0.83
+#: ...its land detector reports on the ground 1.5 s after touchdown, and it disarms 0.8 s
+#: later (2.3 s after touchdown).
+LAND_DETECT_S = 1.5
+LAND_DISARM_AFTER_DETECT_S = 0.8
 #: Modes a GCS may not switch to here.
 _REFUSED_MODES = frozenset({"AUTO", "ACRO", "THROW", "GUIDED_NOGPS"})
 _BY_NUMBER = {value: name for name, value in ARDUCOPTER_MODES.items()}
@@ -93,6 +104,7 @@ class ArduPilotPersonality(Personality):
             "WPNAV_SPEED_UP": (250.0, PARAM_REAL32),
             "WPNAV_SPEED_DN": (150.0, PARAM_REAL32),
             "WPNAV_ACCEL": (250.0, PARAM_REAL32),
+            "LAND_SPEED": (50.0, PARAM_REAL32),  # cm/s, below LAND_ALT_LOW
             "FS_GCS_ENABLE": (0.0, PARAM_REAL32),
             "RTL_ALT": (1500.0, PARAM_REAL32),  # cm
             "CIRCLE_RADIUS": (1000.0, PARAM_REAL32),  # cm
@@ -116,7 +128,22 @@ class ArduPilotPersonality(Personality):
         )
 
     def accel(self, v: VehicleCore) -> float:
+        limit = max(v.params.value("WPNAV_ACCEL"), 50.0) / 100.0
+        return min(limit, max(0.3, JERK_ACCEL_FACTOR * v.move_m ** (1.0 / 3.0)))
+
+    def stop_accel(self, v: VehicleCore) -> float:
         return max(v.params.value("WPNAV_ACCEL"), 50.0) / 100.0
+
+    land_detect_s = LAND_DETECT_S
+
+    def land_speed(self, v: VehicleCore) -> float:
+        return max(v.params.value("LAND_SPEED"), 10.0) / 100.0
+
+    def land_disarm_s(self, v: VehicleCore) -> float:
+        return LAND_DISARM_AFTER_DETECT_S
+
+    def liftoff_delay_s(self, v: VehicleCore) -> float:
+        return TAKEOFF_LIFTOFF_S
 
     def preflight_disarm_s(self, v: VehicleCore) -> float:
         return v.params.value("DISARM_DELAY")

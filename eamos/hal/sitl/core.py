@@ -32,6 +32,7 @@ from eamos.hal.sim.core import SIM_DT_S
 from eamos.hal.sitl.fence import Geofence
 from eamos.hal.sitl.manoeuvres import Manoeuvres
 from eamos.hal.sitl.missions import FENCE, MISSION, Dialect, MissionServer
+from eamos.hal.sitl.params import Param, Params, ParamTable
 from eamos.hal.sitl.payload import CameraGimbal
 from eamos.hal.sitl.streams import Identity, Send, Status, Streams
 from eamos.hal.sitl.wire import (
@@ -51,9 +52,6 @@ from eamos.hal.sitl.wire import (
 if TYPE_CHECKING:
     from eamos.logs import EventLog
 
-#: A parameter: its value and MAV_PARAM_TYPE.
-Param = tuple[float, int]
-Params = dict[str, Param]
 #: Modes in which the vehicle lands, and returns to launch (either autopilot's names).
 LAND_MODES = frozenset({"AUTO.LAND", "LAND"})
 RTL_MODES = frozenset({"AUTO.RTL", "RTL"})
@@ -150,6 +148,21 @@ class Personality:
     def preflight_disarm_s(self, v: VehicleCore) -> float:
         """Armed on the ground without a take-off, disarm after this (<= 0: never)."""
         raise NotImplementedError
+
+    #: Seconds from touchdown until it reports being on the ground (its land detector).
+    land_detect_s: float = 1.5
+
+    def land_speed(self, v: VehicleCore) -> float:
+        """The descent speed in its land mode (from its parameters)."""
+        return LAND_SPEED_MPS
+
+    def land_disarm_s(self, v: VehicleCore) -> float:
+        """Seconds from reporting on the ground until it disarms by itself."""
+        return LAND_DISARM_S
+
+    def liftoff_delay_s(self, v: VehicleCore) -> float:
+        """Seconds from being told to climb (armed, on the ground) until it leaves it."""
+        return 0.0
 
     def estimator_settle_s(self, options: VehicleOptions) -> float:
         """When its estimator settles unless the options say (simulated seconds from start)."""
@@ -275,55 +288,6 @@ class Personality:
         return None
 
 
-class ParamTable:
-    """The vehicle's parameters: PARAM_REQUEST_LIST/READ and PARAM_SET, each answered with
-    PARAM_VALUE in the personality's wire encoding."""
-
-    def __init__(
-        self, personality: Personality, initial: Params, log: EventLog, send: Send
-    ) -> None:
-        self._p = personality
-        self._params: Params = dict(initial)
-        self._log = log
-        self._send = send
-
-    def value(self, name: str) -> float:
-        """A parameter's current value."""
-        return self._params[name][0]
-
-    def snapshot(self) -> Params:
-        """A copy of every parameter."""
-        return dict(self._params)
-
-    def send_all(self) -> None:
-        """PARAM_REQUEST_LIST: every parameter, in order."""
-        for index, name in enumerate(self._params):
-            self._send_param(name, index)
-
-    def read(self, name: str, index: int) -> None:
-        """PARAM_REQUEST_READ by index (if valid) or name; unknown ones stay unanswered."""
-        names = list(self._params)
-        if 0 <= index < len(names):
-            name = names[index]
-        if name in self._params:
-            self._send_param(name, names.index(name))
-
-    def set(self, name: str, raw: float) -> None:
-        """PARAM_SET: store and echo; both SITLs stay silent about unknown parameters."""
-        if name not in self._params:
-            return
-        _, ptype = self._params[name]
-        value = self._p.param_from_wire(raw, ptype)
-        self._params[name] = (value, ptype)
-        self._log.info("vehicle.param", name=name, value=value)
-        self._send_param(name, list(self._params).index(name))
-
-    def _send_param(self, name: str, index: int) -> None:
-        value, ptype = self._params[name]
-        wire = self._p.param_to_wire(value, ptype)
-        self._send("param_value", name.encode(), wire, ptype, len(self._params), index)
-
-
 class VehicleCore:
     """One simulated MAVLink vehicle without thread or connection (see module docstring)."""
 
@@ -360,6 +324,8 @@ class VehicleCore:
         self.armed_at = 0.0
         self.flew = False  # left the ground (or was told to) since arming
         self.touchdown_at: float | None = None
+        self._climb_asked_at: float | None = None  # told to climb while on the ground
+        self.move_m = 0.0  # the length of the current move (from where it was steered)
         self._was_landed = True
         self.mode = personality.initial_mode
         self._armable_announced = False
@@ -424,6 +390,7 @@ class VehicleCore:
             (self.missions.current, len(self.missions.lists[MISSION])),
             self.p.fence_limits(self) is not None,
             self.fence_breach is not None,
+            self.on_ground,
         )
 
     def estimator_settled(self) -> bool:
@@ -468,7 +435,10 @@ class VehicleCore:
         self.manoeuvres.step(self, SIM_DT_S)
         self.camera.step(SIM_DT_S)
         model.limits = self.flight_limits()
+        held = self._spooling_up()
         model.step(SIM_DT_S)
+        if held is not None:
+            model.set_target(*held)
         self._wander()
         if not model.landed:
             self.flew = True
@@ -484,7 +454,7 @@ class VehicleCore:
             self.touchdown_at is not None
             and self.armed
             and model.landed
-            and t - self.touchdown_at >= LAND_DISARM_S
+            and t - self.touchdown_at >= p.land_detect_s + p.land_disarm_s(self)
         ):
             self.disarm(p.text_land_disarm)
         self._log_position()
@@ -545,6 +515,28 @@ class VehicleCore:
             self.log.info("vehicle.fence.cleared", t_sim=round(self.t, 3))
             self.p.fence_cleared(self)
 
+    def _spooling_up(self) -> tuple[float, float, float] | None:
+        """Told to climb from the ground: the target, withheld for this step while the motors
+        spool up (the personality's lift-off delay); None when the model may move."""
+        model = self.model
+        target = model.target
+        if not (self.armed and model.landed and target is not None and target[2] > 0):
+            self._climb_asked_at = None
+            return None
+        if self._climb_asked_at is None:
+            self._climb_asked_at = self.t
+        if self.t - self._climb_asked_at >= self.p.liftoff_delay_s(self):
+            return None
+        model.hold()
+        return target
+
+    @property
+    def on_ground(self) -> bool:
+        """Landed as its land detector says: on the ground for ``land_detect_s`` (or since boot)."""
+        if not self.model.landed:
+            return False
+        return self.touchdown_at is None or self.t - self.touchdown_at >= self.p.land_detect_s
+
     def flight_limits(self) -> Limits:
         """The model's limits now: the autopilot's speed parameters, the mode's deceleration."""
         horizontal, climb, descent = self.p.speeds(self)
@@ -552,7 +544,7 @@ class VehicleCore:
             horizontal = self.manoeuvres.speed_override_mps
         accel = self.braking_accel or self.p.accel(self)
         if self.mode in LAND_MODES:
-            accel, descent = LAND_DECEL_MPS2, LAND_SPEED_MPS
+            accel, descent = LAND_DECEL_MPS2, self.p.land_speed(self)
         return replace(
             self.options.limits,
             horizontal_speed_mps=max(horizontal, 0.05),
@@ -573,6 +565,7 @@ class VehicleCore:
     def steer(self, x: float, y: float, z: float) -> None:
         """A new position target: the autopilot's own acceleration applies again."""
         self.braking_accel = None
+        self.move_m = math.dist(self.model.position, (x, y, max(z, 0.0)))
         self.model.set_target(x, y, z)
 
     def _wander(self) -> None:

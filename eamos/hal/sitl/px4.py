@@ -55,6 +55,11 @@ OFFBOARD_CRUISE_MPS = 6.0
 #: pre-arm delay).
 ESTIMATOR_SETTLE_S = 6.0
 ESTIMATOR_AFTER_ARMABLE_S = 2.0
+#: Measured on PX4 main SITL (SIH, experiment A): OFFBOARD or AUTO.TAKEOFF leaves the
+#: ground MPC_TKO_RAMP_T plus this long after being told to climb...
+LIFTOFF_AFTER_RAMP_S = 1.0
+#: ...and "Landing detected" comes about this long after touchdown.
+LAND_DETECT_S = 1.5
 #: Modes a GCS cannot switch to without an RC transmitter.
 _RC_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"})
 _BY_NUMBERS = {pair: name for name, pair in PX4_MODES.items()}
@@ -107,6 +112,8 @@ class Px4Personality(Personality):
             "MIS_TAKEOFF_ALT": (2.5, PARAM_REAL32),
             "COM_DISARM_PRFLT": (options.disarm_after_s, PARAM_REAL32),
             "COM_DISARM_LAND": (LAND_DISARM_S, PARAM_REAL32),
+            "MPC_LAND_SPEED": (0.7, PARAM_REAL32),
+            "MPC_TKO_RAMP_T": (3.0, PARAM_REAL32),
             "COM_OF_LOSS_T": (OFFBOARD_LOSS_S, PARAM_REAL32),
             "COM_OBL_RC_ACT": (5.0, PARAM_INT32),
             # PX4's defaults, not the drone type's.
@@ -138,6 +145,17 @@ class Px4Personality(Personality):
 
     def preflight_disarm_s(self, v: VehicleCore) -> float:
         return v.params.value("COM_DISARM_PRFLT")
+
+    land_detect_s = LAND_DETECT_S
+
+    def land_speed(self, v: VehicleCore) -> float:
+        return max(v.params.value("MPC_LAND_SPEED"), 0.1)
+
+    def land_disarm_s(self, v: VehicleCore) -> float:
+        return max(v.params.value("COM_DISARM_LAND"), 0.0)
+
+    def liftoff_delay_s(self, v: VehicleCore) -> float:
+        return max(v.params.value("MPC_TKO_RAMP_T"), 0.0) + LIFTOFF_AFTER_RAMP_S
 
     def estimator_settle_s(self, options: VehicleOptions) -> float:
         return max(ESTIMATOR_SETTLE_S, options.prearm_delay_s + ESTIMATOR_AFTER_ARMABLE_S)

@@ -21,6 +21,7 @@ from eamos.hal.sitl.wire import (
     DATA_STREAMS,
     DEFAULT_STREAM_RATES,
     FAILED,
+    GEOFENCE,
     LANDED_IN_AIR,
     LANDED_LANDING,
     LANDED_ON_GROUND,
@@ -46,7 +47,6 @@ from eamos.hal.sitl.wire import (
     MSG_MISSION_CURRENT,
     MSG_SYS_STATUS,
     MSG_VFR_HUD,
-    GEOFENCE,
     PREARM_CHECK,
     SENSORS,
     STREAMABLE,
@@ -82,6 +82,8 @@ class Status:
     #: A fence is enforced, and the vehicle is outside it (SYS_STATUS's GEOFENCE bits).
     fence_enforced: bool = False
     fence_breached: bool = False
+    #: On the ground as its land detector says (a moment after touchdown).
+    on_ground: bool = True
 
 
 @dataclass(frozen=True)
@@ -353,7 +355,7 @@ def _battery_status(st: VehicleState) -> tuple[Any, ...]:
 
 
 def _landed_state(status: Status) -> int:
-    if status.state.landed:
+    if status.on_ground:
         return LANDED_ON_GROUND
     if status.mode in ("AUTO.LAND", "LAND"):
         return LANDED_LANDING
