@@ -18,6 +18,7 @@ ones these tests may use).
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import shutil
@@ -75,7 +76,7 @@ class FlightRecord:
         track = self.track
         if t <= track[0][0]:
             return track[0][1:]
-        for (t0, *p0), (t1, *p1) in zip(track, track[1:], strict=False):
+        for (t0, *p0), (t1, *p1) in itertools.pairwise(track):
             if t0 <= t <= t1:
                 k = 0.0 if t1 == t0 else (t - t0) / (t1 - t0)
                 return tuple(a + (b - a) * k for a, b in zip(p0, p1, strict=True))  # type: ignore[return-value]
@@ -220,9 +221,11 @@ class SquareFlight:
     def _set_param(self, name: str, value: float) -> None:
         self.conn.mav.param_set_send(self.target, 1, name.encode(), value, 9)
         self.wait(
-            lambda: (p := self._last.get("PARAM_VALUE")) is not None
-            and p.param_id == name
-            and abs(p.param_value - value) < 1e-3,
+            lambda: (
+                (p := self._last.get("PARAM_VALUE")) is not None
+                and p.param_id == name
+                and abs(p.param_value - value) < 1e-3
+            ),
             f"PARAM_SET {name}",
             30.0,
         )
@@ -247,9 +250,11 @@ class SquareFlight:
         for name, value in speed_plan(ap, *SPEEDS):  # type: ignore[arg-type]
             self._set_param(name, value)
         status = self.wait(
-            lambda: (s := self._last.get("SYS_STATUS")) is not None
-            and s.onboard_control_sensors_health & PREARM
-            and s,
+            lambda: (
+                (s := self._last.get("SYS_STATUS")) is not None
+                and s.onboard_control_sensors_health & PREARM
+                and s
+            ),
             "armable",
             240.0,
         )
@@ -281,8 +286,10 @@ class SquareFlight:
         self._setpoint = None
         assert self.command(21) == 0
         self.wait(
-            lambda: (e := self._last.get("EXTENDED_SYS_STATE")) is not None
-            and e.landed_state == LANDED_ON_GROUND,
+            lambda: (
+                (e := self._last.get("EXTENDED_SYS_STATE")) is not None
+                and e.landed_state == LANDED_ON_GROUND
+            ),
             "landed",
         )
         self._done("Land")

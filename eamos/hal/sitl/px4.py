@@ -56,10 +56,12 @@ OFFBOARD_CRUISE_MPS = 6.0
 ESTIMATOR_SETTLE_S = 6.0
 ESTIMATOR_AFTER_ARMABLE_S = 2.0
 #: Measured on PX4 main SITL (SIH, experiment A): OFFBOARD or AUTO.TAKEOFF leaves the
-#: ground MPC_TKO_RAMP_T plus this long after being told to climb...
-LIFTOFF_AFTER_RAMP_S = 1.0
-#: ...and "Landing detected" comes about this long after touchdown.
-LAND_DETECT_S = 1.5
+#: ground MPC_TKO_RAMP_T plus this long after being told to climb (its smooth take-off
+#: also climbs slowly at first: 0.65 m/s at most towards 1.5 m)...
+LIFTOFF_AFTER_RAMP_S = 2.0
+#: ...and "Landing detected" comes about this long after touchdown (three landings from
+#: 1.5 m took 4.8-7.3 s from MAV_CMD_NAV_LAND to ON_GROUND).
+LAND_DETECT_S = 2.2
 #: Modes a GCS cannot switch to without an RC transmitter.
 _RC_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"})
 _BY_NUMBERS = {pair: name for name, pair in PX4_MODES.items()}
@@ -113,6 +115,8 @@ class Px4Personality(Personality):
             "COM_DISARM_PRFLT": (options.disarm_after_s, PARAM_REAL32),
             "COM_DISARM_LAND": (LAND_DISARM_S, PARAM_REAL32),
             "MPC_LAND_SPEED": (0.7, PARAM_REAL32),
+            "MPC_LAND_ALT3": (1.0, PARAM_REAL32),
+            "MPC_LAND_CRWL": (0.3, PARAM_REAL32),
             "MPC_TKO_RAMP_T": (3.0, PARAM_REAL32),
             "COM_OF_LOSS_T": (OFFBOARD_LOSS_S, PARAM_REAL32),
             "COM_OBL_RC_ACT": (5.0, PARAM_INT32),
@@ -123,6 +127,8 @@ class Px4Personality(Personality):
             "MPC_Z_VEL_MAX_DN": (1.5, PARAM_REAL32),
             "MPC_ACC_HOR": (3.0, PARAM_REAL32),
             "MPC_ACC_HOR_MAX": (5.0, PARAM_REAL32),
+            "MPC_XY_P": (0.95, PARAM_REAL32),
+            "MPC_Z_P": (1.0, PARAM_REAL32),
             "RTL_RETURN_ALT": (30.0, PARAM_REAL32),  # PX4 main's default (read on its SITL)
             # The geofence: GF_ACTION 2 holds on a breach (PX4 main's default); a ceiling
             # and a radius around home when set above 0; uploaded polygons always.
@@ -135,7 +141,18 @@ class Px4Personality(Personality):
         value = v.params.value
         limit = value("MPC_XY_VEL_MAX")
         cruise = OFFBOARD_CRUISE_MPS if v.mode == "OFFBOARD" else value("MPC_XY_CRUISE")
-        return (min(cruise, limit), value("MPC_Z_VEL_MAX_UP"), value("MPC_Z_VEL_MAX_DN"))
+        horizontal = min(cruise, limit)
+        up, down = value("MPC_Z_VEL_MAX_UP"), value("MPC_Z_VEL_MAX_DN")
+        target = v.model.target
+        if v.mode == "OFFBOARD" and target is not None:
+            # OFFBOARD position setpoints go straight to the position controller, whose
+            # velocity is MPC_XY_P (MPC_Z_P) times the distance left: it slows down as it
+            # nears the setpoint (1 m legs peaked at 0.7-0.8 m/s on the SITL).
+            x, y, z = v.model.position
+            horizontal = min(horizontal, value("MPC_XY_P") * math.dist((x, y), target[:2]))
+            vertical = value("MPC_Z_P") * abs(target[2] - z)
+            up, down = min(up, vertical), min(down, vertical)
+        return (horizontal, up, down)
 
     def accel(self, v: VehicleCore) -> float:
         return max(v.params.value("MPC_ACC_HOR"), 0.5)
@@ -149,7 +166,11 @@ class Px4Personality(Personality):
     land_detect_s = LAND_DETECT_S
 
     def land_speed(self, v: VehicleCore) -> float:
-        return max(v.params.value("MPC_LAND_SPEED"), 0.1)
+        # Below MPC_LAND_ALT3 (SIH has a distance sensor) it crawls at MPC_LAND_CRWL.
+        value = v.params.value
+        if v.model.position[2] < value("MPC_LAND_ALT3"):
+            return max(value("MPC_LAND_CRWL"), 0.1)
+        return max(value("MPC_LAND_SPEED"), 0.1)
 
     def land_disarm_s(self, v: VehicleCore) -> float:
         return max(v.params.value("COM_DISARM_LAND"), 0.0)
