@@ -83,23 +83,38 @@ def test_an_autopilot_left_to_auto_is_said_to_be_approximate(tmp_path):
 SITL, WHY = sitl_dir()
 
 
-@pytest.mark.timeout(900)
+#: PX4 SIH varies much from flight to flight (experiment A: 22-34 s): its flights are
+#: averaged over this many; ArduCopter's repeat within a few tenths of a second.
+FLIGHTS = {"ardupilot": 1, "px4": 3}
+#: An action's end may also be off by this much (s) when 20 % of it is less.
+SLACK_S = 2.0
+
+
+@pytest.mark.timeout(1500)
 @pytest.mark.skipif(SITL is None, reason=WHY)
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_the_check_predicts_each_autopilots_durations_within_20_percent(autopilot, tmp_path):
     predicted = predicted_ends(tmp_path, autopilot)
     load = load_average()
-    with sitl_vehicle(autopilot, INSTANCE[autopilot], SPEEDUP, tmp_path / "sitl") as conn:
-        real = SquareFlight(conn, autopilot).fly()
-    # The flight's times from its start (the first message), the arming wait included.
-    wait = real.armable_wait_s
-    flown = [(a, t + wait) for a, t in real.ends]
-    assert [a for a, _ in flown] == [a for a, _ in predicted]
-    ratios = [p / f for (_, p), (_, f) in zip(predicted, flown, strict=True)]
-    total = flown[-1][1] / predicted[-1][1]
+    runs = []
+    for n in range(FLIGHTS[autopilot]):
+        folder = tmp_path / f"sitl-{n}"
+        with sitl_vehicle(autopilot, INSTANCE[autopilot], SPEEDUP, folder) as conn:
+            real = SquareFlight(conn, autopilot).fly()
+        # The flight's times from its start (the first message), the arming wait included.
+        runs.append([(a, t + real.armable_wait_s) for a, t in real.ends])
+    names = [a for a, _ in runs[0]]
+    assert names == [a for a, _ in predicted]
+    flown = [sum(run[i][1] for run in runs) / len(runs) for i in range(len(names))]
+    ratio = flown[-1] / predicted[-1][1]
     print(
-        f"\n{autopilot}: flight/check duration ratio {total:.2f}; per action "
-        + ", ".join(f"{a} {r:.2f}" for (a, _), r in zip(predicted, ratios, strict=True))
-        + f"; flown {[(a, round(t, 1)) for a, t in flown]}; load {load:.1f}"
+        f"\n{autopilot}: flight/check duration ratio {ratio:.2f} (mean of {len(runs)}); "
+        + ", ".join(
+            f"{a} {p:.1f}/{f:.1f}" for a, (_, p), f in zip(names, predicted, flown, strict=True)
+        )
+        + f" s predicted/flown; flights took {[round(r[-1][1], 1) for r in runs]} s; "
+        f"load {load:.1f}"
     )
-    assert all(abs(r - 1.0) <= TOLERANCE for r in ratios), ratios
+    assert abs(ratio - 1.0) <= TOLERANCE, ratio
+    for a, (_, p), f in zip(names, predicted, flown, strict=True):
+        assert abs(p - f) <= max(TOLERANCE * f, SLACK_S), (a, p, f)

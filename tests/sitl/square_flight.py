@@ -293,6 +293,8 @@ class SquareFlight:
             "landed",
         )
         self._done("Land")
+        # Disarm as the adapter does: the command (it may have disarmed by itself already).
+        assert self.command(400, 0) == 0
         self.wait(lambda: not self._last["HEARTBEAT"].base_mode & 128, "disarmed", 60.0)
         self._done("Disarm")
         return self.record
