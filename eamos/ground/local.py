@@ -45,7 +45,7 @@ from .display import Display, make_display
 from .flight import Limits, fly, ground_runtime, hurried
 from .station import GroundStation
 from .summary import RunSummary, summarize
-from .vehicles import start_sim_vehicles
+from .vehicles import start_sim_vehicles, vehicle_homes
 
 #: The command line of one drone's node (``eamos-node`` in this Python).
 NODE_MODULE = "eamos.cli.node"
@@ -473,10 +473,17 @@ def _fly_local(
     # encrypted and only this run's participants can connect (docs/network.md).
     keys_dir = create_fleet_keys(fresh_keys_folder(run_dir), names)
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
-    vehicles = start_sim_vehicles({n: fleet.hal_for(n) for n in drones}, run_dir / "logs", speedup)
+    # Simulated drones, MAVLink ones included, stand at their homes in the fleet frame, as
+    # the check saw them.
+    order = fleet_order(mission.programs)
+    homes = fleet.homes(order)
+    vehicles = start_sim_vehicles(
+        {n: fleet.hal_for(n) for n in drones},
+        run_dir / "logs",
+        speedup,
+        vehicle_homes(homes, fleet.homes_lla, list(order)),
+    )
     hals: dict[str, dict[str, Any]] = {}
-    # Simulated drones stand at their homes in the fleet frame, as the check saw them.
-    homes = fleet.homes(fleet_order(mission.programs))
     try:
         for name in drones:
             hal = vehicles.hal_for(name)

@@ -12,7 +12,8 @@ ArduPilot style: the vehicle serves TCP, ``tcp:127.0.0.1:PORT``) and no
 run's ``--speedup``), ``prearm_delay_s`` (3; ``inf``: never armable),
 ``disarm_after_s`` (10),
 ``estimator_settle_s`` and ``estimator_bias_m`` (an estimator that settles late, and
-its error until then), ``sysid`` (1), ``home`` ([lat, lon, alt]), ``reject`` (list of commands,
+its error until then), ``sysid`` (1), ``home`` ([lat, lon, alt]; default: the
+drone's home in the fleet, :func:`vehicle_homes`), ``reject`` (list of commands,
 e.g. ``["MAV_CMD_NAV_LAND=FAILED"]``).  Each vehicle logs to
 ``<log_dir>/<drone>/sim-vehicle.log`` (its console to ``sim-vehicle.out``).
 """
@@ -31,6 +32,7 @@ from typing import Any
 
 from eamos.config import ConfigError
 from eamos.hal.api import AdapterError
+from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.settings import MavlinkSettings
 
 SIM_VEHICLE_KEYS = frozenset(
@@ -166,15 +168,49 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
     return args
 
 
+#: Where a fleet's frame is when no drone has a ``home_lla`` (the simulated vehicle's default).
+DEFAULT_ORIGIN = (46.6103, 14.2640, 450.0)
+
+
+def vehicle_homes(
+    homes_m: Mapping[str, tuple[float, float]],
+    homes_lla: Mapping[str, tuple[float, ...]],
+    drones: list[str],
+) -> dict[str, tuple[float, float, float]]:
+    """Each drone's home as latitude, longitude and altitude: its ``home_lla``, else its place
+    in the fleet frame (``FleetConfig.homes``: metres north and east of the first drone
+    with a ``home_lla``, else of :data:`DEFAULT_ORIGIN`), so a simulated MAVLink vehicle
+    stands where the check, the monitor and the report put that drone."""
+    with_lla = [d for d in drones if d in homes_lla]
+    origin = tuple(homes_lla[with_lla[0]]) if with_lla else DEFAULT_ORIGIN
+    alt = float(origin[2]) if len(origin) > 2 else DEFAULT_ORIGIN[2]
+    frame = GeoFrame(float(origin[0]), float(origin[1]), alt)
+    out: dict[str, tuple[float, float, float]] = {}
+    for drone in drones:
+        if drone in homes_lla:
+            lla = homes_lla[drone]
+            out[drone] = (float(lla[0]), float(lla[1]), float(lla[2]) if len(lla) > 2 else alt)
+            continue
+        north, east = homes_m.get(drone, (0.0, 0.0))
+        lat, lon, _ = frame.to_lla(north, east, 0.0)
+        out[drone] = (lat, lon, alt)
+    return out
+
+
 def start_sim_vehicles(
-    hals: Mapping[str, Mapping[str, Any]], log_dir: Path, speedup: float | None = None
+    hals: Mapping[str, Mapping[str, Any]],
+    log_dir: Path,
+    speedup: float | None = None,
+    homes: Mapping[str, tuple[float, float, float]] | None = None,
 ) -> SimVehicleFleet:
     """Start an ``eamos-sim-vehicle`` for every drone whose ``hal`` asks for one.
 
     ``hals`` maps each drone to its merged ``hal`` settings; the result's
     :meth:`SimVehicleFleet.hal_for` gives the settings to write into the
-    node's config.  Raises :class:`~eamos.config.ConfigError` for a bad
-    ``sim_vehicle`` table (no process is left running then).
+    node's config.  ``homes``: each drone's home (lat, lon, alt AMSL) from the fleet
+    (:func:`vehicle_homes`), used unless its ``sim_vehicle`` table gives one.  Raises
+    :class:`~eamos.config.ConfigError` for a bad ``sim_vehicle`` table (no process is
+    left running then).
     """
     fleet = SimVehicleFleet({})
     plans: list[tuple[str, list[str], Path]] = []
@@ -191,6 +227,8 @@ def start_sim_vehicles(
                 "(eamos run picks a free port)"
             )
         args = _vehicle_args(drone, hal["sim_vehicle"], speedup)
+        if "--home" not in args and homes is not None and drone in homes:
+            args += ["--home", ",".join(repr(float(v)) for v in homes[drone])]
         if "--speedup" in args:
             # The vehicle's clock runs this much faster: the adapter scales its timeouts.
             node_hal.setdefault("speedup", float(args[args.index("--speedup") + 1]))
@@ -232,4 +270,11 @@ def start_sim_vehicles(
     return fleet
 
 
-__all__ = ["SIM_VEHICLE_KEYS", "SimVehicleFleet", "free_port", "start_sim_vehicles"]
+__all__ = [
+    "DEFAULT_ORIGIN",
+    "SIM_VEHICLE_KEYS",
+    "SimVehicleFleet",
+    "free_port",
+    "start_sim_vehicles",
+    "vehicle_homes",
+]

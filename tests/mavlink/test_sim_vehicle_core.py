@@ -425,3 +425,23 @@ def test_coordinates_out_of_range_are_refused_as_each_autopilot_does() -> None:
         )
         rig.run_s(3.0)
         assert rig.core.model.position[0] == pytest.approx(0.0, abs=0.1), autopilot
+
+
+def test_each_simulated_vehicle_takes_its_home_from_the_fleet() -> None:
+    from eamos.ground.vehicles import DEFAULT_ORIGIN, vehicle_homes
+    from eamos.hal.kinematics import GeoFrame
+
+    drones = ["D1", "D2", "D3"]
+    # No home_lla: the fleet frame's origin is the default; each 5 m apart as FleetConfig.homes.
+    homes = vehicle_homes({"D1": (0.0, 0.0), "D2": (0.0, 5.0), "D3": (10.0, 5.0)}, {}, drones)
+    frame = GeoFrame(*DEFAULT_ORIGIN)
+    for drone, (north, east) in {"D1": (0, 0), "D2": (0, 5), "D3": (10, 5)}.items():
+        x, y, _ = frame.from_lla(homes[drone][0], homes[drone][1], 0.0)
+        assert (x, y) == pytest.approx((north, east), abs=1e-3)
+        assert homes[drone][2] == DEFAULT_ORIGIN[2]
+    # A home_lla is used as given and is the origin of the others.
+    lla = {"D2": (47.0, 8.5, 500.0)}
+    homes = vehicle_homes({"D1": (-3.0, 0.0), "D2": (0.0, 0.0)}, lla, ["D1", "D2"])
+    assert homes["D2"] == (47.0, 8.5, 500.0)
+    x, y, _ = GeoFrame(47.0, 8.5, 500.0).from_lla(homes["D1"][0], homes["D1"][1], 0.0)
+    assert (x, y) == pytest.approx((-3.0, 0.0), abs=1e-3)
