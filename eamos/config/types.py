@@ -47,7 +47,7 @@ MAVLINK_MODELS: Mapping[str, Mapping[str, float]] = MappingProxyType(
             {
                 "arm_delay_s": 39.0,
                 "liftoff_delay_s": 3.6,
-                "accel_mps2": 0.83,
+                "accel_mps2": 0.72,
                 "descent_speed_mps": 0.5,
                 "land_detect_s": 1.5,
                 "disarm_after_landing_s": 2.3,

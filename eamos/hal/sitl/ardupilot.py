@@ -43,9 +43,9 @@ BRAKE_DECEL_MPS2 = 7.5
 #: GUIDED NAV_TAKEOFF leaves the ground this long after the command (spool-up, take-off ramp)...
 TAKEOFF_LIFTOFF_S = 3.6
 #: ...its jerk-limited position controller flies a move of d metres as a trapezoid of
-#: acceleration JERK_ACCEL_FACTOR * d^(1/3) would (1 m legs: 0.83 m/s/s, 2.5 s each; 10 m
-#: at 5 m/s: 1.8, about 5 s, as the notes say), never above WPNAV_ACCEL...
-JERK_ACCEL_FACTOR = 0.83
+#: acceleration JERK_ACCEL_FACTOR * d^(1/3) would (1 m legs: 0.72 m/s/s, 2.5 s each; 10 m
+#: at 5 m/s: 1.55, about 5.3 s; the notes say about 5), never above WPNAV_ACCEL...
+JERK_ACCEL_FACTOR = 0.72
 #: ...its land detector reports on the ground 1.5 s after touchdown, and it disarms 0.8 s
 #: later (2.3 s after touchdown).
 LAND_DETECT_S = 1.5

@@ -565,7 +565,11 @@ class VehicleCore:
     def steer(self, x: float, y: float, z: float) -> None:
         """A new position target: the autopilot's own acceleration applies again."""
         self.braking_accel = None
-        self.move_m = math.dist(self.model.position, (x, y, max(z, 0.0)))
+        new = (x, y, max(z, 0.0))
+        old = self.model.target
+        if old is None or math.dist(old, new) > 0.01:
+            # A new move (a target re-sent every second, as the adapter does, is not).
+            self.move_m = math.dist(self.model.position, new)
         self.model.set_target(x, y, z)
 
     def _wander(self) -> None:
