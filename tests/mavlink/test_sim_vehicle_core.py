@@ -39,6 +39,10 @@ class Msg:
     def get_type(self) -> str:
         return self._kind
 
+    def __getattr__(self, name: str) -> Any:
+        """A field the message was not given (mypy: fields are set dynamically)."""
+        raise AttributeError(name)
+
     def get_srcSystem(self) -> int:
         return 255
 
