@@ -118,6 +118,8 @@ def test_takeoff_differs_px4_auto_takeoff_against_ardupilot_guided() -> None:
     assert px4.ask(command(ARM, 1.0)) == ACCEPTED
     assert px4.ask(command(TAKEOFF, 0, 0, 0, 0, 0, 0, 450.0 + 3.0)) == ACCEPTED
     assert px4.core.mode == "AUTO.TAKEOFF"
+    px4.run_s(5.0)  # the motors spool up first (MPC_TKO_RAMP_T + 2 s, as on PX4 main SITL)
+    assert px4.core.model.landed
     px4.run_s(8.0)
     assert px4.core.mode == "HOLD"  # take-off complete
     assert px4.core.model.position[2] == pytest.approx(3.0, abs=0.1)
@@ -129,6 +131,8 @@ def test_takeoff_differs_px4_auto_takeoff_against_ardupilot_guided() -> None:
     guided = 4.0  # ArduCopter's GUIDED mode number
     assert ardu.ask(command(SET_MODE, 1.0, guided)) == ACCEPTED
     assert ardu.ask(command(TAKEOFF, 0, 0, 0, 0, 0, 0, 3.0)) == ACCEPTED
+    ardu.run_s(3.5)  # ArduCopter SITL left the ground 3.6 s after NAV_TAKEOFF
+    assert ardu.core.model.landed
     ardu.run_s(6.0)
     assert ardu.core.model.position[2] == pytest.approx(3.0, abs=0.1)
 
