@@ -129,6 +129,8 @@ class ArduPilotPersonality(Personality):
 
     def accel(self, v: VehicleCore) -> float:
         limit = max(v.params.value("WPNAV_ACCEL"), 50.0) / 100.0
+        if v.move_from_mps > 0.5:
+            return limit  # already moving (a new target in flight): WPNAV_ACCEL, as before
         return min(limit, max(0.3, JERK_ACCEL_FACTOR * v.move_m ** (1.0 / 3.0)))
 
     def stop_accel(self, v: VehicleCore) -> float:

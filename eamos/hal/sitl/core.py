@@ -325,7 +325,9 @@ class VehicleCore:
         self.flew = False  # left the ground (or was told to) since arming
         self.touchdown_at: float | None = None
         self._climb_asked_at: float | None = None  # told to climb while on the ground
+        self._touchdown_told = True
         self.move_m = 0.0  # the length of the current move (from where it was steered)
+        self.move_from_mps = 0.0  # the speed it had when that move began
         self._was_landed = True
         self.mode = personality.initial_mode
         self._armable_announced = False
@@ -444,9 +446,12 @@ class VehicleCore:
             self.flew = True
         if model.landed and not self._was_landed:
             self.touchdown_at = t
-            self.text(p.text_touchdown, SEV_INFO)
+            self._touchdown_told = False
             if not self.armed and model.armed:
                 model.disarm()  # a force-disarmed vehicle has now hit the ground
+        if not self._touchdown_told and self.touchdown_at is not None and self.on_ground:
+            self._touchdown_told = True  # when its land detector says so
+            self.text(p.text_touchdown, SEV_INFO)
         self._was_landed = model.landed
         self._check_fence()
         self.missions.tick(self.wall())
@@ -525,6 +530,7 @@ class VehicleCore:
             return None
         if self._climb_asked_at is None:
             self._climb_asked_at = self.t
+            self.flew = True  # taking off: no preflight auto-disarm while the motors spool up
         if self.t - self._climb_asked_at >= self.p.liftoff_delay_s(self):
             return None
         model.hold()
@@ -570,6 +576,7 @@ class VehicleCore:
         if old is None or math.dist(old, new) > 0.01:
             # A new move (a target re-sent every second, as the adapter does, is not).
             self.move_m = math.dist(self.model.position, new)
+            self.move_from_mps = self.model.state.speed_mps
         self.model.set_target(x, y, z)
 
     def _wander(self) -> None:
