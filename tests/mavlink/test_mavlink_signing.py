@@ -112,7 +112,7 @@ def test_signed_flight_and_unsigned_or_wrong_commands_ignored(flight, tmp_path, 
     for key in (None, OTHER):
         refused = f.vehicle.refused
         # Straight at the vehicle's own UDP port (PX4 style: it sends from there).
-        port = f.vehicle._conn.port.getsockname()[1]
+        port = f.vehicle.address[1]
         intruder = RawClient(f"udpout:127.0.0.1:{port}")
         try:
             if key is not None:

@@ -92,6 +92,12 @@ class SimSettings:
     tolerance_m: float = 0.1
     settle_speed_mps: float = 0.2
     arm_delay_s: float = 2.0
+    # Told to take off, the vehicle leaves the ground this long later (motors spooling up,
+    # an autopilot's take-off ramp); a landing is reported this long after touchdown (an
+    # autopilot's land detector).  0 for a simulated drone; the pre-flight check's model
+    # of a MAVLink drone sets the measured ones (eamos.config.types.MAVLINK_MODELS).
+    liftoff_delay_s: float = 0.0
+    land_detect_s: float = 0.0
     # Disarm by itself this long after a touchdown ending a flight, as PX4 (COM_DISARM_LAND)
     # and ArduCopter do; 0: never (eamos.hal.sim.landing).
     disarm_after_landing_s: float = DISARM_AFTER_LANDING_S
@@ -153,6 +159,8 @@ class SimSettings:
             tolerance_m=num("tolerance_m", gt=0),
             settle_speed_mps=num("settle_speed_mps", gt=0),
             arm_delay_s=num("arm_delay_s", ge=0),
+            liftoff_delay_s=num("liftoff_delay_s", ge=0),
+            land_detect_s=num("land_detect_s", ge=0),
             disarm_after_landing_s=num("disarm_after_landing_s", ge=0),
             telemetry_hz=num("telemetry_hz", gt=0),
             home_lat_deg=num("home_lat_deg", ge=-90, le=90),
