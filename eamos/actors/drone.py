@@ -41,6 +41,20 @@ REPORT_ACK_TIMEOUT_S = 10.0
 """How long a drone waits for the ground station to acknowledge its final report."""
 
 
+class NodeStop(threading.Event):
+    """The node's stop: set by a signal (SIGINT, SIGTERM), which it names for the operator."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.name = ""
+
+    def signal(self, name: str) -> None:
+        """Stop because of the signal ``name`` (e.g. ``"SIGTERM"``); the first one is kept."""
+        if not self.is_set():
+            self.name = name
+        self.set()
+
+
 class DroneEnd(enum.Enum):
     """How a drone's part ended (the command line maps it to an exit code)."""
 
@@ -103,11 +117,13 @@ def run_drone(
             return DroneEnd.UNREACHABLE
         ending = _execute(runtime, config, program, stop, policy)
         held = ending is not None and ending.kind == "stranded" and policy == "hold"
+        landed = True
         if runtime.aborted.is_set() and not held:
+            # The report is sent after the landing: it tells where the vehicle ended.
             landed = runtime.wait_landed(config.land_timeout_s)
             if not landed:
                 runtime.log.error("mission.abort.not_landed", timeout_s=config.land_timeout_s)
-        elif config.disarm_wait_s > 0 and not wait_settled(runtime, config.disarm_wait_s):
+        if landed and config.disarm_wait_s > 0 and not wait_settled(runtime, config.disarm_wait_s):
             # Its autopilot disarms a moment after landing: the report tells what it is left in.
             runtime.log.warning("mission.end.armed_on_ground", waited_s=config.disarm_wait_s)
         report = runtime.drone_report()
@@ -173,14 +189,20 @@ def _execute(
     stop: threading.Event,
     policy: str,
 ) -> EndOnOwn | None:
-    """Run until Complete, an abort, a signal, or until the drone must end on its own (how)."""
+    """Run until Complete, an abort, a signal, or until the drone must end on its own (how).
+
+    However the part ends short of an abort (Complete, the drone's own resolution, a
+    silent ground station), the stranded check runs first (:func:`strand_if_airborne`):
+    a part that ended blocked by a failure with the vehicle in the air applies the end
+    policy before the report is sent, never left to the adapter's land-on-close.
+    """
     limit_s = peer_wait_limit(config)
     sources = trigger_sources(program)
     checked_airborne = False
     caught: set[str] = set()  # lost peers a Try here has caught (once each)
     while not (runtime.completed.is_set() or runtime.aborted.is_set()):
         if stop.is_set():
-            runtime.abort("stopped by signal")
+            stopped_by_signal(runtime, config.drone, stop)
             return None
         # Bounded only so a signal (which sets `stop`) and a silent peer are noticed;
         # the runtime's events are set by the in-bridge thread.
@@ -215,7 +237,29 @@ def _execute(
             return ending
         runtime.end_stranded(ending.reason, policy)
         return ending
-    return None
+    if runtime.aborted.is_set() or checked_airborne:
+        return None
+    # Complete came first (always, for the last drone to resolve): check now.
+    return strand_if_airborne(runtime, config.drone, policy)
+
+
+def stopped_by_signal(runtime: DroneRuntime, drone: str, stop: threading.Event) -> None:
+    """A signal ends the mission on this drone: say so in ``node.out``, then land."""
+    name = stop.name if isinstance(stop, NodeStop) and stop.name else "a signal"
+    tell_operator(
+        drone, f"stopped by {name}: the mission is aborted on this drone; it lands, then reports"
+    )
+    runtime.abort("stopped by signal")
+
+
+def strand_if_airborne(runtime: DroneRuntime, drone: str, policy: str) -> EndOnOwn | None:
+    """Apply the end policy if the part ended blocked with the vehicle in the air (how)."""
+    ending = left_airborne(runtime)
+    if ending is None:
+        return None
+    tell_operator(drone, ending.reason)
+    runtime.end_stranded(ending.reason, policy)
+    return ending
 
 
 def left_airborne(runtime: DroneRuntime) -> EndOnOwn | None:

@@ -50,7 +50,7 @@ try:
 
     # isort: split
     from eamos import __version__
-    from eamos.actors.drone import DroneEnd, load_node_program, run_drone
+    from eamos.actors.drone import DroneEnd, NodeStop, load_node_program, run_drone
     from eamos.cli.errors import run_reported
     from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EXIT_OK
     from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
@@ -198,10 +198,10 @@ def guarded(body: Callable[[], int], verbose: bool, who: str = "") -> int:
 def main(argv: list[str] | None = None) -> int:
     """Console entry point of ``eamos-node``."""
     args = build_parser().parse_args(argv)
-    stop = threading.Event()
+    stop = NodeStop()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
+        stop.signal(signal.Signals(signum).name)
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
