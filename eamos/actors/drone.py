@@ -17,6 +17,7 @@ import time
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
 from eamos.logs import LogWriter, close_logger, make_logger, report_write_error
+from eamos.net import wire
 from eamos.net.reports import report_messages
 from eamos.net.wire import WireError
 from eamos.program.format import DroneProgram, load_program
@@ -244,12 +245,22 @@ def _execute(
 
 
 def stopped_by_signal(runtime: DroneRuntime, drone: str, stop: threading.Event) -> None:
-    """A signal ends the mission on this drone: say so in ``node.out``, then land."""
+    """A signal ends the mission on this drone: said in ``node.out`` and to the ground
+    station at once; the drones waiting for it are released, and it lands."""
     name = stop.name if isinstance(stop, NodeStop) and stop.name else "a signal"
-    tell_operator(
-        drone, f"stopped by {name}: the mission is aborted on this drone; it lands, then reports"
+    text = f"stopped by {name}: the mission is aborted on this drone; it lands, then reports"
+    tell_operator(drone, text)
+    runtime.send(
+        wire.Progress(
+            mission=runtime.program.mission_id,
+            sender=drone,
+            state="stopped",
+            node="",
+            action=f"stopped by {name}",
+            detail={"detail": text},
+        )
     )
-    runtime.abort("stopped by signal")
+    runtime.stop_mission("stopped by signal")
 
 
 def strand_if_airborne(runtime: DroneRuntime, drone: str, policy: str) -> EndOnOwn | None:

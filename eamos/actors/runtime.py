@@ -244,6 +244,21 @@ class DroneRuntime:
         self._to_ground(stranded_progress(self.program, reason, policy))
         self._give_up(reason, "mission.stranded.released", land=policy != "hold")
 
+    def stop_mission(self, reason: str) -> None:
+        """Stop the mission on this drone for good (its node was told to stop: a signal).
+
+        It lands, and the drones waiting for it are released at once (``failed`` on its
+        outgoing arcs), as in :meth:`_give_up`; but it does not say ``Resolved``: its
+        report, then its node's exit, end its part at the ground station, which counts
+        them as a failure before the mission's end.
+        """
+        if self.outbox is not None:
+            self.outbox.seal()
+        self.abort(reason)
+        if self.outbox is not None:
+            released = self.outbox.release(released_arcs(self.program))
+            self.log.warning("mission.stopped.released", triggers=released)
+
     def _give_up(self, reason: str, event: str, land: bool) -> None:
         """This drone's nodes no longer speak: its out-bridge stops sending for them,
         the drone aborts (it lands), every outgoing arc outside loops not yet

@@ -28,7 +28,7 @@ from .station import DroneView, GroundStation, ParticipantFailed
 
 #: Node states worth a line (``Progress.state``): every change of an action, a
 #: wait and its condition, a branch decision, a blocked or skipped node, a
-#: stranded drone.
+#: stranded drone, a node stopped by a signal.
 SHOWN_STATES = (
     "running",
     "ok",
@@ -40,6 +40,7 @@ SHOWN_STATES = (
     "blocked",
     "skipped",
     "stranded",
+    "stopped",
 )
 #: Lines are held this long and printed in the order things happened on the
 #: drones (progress batches arrive up to PROGRESS_INTERVAL_S late).

@@ -521,13 +521,13 @@ def _fly_local(
     exits: dict[str, int] = {}
 
     def on_exit(name: str, code: int) -> None:
+        # Every exit is counted at once (GroundStation.exited): the normal end after
+        # Complete, else a failure, with the last line its node wrote about it.
         exits[name] = code
-        view = station.snapshot().get(name)
-        if view is not None and view.report is None:
-            out = processes.outputs.get(name, run_dir / "logs" / name / "node.out")
-            # A shared process's output: the last line that names this drone.
-            why = last_line(out, "" if out.name == "node.out" else f" {name}:")
-            station.fail(name, exit_reason(code, processes.groups.get(name, (name,)), why))
+        out = processes.outputs.get(name, run_dir / "logs" / name / "node.out")
+        # A shared process's output: the last line that names this drone.
+        why = last_line(out, "" if out.name == "node.out" else f" {name}:")
+        station.exited(name, exit_reason(code, processes.groups.get(name, (name,)), why))
 
     processes = LocalFleet(on_exit)
     started = time.time()

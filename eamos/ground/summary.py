@@ -10,7 +10,8 @@ One typed :class:`RunSummary` for every ground station (``eamos run``,
 ``drones.<name>`` is the drone's own report (:class:`DroneReport`, as in its
 ``report.json``) plus what the ground station knows besides: ``exit_code``
 (a local process), ``host`` (over SSH); a drone that sent no report has
-``{"ok": false, "error": "no report", "link": ...}`` instead.
+``{"ok": false, "error": "no report", "link": ..., "last_seen": ...}`` instead,
+``last_seen`` (:class:`LastSeen`) being where its last telemetry placed it.
 """
 
 from __future__ import annotations
@@ -26,12 +27,77 @@ from eamos.actors.report import ActionEntry, DroneReport, FinalState
 from eamos.logs import report_write_error
 from eamos.program.uniform import GROUND_STATION
 
-__all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
+__all__ = [
+    "ActionEntry",
+    "DroneReport",
+    "DroneResult",
+    "FinalState",
+    "LastSeen",
+    "RunSummary",
+    "summarize",
+]
 
 if TYPE_CHECKING:
     from .station import DroneView
 
 NO_REPORT = "no report"
+
+
+@dataclass(frozen=True)
+class LastSeen:
+    """Where the ground station last saw a drone: its latest telemetry (JSON ``last_seen``).
+
+    What a drone whose node died without a report (``kill -9``, a crash) was last
+    known to be doing: a MAVLink vehicle may still hover there until something
+    lands it.
+    """
+
+    x: float
+    y: float
+    z: float
+    armed: bool
+    landed: bool | None  # None: the telemetry did not say
+    t: float  # wall-clock time the sample arrived
+
+    def describe(self) -> str:
+        """``last seen in the air, armed, at (x, y, z) m from its home``."""
+        arming = "armed" if self.armed else "disarmed"
+        if self.landed is False:
+            how = f"in the air, {arming},"
+        elif self.landed:
+            how = f"on the ground, {arming},"
+        else:
+            how = arming
+        return f"last seen {how} at ({self.x:.2f}, {self.y:.2f}, {self.z:.2f}) m from its home"
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``last_seen`` object."""
+        return {
+            "x": self.x,
+            "y": self.y,
+            "z": self.z,
+            "armed": self.armed,
+            "landed": self.landed,
+            "t": self.t,
+        }
+
+    @classmethod
+    def from_json(cls, data: Any) -> LastSeen | None:
+        """Read a ``last_seen`` object (None when absent or not one)."""
+        if not isinstance(data, Mapping):
+            return None
+        try:
+            landed = data.get("landed")
+            return cls(
+                float(data["x"]),
+                float(data["y"]),
+                float(data["z"]),
+                bool(data["armed"]),
+                None if landed is None else bool(landed),
+                float(data["t"]),
+            )
+        except (KeyError, TypeError, ValueError):
+            return None
 
 
 @dataclass(frozen=True)
@@ -41,6 +107,7 @@ class DroneResult:
     report: DroneReport | None  # None: the ground station never received it
     exit_code: int | None = None  # the node's exit code when it ran here (eamos run)
     host: str | None = None  # where it ran, when over SSH (eamos start)
+    last_seen: LastSeen | None = None  # without a report: where its last telemetry placed it
 
     @property
     def ok(self) -> bool:
@@ -74,6 +141,8 @@ class DroneResult:
             out = {"ok": False, "error": NO_REPORT}
             if link is not None:
                 out["link"] = link
+            if self.last_seen is not None:
+                out["last_seen"] = self.last_seen.to_json()
         if self.exit_code is not None:
             out["exit_code"] = self.exit_code
         if self.host is not None:
@@ -90,7 +159,7 @@ class DroneResult:
         exit_code = data.get("exit_code")
         host = data.get("host")
         if data.get("error") == NO_REPORT and "actions" not in data:
-            return cls(None, exit_code, host)
+            return cls(None, exit_code, host, LastSeen.from_json(data.get("last_seen")))
         return cls(DroneReport.from_json(data), exit_code, host)
 
 
@@ -238,7 +307,15 @@ def summarize(
         started=started,
         duration_s=round(ended - started, 3),
         run_dir=str(run_dir),
-        drones={n: DroneResult(views[n].report, exits.get(n), hosts.get(n)) for n in drones},
+        drones={
+            n: DroneResult(
+                views[n].report,
+                exits.get(n),
+                hosts.get(n),
+                views[n].last_seen() if views[n].report is None else None,
+            )
+            for n in drones
+        },
         ground_station=ground_report,
         failures=tuple(failures),
         links={n: views[n].link for n in drones},

@@ -221,14 +221,14 @@ def fly_rollout(
     exited: dict[str, str] = {}
 
     def on_exit(name: str, last_line: str) -> None:
+        # Every exit is counted at once (GroundStation.exited): the normal end after
+        # Complete, else a failure.
         exited[name] = last_line
-        view = station.snapshot().get(name)
-        if view is not None and view.report is None:
-            station.fail(
-                name,
-                f"eamos-node is not running on {dep.targets[name].label}"
-                + (f": {last_line}" if last_line else ""),
-            )
+        station.exited(
+            name,
+            f"eamos-node is not running on {dep.targets[name].label}"
+            + (f": {last_line}" if last_line else ""),
+        )
 
     def on_lost(name: str, why: str) -> None:
         speak(f"{name}: cannot watch its process any more ({why})")
