@@ -12,6 +12,7 @@ import pykka
 from ..net import wire
 from ..net.effects import PeerStatus, TelemetryStale
 from ..net.link import Delivered
+from ..program.format import DroneProgram
 from .dispatch import tell_here
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink
@@ -21,7 +22,18 @@ from .messages import Interrupt, Mailbox, RemoteTelemetry, RemoteTrigger
 if TYPE_CHECKING:
     from ..logs import EventLog
 
-__all__ = ["InRouter"]
+__all__ = ["InRouter", "incoming_arcs"]
+
+
+def incoming_arcs(program: DroneProgram) -> dict[tuple[str, str], str]:
+    """``(src node, dst node)`` of every external arc into ``program``'s own nodes ->
+    the participant hosting the source node: who alone may send that trigger."""
+    native = {n.key for n in program.native_nodes()}
+    host = {n.key: n.drone for n in program.nodes}
+    return {
+        (a.src, a.dst): host.get(a.src, "") for a in program.arcs if a.external and a.dst in native
+    }
+
 
 _CONTROL = (wire.Start, wire.Abort, wire.Complete)
 
@@ -53,6 +65,10 @@ class InRouter:
     speaks as it, with its key).  ``sender`` is authenticated: the In-Bridge
     accepts on each peer's socket only messages naming that peer, and with CURVE
     the socket proved the peer's key."""
+    arc_hosts: Mapping[tuple[str, str], str] | None = None
+    """:func:`incoming_arcs` of the program: a trigger counts only on one of these arcs,
+    and only from the participant hosting its source node (an authenticated sender
+    may still lie about the node it speaks for).  None: not checked."""
 
     def __call__(self, msg: Delivered) -> None:
         try:
@@ -112,6 +128,18 @@ class InRouter:
         if ref is None or msg.dest != self.drone:
             self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
             return
+        if self.arc_hosts is not None:
+            host = self.arc_hosts.get((msg.src_node, msg.dst_node))
+            if host != msg.sender:
+                # A fleet member's key proves who sends, not which node it speaks for.
+                self.log.warning(
+                    "mission.inbridge.forged_trigger",
+                    sender=msg.sender,
+                    src=msg.src_node,
+                    dst=msg.dst_node,
+                    host=host or "(no such arc)",
+                )
+                return
         # The count first: it rides along with the executive's next mail (no thread
         # woken), and is counted before anything the node's turn makes happen (the
         # drone resolved, a report asked for).  Then the node's turn, on this thread

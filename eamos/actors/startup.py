@@ -31,7 +31,7 @@ from .dispatch import Dispatcher
 from .errors import DroneRuntimeError
 from .executive import DroneExecutive
 from .failure import FailurePolicy
-from .inbound import InRouter
+from .inbound import InRouter, incoming_arcs
 from .logic import program_wiring
 from .node import Links, MissionNode, Wire
 from .outbox import Outbox
@@ -223,6 +223,7 @@ class RuntimeStartup:
             completed,
             self.failures,
             self.ground_handler,
+            arc_hosts=incoming_arcs(self.program),
         )
 
     def connect(self, link: Link, router: InRouter) -> InBridge:
