@@ -27,7 +27,8 @@ from .board import WhenSettled, ask_final_sample
 from .executive import ask_activity, ask_snapshot
 from .failure import tell_operator
 from .messages import PeerLost
-from .runtime import DroneRuntime, NetSettings
+from .rejoin import NodeJournal, say
+from .runtime import DroneRuntime, NetSettings, StartGateSettings
 from .stranded import (
     EndOnOwn,
     caught_lost_peer,
@@ -62,6 +63,7 @@ class DroneEnd(enum.Enum):
     DONE = "done"  # the mission part finished, the report says ok
     FAILED = "failed"  # the mission failed or was aborted on this drone
     UNREACHABLE = "unreachable"  # the peers never listened: the mission never started
+    REFUSED = "refused"  # restarted mid-mission: it refuses to rejoin (.rejoin)
 
 
 def load_node_program(config: NodeConfig) -> DroneProgram:
@@ -92,7 +94,23 @@ def run_drone(
     ``log_writer``: the process's writer when several drones share a process
     (without one, this drone's logs get their own).
     """
+    journal = NodeJournal(
+        config.log_dir, config.drone, program.mission_id, program.checksum, config.deployment
+    )
+    decision = journal.decide()
+    if not decision.join:
+        # Before the vehicle or the network is touched: nothing is commanded.
+        say(
+            config.drone,
+            f"{config.drone} restarted mid-mission: {decision.reason}; it refuses to rejoin "
+            "(nothing is commanded: if its vehicle flies, land it with `eamos abort` or by "
+            "hand, then roll out again)",
+        )
+        return DroneEnd.REFUSED
+    if decision.restarted:
+        say(config.drone, f"{config.drone} restarted: {decision.reason}")
     config.log_dir.mkdir(parents=True, exist_ok=True)
+    journal.mark("ready")
     writer = log_writer if log_writer is not None else LogWriter()
     adapter_log = make_logger(config.log_dir / "adapter.log", writer=writer, drone=config.drone)
     adapter = make_adapter(config.drone, config.hal, adapter_log)
@@ -103,6 +121,9 @@ def run_drone(
         config.log_dir,
         battery_reserve_pct=config.battery_reserve_pct,
         log_writer=writer,
+        # Nothing acts before this deployment's Start; the first trigger to reach a
+        # node is recorded first (a restart then knows something ran).
+        start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),
     )
     policy = end_policy(config)
     try:
@@ -150,6 +171,7 @@ def run_drone(
             and not runtime.link.flush(REPORT_ACK_TIMEOUT_S, peers=[GROUND_STATION])
         ):
             runtime.log.warning("mission.report.unacknowledged", timeout_s=REPORT_ACK_TIMEOUT_S)
+        journal.mark("ended")
         return DroneEnd.DONE if report.ok else DroneEnd.FAILED
     finally:
         runtime.stop()

@@ -22,7 +22,10 @@ from .messages import Interrupt, Mailbox, RemoteTelemetry, RemoteTrigger
 if TYPE_CHECKING:
     from ..logs import EventLog
 
-__all__ = ["InRouter", "incoming_arcs"]
+__all__ = ["InRouter", "StartGate", "incoming_arcs"]
+
+#: At most this many triggers and interrupts wait for the Start (a flood is dropped).
+MAX_HELD = 4096
 
 
 def incoming_arcs(program: DroneProgram) -> dict[tuple[str, str], str]:
@@ -36,6 +39,114 @@ def incoming_arcs(program: DroneProgram) -> dict[tuple[str, str], str]:
 
 
 _CONTROL = (wire.Start, wire.Abort, wire.Complete)
+
+
+class StartGate:
+    """What a drone's node takes before the ground station's Start, and which Start it takes.
+
+    A node started by a roll-out (or ``eamos run``) belongs to one deployment
+    (its config's ``deployment``).  Until the Start naming it arrives, the node
+    acts on nothing: triggers and interrupts are held, in order (at most
+    :data:`MAX_HELD`), and handed on when it comes (a peer's trigger may overtake
+    the ground station's Start: they travel on different links).  A Start of
+    another deployment -- the ground station of an earlier roll-out, still
+    running -- is refused, said once per ground station in ``node.out``; so is a
+    Complete before the Start, or from another ground station than the one that
+    started it.  An Abort is always obeyed.  ``deployment`` "": any Start.
+
+    ``on_running`` is called once, before the first trigger reaches a node: from
+    then on something may have run on this drone (:mod:`.rejoin` records it).
+    Used on the In-Bridge's receive thread; the lock guards the reads from others.
+    """
+
+    def __init__(
+        self,
+        drone: str,
+        deployment: str,
+        log: EventLog,
+        on_running: Callable[[], None] | None = None,
+        tell: Callable[[str, str], None] | None = None,
+    ) -> None:
+        self.drone = drone
+        self.deployment = deployment
+        self.log = log
+        self.on_running = on_running
+        self.tell = tell
+        self._lock = threading.Lock()
+        self._open = False
+        self._incarnation = 0  # the ground station session that started us (0: none said)
+        self._held: list[wire.Trigger | wire.Interrupt] = []
+        self._refused: set[tuple[str, int]] = set()
+        self._running = False
+        self.dropped = 0  # held messages dropped over MAX_HELD
+
+    @property
+    def started(self) -> bool:
+        """The Start of this node's deployment arrived."""
+        with self._lock:
+            return self._open
+
+    def start(self, msg: wire.Start) -> list[wire.Trigger | wire.Interrupt] | None:
+        """Take or refuse ``msg``: the held messages to hand on now (None: refused)."""
+        if self.deployment and msg.deployment != self.deployment:
+            key = (msg.deployment, msg.incarnation)
+            with self._lock:
+                first = key not in self._refused
+                self._refused.add(key)
+            self.log.warning(
+                "mission.start.refused",
+                sender=msg.sender,
+                deployment=msg.deployment,
+                own=self.deployment,
+            )
+            if first and self.tell is not None:
+                self.tell(
+                    self.drone,
+                    f"refused a Start of deployment {msg.deployment or '(none)'}: this node was "
+                    f"rolled out as deployment {self.deployment} (a ground station of another "
+                    "roll-out?); it waits for its own",
+                )
+            return None
+        with self._lock:
+            if self._open:
+                return []  # again (resent to a restarted node, or retransmitted)
+            self._open = True
+            self._incarnation = msg.incarnation
+            held, self._held = self._held, []
+        self.log.info(
+            "mission.start", sender=msg.sender, deployment=msg.deployment, released=len(held)
+        )
+        return held
+
+    def hold(self, msg: wire.Trigger | wire.Interrupt) -> bool:
+        """Keep ``msg`` until the Start (True), or False: started, hand it on now."""
+        with self._lock:
+            if self._open:
+                return False
+            if len(self._held) < MAX_HELD:
+                self._held.append(msg)
+                return True
+            self.dropped += 1
+            dropped = self.dropped
+        self.log.warning("mission.start.held_dropped", sender=msg.sender, dropped=dropped)
+        return True
+
+    def takes_complete(self, msg: wire.Complete) -> bool:
+        """Whether ``msg`` may end this node's mission: after its Start, from that session."""
+        with self._lock:
+            if not self._open:
+                return False
+            mine = self._incarnation
+        return not mine or not msg.incarnation or msg.incarnation == mine
+
+    def running(self) -> None:
+        """A trigger is about to reach a node (the first time: ``on_running``)."""
+        with self._lock:
+            if self._running:
+                return
+            self._running = True
+        if self.on_running is not None:
+            self.on_running()
 
 
 @dataclass(frozen=True)
@@ -69,6 +180,9 @@ class InRouter:
     """:func:`incoming_arcs` of the program: a trigger counts only on one of these arcs,
     and only from the participant hosting its source node (an authenticated sender
     may still lie about the node it speaks for).  None: not checked."""
+    gate: StartGate | None = None
+    """A drone's node: nothing acts before the Start of its own deployment
+    (:class:`StartGate`).  None (the ground station, tests): no gate."""
 
     def __call__(self, msg: Delivered) -> None:
         try:
@@ -89,7 +203,8 @@ class InRouter:
         True if the ground station (if this is it) should see it too.
         """
         if isinstance(msg, wire.Trigger):
-            self._trigger(msg)
+            if self.gate is None or not self.gate.hold(msg):
+                self._trigger(msg)
         elif isinstance(msg, wire.TelemetrySample):
             self.board.tell(RemoteTelemetry(msg.sender, telemetry_values(msg)))
             return True
@@ -102,7 +217,8 @@ class InRouter:
             # The link logged mission.peer.<state>; the ground station shows it.
             return True
         elif isinstance(msg, wire.Interrupt):
-            self._interrupt(msg)
+            if self.gate is None or not self.gate.hold(msg):
+                self._interrupt(msg)
         elif isinstance(msg, _CONTROL) and msg.sender not in self.control_from:
             # A fleet member's key does not make it the ground station: a drone
             # must not end, abort or start another's mission.
@@ -115,13 +231,27 @@ class InRouter:
         elif isinstance(msg, wire.Abort):
             self.abort(msg.reason or f"abort from {msg.sender}")
         elif isinstance(msg, wire.Complete):
-            self.log.info("mission.complete", sender=msg.sender)
-            self.completed.set()
+            if self.gate is not None and not self.gate.takes_complete(msg):
+                # Before this node's Start, or from another ground station's session.
+                self.log.warning("mission.complete.refused", sender=msg.sender)
+            else:
+                self.log.info("mission.complete", sender=msg.sender)
+                self.completed.set()
         elif isinstance(msg, wire.Start):
-            self.log.info("mission.start", sender=msg.sender)
+            self._start(msg)
         else:
             return True  # Ready, Progress, Resolved, Report ...: for the ground station
         return False
+
+    def _start(self, msg: wire.Start) -> None:
+        if self.gate is None:
+            self.log.info("mission.start", sender=msg.sender)
+            return
+        for held in self.gate.start(msg) or ():
+            if isinstance(held, wire.Trigger):
+                self._trigger(held)
+            else:
+                self._interrupt(held)
 
     def _trigger(self, msg: wire.Trigger) -> None:
         ref = self.nodes.get(msg.dst_node)
@@ -145,6 +275,8 @@ class InRouter:
         # drone resolved, a report asked for).  Then the node's turn, on this thread
         # if the node is idle (no worker woken); it writes the "received" line after
         # its own work.
+        if self.gate is not None:
+            self.gate.running()
         self.executive.tell(TriggerReceived(msg.sender))
         tell_here(
             ref,

@@ -55,7 +55,7 @@ from .node import MissionNode
 from .outbox import Outbox
 from .readiness import announce_ready
 from .reporting import gather_report
-from .startup import NetSettings, RuntimeStartup
+from .startup import NetSettings, RuntimeStartup, StartGateSettings
 from .teardown import tear_down
 from .uniform_api import Abort as HalAbort
 from .uniform_api import UniformAPI, UniformSpace
@@ -73,6 +73,7 @@ __all__ = [
     "DroneRuntimeError",
     "NetSettings",
     "Outbox",
+    "StartGateSettings",
     "TelemetryBoard",
     "stale_values",
     "telemetry_values",
@@ -98,8 +99,11 @@ class DroneRuntime:
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
         log_writer: LogWriter | None = None,
+        start_gate: StartGateSettings | None = None,
     ) -> None:
-        """``log_writer``: the process's log writer when several runtimes share a process."""
+        """``log_writer``: the process's log writer when several runtimes share a process;
+        ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
+        nothing before it (:class:`~.inbound.StartGate`; None: no gate)."""
         self.program = program
         self.battery_reserve_pct = battery_reserve_pct  # a Try's Body fails below it
         self.drone = program.drone
@@ -123,6 +127,7 @@ class DroneRuntime:
             ground_handler=ground_handler,
             extra_topics=extra_topics,
             battery_reserve_pct=battery_reserve_pct,
+            start_gate=start_gate,
         )
         # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None

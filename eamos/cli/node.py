@@ -65,6 +65,7 @@ EXITS = {
     DroneEnd.DONE: EXIT_OK,
     DroneEnd.FAILED: EXIT_MISSION_FAILED,
     DroneEnd.UNREACHABLE: EXIT_CONNECT,
+    DroneEnd.REFUSED: EXIT_MISSION_FAILED,  # restarted mid-mission, refuses to rejoin
 }
 
 

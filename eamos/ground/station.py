@@ -36,7 +36,7 @@ from eamos.net.effects import PeerStatus
 from eamos.net.progress import progress_events
 from eamos.program.uniform import GROUND_STATION
 
-from .summary import LastSeen
+from .last_seen import LastSeen
 
 Clock = Callable[[], float]
 
@@ -91,8 +91,10 @@ class GroundStation:
         on_change: Callable[[str, DroneView, Any], None] | None = None,
         give_up_s: float | None = None,
         clock: Clock = time.monotonic,
+        deployment: str = "",
     ) -> None:
         self.mission_id = mission_id
+        self.deployment = deployment  # named in the Start: the drones of this roll-out start
         self.give_up_s = give_up_s
         self.clock = clock  # monotonic seconds: when a silent drone is given up
         self.views = {name: DroneView(name) for name in drones}
@@ -132,6 +134,8 @@ class GroundStation:
             if view is None:
                 return
             if isinstance(msg, wire.Ready):
+                if view.exited and not self.over:
+                    self._rejoined(view)
                 view.ready = True
                 view.state = "ready"
             elif isinstance(msg, wire.Resolved):
@@ -189,6 +193,18 @@ class GroundStation:
             self.on_change(view.name, view, msg)
         if stopped_early:
             self.fail(view.name, stopped_early)
+
+    def _rejoined(self, view: DroneView) -> None:
+        """A new node of ``view``'s drone, whose node had exited, says it is ready: it
+        rejoined (it proved nothing had run: :mod:`eamos.actors.rejoin`), so it is waited
+        for again and its earlier exit no longer fails the run; lock held."""
+        gone = f"{view.name}: "
+        self.failures = [f for f in self.failures if not f.startswith(gone)]
+        self.dead = [f for f in self.dead if not f.startswith(gone)]
+        view.events.append({"t": time.time(), "rejoined": view.exited})
+        view.exited = ""
+        view.resolved = False
+        view.report = None
 
     def _stopped_early(self, view: DroneView) -> str:
         """Why ``view``'s report, just received, ends its part before the mission's end
@@ -288,9 +304,12 @@ class GroundStation:
             return [d for d in self.drones() if not self.views[d].ready]
 
     def start(self) -> None:
-        """Send the start trigger: the ground station's initial node fires."""
+        """Send the start trigger (naming the deployment): the ground station's initial
+        node fires."""
         assert self.runtime is not None
-        self.runtime.send(wire.Start(mission=self.mission_id, sender=GROUND_STATION))
+        self.runtime.send(
+            wire.Start(mission=self.mission_id, sender=GROUND_STATION, deployment=self.deployment)
+        )
         self.runtime.fire()
 
     def wait_resolved(self, timeout_s: float | None, stop: threading.Event | None = None) -> bool:
