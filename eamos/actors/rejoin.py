@@ -99,18 +99,19 @@ def rejoin_decision(
     """Whether a node starting now runs its mission, given the record an earlier one left.
 
     A record of another deployment, mission or program is another run's: a
-    fresh start.  Without a deployment (a config written by hand) a restart
-    cannot be told from a new run: a fresh start too.  Of the same deployment:
-    ``ready`` (no trigger had reached a node) may rejoin; ``running`` or ``ended``
-    may not (refused; the operator-in-the-loop work will resume here instead).
+    fresh start.  Of the same one: ``ready`` (no trigger had reached a node)
+    may rejoin; ``running`` may not (refused; the operator-in-the-loop work will
+    resume here instead), nor ``ended`` (a deployment runs once).  Without a
+    deployment (a config written by hand) a new run cannot be told from a
+    restart: an ``ended`` record is taken for the run before, a fresh start.
     """
-    same = (
-        previous is not None
-        and deployment != ""
-        and (previous.drone, previous.mission_id, previous.program, previous.deployment)
-        == (drone, mission_id, program, deployment)
-    )
-    if previous is None or not same:
+    same = previous is not None and (
+        previous.drone,
+        previous.mission_id,
+        previous.program,
+        previous.deployment,
+    ) == (drone, mission_id, program, deployment)
+    if previous is None or not same or (previous.phase == "ended" and not deployment):
         return RejoinDecision(True, False, "a fresh start")
     when = time.strftime("%H:%M:%S", time.localtime(previous.at))
     if previous.phase == "ready":
@@ -123,11 +124,14 @@ def rejoin_decision(
     if previous.phase == "ended":
         why = f"deployment {deployment} already ended on this drone (at {when}): roll out again"
     else:
+        which = f"deployment {deployment}" if deployment else "this mission"
         why = (
-            f"its node before (pid {previous.pid}) was running deployment {deployment} since "
-            f"{when}; what it did is lost, and its peers would resend their triggers at once "
-            "(an action before the one it follows)"
+            f"its node before (pid {previous.pid}) was running {which} since {when}; what it "
+            "did is lost, and its peers would resend their triggers at once (an action before "
+            "the one it follows)"
         )
+        if not deployment:
+            why += f"; to start this config afresh, remove {RECORD_FILE} from its log folder"
     return RejoinDecision(False, True, why)
 
 

@@ -93,9 +93,12 @@ def test_rejoin_decision(
     assert (got.join, got.restarted) == (join, restarted) and words in got.reason, got
 
 
-def test_without_a_deployment_a_restart_cannot_be_told_from_a_new_run() -> None:
-    got = rejoin_decision(record("running", deployment=""), "Drone1", "m", "sha256:p", "")
+def test_without_a_deployment_an_ended_record_is_the_run_before() -> None:
+    got = rejoin_decision(record("ended", deployment=""), "Drone1", "m", "sha256:p", "")
     assert got.join and not got.restarted
+    got = rejoin_decision(record("running", deployment=""), "Drone1", "m", "sha256:p", "")
+    assert not got.join and got.restarted
+    assert f"remove {RECORD_FILE}" in got.reason, got
 
 
 # -- real runs -----------------------------------------------------------------------------
