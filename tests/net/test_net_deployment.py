@@ -11,6 +11,7 @@ Start of their own deployment then starts them, with the held triggers.
 
 from __future__ import annotations
 
+import functools
 import threading
 from pathlib import Path
 from typing import Any
@@ -47,6 +48,10 @@ func PAR_Arm() {
 def events(runtime: DroneRuntime, name: str) -> list[dict[str, Any]]:
     assert runtime.log_dir is not None
     return [e for e in read_log(runtime.log_dir / "mission.log") if e["event"] == name]
+
+
+def started_logged(runtime: DroneRuntime) -> bool:
+    return bool(events(runtime, "mission.start"))
 
 
 def test_a_node_takes_only_its_own_deployments_start(
@@ -120,7 +125,8 @@ def test_a_node_takes_only_its_own_deployments_start(
         assert [c.action for c in adapters["Drone1"].calls_of("run")] == ["Arm", "Takeoff"]
         assert [c.action for c in adapters["Drone2"].calls_of("run")] == ["Arm"]
         for d in drones:
-            assert eventually(lambda d=d: bool(events(runtimes[d], "mission.start")))
+            log_has_start = functools.partial(started_logged, runtimes[d])
+            assert eventually(log_has_start)
             (started,) = events(runtimes[d], "mission.start")
             assert started["deployment"] == "B" and started["released"] >= 1
             assert running[d] == 1  # recorded once, before the first trigger reached a node
