@@ -45,14 +45,16 @@ class StartGate:
     """What a drone's node takes before the ground station's Start, and which Start it takes.
 
     A node started by a roll-out (or ``eamos run``) belongs to one deployment
-    (its config's ``deployment``).  Until the Start naming it arrives, the node
-    acts on nothing: triggers and interrupts are held, in order (at most
+    (its config's ``deployment``).  It acts on nothing until the Start naming it
+    arrives: triggers and interrupts are held, in order (at most
     :data:`MAX_HELD`), and handed on when it comes (a peer's trigger may overtake
-    the ground station's Start: they travel on different links).  A Start of
-    another deployment -- the ground station of an earlier roll-out, still
-    running -- is refused, said once per ground station in ``node.out``; so is a
-    Complete before the Start, or from another ground station than the one that
-    started it.  An Abort is always obeyed.  ``deployment`` "": any Start.
+    the ground station's Start: they travel on different links).  What the
+    ground station sends counts only from a session (incarnation) whose Start of
+    this deployment was taken: a Start of another deployment -- the ground
+    station of an earlier roll-out, still running -- is refused (said once per
+    session in ``node.out``), its triggers stay held and its Complete is
+    refused; a restarted ground station of this deployment is taken with its
+    new Start.  An Abort is always obeyed.  ``deployment`` "": any Start.
 
     ``on_running`` is called once, before the first trigger reaches a node: from
     then on something may have run on this drone (:mod:`.rejoin` records it).
@@ -66,25 +68,37 @@ class StartGate:
         log: EventLog,
         on_running: Callable[[], None] | None = None,
         tell: Callable[[str, str], None] | None = None,
+        ground: str = wire.GROUND_STATION,
     ) -> None:
         self.drone = drone
         self.deployment = deployment
         self.log = log
         self.on_running = on_running
         self.tell = tell
+        self.ground = ground
         self._lock = threading.Lock()
-        self._open = False
-        self._incarnation = 0  # the ground station session that started us (0: none said)
-        self._held: list[wire.Trigger | wire.Interrupt] = []
+        # The ground station sessions (incarnations) whose Start of this deployment
+        # was taken; 0 stands for messages sent outside a session.
+        self._accepted: set[int] = set()
         self._refused: set[tuple[str, int]] = set()
+        self._held: list[wire.Trigger | wire.Interrupt] = []
         self._running = False
         self.dropped = 0  # held messages dropped over MAX_HELD
 
     @property
     def started(self) -> bool:
-        """The Start of this node's deployment arrived."""
+        """A Start of this node's deployment arrived."""
         with self._lock:
-            return self._open
+            return bool(self._accepted)
+
+    def _counts(self, msg: wire.Message) -> bool:
+        """Whether ``msg`` may act now (lock held): after a Start, and from the ground
+        station only in a session whose Start was taken."""
+        if not self._accepted:
+            return False
+        if msg.sender != self.ground or not msg.incarnation or 0 in self._accepted:
+            return True
+        return msg.incarnation in self._accepted
 
     def start(self, msg: wire.Start) -> list[wire.Trigger | wire.Interrupt] | None:
         """Take or refuse ``msg``: the held messages to hand on now (None: refused)."""
@@ -108,20 +122,25 @@ class StartGate:
                 )
             return None
         with self._lock:
-            if self._open:
+            if msg.incarnation in self._accepted:
                 return []  # again (resent to a restarted node, or retransmitted)
-            self._open = True
-            self._incarnation = msg.incarnation
-            held, self._held = self._held, []
+            first = not self._accepted
+            self._accepted.add(msg.incarnation)
+            ready = [m for m in self._held if self._counts(m)]
+            self._held = [m for m in self._held if not self._counts(m)]
         self.log.info(
-            "mission.start", sender=msg.sender, deployment=msg.deployment, released=len(held)
+            "mission.start",
+            sender=msg.sender,
+            deployment=msg.deployment,
+            released=len(ready),
+            **({} if first else {"session": "restarted"}),
         )
-        return held
+        return ready
 
     def hold(self, msg: wire.Trigger | wire.Interrupt) -> bool:
-        """Keep ``msg`` until the Start (True), or False: started, hand it on now."""
+        """Keep ``msg`` until it may act (True), or False: hand it on now."""
         with self._lock:
-            if self._open:
+            if self._counts(msg):
                 return False
             if len(self._held) < MAX_HELD:
                 self._held.append(msg)
@@ -132,12 +151,9 @@ class StartGate:
         return True
 
     def takes_complete(self, msg: wire.Complete) -> bool:
-        """Whether ``msg`` may end this node's mission: after its Start, from that session."""
+        """Whether ``msg`` may end this node's mission: from a session whose Start was taken."""
         with self._lock:
-            if not self._open:
-                return False
-            mine = self._incarnation
-        return not mine or not msg.incarnation or msg.incarnation == mine
+            return self._counts(msg)
 
     def running(self) -> None:
         """A trigger is about to reach a node (the first time: ``on_running``)."""
