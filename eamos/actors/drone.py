@@ -41,6 +41,9 @@ from .stranded import (
 ASK_TIMEOUT_S = 30.0
 REPORT_ACK_TIMEOUT_S = 10.0
 """How long a drone waits for the ground station to acknowledge its final report."""
+VEHICLE_SILENT_S = 10.0
+"""Landing, a vehicle that sends no telemetry sample for this long (wall seconds) is
+silent (its link lost, its autopilot dead): the drone stops waiting for it to land."""
 
 
 class NodeStop(threading.Event):
@@ -142,8 +145,16 @@ def run_drone(
         landed = True
         if runtime.aborted.is_set() and not held:
             # The report is sent after the landing: it tells where the vehicle ended.
-            landed = runtime.wait_landed(config.land_timeout_s)
-            if not landed:
+            landing = wait_landing(runtime, config.land_timeout_s)
+            landed = landing == "landed"
+            if landing == "silent":
+                runtime.log.error("mission.abort.vehicle_silent", silent_s=VEHICLE_SILENT_S)
+                tell_operator(
+                    config.drone,
+                    f"its vehicle has sent nothing for {VEHICLE_SILENT_S:g} s while landing: "
+                    "it cannot be landed from here (the report tells where it was last)",
+                )
+            elif not landed:
                 runtime.log.error("mission.abort.not_landed", timeout_s=config.land_timeout_s)
         if landed and config.disarm_wait_s > 0 and not wait_settled(runtime, config.disarm_wait_s):
             # Its autopilot disarms a moment after landing: the report tells what it is left in.
@@ -178,6 +189,28 @@ def run_drone(
         close_logger(adapter_log)
         if log_writer is None:
             writer.close()
+
+
+def wait_landing(runtime: DroneRuntime, timeout_s: float) -> str:
+    """Wait (on telemetry) until the vehicle is on the ground: ``"landed"``; ``"timeout"``
+    after ``timeout_s``; ``"silent"`` as soon as no sample came for :data:`VEHICLE_SILENT_S`
+    (a landing vehicle moves, and says so: a silent one -- its link lost, its autopilot
+    dead -- will not be landed by waiting)."""
+    if runtime.board is None:
+        return "landed"
+    deadline = time.monotonic() + timeout_s
+    latest = ask_final_sample(runtime.board, None, None, 0.0, ASK_TIMEOUT_S)
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return "timeout"
+        slice_s = min(left, VEHICLE_SILENT_S)
+        if runtime.wait_landed(slice_s):
+            return "landed"
+        sample = ask_final_sample(runtime.board, None, None, 0.0, ASK_TIMEOUT_S)
+        if sample is latest and slice_s >= VEHICLE_SILENT_S:
+            return "silent"  # still the sample of a whole slice before: nothing arrived
+        latest = sample
 
 
 def wait_settled(runtime: DroneRuntime, timeout_s: float) -> bool:

@@ -7,7 +7,8 @@ ground station's Complete follows at once: Drone2 must say it is stranded and
 apply its end policy then (the line on the terminal and in its ``node.out``),
 land and disarm through its program's end, and send its report after that --
 never be left to the adapter's land-on-close, silently, with a report saying
-it hovers armed.
+it hovers armed.  Drone1's own node, stranded too, stops waiting for a landing
+its silent vehicle cannot make (``VEHICLE_SILENT_S``), and says so.
 """
 
 from __future__ import annotations
@@ -98,3 +99,7 @@ def test_the_survivor_of_a_dead_vehicle_says_stranded_and_lands_before_its_repor
     assert "stranded: its part ended" in (logs / "node.out").read_text()
     # Landed by its end policy, not by the adapter closing.
     assert '"event": "adapter.close_land' not in (logs / "adapter.log").read_text()
+    # The dead vehicle's drone stops waiting for a landing that cannot come, and says so.
+    dead_logs = run.run_dir / "logs" / "Drone1"
+    assert "its vehicle has sent nothing for 10 s" in (dead_logs / "node.out").read_text()
+    assert '"event": "adapter.stranded"' in (dead_logs / "adapter.log").read_text()
