@@ -55,7 +55,7 @@ from .node import MissionNode
 from .outbox import Outbox
 from .readiness import announce_ready
 from .reporting import gather_report
-from .startup import NetSettings, RuntimeStartup
+from .startup import NetSettings, RuntimeStartup, StartGateSettings
 from .teardown import tear_down
 from .uniform_api import Abort as HalAbort
 from .uniform_api import UniformAPI, UniformSpace
@@ -73,6 +73,7 @@ __all__ = [
     "DroneRuntimeError",
     "NetSettings",
     "Outbox",
+    "StartGateSettings",
     "TelemetryBoard",
     "stale_values",
     "telemetry_values",
@@ -98,8 +99,11 @@ class DroneRuntime:
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
         log_writer: LogWriter | None = None,
+        start_gate: StartGateSettings | None = None,
     ) -> None:
-        """``log_writer``: the process's log writer when several runtimes share a process."""
+        """``log_writer``: the process's log writer when several runtimes share a process;
+        ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
+        nothing before it (:class:`~.inbound.StartGate`; None: no gate)."""
         self.program = program
         self.battery_reserve_pct = battery_reserve_pct  # a Try's Body fails below it
         self.drone = program.drone
@@ -123,6 +127,7 @@ class DroneRuntime:
             ground_handler=ground_handler,
             extra_topics=extra_topics,
             battery_reserve_pct=battery_reserve_pct,
+            start_gate=start_gate,
         )
         # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None
@@ -251,6 +256,21 @@ class DroneRuntime:
         self.log.warning("mission.stranded", reason=reason, policy=policy)
         self._to_ground(stranded_progress(self.program, reason, policy))
         self._give_up(reason, "mission.stranded.released", land=policy != "hold")
+
+    def stop_mission(self, reason: str) -> None:
+        """Stop the mission on this drone for good (its node was told to stop: a signal).
+
+        It lands, and the drones waiting for it are released at once (``failed`` on its
+        outgoing arcs), as in :meth:`_give_up`; but it does not say ``Resolved``: its
+        report, then its node's exit, end its part at the ground station, which counts
+        them as a failure before the mission's end.
+        """
+        if self.outbox is not None:
+            self.outbox.seal()
+        self.abort(reason)
+        if self.outbox is not None:
+            released = self.outbox.release(released_arcs(self.program))
+            self.log.warning("mission.stopped.released", triggers=released)
 
     def _give_up(self, reason: str, event: str, land: bool) -> None:
         """This drone's nodes no longer speak: its out-bridge stops sending for them,

@@ -13,6 +13,9 @@ Drone config (TOML)::
     on_stranded = "land"                      # the end policy: land | hold | return (lands now)
     battery_reserve_pct = 20                  # inside a Try, an action fails below this battery
                                               # (the fleet's [safety] value; default: none)
+    deployment = "a1b2c3d4e5f60718"           # the roll-out (or eamos run) this config is of:
+                                              # the node starts only on its Start (default:
+                                              # none, any Start)
 
     [net]
     bind = "tcp://127.0.0.1:6001"             # this drone's out-bridge
@@ -50,6 +53,7 @@ their range:
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,6 +74,9 @@ from .validation import (
     log_folder,
     read_toml,
 )
+
+#: A deployment id (the roll-out's, or ``eamos run``'s): what the wire's Start carries.
+DEPLOYMENT_ID = re.compile(r"[A-Za-z0-9._-]{0,64}")
 
 #: In a drone's log folder: its exit code, written when it ran in a process shared
 #: with other drones (the process's own exit code is the worst of theirs).
@@ -131,6 +138,9 @@ class NodeConfig:
     # Inside a Try's Body an action fails when the battery drops below this
     # (actors/logic/actions.py); None: a low battery fails nothing.
     battery_reserve_pct: float | None = None
+    # The roll-out (or ``eamos run``) this config belongs to: the node starts only on
+    # the ground station's Start naming it (actors/inbound.py); "": any Start.
+    deployment: str = ""
 
     @property
     def disarm_wait_s(self) -> float:
@@ -157,6 +167,7 @@ class NodeConfig:
                 "peer_wait_limit_s",
                 "on_stranded",
                 "battery_reserve_pct",
+                "deployment",
                 "net",
                 "hal",
             },
@@ -200,6 +211,12 @@ class NodeConfig:
             raise ConfigError(
                 f"{w}on_stranded: must be one of {', '.join(END_POLICIES)}, got {on_stranded!r}"
             )
+        deployment = doc.get("deployment", "")
+        if not isinstance(deployment, str) or not DEPLOYMENT_ID.fullmatch(deployment):
+            raise ConfigError(
+                f"{w}deployment: must be at most 64 of the characters A-Z a-z 0-9 . _ - "
+                "(the roll-out's id, written by eamos rollout and eamos run)"
+            )
         base = path.parent
         log_dir = doc.get("log_dir", f"logs/{drone}")
         if not isinstance(log_dir, str) or not log_dir:
@@ -218,6 +235,7 @@ class NodeConfig:
             link=link,
             peer_give_up_s=give_up,
             on_stranded=on_stranded,
+            deployment=deployment,
             **timeouts,
         )
 
@@ -253,6 +271,7 @@ class NodeConfig:
                 if self.battery_reserve_pct is not None
                 else []
             ),
+            *([f"deployment = {toml_value(self.deployment)}"] if self.deployment else []),
             "",
             "[net]",
             f"bind = {toml_value(self.bind)}",

@@ -28,8 +28,8 @@ from .station import DroneView, GroundStation, ParticipantFailed
 
 #: Node states worth a line (``Progress.state``): every change of an action, a
 #: wait and its condition, a branch decision, a blocked or skipped node, a
-#: stranded drone, a vehicle a pilot took over and an adapter's warning (a
-#: MAVLink link whose telemetry stays slower than the adapter needs).
+#: stranded drone, a node stopped by a signal, a vehicle a pilot took over and an
+#: adapter's warning (a MAVLink link whose telemetry stays slower than it needs).
 SHOWN_STATES = (
     "running",
     "ok",
@@ -43,6 +43,7 @@ SHOWN_STATES = (
     "stranded",
     "taken_over",
     "warning",
+    "stopped",
 )
 #: Progress states the live table also prints as a line: the operator must read them.
 OPERATOR_STATES = ("taken_over", "warning", "stranded")

@@ -10,8 +10,9 @@ One typed :class:`RunSummary` for every ground station (``eamos run``,
 ``drones.<name>`` is the drone's own report (:class:`DroneReport`, as in its
 ``report.json``) plus what the ground station knows besides: ``exit_code``
 (a local process), ``host`` (over SSH); a drone that sent no report has
-``{"ok": false, "error": "no report", "link": ...}`` instead.  A MAVLink drone's
-report carries ``vehicle``: its autopilot, whether its link was ``signed``, and
+``{"ok": false, "error": "no report", "link": ..., "last_seen": ...}`` instead,
+``last_seen`` (:class:`LastSeen`) being where its last telemetry placed it.  A
+MAVLink drone's report carries ``vehicle``: its autopilot, whether its link was ``signed``, and
 ``taken_over`` (the pilot's mode and where, m) when a pilot took it: such a drone is
 not ok, and the run's detail says ``Drone2: taken over by the pilot in LOITER at
 (x, y, z)``.
@@ -31,7 +32,17 @@ from eamos.hal.api import TakenOver
 from eamos.logs import report_write_error
 from eamos.program.uniform import GROUND_STATION
 
-__all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
+from .last_seen import LastSeen
+
+__all__ = [
+    "ActionEntry",
+    "DroneReport",
+    "DroneResult",
+    "FinalState",
+    "LastSeen",
+    "RunSummary",
+    "summarize",
+]
 
 if TYPE_CHECKING:
     from .station import DroneView
@@ -46,6 +57,7 @@ class DroneResult:
     report: DroneReport | None  # None: the ground station never received it
     exit_code: int | None = None  # the node's exit code when it ran here (eamos run)
     host: str | None = None  # where it ran, when over SSH (eamos start)
+    last_seen: LastSeen | None = None  # without a report: where its last telemetry placed it
 
     @property
     def ok(self) -> bool:
@@ -100,6 +112,8 @@ class DroneResult:
             out = {"ok": False, "error": NO_REPORT}
             if link is not None:
                 out["link"] = link
+            if self.last_seen is not None:
+                out["last_seen"] = self.last_seen.to_json()
         if self.exit_code is not None:
             out["exit_code"] = self.exit_code
         if self.host is not None:
@@ -116,7 +130,7 @@ class DroneResult:
         exit_code = data.get("exit_code")
         host = data.get("host")
         if data.get("error") == NO_REPORT and "actions" not in data:
-            return cls(None, exit_code, host)
+            return cls(None, exit_code, host, LastSeen.from_json(data.get("last_seen")))
         return cls(DroneReport.from_json(data), exit_code, host)
 
 
@@ -270,7 +284,15 @@ def summarize(
         started=started,
         duration_s=round(ended - started, 3),
         run_dir=str(run_dir),
-        drones={n: DroneResult(views[n].report, exits.get(n), hosts.get(n)) for n in drones},
+        drones={
+            n: DroneResult(
+                views[n].report,
+                exits.get(n),
+                hosts.get(n),
+                views[n].last_seen() if views[n].report is None else None,
+            )
+            for n in drones
+        },
         ground_station=ground_report,
         failures=tuple(failures),
         links={n: views[n].link for n in drones},

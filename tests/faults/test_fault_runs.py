@@ -21,7 +21,7 @@ from eamos.actors.stranded import DEFAULT_PEER_WAIT_LIMIT_S
 from eamos.ops.localrun import local_deployment
 from eamos.ops.status import local_status
 from tests.faults.runs import LiveRun, node_pid, read_json, wait_gone
-from tests.support.runs import INDEPENDENT, MISSIONS, REPO, RUN_TIMEOUT_S, eamos
+from tests.support.runs import MISSIONS, REPO, RUN_TIMEOUT_S, eamos
 
 pytestmark = pytest.mark.e2e
 
@@ -251,29 +251,3 @@ def test_ctrl_c_twice_still_writes_the_summary_and_exits_130(tmp_path: Path) -> 
     summary = read_json(tmp_path / "summary.json")
     assert summary["outcome"] == "aborted by the operator" and not summary["ok"]
     assert (tmp_path / "run" / "summary.json").exists()
-
-
-def test_a_drone_blocked_in_the_air_by_a_failure_lands_on_its_own(tmp_path: Path) -> None:
-    mission = tmp_path / "independent.go"
-    mission.write_text(INDEPENDENT)
-    fleet = tmp_path / "fleet.toml"
-    fleet.write_text('[drones.Drone1.hal]\nadapter = "sim"\nreject_actions = ["FlyByX"]\n')
-    run = LiveRun.start(
-        tmp_path, mission, "--fleet", str(fleet), "--no-check", speedup=5, timeout_s=600
-    )
-    try:
-        run.wait_for("Drone1 failed    FlyByX(2)")
-        line = run.wait_for("Drone1 stranded  end policy: land", within_s=30)
-        run.finish(RUN_TIMEOUT_S)
-    finally:
-        run.kill()
-    assert "its part ended with" in line and "the vehicle in the air at z = 2.0 m" in line
-    assert run.returncode == 1, run.text()
-    d1 = read_json(tmp_path / "summary.json")["drones"]["Drone1"]
-    assert [(a["action"], a["result"]) for a in d1["actions"]] == [
-        ("Arm", "ok"),
-        ("Takeoff", "ok"),
-        ("FlyByX", "failed"),
-    ]
-    assert d1["aborted"] and d1["abort_reason"].startswith("stranded: its part ended")
-    assert d1["final"]["z"] == pytest.approx(0.0, abs=0.15), d1["final"]
