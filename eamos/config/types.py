@@ -24,7 +24,7 @@ from ..hal.api import AdapterError
 from ..hal.settings import did_you_mean
 from ..hal.sim.settings import BATTERY_MODELS, BatteryModel, SimSettings
 from ..program.uniform import DEFAULT_DRONE_TYPE, DRONE_TYPES
-from .validation import ConfigError, check_hal
+from .validation import ConfigError, check_hal, key_shown, participant_name
 
 #: A lineage of no more types than this is followed (declared types are few; cycles are
 #: the compiler's error, but a fleet must not loop on a hand-made table either).
@@ -96,6 +96,7 @@ def load_types(w: str, raw: Any, defaults: Mapping[str, Any]) -> dict[str, dict[
         raise ConfigError(f"{w}types: must be a table of drone types, such as [types.Quadcopter]")
     out: dict[str, dict[str, Any]] = {}
     for name, table in raw.items():
+        participant_name(f"{w}types.{key_shown(name)}", name, "drone type's name")
         where = f"{w}types.{name}"
         if not isinstance(table, dict):
             raise ConfigError(f"{where}: must be a table, such as [types.{name}.hal]")

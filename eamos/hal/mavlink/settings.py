@@ -14,6 +14,10 @@ from eamos.hal.mavlink.autopilots import TakeoffMode
 from eamos.hal.mavlink.link import check_connection
 from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, number, require_mapping
 
+#: The longest duration a setting may give (a day): a wait of 1e308 s cannot even be
+#: asked of the system (docs/configuration.md, "Ranges").
+DAY_S = 86_400.0
+
 
 @dataclass(frozen=True)
 class MavlinkSettings:
@@ -93,7 +97,7 @@ class MavlinkSettings:
             return value
 
         def optional(key: str) -> float | None:
-            return num(key, gt=0) if key in mapping else None
+            return num(key, gt=0, le=100) if key in mapping else None
 
         def text(key: str) -> str | None:
             value = mapping.get(key)
@@ -123,25 +127,25 @@ class MavlinkSettings:
             source_component=integer("source_component", 0, 255, 191) or 0,
             autopilot=choice("autopilot", ("auto", "px4", "ardupilot")),
             takeoff_mode=choice("takeoff_mode", ("offboard", "auto")),
-            connect_timeout_s=num("connect_timeout_s", gt=0),
-            armable_timeout_s=num("armable_timeout_s", gt=0),
-            command_timeout_s=num("command_timeout_s", gt=0),
+            connect_timeout_s=num("connect_timeout_s", gt=0, le=DAY_S),
+            armable_timeout_s=num("armable_timeout_s", gt=0, le=DAY_S),
+            command_timeout_s=num("command_timeout_s", gt=0, le=DAY_S),
             command_retries=integer("command_retries", 1, 100, 3) or 3,
-            heartbeat_timeout_s=num("heartbeat_timeout_s", gt=0),
-            action_timeout_s=num("action_timeout_s", gt=0),
+            heartbeat_timeout_s=num("heartbeat_timeout_s", gt=0, le=DAY_S),
+            action_timeout_s=num("action_timeout_s", gt=0, le=DAY_S),
             tolerance_m=optional("tolerance_m"),
             settle_speed_mps=optional("settle_speed_mps"),
-            settle_s=num("settle_s", ge=0),
+            settle_s=num("settle_s", ge=0, le=60),
             setpoint_hz=num("setpoint_hz", gt=2, le=100),
             telemetry_hz=num("telemetry_hz", ge=10, le=100),
-            horizontal_speed_mps=num("horizontal_speed_mps", gt=0),
-            climb_speed_mps=num("climb_speed_mps", gt=0),
-            descent_speed_mps=num("descent_speed_mps", gt=0),
+            horizontal_speed_mps=num("horizontal_speed_mps", gt=0, le=50),
+            climb_speed_mps=num("climb_speed_mps", gt=0, le=20),
+            descent_speed_mps=num("descent_speed_mps", gt=0, le=20),
             set_speeds=flag("set_speeds"),
             rearm=flag("rearm"),
             land_on_close=flag("land_on_close"),
-            speedup=num("speedup", gt=0),
-            brake_timeout_s=num("brake_timeout_s", gt=0),
+            speedup=num("speedup", gt=0, le=1000),
+            brake_timeout_s=num("brake_timeout_s", gt=0, le=DAY_S),
             signing_key=text("signing_key"),
             signing_setup=flag("signing_setup"),
         )
