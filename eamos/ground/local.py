@@ -502,7 +502,12 @@ def _fly_local(
         links=telemetry_links(mission.programs, drones, fleet),
     )
     shown = display or make_display(None, drones)
-    station = GroundStation(drones, mission.mission_id, on_change=shown.event)
+    station = GroundStation(
+        drones,
+        mission.mission_id,
+        on_change=shown.event,
+        checksums={name: program.checksum for name, program in mission.programs.items()},
+    )
     shown.watch(station)
     ground_hal: dict[str, Any] = {"adapter": "ground"}
     if speedup:

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -79,8 +79,12 @@ class GroundStation:
         on_change: Callable[[str, DroneView, Any], None] | None = None,
         give_up_s: float | None = None,
         clock: Clock = time.monotonic,
+        checksums: Mapping[str, str] | None = None,
     ) -> None:
         self.mission_id = mission_id
+        # The checksum of each participant's compiled program: a Ready naming another
+        # program (a file edited, its checksum recomputed) is refused, not counted ready.
+        self.checksums = dict(checksums or {})
         self.give_up_s = give_up_s
         self.clock = clock  # monotonic seconds: when a silent drone is given up
         self.views = {name: DroneView(name) for name in drones}
@@ -117,8 +121,19 @@ class GroundStation:
             if view is None:
                 return
             if isinstance(msg, wire.Ready):
-                view.ready = True
-                view.state = "ready"
+                expected = self.checksums.get(view.name, msg.program_checksum)
+                if msg.program_checksum == expected:
+                    view.ready = True
+                    view.state = "ready"
+                else:
+                    why = (
+                        f"{view.name}: runs a program other than the one compiled for this "
+                        f"run (checksum {msg.program_checksum[:23]}..., "
+                        f"expected {expected[:23]}...): not started"
+                    )
+                    if why not in self.failures:  # Ready is resent until acknowledged
+                        self.failures.append(why)
+                    view.state = "wrong program"
             elif isinstance(msg, wire.Resolved):
                 view.resolved = True
                 view.state = "resolved"
