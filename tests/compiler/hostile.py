@@ -12,8 +12,9 @@ from dataclasses import dataclass
 from eamos.compiler import CompiledMission, Diagnostic, MissionError, compile_mission
 from eamos.compiler.source import split_lines
 
-# Per mission, on a loaded 2-core machine; the slowest input within the caps
-# (2 MB of junk) takes about 6 s, every fuzzed or corpus mission well under 1 s.
+# Per mission, on a loaded 2-core machine; the slowest input within the caps (a valid
+# 64 KiB followed by junk up to 2 MB) takes about 4 s, every fuzzed or corpus mission
+# well under 1 s.
 SECONDS_PER_MISSION = 10.0
 
 
