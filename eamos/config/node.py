@@ -67,11 +67,15 @@ from .toml_text import relative, toml_key, toml_value
 from .validation import (
     END_POLICIES,
     ConfigError,
+    check_adapter,
     check_hal,
     check_keys,
     endpoint,
     in_range,
+    key_shown,
     log_folder,
+    participant_name,
+    path_field,
     read_toml,
 )
 
@@ -173,22 +177,26 @@ class NodeConfig:
             },
         )
         drone = doc.get("drone")
-        if not isinstance(drone, str) or not drone:
+        if drone is None or drone == "":
             raise ConfigError(
                 f'{w}drone: required, the drone\'s name as in the mission (e.g. "Drone1")'
             )
+        participant_name(f"{w}drone", drone, "drone name")
         program = doc.get("program")
-        if not isinstance(program, str) or not program:
+        if program is None or program == "":
             raise ConfigError(f"{w}program: required, the path of the drone's .program.json")
+        path_field(f"{w}program", program, "path of the drone's .program.json")
         net = doc.get("net")
         if not isinstance(net, dict):
             raise ConfigError(f"{w}net: required table with 'bind' and 'peers'")
         check_keys(f"{w}net.", net, NET_FIELDS)
-        bind = endpoint(f"{w}net.bind", net.get("bind"))
+        bind = endpoint(f"{w}net.bind", net.get("bind"), bind=True)
         peers = net.get("peers", {})
         if not isinstance(peers, dict):
             raise ConfigError(f"{w}net.peers: must be a table of name = endpoint")
-        peers = {str(k): endpoint(f"{w}net.peers.{k}", v) for k, v in peers.items()}
+        for name, value in peers.items():
+            participant_name(f"{w}net.peers.{key_shown(name)}", name)
+            endpoint(f"{w}net.peers.{name}", value)
         keys_dir, keys = _net_security(w, net, path.parent, drone, bind, peers)
         link = _link_settings(w, net)
         give_up = net.get("peer_give_up_s")
@@ -198,6 +206,7 @@ class NodeConfig:
         if not isinstance(hal, dict):
             raise ConfigError(f"{w}hal: must be a table")
         check_hal(f"{w}hal.", hal, drone=drone != GROUND_STATION)
+        check_adapter(w, hal, drone)
         timeouts: dict[str, float] = {}
         for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s", "peer_wait_limit_s"):
             if key in doc:
@@ -218,10 +227,8 @@ class NodeConfig:
                 "(the roll-out's id, written by eamos rollout and eamos run)"
             )
         base = path.parent
-        log_dir = doc.get("log_dir", f"logs/{drone}")
-        if not isinstance(log_dir, str) or not log_dir:
-            raise ConfigError(f"{w}log_dir: must be a path")
-        log_folder(f"{w}log_dir", (base / log_dir).resolve())
+        log_dir = path_field(f"{w}log_dir", doc.get("log_dir", f"logs/{drone}"))
+        log_folder(f"{w}log_dir", (base / log_dir).resolve(), base)
         return cls(
             path=path,
             drone=drone,
@@ -332,8 +339,7 @@ def _net_security(
             f"{w}net.keys: required: the folder `eamos keys` made for {drone} "
             "(or plain = true, for development on loopback only)"
         )
-    if not isinstance(net["keys"], str) or not net["keys"]:
-        raise ConfigError(f"{w}net.keys: must be the path of a key folder")
+    path_field(f"{w}net.keys", net["keys"], "path of a key folder")
     folder = (base / net["keys"]).resolve()
     try:
         keys = FleetKeys.load(folder, drone)

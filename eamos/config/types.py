@@ -25,7 +25,7 @@ from ..hal.api import AdapterError
 from ..hal.settings import did_you_mean
 from ..hal.sim.settings import BATTERY_MODELS, BatteryModel, SimSettings
 from ..program.uniform import DEFAULT_DRONE_TYPE, DRONE_TYPES
-from .validation import ConfigError, check_hal
+from .validation import ConfigError, check_hal, key_shown, participant_name
 
 #: The pre-flight check's model of a MAVLink drone, per autopilot: what each SITL was
 #: measured to do with the drone type's speeds set (experiment A on ArduCopter 4.7.0-dev
@@ -166,6 +166,7 @@ def load_types(w: str, raw: Any, defaults: Mapping[str, Any]) -> dict[str, dict[
         raise ConfigError(f"{w}types: must be a table of drone types, such as [types.Quadcopter]")
     out: dict[str, dict[str, Any]] = {}
     for name, table in raw.items():
+        participant_name(f"{w}types.{key_shown(name)}", name, "drone type's name")
         where = f"{w}types.{name}"
         if not isinstance(table, dict):
             raise ConfigError(f"{where}: must be a table, such as [types.{name}.hal]")

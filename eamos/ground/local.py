@@ -532,7 +532,11 @@ def _fly_local(
     )
     shown = display or make_display(None, drones)
     station = GroundStation(
-        drones, mission.mission_id, on_change=shown.event, deployment=deployment
+        drones,
+        mission.mission_id,
+        on_change=shown.event,
+        deployment=deployment,
+        checksums={name: program.checksum for name, program in mission.programs.items()},
     )
     shown.watch(station)
     ground_hal: dict[str, Any] = {"adapter": "ground"}

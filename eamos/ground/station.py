@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -92,9 +92,13 @@ class GroundStation:
         give_up_s: float | None = None,
         clock: Clock = time.monotonic,
         deployment: str = "",
+        checksums: Mapping[str, str] | None = None,
     ) -> None:
         self.mission_id = mission_id
         self.deployment = deployment  # named in the Start: the drones of this roll-out start
+        # The checksum of each participant's compiled program: a Ready naming another
+        # program (a file edited, its checksum recomputed) is refused, not counted ready.
+        self.checksums = dict(checksums or {})
         self.give_up_s = give_up_s
         self.clock = clock  # monotonic seconds: when a silent drone is given up
         self.views = {name: DroneView(name) for name in drones}
@@ -134,10 +138,21 @@ class GroundStation:
             if view is None:
                 return
             if isinstance(msg, wire.Ready):
-                if view.exited and not self.over:
-                    self._rejoined(view)
-                view.ready = True
-                view.state = "ready"
+                expected = self.checksums.get(view.name, msg.program_checksum)
+                if msg.program_checksum == expected:
+                    if view.exited and not self.over:
+                        self._rejoined(view)
+                    view.ready = True
+                    view.state = "ready"
+                else:
+                    why = (
+                        f"{view.name}: runs a program other than the one compiled for this "
+                        f"run (checksum {msg.program_checksum[:23]}..., "
+                        f"expected {expected[:23]}...): not started"
+                    )
+                    if why not in self.failures:  # Ready is resent until acknowledged
+                        self.failures.append(why)
+                    view.state = "wrong program"
             elif isinstance(msg, wire.Resolved):
                 view.resolved = True
                 view.state = "resolved"

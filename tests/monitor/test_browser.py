@@ -227,7 +227,8 @@ def test_abort_needs_the_token_and_lands_every_drone(tmp_path: Path, browser: An
         wait_until(browser, lambda d: mission_state(d) == "running")
         assert not browser.find_element(By.ID, "abort").is_enabled()
         status = browser.execute_script(
-            "return await fetch('/api/abort', {method: 'POST', body: '{}'}).then(r => r.status)"
+            "return await fetch('/api/abort', {method: 'POST', body: '{}',"
+            " headers: {'Content-Type': 'application/json'}}).then(r => r.status)"
         )
         assert status == 403
         assert mission_state(browser) == "running"

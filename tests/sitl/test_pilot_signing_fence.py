@@ -31,10 +31,12 @@ from eamos.hal.mavlink.adapter import MavlinkAdapter, MavlinkSettings
 from eamos.hal.mavlink.frames import mission_to_ned
 from eamos.hal.mavlink.mission_protocol import MAV_MISSION_TYPE_FENCE, MissionProtocol
 from eamos.hal.mavlink.signing import create_signing_key
-from eamos.hal.mavlink.targets import TYPE_MASK_VELOCITY
 from eamos.logs import close_logger, make_logger
 from eamos.program.uniform import decode_command
 from tests.mavlink.mavlink_helpers import Done, RawClient
+
+#: SET_POSITION_TARGET_LOCAL_NED's type_mask for a velocity only (the rogue command).
+TYPE_MASK_VELOCITY = 0x0DC7
 
 REPO = Path(__file__).resolve().parents[2]
 SITL_DIR = Path(os.environ.get("EAMOS_SITL_DIR") or REPO.parent / "shared" / "sitl")

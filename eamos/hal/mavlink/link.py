@@ -224,6 +224,7 @@ class MavlinkLink:
         #: (the vehicle's takeover watch: a mode change classified before any waiter
         #: wakes to it).
         self.observe: Callable[[Events, float], None] | None = None
+        self.message_errors = 0  # messages the reader could not fold into the state
         self._signing = None if signing_key is None else LinkSigning(signing_key, signing_setup)
         self._signed_seen = False  # kept for the summary once the connection is closed
 
@@ -349,14 +350,31 @@ class MavlinkLink:
                 continue
             now = time.monotonic()
             events: Events = []
-            with self.cond:
-                if msg is not None and msg.get_type() != "BAD_DATA":
-                    self._tracker.handle(msg, now, events)
-                elif msg is not None and self._signing is not None:
-                    self._refused(msg, now, events)
-                self._tracker.check_heartbeat(now, events)
-                if events and self.observe is not None:
-                    self.observe(events, now)
+            try:
+                with self.cond:
+                    if msg is not None and msg.get_type() != "BAD_DATA":
+                        self._tracker.handle(msg, now, events)
+                    elif msg is not None and self._signing is not None:
+                        self._refused(msg, now, events)
+                    self._tracker.check_heartbeat(now, events)
+                    if events and self.observe is not None:
+                        self.observe(events, now)
+            # One message the tracker cannot fold in must not stop the reader: the
+            # vehicle's state would freeze (heartbeats, position) for the whole flight.
+            except Exception as exc:
+                self.message_errors += 1
+                if self.message_errors <= 20 or self.message_errors % 1000 == 0:
+                    kind = msg.get_type() if msg is not None else ""
+                    events.append(
+                        (
+                            "link.message_error",
+                            {
+                                "message": kind,
+                                "error": repr(exc)[:300],
+                                "errors": self.message_errors,
+                            },
+                        )
+                    )
             for name, fields in events:
                 self._on_event(name, fields)
 

@@ -16,6 +16,9 @@ from eamos.hal.settings import COMMON_KEYS, check_keys, field_error, number, req
 
 #: Periodic jobs (setpoints, telemetry samples) never run more often than this (wall Hz).
 MAX_WALL_HZ = 100.0
+#: The longest duration a setting may give (a day): a wait of 1e308 s cannot even be
+#: asked of the system (docs/configuration.md, "Ranges").
+DAY_S = 86_400.0
 
 
 @dataclass(frozen=True)
@@ -118,7 +121,7 @@ class MavlinkSettings:
             return value
 
         def optional(key: str) -> float | None:
-            return num(key, gt=0) if key in mapping else None
+            return num(key, gt=0, le=100) if key in mapping else None
 
         def text(key: str) -> str | None:
             value = mapping.get(key)
@@ -171,29 +174,29 @@ class MavlinkSettings:
             source_component=integer("source_component", 0, 255, 191) or 0,
             autopilot=choice("autopilot", ("auto", "px4", "ardupilot")),
             takeoff_mode=choice("takeoff_mode", ("offboard", "auto")),
-            connect_timeout_s=num("connect_timeout_s", gt=0),
-            armable_timeout_s=num("armable_timeout_s", gt=0),
-            command_timeout_s=num("command_timeout_s", gt=0),
+            connect_timeout_s=num("connect_timeout_s", gt=0, le=DAY_S),
+            armable_timeout_s=num("armable_timeout_s", gt=0, le=DAY_S),
+            command_timeout_s=num("command_timeout_s", gt=0, le=DAY_S),
             command_retries=integer("command_retries", 1, 100, 3) or 3,
-            heartbeat_timeout_s=num("heartbeat_timeout_s", gt=0),
-            action_timeout_s=num("action_timeout_s", gt=0),
+            heartbeat_timeout_s=num("heartbeat_timeout_s", gt=0, le=DAY_S),
+            action_timeout_s=num("action_timeout_s", gt=0, le=DAY_S),
             tolerance_m=optional("tolerance_m"),
             settle_speed_mps=optional("settle_speed_mps"),
-            settle_s=num("settle_s", ge=0) if "settle_s" in mapping else None,
+            settle_s=num("settle_s", ge=0, le=60) if "settle_s" in mapping else None,
             setpoint_hz=num("setpoint_hz", gt=2, le=100),
             telemetry_hz=num("telemetry_hz", ge=10, le=100),
-            horizontal_speed_mps=num("horizontal_speed_mps", gt=0),
-            climb_speed_mps=num("climb_speed_mps", gt=0),
-            descent_speed_mps=num("descent_speed_mps", gt=0),
+            horizontal_speed_mps=num("horizontal_speed_mps", gt=0, le=50),
+            climb_speed_mps=num("climb_speed_mps", gt=0, le=20),
+            descent_speed_mps=num("descent_speed_mps", gt=0, le=20),
             set_speeds=flag("set_speeds"),
             rearm=flag("rearm"),
             land_on_close=flag("land_on_close"),
-            speedup=num("speedup", gt=0),
-            brake_timeout_s=num("brake_timeout_s", gt=0),
+            speedup=num("speedup", gt=0, le=1000),
+            brake_timeout_s=num("brake_timeout_s", gt=0, le=DAY_S),
             signing_key=text("signing_key"),
             signing_setup=flag("signing_setup"),
             signing=choice("signing", ("required", "off")),
-            signing_timeout_s=num("signing_timeout_s", gt=0),
+            signing_timeout_s=num("signing_timeout_s", gt=0, le=DAY_S),
             home_m=None if home_m is None else (home_m[0], home_m[1]),
             home_lla=home_lla,
             geofence_m=tuple((p[0], p[1]) for p in fence),
