@@ -16,6 +16,7 @@ import itertools
 import math
 from dataclasses import dataclass
 
+from .proximity import candidate_pairs
 from .tracks import Track
 
 _EPS = 1e-12
@@ -63,9 +64,12 @@ def _interval_linear(c: float, d: float, m: float) -> tuple[float, float] | None
 
 
 def _pieces(ta: Track, tb: Track) -> list[float]:
-    """The union of both tracks' point times within the span both cover."""
+    """The union of both tracks' point times within the span both cover (none if they
+    cover no common span: one track ends before the other begins)."""
     start = max(ta.points[0].t_s, tb.points[0].t_s)
     end = min(ta.points[-1].t_s, tb.points[-1].t_s)
+    if end < start:
+        return []
     times = {p.t_s for p in ta.points if start <= p.t_s <= end}
     times |= {p.t_s for p in tb.points if start <= p.t_s <= end}
     times |= {start, end}
@@ -103,6 +107,8 @@ def pair_conflicts(ta: Track, tb: Track, min_separation_m: float) -> list[Confli
     m = min_separation_m
     ca, cb = _Cursor(ta), _Cursor(tb)
     times = _pieces(ta, tb)
+    if not times:
+        return []
     out: list[Conflict] = []
     episode: list[tuple[float, float, float, float, tuple[float, ...], tuple[float, ...]]] = []
     pa0, air_a0 = ca.at(times[0])
@@ -183,11 +189,14 @@ def _close(
 
 
 def conflicts(tracks: list[Track], min_separation_m: float) -> list[Conflict]:
-    """Every conflict episode between every pair of tracks, in time order."""
+    """Every conflict episode between every pair of tracks, in time order.
+
+    Only the pairs that can come near each other (:func:`~.proximity.candidate_pairs`)
+    are tested exactly; the others have no conflict to find.
+    """
     out: list[Conflict] = []
-    for i, ta in enumerate(tracks):
-        for tb in tracks[i + 1 :]:
-            out.extend(pair_conflicts(ta, tb, min_separation_m))
+    for i, j in sorted(candidate_pairs(tracks, min_separation_m)):
+        out.extend(pair_conflicts(tracks[i], tracks[j], min_separation_m))
     return sorted(out, key=lambda c: (c.t_s, c.a, c.b))
 
 

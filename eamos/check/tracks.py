@@ -17,7 +17,7 @@ from ..hal.api import ActionHandle, DoneCallback, Telemetry
 from ..hal.sim import SimCore
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry
 from ..program.uniform import Command
-from ..virtual import IdleVehicle, Vehicle
+from ..virtual import IdleVehicle, QuietVehicle, Vehicle
 from ..virtual.vehicles import Clock, Finished, settles
 
 #: (t_s, north_m, east_m, up_m, airborne, armed, battery_pct), as recorded.
@@ -77,6 +77,7 @@ class TrackRecorder:
         self._clock = clock
         self._home = home
         self._idle = inner if isinstance(inner, IdleVehicle) else None  # checked once: slow
+        self._quiet = inner if isinstance(inner, QuietVehicle) else None
         self._settles = settles(inner)
         # A simulator core tells where it is without building a whole state (every step).
         self._where = inner.where if isinstance(inner, SimCore) else None
@@ -125,6 +126,16 @@ class TrackRecorder:
     def idle_steps(self, limit: int) -> int:
         """As the wrapped vehicle (0 if it cannot tell)."""
         return self._idle.idle_steps(limit) if self._idle is not None else 0
+
+    def quiet_steps(self, limit: int) -> int:
+        """As the wrapped vehicle (its idle steps if it cannot tell)."""
+        if self._quiet is not None:
+            return self._quiet.quiet_steps(limit)
+        return self.idle_steps(limit)
+
+    def unsent(self) -> Telemetry | None:
+        """As the wrapped vehicle (None if it cannot tell)."""
+        return self._quiet.unsent() if self._quiet is not None else None
 
     def skip(self, steps: int) -> None:
         """Skip idle steps of the wrapped vehicle; the track stays a point at rest."""

@@ -18,7 +18,10 @@ Frame: X north, Y east, Z up, metres from home; the ground is ``z == 0``.
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
+import operator
 from dataclasses import dataclass
 
 #: Mean equatorial Earth radius used by the flat-earth approximation (WGS84 a).
@@ -270,17 +273,20 @@ class Quadcopter:
         if not self.at_rest:
             raise ValueError("rest() while moving")
         per_step = self.drain_pct_per_min() * dt_s / 60.0
-        battery = self._battery
-        for _ in range(steps):
-            battery = max(0.0, battery - per_step)
-        self._battery = battery
+        # The drain subtracted once per step, in order (a C loop): once below zero
+        # it stays below, so clamping the sum gives what clamping every step gives.
+        drained = functools.reduce(operator.sub, itertools.repeat(per_step, steps), self._battery)
+        self._battery = max(0.0, drained)
 
     def step(self, dt_s: float) -> None:
         """Advance the model by ``dt_s`` seconds."""
         if dt_s <= 0:
             raise ValueError("dt_s must be > 0")
         lim = self.limits
+        at_rest = self.at_rest  # before the drain: it reads the state the step starts from
         self._battery = max(0.0, self._battery - self.drain_pct_per_min() * dt_s / 60.0)
+        if at_rest and not self._landed:
+            return  # hovering on the setpoint: the steps below leave it bit for bit
 
         target = self._target
         if self._landed:

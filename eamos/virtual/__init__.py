@@ -11,7 +11,15 @@ and the pre-flight checker build on it.
 from .decisions import Decide, install_decide
 from .driver import TIME_LIMIT_S, VirtualMission, run_virtual, telemetry_values
 from .result import DroneOutcome, VirtualRun, Waiting
-from .vehicles import STEP_S, IdleVehicle, QuietLog, Vehicle, VehicleFactory, sim_vehicles
+from .vehicles import (
+    STEP_S,
+    IdleVehicle,
+    QuietLog,
+    QuietVehicle,
+    Vehicle,
+    VehicleFactory,
+    sim_vehicles,
+)
 
 __all__ = [
     "STEP_S",
@@ -20,6 +28,7 @@ __all__ = [
     "DroneOutcome",
     "IdleVehicle",
     "QuietLog",
+    "QuietVehicle",
     "Vehicle",
     "VehicleFactory",
     "VirtualMission",

@@ -16,6 +16,7 @@ paper experiment takes milliseconds to a few hundred of CPU.
 
 from __future__ import annotations
 
+import functools
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -54,6 +55,7 @@ from .vehicles import (
     LazyVehicle,
     Vehicle,
     VehicleFactory,
+    WakeQueue,
     settles,
     sim_vehicles,
 )
@@ -90,6 +92,38 @@ class _Board:
     def __init__(self) -> None:
         self.latest: dict[str, PropertyValues] = {}
         self.watchers: dict[NodeId, tuple[str, ...]] = {}
+        self._readers: dict[str, int] = {}  # how many watchers read each drone
+        # The vehicles that rest through battery-only samples while nobody reads them.
+        self.resting: dict[str, LazyVehicle] = {}
+
+    def read(self, drone: str) -> bool:
+        """True while some node watches ``drone``'s telemetry."""
+        return self._readers.get(drone, 0) > 0
+
+    def watch(
+        self, node: NodeId, drones: tuple[str, ...], publish: Callable[[str, Telemetry], None]
+    ) -> None:
+        """``node`` watches ``drones`` (instead of what it watched).
+
+        A drone nobody read until now first hands over (``publish``) the latest
+        sample it would have sent meanwhile: the latest values the node is told.
+        """
+        for drone in sorted(set(drones)):
+            vehicle = self.resting.get(drone)
+            if vehicle is not None and not self.read(drone):
+                sample = vehicle.unsent()
+                if sample is not None:
+                    publish(drone, sample)
+                vehicle.read_again()
+        self.unwatch(node)
+        self.watchers[node] = drones
+        for drone in set(drones):
+            self._readers[drone] = self._readers.get(drone, 0) + 1
+
+    def unwatch(self, node: NodeId) -> None:
+        """``node`` watches nothing."""
+        for drone in set(self.watchers.pop(node, ())):
+            self._readers[drone] -= 1
 
     def publish(self, drone: str, values: PropertyValues) -> list[NodeId]:
         """Record ``values``; the watchers to tell (none if nothing a condition reads changed)."""
@@ -137,14 +171,18 @@ class VirtualMission:
         self._queue: deque[tuple[NodeId, Callable[..., list[Effect]], tuple[Any, ...]]] = deque()
         self._board = _Board()
         self._ground = GroundPauses()
+        self._wakes = WakeQueue()
         factory = vehicles or sim_vehicles()
 
         def make(drone: str) -> Vehicle:
             vehicle = factory(drone, self.clock)
-            if isinstance(vehicle, IdleVehicle):
-                # Idle steps are skipped, not stepped (see LazyVehicle).
-                return LazyVehicle(vehicle, lambda: self.steps, self._horizon)
-            return vehicle
+            if not isinstance(vehicle, IdleVehicle):
+                return vehicle
+            # Idle steps are skipped, not stepped; unread, also battery-only samples.
+            read = functools.partial(self._board.read, drone)
+            lazy = LazyVehicle(vehicle, lambda: self.steps, self._horizon, self._wakes.note, read)
+            self._board.resting[drone] = lazy
+            return lazy
 
         self.participants: dict[str, _Participant] = {}
         for program in progs:
@@ -176,9 +214,11 @@ class VirtualMission:
                     if isinstance(logic, ConditionLogic):
                         install_decide(drone, logic, decide)
         self._vehicles = [(d, p.vehicle) for d, p in sorted(self.participants.items()) if p.vehicle]
-        # Jumps over steps in which every vehicle sleeps need them all lazy.
+        # Jumping over steps, and stepping only the vehicles due, need them all lazy.
         lazy = [v for _, v in self._vehicles if isinstance(v, LazyVehicle)]
         self._lazy = lazy if len(lazy) == len(self._vehicles) else []
+        if self._lazy:
+            self._wakes.follow(self._lazy)  # a step costs the vehicles due, not the fleet
         self.jumped = 0  # steps jumped over at once (counted in ``steps`` too)
         self._apply_one: dict[type, Callable[[NodeId, Any], None]] = {
             Emit: self._emit,
@@ -247,14 +287,14 @@ class VirtualMission:
         pause ends) are jumped over at once.
         """
         if self._lazy:
-            self._jump(self._lazy)
+            self._jump()
         self.steps += 1
         if self._vehicles:
             self.t = self.steps * STEP_S
         else:
             due = self._ground.next_due()
             self.t = min(self.time_limit_s, due if due is not None else self.time_limit_s)
-        for drone, vehicle in self._vehicles:
+        for drone, vehicle in self._due():
             finished, samples = vehicle.step()
             for done, result in finished:
                 done(result)
@@ -267,9 +307,16 @@ class VirtualMission:
         """Steps left before the time limit (vehicles sleep no further)."""
         return max(0, int((self.time_limit_s - self.t) / STEP_S) - 2)
 
-    def _jump(self, vehicles: list[LazyVehicle]) -> None:
+    def _due(self) -> list[tuple[str, Vehicle]]:
+        """The vehicles to step now, in the drones' order (all, unless all are lazy)."""
+        if not self._lazy:
+            return self._vehicles
+        return [self._vehicles[i] for i in self._wakes.due(self.steps)]
+
+    def _jump(self) -> None:
         """Jump to the step before the first vehicle wakes or a ground pause ends."""
-        target = min(v.wake for v in vehicles) - 1
+        first = self._wakes.first()
+        target = (self.steps + 1 + self._horizon() if first is None else first) - 1
         due = self._ground.next_due()
         if due is not None:
             target = min(target, self.steps + int((due - self.t) / STEP_S) - 2)
@@ -368,7 +415,7 @@ class VirtualMission:
             part.vehicle.cancel(handle)
 
     def _watch(self, node: NodeId, fx: WatchTelemetry) -> None:
-        self._board.watchers[node] = fx.drones
+        self._board.watch(node, fx.drones, self._publish)
         logic = self._logic(node)
         for drone in fx.drones:
             values = self._board.latest.get(drone)
@@ -376,7 +423,7 @@ class VirtualMission:
                 self._post(node, logic.telemetry, drone, values)
 
     def _unwatch(self, node: NodeId, fx: UnwatchTelemetry) -> None:
-        self._board.watchers.pop(node, None)
+        self._board.unwatch(node)
 
     def _resolve(self, node: NodeId, fx: Resolve) -> None:
         if fx.top_level:

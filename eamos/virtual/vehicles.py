@@ -56,6 +56,20 @@ class IdleVehicle(Vehicle, Protocol):
 
 
 @runtime_checkable
+class QuietVehicle(IdleVehicle, Protocol):
+    """An :class:`IdleVehicle` that rests longer while nobody reads its telemetry.
+
+    ``quiet_steps`` are its idle steps when no sample it sends is read (a
+    hovering drone's battery then ends no rest); ``unsent()`` is the latest
+    sample the steps it skipped so would have sent, for whoever starts reading.
+    """
+
+    def quiet_steps(self, limit: int) -> int: ...
+
+    def unsent(self) -> Telemetry | None: ...
+
+
+@runtime_checkable
 class SettlingVehicle(Protocol):
     """A vehicle that still changes by itself once its actions are over.
 
@@ -82,13 +96,29 @@ class LazyVehicle:
     (run, cancel, abort, state), so what it does and shows is exactly what
     stepping it every time would give.  ``now()`` is the driver's step
     count, ``horizon()`` the steps left before the driver's time limit.
+    ``woken(vehicle)``, if given, is called whenever :attr:`wake` changes (the
+    driver keeps the wakes in a heap instead of asking every vehicle every step).
+    ``read()``, if given, says whether anyone reads the vehicle's telemetry now:
+    while nobody does, a :class:`QuietVehicle` sleeps through the samples only
+    its battery would change, and the driver asks for the latest of them
+    (:meth:`unsent`) when someone starts reading (:meth:`read_again`).
     """
 
-    def __init__(self, inner: IdleVehicle, now: Callable[[], int], horizon: Callable[[], int]):
+    def __init__(
+        self,
+        inner: IdleVehicle,
+        now: Callable[[], int],
+        horizon: Callable[[], int],
+        woken: Callable[[LazyVehicle], None] | None = None,
+        read: Callable[[], bool] | None = None,
+    ):
         self._inner = inner
         self._settles = settles(inner)
         self._now = now
         self._horizon = horizon
+        self._woken = woken
+        self._quiet = inner if read is not None and isinstance(inner, QuietVehicle) else None
+        self._read = read
         self._at = 0  # the driver step the vehicle has been advanced to
         self.wake = 1  # the next driver step that must really step it
 
@@ -102,6 +132,8 @@ class LazyVehicle:
         """Someone talks to the vehicle: bring it up to now; it steps next time."""
         self._sync()
         self.wake = self._at + 1
+        if self._woken is not None:
+            self._woken(self)
 
     @property
     def plugins(self) -> PluginRegistry:
@@ -151,8 +183,79 @@ class LazyVehicle:
             self._inner.skip(lag)
         out = self._inner.step()
         self._at = now
-        self.wake = now + 1 + self._inner.idle_steps(self._horizon())
+        quiet, read = self._quiet, self._read
+        if quiet is not None and read is not None and not read():
+            self.wake = now + 1 + quiet.quiet_steps(self._horizon())
+        else:
+            self.wake = now + 1 + self._inner.idle_steps(self._horizon())
+        if self._woken is not None:
+            self._woken(self)
         return out
+
+    def unsent(self) -> Telemetry | None:
+        """Up to now: the latest sample its skipped steps would have sent (None: none)."""
+        if self._quiet is None:
+            return None
+        self._sync()
+        return self._quiet.unsent()
+
+    def read_again(self) -> None:
+        """Someone reads its telemetry again: wake it for the next sample that shows news."""
+        if self._quiet is None:
+            return
+        self._sync()
+        wake = self._at + 1 + self._inner.idle_steps(self._horizon())
+        if wake < self.wake:
+            self.wake = wake
+            if self._woken is not None:
+                self._woken(self)
+
+
+class WakeQueue:
+    """The lazy vehicles' wakes, earliest first, so that a driver step costs the vehicles
+    due, not the whole fleet.
+
+    Every change of a followed vehicle's :attr:`LazyVehicle.wake` is noted (its
+    ``woken`` hook is :meth:`note`); notes no longer true are dropped when they come up.
+    """
+
+    def __init__(self) -> None:
+        self._heap: list[tuple[int, int]] = []  # (wake, order)
+        self._order: dict[int, int] = {}  # id(vehicle) -> its place among the followed
+        self._vehicles: list[LazyVehicle] = []
+
+    def follow(self, vehicles: list[LazyVehicle]) -> None:
+        """Follow ``vehicles``, in the order they are stepped in."""
+        self._vehicles = list(vehicles)
+        self._order = {id(v): i for i, v in enumerate(self._vehicles)}
+        self._heap = [(v.wake, i) for i, v in enumerate(self._vehicles)]
+        heapq.heapify(self._heap)
+
+    def note(self, vehicle: LazyVehicle) -> None:
+        """``vehicle``'s wake changed (a vehicle not followed is ignored)."""
+        order = self._order.get(id(vehicle))
+        if order is not None:
+            heapq.heappush(self._heap, (vehicle.wake, order))
+
+    def first(self) -> int | None:
+        """The earliest wake (None: no vehicle followed)."""
+        heap, vehicles = self._heap, self._vehicles
+        while heap and vehicles[heap[0][1]].wake != heap[0][0]:
+            heapq.heappop(heap)
+        return heap[0][0] if heap else None
+
+    def due(self, now: int) -> list[int]:
+        """The places of the vehicles whose wake is ``now`` or before, in order.
+
+        Their notes are taken off: stepped, each notes its next wake.
+        """
+        heap, vehicles = self._heap, self._vehicles
+        due: set[int] = set()
+        while heap and heap[0][0] <= now:
+            _, order = heapq.heappop(heap)
+            if vehicles[order].wake <= now:
+                due.add(order)
+        return sorted(due)
 
 
 #: ``factory(drone, clock)`` builds the vehicle of one drone; ``clock`` reads virtual seconds.

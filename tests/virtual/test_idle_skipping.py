@@ -172,5 +172,62 @@ def test_idle_ends_before_the_shown_battery_changes() -> None:
     assert len(seen_stepped) >= 40
 
 
+# D1 hovers while D2 pauses and nobody reads D1's telemetry; then a condition reads
+# its battery.  The branch taken says which battery value the condition saw.
+UNREAD_THEN_READ = """package main
+var D1 Quadcopter
+var D2 Quadcopter
+func SEQ_Main() {
+    D1.Arm()
+    D1.Takeoff(2)
+    D2.PauseFor(PAUSE)
+    If(D1.Battery() > LIMIT, SEQ_Above, SEQ_Below)
+    D1.Land()
+}
+func SEQ_Above() { D2.PauseFor(1) }
+func SEQ_Below() { D2.PauseFor(2) }
+"""
+
+
+class CountingCore(SimCore):
+    """A simulator core that counts its real steps."""
+
+    steps_taken = 0
+
+    def step(self) -> Any:
+        CountingCore.steps_taken += 1
+        return super().step()
+
+
+@pytest.mark.parametrize("pause", [37.0, 61.33])
+def test_a_vehicle_nobody_reads_rests_through_its_battery_samples(pause: float) -> None:
+    """Unread, a hovering drone's battery ends no rest; read again, the condition sees
+    the value stepping every step showed (every limit around it decides the same way)."""
+    settings = {"D1": SimSettings(arm_delay_s=0.0, drain_airborne_pct_per_min=6.0)}
+    seen = []
+    # Hovering drains 0.1 % a second: about 100 - pause / 10 when the condition reads it.
+    estimate = 100.0 - pause / 10
+    for limit in [round(estimate - 0.1 * k, 1) for k in range(-5, 15)]:
+        source = UNREAD_THEN_READ.replace("PAUSE", f"{pause:g}").replace("LIMIT", f"{limit:g}")
+        programs = compile_mission(source, "t.go").programs
+        lazy, lazy_logs = fly(programs, settings, lazy=True)
+        plain, plain_logs = fly(programs, settings, lazy=False)
+        assert lazy.drones["D2"].actions == plain.drones["D2"].actions, limit
+        assert lazy.drones["D1"].final == plain.drones["D1"].final
+        assert without_handles(lazy_logs) == without_handles(plain_logs)
+        seen.append([a.args for a in lazy.drones["D2"].actions][-1])
+    assert (1.0,) in seen and (2.0,) in seen  # the limits straddle what it showed
+    # The hover itself costs a few real steps, not one per 0.1 % of battery.
+    CountingCore.steps_taken = 0
+    source = UNREAD_THEN_READ.replace("PAUSE", f"{pause:g}").replace("LIMIT", "50")
+
+    def make(drone: str, clock: Any) -> Any:
+        return CountingCore(drone, settings.get(drone, SimSettings()), Recorder(), clock)
+
+    VirtualMission(compile_mission(source, "t.go").programs, make).run()
+    shown_changes = pause * 6.0 / 60 / 0.1  # 0.1 % steps of battery while hovering
+    assert CountingCore.steps_taken < 400 + shown_changes / 4, CountingCore.steps_taken
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(pytest.main([__file__]))

@@ -30,7 +30,11 @@ Usage::
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import itertools
 import math
+import operator
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
@@ -99,6 +103,7 @@ class SimCore(ActionRules):
         self._heading_deg = 0.0  # compass degrees; Orbit's centre lies ahead along it
         self._payload: dict[str, float] = {}  # plugin state (gimbal pitch, photos, video)
         self._landing = LandingDisarm.of(settings.disarm_after_landing_s, SIM_DT_S)
+        self._unsent: Telemetry | None = None  # see unsent()
 
     # -- requests ------------------------------------------------------------
 
@@ -167,6 +172,9 @@ class SimCore(ActionRules):
         self._update_actions(finished)
         self._update_abort()
         self._update_landing(was_landed)
+        if self._unsent is not None:
+            samples.append(self._unsent)  # what skipped steps left unsent goes first
+            self._unsent = None
         self._telemetry.observe(self.t_s, self._model.state, samples)
         return finished, samples
 
@@ -175,10 +183,31 @@ class SimCore(ActionRules):
 
         0 while anything may happen: a request queued, a motion, an abort or
         the pilot flying, a sample or position line not yet showing the
-        current state.  Otherwise the steps before the first timer or arming
-        is due and before the battery's shown value (0.1 %) can change,
-        counted exactly; a virtual-time driver may :meth:`skip` them.
+        current position or flags.  Otherwise the steps before the first timer
+        or arming is due and before the first sample due once the battery's
+        shown value (0.1 %) has changed, counted exactly; a virtual-time
+        driver may :meth:`skip` them.
         """
+        return self._idle(limit, battery_read=True)
+
+    def quiet_steps(self, limit: int) -> int:
+        """:meth:`idle_steps` of a vehicle whose telemetry nobody reads now.
+
+        The battery's shown value then ends no rest: the samples that would show
+        it are sent by nobody's leave, and :meth:`skip` keeps what they would have
+        shown (the latest of them is :meth:`unsent`, for whoever starts reading).
+        """
+        return self._idle(limit, battery_read=False)
+
+    def unsent(self) -> Telemetry | None:
+        """The latest sample the steps skipped unread would have sent, once (None: none).
+
+        The next :meth:`step` sends it first if nobody asked for it before.
+        """
+        sample, self._unsent = self._unsent, None
+        return sample
+
+    def _idle(self, limit: int, battery_read: bool) -> int:
         if self._requests or self._aborting or self._pilot.flying or not self._model.at_rest:
             return 0
         due = math.inf
@@ -190,17 +219,20 @@ class SimCore(ActionRules):
             else:
                 return 0
         model = self._model
-        battery = model.battery_pct
-        shown = round(battery, 1)
-        if not self._telemetry.settled((*model.position, model.armed, model.landed), shown):
+        telemetry = self._telemetry
+        if not telemetry.shows((*model.position, model.armed, model.landed)):
             return 0
-        per_step = model.drain_pct_per_min() * SIM_DT_S / 60.0
-        if per_step > 0.0 and battery > 0.0:
-            # round(b, 1) changes when b crosses the next x.x5 below it; the
-            # drain is summed step by step, so stop two steps short of it.
-            edge = shown - 0.05
-            crossing = int((battery - edge) / per_step) - 2
-            limit = min(limit, max(0, crossing))
+        # The battery's shown value (0.1 %) matters only to the sample that shows it:
+        # the steps before the first sample due once it has changed are idle.
+        now = self._step_count
+        if not battery_read:
+            pass
+        elif not telemetry.shows_battery(round(model.battery_pct, 1)):
+            limit = min(limit, telemetry.first_sample_step(now + 1, SIM_DT_S) - now - 1)
+        else:
+            change = self._battery_change(limit)
+            if change is not None:
+                limit = min(limit, telemetry.first_sample_step(now + change, SIM_DT_S) - now - 1)
         disarm = self._landing.idle_limit(self._step_count)
         if disarm is not None:
             limit = min(limit, disarm)
@@ -215,15 +247,65 @@ class SimCore(ActionRules):
             first += 1  # ... or one early
         return max(0, min(limit, first - self._step_count - 1))
 
+    def _battery_change(self, limit: int) -> int | None:
+        """In how many steps the shown battery (0.1 %) changes at rest; None: not within ``limit``.
+
+        Counted exactly as the steps drain it (one subtraction each, as
+        :meth:`~eamos.hal.kinematics.Quadcopter.rest`), not estimated.
+        """
+        model = self._model
+        battery = model.battery_pct
+        per_step = model.drain_pct_per_min() * SIM_DT_S / 60.0
+        if not (per_step > 0.0 and battery > 0.0):
+            return None
+        shown = round(battery, 1)
+        if shown <= 0.0:
+            return None  # drained to (nearly) empty: it shows 0.0 from now on
+        # round(b, 1) changes when b crosses the x.x5 below it: not before ``sure``
+        # steps (the summed drain differs from the product by far less than two steps).
+        sure = int((battery - (shown - 0.05)) / per_step) - 2
+        if sure >= limit:
+            return None
+        k = 0
+        if sure > 0:
+            # The first ``sure`` steps' drain, summed in order as the steps sum it
+            # (above x.x5 > 0 no step clamps at empty).
+            ahead = functools.reduce(operator.sub, itertools.repeat(per_step, sure), battery)
+            if round(ahead, 1) == shown:
+                k, battery = sure, ahead
+        while k < limit:
+            k += 1
+            battery = max(0.0, battery - per_step)
+            if round(battery, 1) != shown:
+                return k
+        return None
+
     def skip(self, steps: int) -> None:
-        """Advance ``steps`` steps known idle (:meth:`idle_steps`): as many :meth:`step` calls."""
+        """Advance ``steps`` steps known idle (:meth:`idle_steps`, :meth:`quiet_steps`):
+        as many :meth:`step` calls, the samples they would send kept for :meth:`unsent`."""
         if steps <= 0:
             return
-        if self._requests or not self._model.at_rest:
+        model = self._model
+        if self._requests or not model.at_rest:
             raise RuntimeError(f"{self.drone}: skip({steps}) over steps that are not idle")
-        self._model.rest(SIM_DT_S, steps)
+        before, first = model.battery_pct, self._step_count + 1
+        model.rest(SIM_DT_S, steps)
         self._step_count += steps
-        self._telemetry.catch_up(self.t_s)
+        telemetry = self._telemetry
+        fired = telemetry.catch_up(self.t_s)
+        if fired is None or telemetry.shows_battery(round(model.battery_pct, 1)):
+            return  # no sample was due, or none would differ (at rest only the battery drains)
+        # The last sample due in the skipped steps shows the battery as drained up to it,
+        # summed as the steps sum it (the drain at rest is one rate).
+        due_step = telemetry.first_step_at(fired, first, SIM_DT_S)
+        per_step = model.drain_pct_per_min() * SIM_DT_S / 60.0
+        drained = functools.reduce(
+            operator.sub, itertools.repeat(per_step, due_step - first + 1), before
+        )
+        then = dataclasses.replace(model.state, battery_pct=max(0.0, drained))
+        sample = telemetry.resample(then)
+        if sample is not None:
+            self._unsent = sample
 
     # -- observation ---------------------------------------------------------
 

@@ -6,6 +6,10 @@ telemetry samples and ``adapter.position`` lines.
 
 from __future__ import annotations
 
+import functools
+import itertools
+import math
+import operator
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -42,7 +46,7 @@ class TelemetrySampler:
         self._next_position_log_s = 0.0
         self._last_position_key: tuple[float | bool, ...] | None = None
         # The raw state the last sample and the last position line showed
-        # (for settled(); None until the first of each).
+        # (for shows(); None until the first of each).
         self._sampled_raw: tuple[float | bool, ...] | None = None
         self._sampled_battery: float | None = None
         self._logged_raw: tuple[float | bool, ...] | None = None
@@ -73,25 +77,54 @@ class TelemetrySampler:
             landed=st.landed,
         )
 
-    def settled(self, raw: tuple[float | bool, ...], shown_battery_pct: float) -> bool:
-        """True when the last sample and position line already show this state.
+    def shows(self, raw: tuple[float | bool, ...]) -> bool:
+        """True when the last sample and position line show ``raw``, ``(x_m, y_m, z_m,
+        armed, landed)``: then the coming steps of a vehicle at rest emit nothing
+        until that (or the shown battery) changes.  Compared on the raw state (exact
+        at rest): costs no sample."""
+        return raw == self._sampled_raw == self._logged_raw
 
-        ``raw`` is ``(x_m, y_m, z_m, armed, landed)``, ``shown_battery_pct`` the
-        battery as a sample shows it (0.1 %).  Then the coming steps of a vehicle
-        at rest emit nothing until that changes.  Compared on the raw state
-        (exact at rest): costs no sample.
+    def shows_battery(self, shown_battery_pct: float) -> bool:
+        """True when the last sample shows this battery value (0.1 %)."""
+        return shown_battery_pct == self._sampled_battery
+
+    def first_sample_step(self, step: int, dt_s: float) -> int:
+        """The first step number from ``step`` on at which a sample is due, the steps
+        before it skipped (:meth:`catch_up`); step ``k`` ends at ``k * dt_s``."""
+        due, _ = _passed(self._next_sample_s, self._period_s, (step - 1) * dt_s + EPS_S)
+        return self.first_step_at(due, step, dt_s)
+
+    @staticmethod
+    def first_step_at(due_s: float, step: int, dt_s: float) -> int:
+        """The first step number from ``step`` on at which a sample due at ``due_s`` is taken."""
+        k = max(step, math.ceil((due_s - EPS_S) / dt_s))
+        while k > step and (k - 1) * dt_s >= due_s - EPS_S:
+            k -= 1  # float rounding put it one late
+        while k * dt_s < due_s - EPS_S:
+            k += 1  # ... or one early
+        return k
+
+    def catch_up(self, t_s: float) -> float | None:
+        """Move the sampling schedule to ``t_s`` as the skipped steps would have.
+
+        Returns when the last sample due in them was due (None: none was).
         """
-        return (
-            shown_battery_pct == self._sampled_battery
-            and raw == self._sampled_raw == self._logged_raw
-        )
-
-    def catch_up(self, t_s: float) -> None:
-        """Move the sampling schedule to ``t_s`` as the skipped steps would have."""
-        while self._next_sample_s <= t_s + EPS_S:
-            self._next_sample_s += self._period_s
+        self._next_sample_s, fired = _passed(self._next_sample_s, self._period_s, t_s + EPS_S)
         while t_s >= self._next_position_log_s - EPS_S:
             self._next_position_log_s += POSITION_LOG_PERIOD_S
+        return fired
+
+    def resample(self, st: VehicleState) -> Telemetry | None:
+        """The sample a due step showing ``st`` sends (None: it would show nothing new),
+        its state then taken as shown (a skipped step's sample, sent late)."""
+        sample = self.sample(st)
+        key = sample.state()
+        self._sampled_raw = (st.x_m, st.y_m, st.z_m, st.armed, st.landed)
+        self._sampled_battery = sample.battery_pct
+        if key == self._last_sample_key:
+            return None
+        self._last_sample_key = key
+        return sample
 
     def observe(self, t_s: float, st: VehicleState, samples: list[Telemetry]) -> None:
         """After a step at ``t_s``: append a sample if one is due and differs."""
@@ -128,6 +161,22 @@ class TelemetrySampler:
                     battery_pct=round(st.battery_pct, 1),
                     t_sim=round(t_s, 3),
                 )
+
+
+def _passed(due: float, period: float, bound: float) -> tuple[float, float | None]:
+    """``due`` plus ``period`` until it exceeds ``bound``: the loop ``while due <= bound:
+    due += period``, its sums the same (the additions before the last few in a C loop);
+    and the last value it passed (None: ``due`` was beyond ``bound`` already)."""
+    last = None
+    sure = int((bound - due) / period) - 2  # additions that surely stay <= bound
+    if sure > 0:
+        ahead = functools.reduce(operator.add, itertools.repeat(period, sure), due)
+        if ahead <= bound:
+            due = ahead  # (an addition surely follows below: it sets ``last``)
+    while due <= bound:
+        last = due
+        due += period
+    return due, last
 
 
 __all__ = ["EPS_S", "POSITION_LOG_PERIOD_S", "TelemetrySampler"]
