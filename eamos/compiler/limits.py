@@ -35,6 +35,9 @@ MAX_SOURCE_BYTES = 2_000_000
 #: after parsing only those: junk is not mission text, whatever follows.
 MAX_ERRORS = 100
 PROBE_BYTES = 65_536
+#: Only files longer than this are probed: a shorter one is parsed whole at little cost,
+#: and a probe's cut can make a valid file look like junk (4 000 nested loops cut open).
+PROBE_FROM_BYTES = 262_144
 #: Longest name (drone, block, drone type, package): names become file names.
 MAX_NAME_CHARS = 64
 #: ... and at most this many UTF-8 bytes (64 four-byte letters would not fit a file name).

@@ -12,7 +12,7 @@ from dataclasses import replace
 from typing import Any, Literal
 
 from .errors import Diagnostic, MissionError, SourceLocation
-from .limits import MAX_ERRORS, MAX_SOURCE_BYTES, PROBE_BYTES
+from .limits import MAX_ERRORS, MAX_SOURCE_BYTES, PROBE_BYTES, PROBE_FROM_BYTES
 from .parse_expressions import Node, text
 from .parse_statements import StatementReader
 from .source import SourceText
@@ -292,11 +292,12 @@ def _junk(parser: Any, encoded: bytes, file: str, package: str, what: str) -> Di
     """The error for a long file whose first :data:`PROBE_BYTES` are not mission text.
 
     Junk costs tree-sitter ten times what a mission does and yields an error every few
-    bytes; so a file longer than :data:`PROBE_BYTES` is first read that far (to a
-    line's end), and more than :data:`MAX_ERRORS` errors there refuse it, at the first
-    one, without reading the rest.  None: go on with the whole file.
+    bytes; so a file longer than :data:`PROBE_FROM_BYTES` is first read
+    :data:`PROBE_BYTES` far (to a line's end), and more than :data:`MAX_ERRORS` errors
+    there refuse it, at the first one, without reading the rest.  None: go on with the
+    whole file.
     """
-    if len(encoded) <= PROBE_BYTES:
+    if len(encoded) <= PROBE_FROM_BYTES:
         return None
     cut = encoded.rfind(b"\n", 0, PROBE_BYTES) + 1 or PROBE_BYTES
     head = encoded[:cut].decode("utf-8", errors="replace")

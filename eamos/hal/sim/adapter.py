@@ -386,7 +386,8 @@ def sim_adapter_from_settings(
     """
     log = adapter_log if adapter_log is not None else make_logger(None)
     # Looked up on first use (a mission without plugin actions never reads the entry
-    # points: importlib.metadata costs a node's start-up 20 ms); problems logged then.
+    # points: reading them costs a measurable part of a node's start-up, see
+    # docs/performance.md); problems logged then.
     plugins = discover_plugins(
         on_problem=lambda problem: log.warning("adapter.plugin_problem", problem=problem)
     )
