@@ -95,10 +95,21 @@ class Command:
         return shlex.join(self.argv)
 
 
+def _split_outside_brackets(text: str) -> list[str]:
+    """``text`` split at each ``;`` that is not inside brackets (a reason may hold one)."""
+    parts, depth, start = [], 0, 0
+    for i, char in enumerate(text):
+        depth += {"(": 1, ")": -1}.get(char, 0)
+        if char == ";" and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    return [*parts, text[start:]]
+
+
 def parse_marker(text: str) -> Expectation:
     """The expectation a marker's text (``fragment``, ``exit 2; as bad.go``...) states."""
     syntax_only, reason, exit_code, file_name, output = False, "", 0, "", False
-    for part in (p.strip() for p in text.split(";")):
+    for part in (p.strip() for p in _split_outside_brackets(text)):
         word, _, rest = part.partition(" ")
         rest = rest.strip()
         if word == "fragment":
@@ -126,7 +137,7 @@ def blocks(doc: str, text: str) -> list[Block]:
     i = 0
     while i < len(lines):
         line = lines[i]
-        if m := MARKER.search(line):
+        if m := MARKER.fullmatch(line.strip()):
             marker = parse_marker(m.group(1))
         elif m := FENCE.match(line):
             end = i + 1

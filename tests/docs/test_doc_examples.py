@@ -67,7 +67,9 @@ def _flies(mission: Mission) -> bool:
 
 
 def _command_flies(command: Command) -> bool:
-    return not command.expect.syntax_only and command.argv[:2] == ("eamos", "run")
+    """It runs ``eamos run`` (itself or a command of its block before it): a flight."""
+    runs = [argv[:2] for argv in (*command.before, command.argv)]
+    return not command.expect.syntax_only and ("eamos", "run") in runs
 
 
 def _params(items: list[Mission] | list[Command], e2e: bool, flies: Callable) -> list:
@@ -240,6 +242,11 @@ def test_a_marker_applies_to_the_block_after_it_only() -> None:
     assert second.expect.exit_code == 0 and second.expect.output is None
     (start,) = commands("x.md", text)
     assert start.expect.syntax_only and start.expect.reason == "needs SSH" and start.line == 18
+    assert parse_marker("syntax-only (opens a browser; slow); exit 1").reason == (
+        "opens a browser; slow"
+    )
+    # A marker is a line of its own: prose that shows one in passing is no marker.
+    assert missions("y.md", "A `<!-- doc-test: ... -->` comment.\n```go\nvar D1 Quadcopter\n```\n")
     with pytest.raises(MarkerError):
         parse_marker("syntax-only")
     with pytest.raises(MarkerError):
@@ -251,3 +258,9 @@ def test_the_syntax_check_of_a_command_can_fail() -> None:
     assert arguments_accepted(("eamos", "run", "m.go", "--sppedup", "5")) is not None
     assert arguments_accepted(("eamos", "launch", "m.go")) is not None
     assert arguments_accepted(("eamos-sim-vehicle", "--autopilot", "px5")) is not None
+
+
+def test_the_readme_mission_is_missions_first_go() -> None:
+    # The README's commands check, fly and report missions/first.go: the mission it shows.
+    (first, *_) = missions("README.md", _read(REPO / "README.md"))
+    assert first.text == _read(REPO / "missions" / "first.go")
