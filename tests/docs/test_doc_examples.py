@@ -264,3 +264,27 @@ def test_the_readme_mission_is_missions_first_go() -> None:
     # The README's commands check, fly and report missions/first.go: the mission it shows.
     (first, *_) = missions("README.md", _read(REPO / "README.md"))
     assert first.text == _read(REPO / "missions" / "first.go")
+
+
+def test_the_readme_reads_in_a_newcomers_order() -> None:
+    # The two commands, then what EAMOS is, a mission, check/run/watch/report, real drones,
+    # the exit codes, the architecture map and the docs index, in this order.
+    text = _read(REPO / "README.md")
+    headings = [line for line in text.splitlines() if line.startswith("## ")]
+    wanted = [
+        "## What EAMOS is",
+        "## A mission",
+        "## Check, run, watch, report",
+        "## Flying a real drone",
+        "## Exit codes",
+        "## Architecture",
+        "## Documentation",
+    ]
+    assert [h for h in headings if h in wanted] == wanted
+    assert text.index("```bash") < text.index("## What EAMOS is")
+    # Every package of eamos/ is on the map, and every doc in the index.
+    for package in sorted((REPO / "eamos").iterdir()):
+        if package.name != "__init__.py" and not package.name.startswith((".", "__")):
+            assert f"  {package.name}{'/' if package.is_dir() else ''} " in text, package.name
+    for doc in sorted((REPO / "docs").glob("*.md")):
+        assert f"[docs/{doc.name}](docs/{doc.name})" in text, doc.name
