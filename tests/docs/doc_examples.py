@@ -226,3 +226,29 @@ def commands(doc: str, text: str) -> list[Command]:
 def declares_drones(source: str) -> bool:
     """Whether a mission declares drones (``var D1 Quadcopter``, ``var Team [4]T``)."""
     return re.search(r"^\s*var\s+\w+\s+(\[\d+\]\s*)?\w", source, re.M) is not None
+
+
+def inline_commands(doc: str, text: str) -> list[tuple[int, str]]:
+    """``(line, text)`` of every EAMOS command quoted in prose (`` `eamos run X --speedup K` ``),
+    outside fenced blocks: synopses and references, whose options must exist."""
+    found = []
+    in_block = False
+    for number, line in enumerate(text.split("\n"), 1):
+        if FENCE.match(line) or re.match(r"^\s*```\s*$", line):
+            in_block = not in_block
+            continue
+        if not in_block:
+            for span in re.findall(r"`((?:eamos|eamos-node|eamos-sim-vehicle) [^`]+)`", line):
+                found.append((number, span))
+    return found
+
+
+def options_named(span: str) -> tuple[list[str], list[str]]:
+    """The subcommand words (``["logs", "fetch"]``) and the options (``--fleet``) of a span."""
+    words = span.replace("\\|", "|").split()[1:]
+    subcommand = []
+    for word in words:
+        if not re.fullmatch(r"[a-z]+", word):
+            break
+        subcommand.append(word)
+    return subcommand, re.findall(r"(?<![\w-])(--?[a-z][\w-]*)", span)

@@ -7,7 +7,9 @@ lines of shell blocks run as written in a temporary folder holding copies of the
 as the doc says (0 unless a marker says otherwise).  A marker before a block
 (``<!-- doc-test: ... -->``, :mod:`tests.docs.doc_examples`) names the few that need hardware, SSH
 or a browser, or are fragments: those are checked for syntax only (the mission parsed, the
-command's arguments parsed by its own parser).  Each test's id is the doc and line.
+command's arguments parsed by its own parser).  Commands quoted in prose (synopses,
+references) are not run, but every option they name must be one their command has.  Each
+test's id is the doc and line.
 """
 
 from __future__ import annotations
@@ -32,7 +34,9 @@ from tests.docs.doc_examples import (
     command_argv,
     commands,
     declares_drones,
+    inline_commands,
     missions,
+    options_named,
     parse_marker,
 )
 
@@ -206,6 +210,32 @@ def test_command_flies_as_written(command: Command, workdir: Path) -> None:
     _check_command(command, workdir)
 
 
+def help_text(program: str, subcommand: list[str]) -> str:
+    """What ``PROGRAM SUBCOMMAND... --help`` prints."""
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(io.StringIO()):
+        try:
+            parser_of(program).parse_args([*subcommand, "--help"])
+        except SystemExit:
+            pass
+    return printed.getvalue()
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=_rel)
+def test_every_command_quoted_in_prose_has_the_options_it_names(doc: Path) -> None:
+    # `eamos compile --fleet F` in a sentence is a promise too: the option must exist.
+    wrong = []
+    for line, span in inline_commands(_rel(doc), _read(doc)):
+        program = span.split()[0]
+        words, options = options_named(span)
+        # The deepest subcommand the parser knows (``logs fetch``; ``run`` of ``run X``).
+        while words and f"usage: {program} {' '.join(words)}" not in help_text(program, words):
+            words = words[:-1]
+        shown = help_text(program, words)
+        wrong += [f"{_rel(doc)}:{line}: {span}: no {o}" for o in options if o not in shown]
+    assert not wrong, "\n".join(wrong)
+
+
 # ---- the extraction itself -----------------------------------------------------------------
 
 
@@ -258,6 +288,12 @@ def test_the_syntax_check_of_a_command_can_fail() -> None:
     assert arguments_accepted(("eamos", "run", "m.go", "--sppedup", "5")) is not None
     assert arguments_accepted(("eamos", "launch", "m.go")) is not None
     assert arguments_accepted(("eamos-sim-vehicle", "--autopilot", "px5")) is not None
+    # A quoted command's options: found in the deepest subcommand's help, or not.
+    words, options = options_named("eamos logs fetch RUN_DIR\\|FLEET.toml [-o RUN_DIR] --sppedup")
+    assert (words, options) == (["logs", "fetch"], ["-o", "--sppedup"])
+    assert "-o RUN_DIR" in help_text("eamos", words) and "--sppedup" not in help_text(
+        "eamos", words
+    )
 
 
 def test_the_readme_mission_is_missions_first_go() -> None:
