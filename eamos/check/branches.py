@@ -24,8 +24,9 @@ it met, so the explorer can queue each alternative as a new run.
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
+from pathlib import PurePath
 
 from ..actors.logic import ActionLogic, ConditionLogic, LoopLogic
 from ..actors.state import Iteration, holds
@@ -64,10 +65,13 @@ class ChoicePoint:
     count: int  # a loop's iteration (0 otherwise)
     choice: int  # 0 as simulated, 1 the other way
     value: bool  # the condition's value used
+    file: str = ""  # the library file the decision is written in ("": the mission file)
 
     def label(self) -> str:
-        """Short words for the branch: ``If line 12: else``, ``WaitUntil line 30: early``."""
-        where = f"{_NAMES.get(self.kind, self.kind)} line {self.line}"
+        """Short words for the branch: ``If line 12: else``, ``WaitUntil line 30: early``;
+        ``If line 4 of insp.go: then`` for a decision written in a library file."""
+        of = f" of {PurePath(self.file).name}" if self.file else ""
+        where = f"{_NAMES.get(self.kind, self.kind)} line {self.line}{of}"
         if self.purpose == "if":
             return f"{where}: {'then' if self.value else 'else'}"
         if self.choice == 0:
@@ -104,9 +108,16 @@ def other_way(kind: str, purpose: str, value: bool) -> bool | None:
 class Oracle:
     """The driver's ``decide`` hook for one explored run (see module doc)."""
 
-    def __init__(self, prefix: tuple[int, ...], piloted: Collection[str]) -> None:
+    def __init__(
+        self,
+        prefix: tuple[int, ...],
+        piloted: Collection[str],
+        file_of: Callable[[str, str], str] = lambda drone, key: "",
+    ) -> None:
+        """``file_of(drone, node key)``: the library file a node is written in ("": none)."""
         self.prefix = prefix
         self.piloted = frozenset(piloted)
+        self.file_of = file_of
         self.points: list[ChoicePoint] = []
         self._seen: set[tuple[str, str, Iteration, str, int]] = set()
         self._unknowable: dict[tuple[str, str], bool] = {}
@@ -139,7 +150,16 @@ class Oracle:
         used = alt if choice else value
         self.points.append(
             ChoicePoint(
-                drone, spec.key, spec.kind, spec.line, spec.col, purpose, count, choice, used
+                drone,
+                spec.key,
+                spec.kind,
+                spec.line,
+                spec.col,
+                purpose,
+                count,
+                choice,
+                used,
+                self.file_of(drone, spec.key),
             )
         )
         return used
@@ -160,7 +180,19 @@ class Oracle:
         i = len(self.points)
         choice = self.prefix[i] if i < len(self.prefix) else 0
         self.points.append(
-            ChoicePoint(drone, spec.key, "try", spec.catch_line, 0, "try", 0, choice, bool(choice))
+            ChoicePoint(
+                drone,
+                spec.key,
+                "try",
+                spec.catch_line,
+                0,
+                "try",
+                0,
+                choice,
+                bool(choice),
+                # The Try's own node is not at hand (only its line): its file is not
+                # guessed from the Body's first action, which may be written elsewhere.
+            )
         )
         return bool(choice)
 

@@ -26,7 +26,15 @@ from ..virtual.vehicles import Clock
 from .branches import Oracle
 from .findings import CheckReport, Finding, Place, RunSummary
 from .limits import battery, geofence
-from .rules import block_files, deadlock, failed_actions, node_index, separation, termination
+from .rules import (
+    block_files,
+    deadlock,
+    failed_actions,
+    node_index,
+    place,
+    separation,
+    termination,
+)
 from .tracks import Track, TrackRecorder
 
 #: Virtual seconds after which a run that has not ended is reported (a wait never ending).
@@ -194,9 +202,10 @@ def _check_mission(
     findings: list[Finding] = []
     pictured: list[tuple[str, Mapping[str, Track]]] = []
     queue: deque[tuple[int, ...]] = deque([()])
+    nodes = node_index(compiled.programs, block_files(compiled.mission.blocks))
     while queue and len(runs) < max_runs:
         prefix = queue.popleft()
-        oracle = Oracle(prefix, piloted)
+        oracle = Oracle(prefix, piloted, lambda drone, key: place(nodes, drone, key).file)
         run, tracks = run_once(
             compiled,
             settings,

@@ -47,6 +47,7 @@ from ..ground import (
     make_display,
     summarize,
 )
+from ..ground.local import LATEST, RUNS_ROOT, link_latest
 from ..logs import report_write_error
 from ..net import wire
 from ..program.format import DroneProgram, load_program
@@ -177,6 +178,18 @@ class StartOptions:
     live: bool | None = None
 
 
+def _flying(run_dir: Path, speak: Say, ready_s: float) -> None:
+    """Every drone is ready and the start trigger goes next: the roll-out flies.
+
+    A roll-out's folder in the default ``runs/`` (of the folder ``eamos start`` runs in)
+    becomes ``runs/latest``, as ``eamos run``'s does when its drones start: the newest
+    run that flew, for the notebook, ``eamos report`` and ``eamos monitor``.
+    """
+    speak(f"ready {ready_s:.2f} s")
+    if run_dir.parent == RUNS_ROOT.resolve() and run_dir.name != LATEST:
+        link_latest(run_dir)
+
+
 def fly_rollout(
     opts: StartOptions,
     stop: threading.Event,
@@ -263,7 +276,7 @@ def fly_rollout(
                 stop,
                 Limits(ready_timeout, opts.timeout_s),
                 alive=lambda: [n for n in drones if n not in exited],
-                on_ready=lambda s: speak(f"ready {s:.2f} s"),
+                on_ready=lambda s: _flying(run_dir, speak, s),
             )
         outcome, started, ready_s = flight.outcome, flight.started, flight.ready_s
     finally:

@@ -355,3 +355,27 @@ def test_a_finding_in_the_mission_file_names_the_mission_file(capsys, tmp_path):
 def test_the_docs_library_example_passes_and_lands_with_the_fleet_blocks():
     report = check_mission(compile_mission(LIBRARY.replace("SIDE", "2"), "patrol.go"))
     assert report.ok and report.findings == (), report.lines()
+
+
+def test_a_branch_decided_in_a_library_file_names_the_library_file(tmp_path):
+    # An If on the battery inside a library block: the branch labels say which file's line.
+    (tmp_path / "insp").mkdir()
+    (tmp_path / "insp" / "insp.go").write_text(
+        "package insp\n\n"
+        "func SEQ_Look(d Quadcopter) {\n"
+        "\tIf(d.Battery() > 50, SEQ_Far(d), SEQ_Near(d))\n"
+        "}\n\n"
+        "func SEQ_Far(d Quadcopter) { d.FlyByX(4) }\n\n"
+        "func SEQ_Near(d Quadcopter) { d.FlyByX(1) }\n"
+    )
+    mission = tmp_path / "m.go"
+    mission.write_text(
+        'import "insp"\n\nvar D1 Quadcopter\n\n'
+        "func SEQ_Main() {\n\tD1.Arm()\n\tD1.Takeoff(2)\n\tinsp.SEQ_Look(D1)\n\tD1.Land()\n}\n"
+    )
+    report = check_mission(compile_file(mission))
+    assert report.ok, report.lines()
+    assert sorted(run.branch for run in report.runs) == [
+        "If line 4 of insp.go: else",
+        "If line 4 of insp.go: then",
+    ]

@@ -376,3 +376,22 @@ def test_the_example_fleet_file_is_valid(tmp_path, monkeypatch):
     assert targets.ground.keys == keys
     assert targets.endpoints["Drone2"] == "tcp://192.0.2.12:6002"
     assert targets.drones["Drone1"].label == "pi@192.0.2.11:22"
+
+
+def test_a_rollout_becomes_runs_latest_when_it_starts_flying(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from eamos.ops.start import _flying
+
+    monkeypatch.chdir(tmp_path)
+    said: list[str] = []
+    rolled = tmp_path / "runs" / "experiment_b-20261126-120000"
+    rolled.mkdir(parents=True)
+    _flying(rolled, said.append, 1.5)
+    assert said == ["ready 1.50 s"]
+    assert (tmp_path / "runs" / "latest").resolve() == rolled
+    # A roll-out into a folder of its own (--run-dir elsewhere) leaves runs/latest alone.
+    elsewhere = tmp_path / "lab" / "b"
+    elsewhere.mkdir(parents=True)
+    _flying(elsewhere, said.append, 2.0)
+    assert (tmp_path / "runs" / "latest").resolve() == rolled
