@@ -1,16 +1,85 @@
 """Suite-wide rules.
 
-A test that needs a system tool (Graphviz, OpenSSH, iptables, root for network
-namespaces) skips with a visible reason on a laptop without it.  CI installs
-every tool and sets ``EAMOS_NO_SKIP=1``: there, any skip fails the run, so CI
-always runs everything.
+Skips: a test that needs a system tool (Graphviz, OpenSSH, iptables, root for
+network namespaces, Chromium, node) skips with a visible reason on a laptop
+without it.  CI installs every tool and sets ``EAMOS_NO_SKIP=1``: there, any
+skip fails the run, so CI always runs everything.
+
+Order: the tiers that start no process run first and the tests marked ``e2e``
+(they fly in real time: ``eamos`` processes, simulated vehicles, namespaces,
+SSH, a browser) last, so a broken compiler or node logic fails in seconds, not
+after the flights.  ``pytest -m "not e2e"`` runs only the first part (what
+``.ci/run`` runs on the other interpreters).
+
+Parallel: the default options spread tests over every core
+(``-n auto --dist loadgroup``, pytest-xdist).  Ports are ephemeral and
+namespace names carry the worker's PID, so tests do not collide; tests that
+share one expensive module or session fixture (the SSH lab, a browser, one
+live run) carry an ``xdist_group`` mark and run on one worker.  ``-n 0`` runs
+in this process, for a debugger.
 """
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+# Hypothesis times every example on the wall clock (a 200 ms deadline, the too_slow health
+# check): on a loaded machine (CI, parallel workers, other jobs) that fails tests whose logic
+# is right.  Where the suite bounds work it measures CPU time (tests/compiler/hostile.py).
+settings.register_profile("eamos", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("eamos")
+
+#: The order in which the tiers run (the top-level entries of tests/): the ones without
+#: processes first; then those whose real-time tests last longest, so that the parallel
+#: workers finish together.  Unlisted entries run after the listed ones; tests marked e2e
+#: run after every unmarked test whatever their tier.
+TIERS = (
+    "test_layering.py",
+    "test_sizes.py",
+    "test_docs_tables.py",
+    "test_readme.py",
+    "test_suite_rules.py",
+    "test_config_toml.py",
+    "compiler",
+    "config",
+    "check",
+    "virtual",
+    "actors",
+    "startup",
+    "lsp",
+    "net",
+    "cli",
+    "plugins",
+    "hal",
+    "ground",
+    "fleetops",
+    "netfaults",
+    "faults",
+    "monitor",
+    "e2e",
+    "mavlink",
+    "scale",
+)
+HERE = Path(__file__).parent
+
+
+def _rank(item: pytest.Item) -> tuple[bool, int]:
+    try:
+        top = item.path.relative_to(HERE).parts[0]
+    except ValueError:  # a test file outside tests/
+        top = ""
+    tier = TIERS.index(top) if top in TIERS else len(TIERS)
+    return item.get_closest_marker("e2e") is not None, tier
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # A stable sort: within a tier, tests keep the order pytest collected them in.  Every
+    # xdist worker sorts the same way, so all report the same collection.
+    items.sort(key=_rank)
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
@@ -28,5 +97,5 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 
 # Fixtures shared across test packages live in tests/support and load as a plugin, so no
-# test ever imports a conftest.
-pytest_plugins = ["tests.support.sim_fixtures"]
+# test ever imports a conftest; pytester runs the suite's own rules on a small suite.
+pytest_plugins = ["tests.support.sim_fixtures", "pytester"]

@@ -15,9 +15,10 @@ from eamos.config import ConfigError, NodeConfig
 from eamos.net.keys import FleetKeys, create_fleet_keys
 from eamos.net.link import LinkSettings
 
-# Text TOML can hold (no lone surrogates: UTF-8 cannot encode them).
-TEXT = st.text(st.characters(exclude_categories=["Cs"]), max_size=12)
-NAME = st.text(st.characters(exclude_categories=["Cs"]), min_size=1, max_size=10)
+# Participant names: identifiers, as in a mission (a config refuses other names).
+NAME = st.text(st.characters(exclude_categories=["Cs"]), min_size=1, max_size=10).filter(
+    str.isidentifier
+)
 
 
 def seconds(top: int) -> st.SearchStrategy[float | int]:
@@ -26,11 +27,26 @@ def seconds(top: int) -> st.SearchStrategy[float | int]:
 
 
 SECONDS = seconds(3600)
-SCALAR = st.booleans() | st.integers(-(2**63), 2**63 - 1) | st.floats(allow_nan=False) | TEXT
-VALUE = st.recursive(
-    SCALAR,
-    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(TEXT, inner, max_size=3),
-    max_leaves=8,
+WAYPOINT = st.fixed_dictionaries(
+    {
+        "x_m": st.floats(-100, 100) | st.integers(-100, 100),
+        "y_m": st.floats(-100, 100),
+        "z_m": st.floats(0.5, 100),
+    },
+    optional={"hold_s": st.floats(0, 60) | st.integers(0, 60)},
+)
+# A simulated drone's [hal] table (load checks it with the simulator's settings): numbers,
+# lists of strings and lists of tables, so to_toml writes every kind of value.
+HAL = st.fixed_dictionaries(
+    {"adapter": st.just("sim")},
+    optional={
+        "horizontal_speed_mps": st.floats(0.05, 50) | st.integers(1, 50),
+        "telemetry_hz": st.floats(0.1, 50),
+        "home_alt_m": st.floats(-1000, 10_000),
+        "reject_actions": st.lists(st.sampled_from(["Land", "FlyByX", "Arm"]), max_size=3),
+        "pilot": st.lists(WAYPOINT, max_size=3),
+        "home_m": st.tuples(st.floats(-1e5, 1e5), st.floats(-1e5, 1e5)).map(list),
+    },
 )
 LOCAL = st.builds(
     lambda host, port: f"tcp://{host}:{port}",
@@ -59,7 +75,8 @@ def plain_configs(draw: st.DrawFn, folder: Path) -> NodeConfig:
     where = draw(st.sampled_from(["configs", "deep/er/configs", "."]))
     path = folder / where / "node.toml"
     program = draw(st.sampled_from(["programs/X.program.json", "../p.json", "/abs/p q.json"]))
-    log_dir = draw(st.sampled_from(["logs/X", "../../logs", "/var/log/eamos"]))
+    # An absolute folder of our own: /var/log is writable only by root.
+    log_dir = draw(st.sampled_from(["logs/X", "../../logs", str(folder / "var" / "log")]))
     peers = draw(st.dictionaries(NAME, LOCAL, max_size=4))
     give_up = draw(st.none() | seconds(86_400).map(float))
     return NodeConfig(
@@ -69,12 +86,7 @@ def plain_configs(draw: st.DrawFn, folder: Path) -> NodeConfig:
         log_dir=(path.parent / log_dir).resolve(),
         bind=draw(LOCAL),
         peers=peers,
-        # speedup and adapter are checked by load (tests/config/): any other key is kept as is.
-        hal=draw(
-            st.dictionaries(
-                TEXT.filter(lambda k: k not in ("speedup", "adapter")), VALUE, max_size=4
-            )
-        ),
+        hal=draw(HAL),
         ready_timeout_s=float(draw(seconds(86_400))),
         land_timeout_s=float(draw(SECONDS)),
         mission_timeout_s=float(draw(seconds(604_800))),

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
 from eamos.logs import LogWriter, close_logger, make_logger, report_write_error
+from eamos.net import wire
 from eamos.net.reports import report_messages
 from eamos.net.wire import WireError
 from eamos.program.format import DroneProgram, load_program
@@ -27,7 +28,8 @@ from .board import WhenSettled, ask_final_sample
 from .executive import ask_activity, ask_snapshot
 from .failure import tell_operator
 from .messages import PeerLost
-from .runtime import DroneRuntime, NetSettings
+from .rejoin import NodeJournal, say
+from .runtime import DroneRuntime, NetSettings, StartGateSettings
 from .stranded import (
     EndOnOwn,
     caught_lost_peer,
@@ -43,6 +45,23 @@ if TYPE_CHECKING:
 ASK_TIMEOUT_S = 30.0
 REPORT_ACK_TIMEOUT_S = 10.0
 """How long a drone waits for the ground station to acknowledge its final report."""
+VEHICLE_SILENT_S = 10.0
+"""Landing, a vehicle that sends no telemetry sample for this long (wall seconds) is
+silent (its link lost, its autopilot dead): the drone stops waiting for it to land."""
+
+
+class NodeStop(threading.Event):
+    """The node's stop: set by a signal (SIGINT, SIGTERM), which it names for the operator."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.name = ""
+
+    def signal(self, name: str) -> None:
+        """Stop because of the signal ``name`` (e.g. ``"SIGTERM"``); the first one is kept."""
+        if not self.is_set():
+            self.name = name
+        self.set()
 
 
 class DroneEnd(enum.Enum):
@@ -51,6 +70,7 @@ class DroneEnd(enum.Enum):
     DONE = "done"  # the mission part finished, the report says ok
     FAILED = "failed"  # the mission failed or was aborted on this drone
     UNREACHABLE = "unreachable"  # the peers never listened: the mission never started
+    REFUSED = "refused"  # restarted mid-mission: it refuses to rejoin (.rejoin)
 
 
 def load_node_program(config: NodeConfig) -> DroneProgram:
@@ -83,7 +103,23 @@ def run_drone(
     (without one, this drone's logs get their own); ``sim_clock``: the clock that
     steps the process's simulated drones (without one, a simulated drone has its own).
     """
+    journal = NodeJournal(
+        config.log_dir, config.drone, program.mission_id, program.checksum, config.deployment
+    )
+    decision = journal.decide()
+    if not decision.join:
+        # Before the vehicle or the network is touched: nothing is commanded.
+        say(
+            config.drone,
+            f"{config.drone} restarted mid-mission: {decision.reason}; it refuses to rejoin "
+            "(nothing is commanded: if its vehicle flies, land it with `eamos abort` or by "
+            "hand, then roll out again)",
+        )
+        return DroneEnd.REFUSED
+    if decision.restarted:
+        say(config.drone, f"{config.drone} restarted: {decision.reason}")
     config.log_dir.mkdir(parents=True, exist_ok=True)
+    journal.mark("ready")
     writer = log_writer if log_writer is not None else LogWriter()
     adapter_log = make_logger(config.log_dir / "adapter.log", writer=writer, drone=config.drone)
     adapter = make_adapter(config.drone, config.hal, adapter_log, sim_clock)
@@ -94,6 +130,9 @@ def run_drone(
         config.log_dir,
         battery_reserve_pct=config.battery_reserve_pct,
         log_writer=writer,
+        # Nothing acts before this deployment's Start; the first trigger to reach a
+        # node is recorded first (a restart then knows something ran).
+        start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),
     )
     policy = end_policy(config)
     try:
@@ -109,11 +148,21 @@ def run_drone(
             return DroneEnd.UNREACHABLE
         ending = _execute(runtime, config, program, stop, policy)
         held = ending is not None and ending.kind == "stranded" and policy == "hold"
+        landed = True
         if runtime.aborted.is_set() and not held:
-            landed = runtime.wait_landed(config.land_timeout_s)
-            if not landed:
+            # The report is sent after the landing: it tells where the vehicle ended.
+            landing = wait_landing(runtime, config.land_timeout_s)
+            landed = landing == "landed"
+            if landing == "silent":
+                runtime.log.error("mission.abort.vehicle_silent", silent_s=VEHICLE_SILENT_S)
+                tell_operator(
+                    config.drone,
+                    f"its vehicle has sent nothing for {VEHICLE_SILENT_S:g} s while landing: "
+                    "it cannot be landed from here (the report tells where it was last)",
+                )
+            elif not landed:
                 runtime.log.error("mission.abort.not_landed", timeout_s=config.land_timeout_s)
-        elif config.disarm_wait_s > 0 and not wait_settled(runtime, config.disarm_wait_s):
+        if landed and config.disarm_wait_s > 0 and not wait_settled(runtime, config.disarm_wait_s):
             # Its autopilot disarms a moment after landing: the report tells what it is left in.
             runtime.log.warning("mission.end.armed_on_ground", waited_s=config.disarm_wait_s)
         report = runtime.drone_report()
@@ -139,12 +188,35 @@ def run_drone(
             and not runtime.link.flush(REPORT_ACK_TIMEOUT_S, peers=[GROUND_STATION])
         ):
             runtime.log.warning("mission.report.unacknowledged", timeout_s=REPORT_ACK_TIMEOUT_S)
+        journal.mark("ended")
         return DroneEnd.DONE if report.ok else DroneEnd.FAILED
     finally:
         runtime.stop()
         close_logger(adapter_log)
         if log_writer is None:
             writer.close()
+
+
+def wait_landing(runtime: DroneRuntime, timeout_s: float) -> str:
+    """Wait (on telemetry) until the vehicle is on the ground: ``"landed"``; ``"timeout"``
+    after ``timeout_s``; ``"silent"`` as soon as no sample came for :data:`VEHICLE_SILENT_S`
+    (a landing vehicle moves, and says so: a silent one -- its link lost, its autopilot
+    dead -- will not be landed by waiting)."""
+    if runtime.board is None:
+        return "landed"
+    deadline = time.monotonic() + timeout_s
+    latest = ask_final_sample(runtime.board, None, None, 0.0, ASK_TIMEOUT_S)
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return "timeout"
+        slice_s = min(left, VEHICLE_SILENT_S)
+        if runtime.wait_landed(slice_s):
+            return "landed"
+        sample = ask_final_sample(runtime.board, None, None, 0.0, ASK_TIMEOUT_S)
+        if sample is latest and slice_s >= VEHICLE_SILENT_S:
+            return "silent"  # still the sample of a whole slice before: nothing arrived
+        latest = sample
 
 
 def wait_settled(runtime: DroneRuntime, timeout_s: float) -> bool:
@@ -179,14 +251,20 @@ def _execute(
     stop: threading.Event,
     policy: str,
 ) -> EndOnOwn | None:
-    """Run until Complete, an abort, a signal, or until the drone must end on its own (how)."""
+    """Run until Complete, an abort, a signal, or until the drone must end on its own (how).
+
+    However the part ends short of an abort (Complete, the drone's own resolution, a
+    silent ground station), the stranded check runs first (:func:`strand_if_airborne`):
+    a part that ended blocked by a failure with the vehicle in the air applies the end
+    policy before the report is sent, never left to the adapter's land-on-close.
+    """
     limit_s = peer_wait_limit(config)
     sources = trigger_sources(program)
     checked_airborne = False
     caught: set[str] = set()  # lost peers a Try here has caught (once each)
     while not (runtime.completed.is_set() or runtime.aborted.is_set()):
         if stop.is_set():
-            runtime.abort("stopped by signal")
+            stopped_by_signal(runtime, config.drone, stop)
             return None
         # Bounded only so a signal (which sets `stop`) and a silent peer are noticed;
         # the runtime's events are set by the in-bridge thread.
@@ -221,7 +299,39 @@ def _execute(
             return ending
         runtime.end_stranded(ending.reason, policy)
         return ending
-    return None
+    if runtime.aborted.is_set() or checked_airborne:
+        return None
+    # Complete came first (always, for the last drone to resolve): check now.
+    return strand_if_airborne(runtime, config.drone, policy)
+
+
+def stopped_by_signal(runtime: DroneRuntime, drone: str, stop: threading.Event) -> None:
+    """A signal ends the mission on this drone: said in ``node.out`` and to the ground
+    station at once; the drones waiting for it are released, and it lands."""
+    name = stop.name if isinstance(stop, NodeStop) and stop.name else "a signal"
+    text = f"stopped by {name}: the mission is aborted on this drone; it lands, then reports"
+    tell_operator(drone, text)
+    runtime.send(
+        wire.Progress(
+            mission=runtime.program.mission_id,
+            sender=drone,
+            state="stopped",
+            node="",
+            action=f"stopped by {name}",
+            detail={"detail": text},
+        )
+    )
+    runtime.stop_mission("stopped by signal")
+
+
+def strand_if_airborne(runtime: DroneRuntime, drone: str, policy: str) -> EndOnOwn | None:
+    """Apply the end policy if the part ended blocked with the vehicle in the air (how)."""
+    ending = left_airborne(runtime)
+    if ending is None:
+        return None
+    tell_operator(drone, ending.reason)
+    runtime.end_stranded(ending.reason, policy)
+    return ending
 
 
 def left_airborne(runtime: DroneRuntime) -> EndOnOwn | None:

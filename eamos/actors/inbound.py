@@ -12,6 +12,7 @@ import pykka
 from ..net import wire
 from ..net.effects import PeerStatus, TelemetryStale
 from ..net.link import Delivered
+from ..program.format import DroneProgram
 from .dispatch import tell_here
 from .executive import DeliverInterrupt, TriggerReceived
 from .failure import FailureSink
@@ -21,9 +22,147 @@ from .messages import Interrupt, Mailbox, RemoteTelemetry, RemoteTrigger
 if TYPE_CHECKING:
     from ..logs import EventLog
 
-__all__ = ["InRouter"]
+__all__ = ["InRouter", "StartGate", "incoming_arcs"]
+
+#: At most this many triggers and interrupts wait for the Start (a flood is dropped).
+MAX_HELD = 4096
+
+
+def incoming_arcs(program: DroneProgram) -> dict[tuple[str, str], str]:
+    """``(src node, dst node)`` of every external arc into ``program``'s own nodes ->
+    the participant hosting the source node: who alone may send that trigger."""
+    native = {n.key for n in program.native_nodes()}
+    host = {n.key: n.drone for n in program.nodes}
+    return {
+        (a.src, a.dst): host.get(a.src, "") for a in program.arcs if a.external and a.dst in native
+    }
+
 
 _CONTROL = (wire.Start, wire.Abort, wire.Complete)
+
+
+class StartGate:
+    """What a drone's node takes before the ground station's Start, and which Start it takes.
+
+    A node started by a roll-out (or ``eamos run``) belongs to one deployment
+    (its config's ``deployment``).  It acts on nothing until the Start naming it
+    arrives: triggers and interrupts are held, in order (at most
+    :data:`MAX_HELD`), and handed on when it comes (a peer's trigger may overtake
+    the ground station's Start: they travel on different links).  What the
+    ground station sends counts only from a session (incarnation) whose Start of
+    this deployment was taken: a Start of another deployment -- the ground
+    station of an earlier roll-out, still running -- is refused (said once per
+    session in ``node.out``), its triggers stay held and its Complete is
+    refused; a restarted ground station of this deployment is taken with its
+    new Start.  An Abort is always obeyed.  ``deployment`` "": any Start.
+
+    ``on_running`` is called once, before the first trigger reaches a node: from
+    then on something may have run on this drone (:mod:`.rejoin` records it).
+    Used on the In-Bridge's receive thread; the lock guards the reads from others.
+    """
+
+    def __init__(
+        self,
+        drone: str,
+        deployment: str,
+        log: EventLog,
+        on_running: Callable[[], None] | None = None,
+        tell: Callable[[str, str], None] | None = None,
+        ground: str = wire.GROUND_STATION,
+    ) -> None:
+        self.drone = drone
+        self.deployment = deployment
+        self.log = log
+        self.on_running = on_running
+        self.tell = tell
+        self.ground = ground
+        self._lock = threading.Lock()
+        # The ground station sessions (incarnations) whose Start of this deployment
+        # was taken; 0 stands for messages sent outside a session.
+        self._accepted: set[int] = set()
+        self._refused: set[tuple[str, int]] = set()
+        self._held: list[wire.Trigger | wire.Interrupt] = []
+        self._running = False
+        self.dropped = 0  # held messages dropped over MAX_HELD
+
+    @property
+    def started(self) -> bool:
+        """A Start of this node's deployment arrived."""
+        with self._lock:
+            return bool(self._accepted)
+
+    def _counts(self, msg: wire.Message) -> bool:
+        """Whether ``msg`` may act now (lock held): after a Start, and from the ground
+        station only in a session whose Start was taken."""
+        if not self._accepted:
+            return False
+        if msg.sender != self.ground or not msg.incarnation or 0 in self._accepted:
+            return True
+        return msg.incarnation in self._accepted
+
+    def start(self, msg: wire.Start) -> list[wire.Trigger | wire.Interrupt] | None:
+        """Take or refuse ``msg``: the held messages to hand on now (None: refused)."""
+        if self.deployment and msg.deployment != self.deployment:
+            key = (msg.deployment, msg.incarnation)
+            with self._lock:
+                first = key not in self._refused
+                self._refused.add(key)
+            self.log.warning(
+                "mission.start.refused",
+                sender=msg.sender,
+                deployment=msg.deployment,
+                own=self.deployment,
+            )
+            if first and self.tell is not None:
+                self.tell(
+                    self.drone,
+                    f"refused a Start of deployment {msg.deployment or '(none)'}: this node was "
+                    f"rolled out as deployment {self.deployment} (a ground station of another "
+                    "roll-out?); it waits for its own",
+                )
+            return None
+        with self._lock:
+            if msg.incarnation in self._accepted:
+                return []  # again (resent to a restarted node, or retransmitted)
+            first = not self._accepted
+            self._accepted.add(msg.incarnation)
+            ready = [m for m in self._held if self._counts(m)]
+            self._held = [m for m in self._held if not self._counts(m)]
+        self.log.info(
+            "mission.start",
+            sender=msg.sender,
+            deployment=msg.deployment,
+            released=len(ready),
+            **({} if first else {"session": "restarted"}),
+        )
+        return ready
+
+    def hold(self, msg: wire.Trigger | wire.Interrupt) -> bool:
+        """Keep ``msg`` until it may act (True), or False: hand it on now."""
+        with self._lock:
+            if self._counts(msg):
+                return False
+            if len(self._held) < MAX_HELD:
+                self._held.append(msg)
+                return True
+            self.dropped += 1
+            dropped = self.dropped
+        self.log.warning("mission.start.held_dropped", sender=msg.sender, dropped=dropped)
+        return True
+
+    def takes_complete(self, msg: wire.Complete) -> bool:
+        """Whether ``msg`` may end this node's mission: from a session whose Start was taken."""
+        with self._lock:
+            return self._counts(msg)
+
+    def running(self) -> None:
+        """A trigger is about to reach a node (the first time: ``on_running``)."""
+        with self._lock:
+            if self._running:
+                return
+            self._running = True
+        if self.on_running is not None:
+            self.on_running()
 
 
 @dataclass(frozen=True)
@@ -53,6 +192,13 @@ class InRouter:
     speaks as it, with its key).  ``sender`` is authenticated: the In-Bridge
     accepts on each peer's socket only messages naming that peer, and with CURVE
     the socket proved the peer's key."""
+    arc_hosts: Mapping[tuple[str, str], str] | None = None
+    """:func:`incoming_arcs` of the program: a trigger counts only on one of these arcs,
+    and only from the participant hosting its source node (an authenticated sender
+    may still lie about the node it speaks for).  None: not checked."""
+    gate: StartGate | None = None
+    """A drone's node: nothing acts before the Start of its own deployment
+    (:class:`StartGate`).  None (the ground station, tests): no gate."""
 
     def __call__(self, msg: Delivered) -> None:
         try:
@@ -73,7 +219,8 @@ class InRouter:
         True if the ground station (if this is it) should see it too.
         """
         if isinstance(msg, wire.Trigger):
-            self._trigger(msg)
+            if self.gate is None or not self.gate.hold(msg):
+                self._trigger(msg)
         elif isinstance(msg, wire.TelemetrySample):
             self.board.tell(RemoteTelemetry(msg.sender, telemetry_values(msg)))
             return True
@@ -86,7 +233,8 @@ class InRouter:
             # The link logged mission.peer.<state>; the ground station shows it.
             return True
         elif isinstance(msg, wire.Interrupt):
-            self._interrupt(msg)
+            if self.gate is None or not self.gate.hold(msg):
+                self._interrupt(msg)
         elif isinstance(msg, _CONTROL) and msg.sender not in self.control_from:
             # A fleet member's key does not make it the ground station: a drone
             # must not end, abort or start another's mission.
@@ -99,24 +247,52 @@ class InRouter:
         elif isinstance(msg, wire.Abort):
             self.abort(msg.reason or f"abort from {msg.sender}")
         elif isinstance(msg, wire.Complete):
-            self.log.info("mission.complete", sender=msg.sender)
-            self.completed.set()
+            if self.gate is not None and not self.gate.takes_complete(msg):
+                # Before this node's Start, or from another ground station's session.
+                self.log.warning("mission.complete.refused", sender=msg.sender)
+            else:
+                self.log.info("mission.complete", sender=msg.sender)
+                self.completed.set()
         elif isinstance(msg, wire.Start):
-            self.log.info("mission.start", sender=msg.sender)
+            self._start(msg)
         else:
             return True  # Ready, Progress, Resolved, Report ...: for the ground station
         return False
+
+    def _start(self, msg: wire.Start) -> None:
+        if self.gate is None:
+            self.log.info("mission.start", sender=msg.sender)
+            return
+        for held in self.gate.start(msg) or ():
+            if isinstance(held, wire.Trigger):
+                self._trigger(held)
+            else:
+                self._interrupt(held)
 
     def _trigger(self, msg: wire.Trigger) -> None:
         ref = self.nodes.get(msg.dst_node)
         if ref is None or msg.dest != self.drone:
             self.log.warning("mission.inbridge.unknown_node", src=msg.sender, dst=msg.dst_node)
             return
+        if self.arc_hosts is not None:
+            host = self.arc_hosts.get((msg.src_node, msg.dst_node))
+            if host != msg.sender:
+                # A fleet member's key proves who sends, not which node it speaks for.
+                self.log.warning(
+                    "mission.inbridge.forged_trigger",
+                    sender=msg.sender,
+                    src=msg.src_node,
+                    dst=msg.dst_node,
+                    host=host or "(no such arc)",
+                )
+                return
         # The count first: it rides along with the executive's next mail (no thread
         # woken), and is counted before anything the node's turn makes happen (the
         # drone resolved, a report asked for).  Then the node's turn, on this thread
         # if the node is idle (no worker woken); it writes the "received" line after
         # its own work.
+        if self.gate is not None:
+            self.gate.running()
         self.executive.tell(TriggerReceived(msg.sender))
         tell_here(
             ref,

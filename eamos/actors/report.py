@@ -273,6 +273,9 @@ class DroneReport:
     net: Mapping[str, Any] = field(default_factory=dict)
     folded: FoldedActions | None = None  # the oldest actions, counted, when the list was cut
     blocked_nodes_more: int = 0  # blocked nodes beyond those named
+    #: What the adapter knows about the vehicle (``Adapter.facts()``: whether its link was
+    #: signed, a pilot's takeover); the JSON key ``vehicle``, present only when not empty.
+    vehicle: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def action_count(self) -> int:
@@ -291,6 +294,7 @@ class DroneReport:
         aborted: bool,
         abort_reason: str,
         adapter_error: str,
+        vehicle: Mapping[str, Any] | None = None,
     ) -> DroneReport:
         """The report of a drone from what its runtime knows at the end."""
         stats = program.stats()
@@ -316,6 +320,7 @@ class DroneReport:
             retransmissions=int(net.get("retransmissions", 0)),
             duplicates_dropped=int(net.get("duplicates_dropped", 0)),
             net=net,
+            vehicle=dict(vehicle or {}),
         )
 
     @property
@@ -357,6 +362,8 @@ class DroneReport:
             "duplicates_dropped": self.duplicates_dropped,
             "net": dict(self.net),
         }
+        if self.vehicle:
+            out["vehicle"] = dict(self.vehicle)
         if folded is not None:
             out["actions_folded"] = folded.to_json()
         if more:
@@ -397,4 +404,5 @@ class DroneReport:
                 else FoldedActions.from_json(data["actions_folded"])
             ),
             blocked_nodes_more=_get({"n": data.get("blocked_nodes_more", 0)}, "n", int, where),
+            vehicle=dict(_get({"v": data.get("vehicle", {})}, "v", dict, where)),
         )

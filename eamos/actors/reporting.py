@@ -7,7 +7,8 @@ final state: the first sample after the last action that could change it
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 import pykka
 
@@ -37,11 +38,12 @@ def gather_report(
     aborted: bool,
     abort_reason: str,
     adapter_error: str,
+    vehicle: Mapping[str, Any] | None = None,
 ) -> DroneReport:
     """This drone's :class:`~.report.DroneReport` (parts not built count as empty).
 
     ``final_wait_s``: how long the final state may wait for the vehicle's first
-    sample after its last state-changing action.
+    sample after its last state-changing action; ``vehicle``: the adapter's facts.
     """
     from .report import DroneReport  # loaded here, at a flight's end: not before Ready
 
@@ -58,4 +60,5 @@ def gather_report(
         aborted=aborted,
         abort_reason=abort_reason,
         adapter_error=adapter_error,
+        vehicle=vehicle,
     )

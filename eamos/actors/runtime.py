@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import pykka
 import zmq
 
-from ..hal.api import Adapter, AdapterError
+from ..hal.api import Adapter, AdapterError, AdapterNotice, taken_over, vehicle_facts
 from ..logs import DroneLogs, EventLog, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
@@ -46,7 +46,7 @@ from .dispatch import Dispatcher
 from .errors import DroneRuntimeError
 from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
 from .executive import DroneExecutive as DroneExecutive
-from .failure import FailurePolicy, RuntimeFailure
+from .failure import FailurePolicy, RuntimeFailure, tell_operator
 from .inbound import InRouter
 from .logic.telemetry import stale_values as stale_values
 from .logic.telemetry import telemetry_values as telemetry_values
@@ -55,7 +55,7 @@ from .node import MissionNode
 from .outbox import Outbox
 from .readiness import announce_ready
 from .reporting import gather_report
-from .startup import NetSettings, RuntimeStartup
+from .startup import NetSettings, RuntimeStartup, StartGateSettings
 from .teardown import tear_down
 from .uniform_api import Abort as HalAbort
 from .uniform_api import UniformAPI, UniformSpace
@@ -73,6 +73,7 @@ __all__ = [
     "DroneRuntimeError",
     "NetSettings",
     "Outbox",
+    "StartGateSettings",
     "TelemetryBoard",
     "stale_values",
     "telemetry_values",
@@ -98,8 +99,11 @@ class DroneRuntime:
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
         log_writer: LogWriter | None = None,
+        start_gate: StartGateSettings | None = None,
     ) -> None:
-        """``log_writer``: the process's log writer when several runtimes share a process."""
+        """``log_writer``: the process's log writer when several runtimes share a process;
+        ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
+        nothing before it (:class:`~.inbound.StartGate`; None: no gate)."""
         self.program = program
         self.battery_reserve_pct = battery_reserve_pct  # a Try's Body fails below it
         self.drone = program.drone
@@ -123,6 +127,7 @@ class DroneRuntime:
             ground_handler=ground_handler,
             extra_topics=extra_topics,
             battery_reserve_pct=battery_reserve_pct,
+            start_gate=start_gate,
         )
         # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None
@@ -175,6 +180,7 @@ class DroneRuntime:
         self.services = build.services()
         self.board = board = build.start_board(self.services, outbox)
         self.uniform = space = build.uniform_space()
+        space.on_notice = self._notice  # a pilot's takeover, slow telemetry: to the ground
         self.hal, self.adapter_error = build.start_uniform_api(space, board)
         if self.adapter_error is not None:  # an unusable adapter stops the start
             raise DroneRuntimeError(f"{self.drone}: {self.adapter_error}")
@@ -227,6 +233,13 @@ class DroneRuntime:
             except pykka.ActorDeadError:
                 continue
 
+    def _notice(self, notice: AdapterNotice) -> None:
+        """What the adapter has for the operator (a pilot took the vehicle, telemetry
+        too slow): the mission log, this node's stderr and the ground station's display."""
+        self.log.warning("mission.adapter_notice", kind=notice.kind, text=notice.text)
+        tell_operator(self.drone, notice.text)
+        self._to_ground(notice_progress(self.program, notice))
+
     def _fail_safe(self, failure: RuntimeFailure) -> None:
         """The failure policy's reaction to the first exception in a part of this runtime.
 
@@ -244,6 +257,21 @@ class DroneRuntime:
         self._to_ground(stranded_progress(self.program, reason, policy))
         self._give_up(reason, "mission.stranded.released", land=policy != "hold")
 
+    def stop_mission(self, reason: str) -> None:
+        """Stop the mission on this drone for good (its node was told to stop: a signal).
+
+        It lands, and the drones waiting for it are released at once (``failed`` on its
+        outgoing arcs), as in :meth:`_give_up`; but it does not say ``Resolved``: its
+        report, then its node's exit, end its part at the ground station, which counts
+        them as a failure before the mission's end.
+        """
+        if self.outbox is not None:
+            self.outbox.seal()
+        self.abort(reason)
+        if self.outbox is not None:
+            released = self.outbox.release(released_arcs(self.program))
+            self.log.warning("mission.stopped.released", triggers=released)
+
     def _give_up(self, reason: str, event: str, land: bool) -> None:
         """This drone's nodes no longer speak: its out-bridge stops sending for them,
         the drone aborts (it lands), every outgoing arc outside loops not yet
@@ -257,9 +285,15 @@ class DroneRuntime:
         self._to_ground(wire.Resolved(mission=self.program.mission_id, sender=self.drone))
 
     def wait_landed(self, timeout_s: float) -> bool:
-        """Wait (on telemetry, not polling) until the vehicle reports it is on the ground."""
+        """Wait (on telemetry, not polling) until the vehicle reports it is on the ground.
+
+        False at once for a vehicle a pilot took over: nobody here lands it.
+        """
         if self.board is None:
             return True
+        if taken_over(self.adapter) is not None:
+            self.log.warning("mission.abort.taken_over", note="the pilot has it: not landed")
+            return False
         event = threading.Event()
         self.board.tell(WhenLanded(event))
         return event.wait(timeout_s)
@@ -298,6 +332,7 @@ class DroneRuntime:
             aborted=self.aborted.is_set(),
             abort_reason=self.abort_reason,
             adapter_error=str(self.adapter_error) if self.adapter_error else "",
+            vehicle=vehicle_facts(self.adapter),
         )
 
     def report(self) -> dict[str, Any]:
@@ -335,6 +370,23 @@ def land_now(hal: pykka.ActorRef[UniformAPI] | None, adapter: Adapter, log: Even
         adapter.abort()
     except Exception as exc:  # nothing else can land it: say so loudly
         log.error("mission.abort.adapter_error", error=repr(exc))
+
+
+#: The action column of an adapter notice's progress line, by kind.
+NOTICE_ACTIONS = {"taken_over": "the pilot has the vehicle", "warning": "adapter warning"}
+
+
+def notice_progress(program: DroneProgram, notice: AdapterNotice) -> wire.Progress:
+    """The progress line the ground station shows for an adapter's notice
+    (state ``taken_over`` or ``warning``; the words in ``detail``)."""
+    return wire.Progress(
+        mission=program.mission_id,
+        sender=program.drone,
+        state=notice.kind,
+        node="",
+        action=NOTICE_ACTIONS.get(notice.kind, notice.kind),
+        detail={"detail": notice.text, "at": time.time()},
+    )
 
 
 def stranded_progress(program: DroneProgram, reason: str, policy: str) -> wire.Progress:

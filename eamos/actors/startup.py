@@ -30,15 +30,24 @@ from .board import LocalSample, TelemetryBoard
 from .dispatch import Dispatcher
 from .errors import DroneRuntimeError
 from .executive import DroneExecutive
-from .failure import FailurePolicy
-from .inbound import InRouter
+from .failure import FailurePolicy, tell_operator
+from .inbound import InRouter, StartGate, incoming_arcs
 from .logic import program_wiring
 from .node import Links, MissionNode, Wire
 from .outbox import Outbox
 from .uniform_api import UniformAPI, UniformSpace, answers_at_once, start_uniform_api
 from .wiring import subscriptions, watched_peers
 
-__all__ = ["NetSettings", "RuntimeStartup"]
+__all__ = ["NetSettings", "RuntimeStartup", "StartGateSettings"]
+
+
+@dataclass(frozen=True)
+class StartGateSettings:
+    """A drone node's :class:`~.inbound.StartGate`: the deployment whose Start it takes
+    ("": any) and what to call once, before the first trigger reaches a node."""
+
+    deployment: str = ""
+    on_running: Callable[[], None] | None = None
 
 
 @dataclass(frozen=True)
@@ -88,8 +97,10 @@ class RuntimeStartup:
         ground_handler: Callable[[Delivered], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
+        start_gate: StartGateSettings | None = None,
     ) -> None:
         self.program = program
+        self.start_gate = start_gate
         self.drone = program.drone
         self.adapter = adapter
         self.net = net
@@ -223,6 +234,17 @@ class RuntimeStartup:
             completed,
             self.failures,
             self.ground_handler,
+            arc_hosts=incoming_arcs(self.program),
+            gate=self._gate(),
+        )
+
+    def _gate(self) -> StartGate | None:
+        """A drone node's gate: nothing acts before its own deployment's Start."""
+        settings = self.start_gate
+        if settings is None or self.ground_handler is not None:
+            return None
+        return StartGate(
+            self.drone, settings.deployment, self.logs.mission, settings.on_running, tell_operator
         )
 
     def connect(self, link: Link, router: InRouter) -> InBridge:

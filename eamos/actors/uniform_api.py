@@ -24,6 +24,14 @@ fake: :func:`answers_at_once`) node actors call the space themselves, so a
 zero-duration action costs no thread hop at all; an adapter that may block (a
 MAVLink autopilot) is called from this actor's thread only.
 
+The pilot's hand: once the adapter says a pilot has taken the vehicle
+(:func:`~eamos.hal.api.taken_over`), nothing here commands it again: every action
+fails with "taken over by the pilot (MODE)" without reaching the adapter, a cancel
+or an abort (land) is not passed on, and an actor failure does not land it
+(:meth:`UniformSpace.pilot_has_it`).  What the adapter tells the operator
+(:func:`~eamos.hal.api.adapter_notices`: a takeover, slow telemetry) goes to
+``on_notice`` (the runtime sends it to the ground station).
+
 A node that calls the space directly may ask for the ``uniform.result`` line of an
 action answered inline to be written late (``run(..., later=True)``), once its
 triggers to other drones are out: the uniform log (:class:`UniformLog`) writes such
@@ -42,7 +50,17 @@ from typing import Any
 
 import pykka
 
-from eamos.hal.api import ActionHandle, ActionResult, Adapter, AdapterError, Telemetry
+from eamos.hal.api import (
+    ActionHandle,
+    ActionResult,
+    Adapter,
+    AdapterError,
+    AdapterNotice,
+    TakenOver,
+    Telemetry,
+    adapter_notices,
+    taken_over,
+)
 from eamos.logs import EventLog, log_line
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
 from eamos.program.uniform import ACTIONS, CommandError, decode_command
@@ -207,6 +225,32 @@ class UniformSpace:
         # entry points up on first use, and a mission without plugin actions never pays
         # for importlib.metadata.
         self._plugins: PluginRegistry = getattr(adapter, "plugins", EMPTY_PLUGINS)
+        #: Told each notice the adapter has for the operator (the runtime: to the ground).
+        self.on_notice: Callable[[AdapterNotice], None] | None = None
+        self._has_notices = callable(getattr(adapter, "notices", None))
+
+    # -- the pilot's hand ----------------------------------------------------------------
+
+    def pilot_has_it(self, call: str) -> TakenOver | None:
+        """The adapter's takeover, if a pilot has the vehicle: then ``call`` (an action,
+        a cancel, an abort) is not passed on, and that is logged."""
+        taken = taken_over(self.adapter)
+        if taken is not None:
+            self.forward_notices()
+            self._log.warning("uniform.taken_over", call=call, reason=taken.reason())
+        return taken
+
+    def forward_notices(self) -> None:
+        """Hand what the adapter has for the operator to ``on_notice`` (any thread)."""
+        if not self._has_notices:
+            return
+        for notice in adapter_notices(self.adapter):
+            self._log.warning("uniform.notice", kind=notice.kind, text=notice.text)
+            if self.on_notice is not None:
+                try:
+                    self.on_notice(notice)
+                except Exception as exc:  # the operator's line must not cost the drone
+                    self._log.exception("uniform.callback_error", error=repr(exc))
 
     def run(self, req: RunAction, later: bool = False) -> ActionFinished | None:
         """Start ``req`` on the adapter; its :class:`ActionFinished` if already known.
@@ -236,6 +280,9 @@ class UniformSpace:
             command = decode_command(req.action, req.args, specs)
         except CommandError as exc:
             return self._finished(req, start_s, ActionResult("failed", str(exc)))
+        taken = self.pilot_has_it(req.action)
+        if taken is not None:  # never command a vehicle a pilot has
+            return self._finished(req, start_s, ActionResult("failed", taken.reason()))
         running = _Running(req, start_s, next(self._serials), caller=threading.get_ident())
         with self._lock:  # tokens are unique per asker: nobody took it since the check
             self._running[req.token] = running
@@ -274,6 +321,7 @@ class UniformSpace:
                 running.inline = result  # run() returns it
                 return
             self._send(running.request, running.start_s, result)
+            self.forward_notices()
 
         return done
 
@@ -284,6 +332,13 @@ class UniformSpace:
         self._log.info("uniform.cancel", token=_jsonable(token), running=running is not None)
         if running is None or running.handle is None:
             return  # unknown or finished: nothing to cancel
+        taken = self.pilot_has_it("cancel")
+        if taken is not None:  # no braking, no hold: the action just ends
+            with self._lock:
+                mine = self._running.pop(token, None) is running
+            if mine:
+                self._send(running.request, running.start_s, ActionResult("failed", taken.reason()))
+            return
         try:
             self.adapter.cancel(running.handle)
         except Exception as exc:  # the action's state is unknown: it ends failed, once
@@ -297,6 +352,14 @@ class UniformSpace:
         with self._lock:
             count = len(self._running)
         self._log.info("uniform.abort", running=count)
+        self.abort_vehicle()
+
+    def abort_vehicle(self) -> None:
+        """The adapter's ``abort`` (land), unless a pilot has the vehicle; never raises."""
+        taken = self.pilot_has_it("abort")
+        if taken is not None:  # no landing, no disarm: the running actions just end
+            self.finish_all(ActionResult("failed", taken.reason()), close=False)
+            return
         try:
             self.adapter.abort()
         except Exception as exc:
@@ -374,7 +437,7 @@ class UniformAPI(pykka.ThreadingActor):
         """Start the adapter; an :class:`AdapterError` is logged and re-raised."""
         self._log.info("uniform.start", drone=self.drone)
         try:
-            self.adapter.start(self._on_telemetry)
+            self.adapter.start(self._sample)
         except AdapterError as exc:
             self._start_failed(exc)
             raise
@@ -385,6 +448,11 @@ class UniformAPI(pykka.ThreadingActor):
             error = AdapterError(f"{self.drone}: the adapter raised {exc!r} while starting")
             self._start_failed(error)
             raise error from exc
+
+    def _sample(self, sample: Telemetry) -> None:
+        """A telemetry sample (adapter thread): to the board, with the adapter's notices."""
+        self.space.forward_notices()
+        self._on_telemetry(sample)
 
     def _start_failed(self, exc: AdapterError) -> None:
         self._log.error("uniform.start_failed", error=str(exc))
@@ -415,10 +483,7 @@ class UniformAPI(pykka.ThreadingActor):
         tell_operator(self.drone, f"internal error in the uniform API: {exception_value!r}: lands")
         result = ActionResult("failed", f"uniform API crashed: {exception_value!r}")
         self.space.finish_all(result, close=False)
-        try:
-            self.adapter.abort()
-        except Exception as exc:
-            self._log.exception("uniform.adapter_error", action="abort", error=repr(exc))
+        self.space.abort_vehicle()  # lands it, unless a pilot has it
 
     # -- messages ------------------------------------------------------------
 

@@ -16,6 +16,7 @@ from typing import Any
 from ..compiler import CompiledMission
 from ..compiler.drone_types import installed_plugins
 from ..config import ConfigError, FleetConfig, SafetySettings, fleet_order
+from ..config.types import mavlink_model
 from ..hal.api import AdapterError
 from ..hal.sim import SimCore, SimSettings
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry
@@ -45,6 +46,14 @@ def sim_settings(fleet: FleetConfig, drone: str) -> tuple[SimSettings, str | Non
     if adapter == "sim":
         try:
             return SimSettings.from_mapping(hal), None
+        except AdapterError as exc:
+            raise ConfigError(f"{where}: {exc}") from exc
+    if adapter == "mavlink":
+        model, note = mavlink_model(hal)
+        if model is None:
+            return SimSettings(), f"{drone} flies adapter 'mavlink': {note}"
+        try:
+            return SimSettings.from_mapping(model), None
         except AdapterError as exc:
             raise ConfigError(f"{where}: {exc}") from exc
     return SimSettings(), (

@@ -259,7 +259,8 @@ def cmd_start(args: argparse.Namespace) -> int:
     for name, result in summary.drones.items():
         report = result.report
         if report is None:
-            print(f"  {name} ({result.host}): no report")
+            seen = f"; {result.last_seen.describe()}" if result.last_seen is not None else ""
+            print(f"  {name} ({result.host}): no report{seen}")
             continue
         print(
             f"  {name} ({result.host}): {'ok' if result.ok else 'not ok'}, "

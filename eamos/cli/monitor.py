@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 import threading
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -157,7 +158,11 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     from eamos.monitor.replay import serve_replay
 
     try:
-        server = serve_replay(args.run_dir, port=args.port or 0)
+        server = serve_replay(
+            args.run_dir,
+            port=args.port or 0,
+            on_problem=lambda text: print(f"monitor: {text}", file=sys.stderr, flush=True),
+        )
     except MonitorError as exc:
         raise BadInput(str(exc)) from exc
     print(f"monitor (replay of {args.run_dir}): {server.url}  (Ctrl-C ends)", flush=True)

@@ -36,7 +36,7 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 from eamos import __version__
-from eamos.actors.drone import DroneEnd, load_node_program, run_drone
+from eamos.actors.drone import DroneEnd, NodeStop, load_node_program, run_drone
 from eamos.cli.errors import run_reported
 from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EXIT_OK
 from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
@@ -50,6 +50,7 @@ EXITS = {
     DroneEnd.DONE: EXIT_OK,
     DroneEnd.FAILED: EXIT_MISSION_FAILED,
     DroneEnd.UNREACHABLE: EXIT_CONNECT,
+    DroneEnd.REFUSED: EXIT_MISSION_FAILED,  # restarted mid-mission, refuses to rejoin
 }
 
 
@@ -175,10 +176,10 @@ def main(argv: list[str] | None = None) -> int:
     # at import: what the collector does is the whole process's business.
     gc.freeze()
     args = build_parser().parse_args(argv)
-    stop = threading.Event()
+    stop = NodeStop()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
+        stop.signal(signal.Signals(signum).name)
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)

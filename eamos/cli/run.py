@@ -203,7 +203,8 @@ def summary_lines(summary: RunSummary) -> list[str]:
         report = result.report
         if report is None:
             code = "" if result.exit_code is None else f" (exit code {result.exit_code})"
-            lines.append(f"  {name}: not ok, no report{code}")
+            seen = f"; {result.last_seen.describe()}" if result.last_seen is not None else ""
+            lines.append(f"  {name}: not ok, no report{code}{seen}")
             continue
         fails = [a for a in report.actions if a.result != "ok"]
         extra = "".join(f"; {a.action} {a.result}: {a.reason}" for a in fails)

@@ -30,6 +30,11 @@ from .syntax import (
 
 #: Largest mission file, in UTF-8 bytes.
 MAX_SOURCE_BYTES = 2_000_000
+#: Most errors reported for one file (the rest are counted); and a file longer than
+#: PROBE_BYTES whose first PROBE_BYTES hold more syntax errors than this is refused
+#: after parsing only those: junk is not mission text, whatever follows.
+MAX_ERRORS = 100
+PROBE_BYTES = 65_536
 #: Longest name (drone, block, drone type, package): names become file names.
 MAX_NAME_CHARS = 64
 #: ... and at most this many UTF-8 bytes (64 four-byte letters would not fit a file name).

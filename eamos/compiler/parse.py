@@ -12,7 +12,7 @@ from dataclasses import replace
 from typing import Any, Literal
 
 from .errors import Diagnostic, MissionError, SourceLocation
-from .limits import MAX_SOURCE_BYTES
+from .limits import MAX_ERRORS, MAX_SOURCE_BYTES, PROBE_BYTES
 from .parse_expressions import Node, text
 from .parse_statements import StatementReader
 from .source import SourceText
@@ -266,12 +266,19 @@ def _parse(source: str, file: str, package: str) -> tuple[Mission, list[Diagnost
                 )
             ]
         )
-    tree = _go_parser().parse(encoded)
+    parser = _go_parser()
+    junk = _junk(parser, encoded, file, package, what)
+    if junk is not None:
+        raise MissionError([junk])
+    tree = parser.parse(encoded)
     reader = _Reader(source, source_text, file, package)
     reader.syntax_errors(tree.root_node)
     reader.long_names(tree.root_node)
     syntax_broken = any(d.severity == "error" for d in reader.diags)
     mission = reader.mission(tree.root_node)
+    dropped = reader.dropped()
+    if dropped is not None:
+        reader.diags.append(dropped)
     errors = [d for d in reader.diags if d.severity == "error"]
     if errors:
         exc = MissionError(reader.diags)
@@ -279,6 +286,36 @@ def _parse(source: str, file: str, package: str) -> tuple[Mission, list[Diagnost
         exc.fatal = syntax_broken or not mission.entry
         raise exc
     return mission, [d for d in reader.diags if d.severity == "warning"]
+
+
+def _junk(parser: Any, encoded: bytes, file: str, package: str, what: str) -> Diagnostic | None:
+    """The error for a long file whose first :data:`PROBE_BYTES` are not mission text.
+
+    Junk costs tree-sitter ten times what a mission does and yields an error every few
+    bytes; so a file longer than :data:`PROBE_BYTES` is first read that far (to a
+    line's end), and more than :data:`MAX_ERRORS` errors there refuse it, at the first
+    one, without reading the rest.  None: go on with the whole file.
+    """
+    if len(encoded) <= PROBE_BYTES:
+        return None
+    cut = encoded.rfind(b"\n", 0, PROBE_BYTES) + 1 or PROBE_BYTES
+    head = encoded[:cut].decode("utf-8", errors="replace")
+    root = parser.parse(encoded[:cut]).root_node
+    reader = _Reader(head, SourceText(head), file, package)
+    reader.syntax_errors(root)
+    reader.mission(root)
+    if reader.errors_kept + reader.dropped_errors <= MAX_ERRORS:
+        return None
+    first = min(
+        (d.loc for d in reader.diags if d.severity == "error"), key=lambda at: (at.line, at.col)
+    )
+    return Diagnostic(
+        "error",
+        first,
+        f"the {what} is not mission text: more than {MAX_ERRORS} errors in its first "
+        f"{head.count(chr(10))} lines",
+        "is this the mission file? a mission is Go text, e.g. func SEQ_Main() { Drone1.Arm() }",
+    )
 
 
 def parse_partial(

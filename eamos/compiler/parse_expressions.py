@@ -17,7 +17,7 @@ import re
 from typing import Any
 
 from .errors import Diagnostic, SourceLocation
-from .limits import MAX_EXPRESSION_DEPTH, MAX_NAME_BYTES, MAX_NAME_CHARS, name_error
+from .limits import MAX_ERRORS, MAX_EXPRESSION_DEPTH, MAX_NAME_BYTES, MAX_NAME_CHARS, name_error
 from .source import SourceText, display_line, split_lines
 from .syntax import (
     Binary,
@@ -39,7 +39,18 @@ _NESTING = frozenset({"unary_expression", "binary_expression", "parenthesized_ex
 
 
 # Any name too long for the limits has at least this many characters: a cheap first filter.
-_LONG_WORD = re.compile(r"\w{" + str(min(MAX_NAME_CHARS, MAX_NAME_BYTES // 4) + 1) + ",}")
+# A name's characters are word characters or any other non-ASCII, non-space one: ``\w``
+# alone misses the combining marks an identifier may hold ('D' + 'x\u0301' * 100 is 201
+# characters), and tree-sitter says which candidates are names anyway.
+_LONG_WORD = re.compile(
+    # One character class, not an alternation of overlapping ones: that backtracks
+    # exponentially on a long run of non-ASCII letters.  ASCII word characters, and any
+    # non-ASCII character that is not a space.
+    r"[^\x00-\x2f\x3a-\x40\x5b-\x5e\x60\x7b-\x7f\s]"
+    + "{"
+    + str(min(MAX_NAME_CHARS, MAX_NAME_BYTES // 4) + 1)
+    + ",}"
+)
 _NAME_NODES = frozenset({"identifier", "field_identifier", "type_identifier", "package_identifier"})
 
 
@@ -71,6 +82,11 @@ class NodeReader:
         self.source = source
         self.file = file
         self.diags: list[Diagnostic] = []
+        # Errors past MAX_ERRORS are counted, not kept: a file of junk has hundreds of
+        # thousands, and making, sorting and printing them cost seconds (issue 28).
+        self.errors_kept = 0
+        self.dropped_errors = 0
+        self.first_dropped: SourceLocation | None = None
         # The parameters of the block being read: names its conditions may use.
         self.param_names: frozenset[str] = frozenset()
 
@@ -87,7 +103,25 @@ class NodeReader:
         return self.source.column(row, byte_col)
 
     def error(self, node: Node, message: str, hint: str = "") -> None:
+        if self.errors_kept >= MAX_ERRORS:
+            self.dropped_errors += 1
+            if self.first_dropped is None:
+                self.first_dropped = self.loc(node)
+            return
+        self.errors_kept += 1
         self.diags.append(Diagnostic("error", self.loc(node), message, hint, self.end_col(node)))
+
+    def dropped(self) -> Diagnostic | None:
+        """The error saying how many errors were not kept (None when all were)."""
+        if not self.dropped_errors or self.first_dropped is None:
+            return None
+        return Diagnostic(
+            "error",
+            self.first_dropped,
+            f"{self.dropped_errors} more errors from here on are not shown "
+            f"(only the first {MAX_ERRORS} are)",
+            "fix the first ones: the rest often follow from them",
+        )
 
     def warn(self, node: Node, message: str, hint: str = "") -> None:
         self.diags.append(Diagnostic("warning", self.loc(node), message, hint, self.end_col(node)))

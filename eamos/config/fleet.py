@@ -41,10 +41,24 @@ from ..hal.settings import did_you_mean
 from ..net.settings import LinkSettings
 from ..program.uniform import GROUND_STATION
 from .types import check_type_names, embedded_names, load_types, merge_hal, type_lineage
-from .validation import ConfigError, check_hal, check_keys, number, point, read_toml
+from .validation import (
+    ConfigError,
+    check_hal,
+    check_keys,
+    key_shown,
+    number,
+    participant_name,
+    point,
+    read_toml,
+)
 
 #: Spacing of a fleet lined up east when the fleet file gives no homes (metres).
 HOME_SPACING_M = 5.0
+#: Bounds of [safety]: the largest minimum separation and ceiling (metres), the most
+#: corners of a geofence (docs/configuration.md, "Ranges").
+MAX_SEPARATION_M = 1_000.0
+MAX_ALTITUDE_M = 10_000.0
+MAX_FENCE_POINTS = 1_000
 
 #: ``[net] ground_telemetry_hz`` when the fleet file does not say: a few samples a
 #: second are enough for people watching; a drone whose telemetry a peer's condition
@@ -96,10 +110,17 @@ def _safety(w: str, table: Any) -> SafetySettings:
     )
     out = SafetySettings()
     if "min_separation_m" in table:
-        sep = number(f"{w}safety.min_separation_m", table["min_separation_m"], positive=True)
+        sep = number(
+            f"{w}safety.min_separation_m",
+            table["min_separation_m"],
+            positive=True,
+            high=MAX_SEPARATION_M,
+        )
         out = dataclasses.replace(out, min_separation_m=sep)
     if "max_altitude_m" in table:
-        top = number(f"{w}safety.max_altitude_m", table["max_altitude_m"], positive=True)
+        top = number(
+            f"{w}safety.max_altitude_m", table["max_altitude_m"], positive=True, high=MAX_ALTITUDE_M
+        )
         out = dataclasses.replace(out, max_altitude_m=top)
     if "battery_reserve_pct" in table:
         where = f"{w}safety.battery_reserve_pct"
@@ -110,9 +131,10 @@ def _safety(w: str, table: Any) -> SafetySettings:
     if "geofence_m" in table:
         where = f"{w}safety.geofence_m"
         raw = table["geofence_m"]
-        if not isinstance(raw, list) or len(raw) < 3:
+        if not isinstance(raw, list) or not 3 <= len(raw) <= MAX_FENCE_POINTS:
             raise ConfigError(
-                f"{where}: must be a polygon, a list of at least 3 [north_m, east_m] points"
+                f"{where}: must be a polygon, a list of 3 to {MAX_FENCE_POINTS} "
+                "[north_m, east_m] points"
             )
         fence = tuple(point(f"{where}[{i}]", p) for i, p in enumerate(raw))
         out = dataclasses.replace(out, geofence_m=tuple((p[0], p[1]) for p in fence))
@@ -266,6 +288,7 @@ class FleetConfig:
         if not isinstance(drone_tables, dict):
             raise ConfigError(f"{w}drones: must be a table of drones, such as [drones.Drone1]")
         for name, table in drone_tables.items():
+            participant_name(f"{w}drones.{key_shown(name)}", name, "drone name")
             if not isinstance(table, dict):
                 raise ConfigError(f"{w}drones.{name}: must be a table")
             check_keys(f"{w}drones.{name}.", table, {"hal", "ssh", "bind", "home_m", "home_lla"})
@@ -280,6 +303,11 @@ class FleetConfig:
                     raise ConfigError(
                         f"{w}drones.{name}.home_lla: latitude -90..90 and longitude "
                         f"-180..180 degrees, got {list(lla)}"
+                    )
+                if len(lla) > 2 and not -1_000 <= lla[2] <= MAX_ALTITUDE_M:
+                    raise ConfigError(
+                        f"{w}drones.{name}.home_lla[2]: an altitude from -1000 to "
+                        f"{MAX_ALTITUDE_M:g} m, got {lla[2]!r}"
                     )
                 homes_lla[name] = lla
             hal = table.get("hal", {})

@@ -13,6 +13,9 @@ Drone config (TOML)::
     on_stranded = "land"                      # the end policy: land | hold | return (lands now)
     battery_reserve_pct = 20                  # inside a Try, an action fails below this battery
                                               # (the fleet's [safety] value; default: none)
+    deployment = "a1b2c3d4e5f60718"           # the roll-out (or eamos run) this config is of:
+                                              # the node starts only on its Start (default:
+                                              # none, any Start)
 
     [net]
     bind = "tcp://127.0.0.1:6001"             # this drone's out-bridge
@@ -50,6 +53,7 @@ their range:
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,13 +67,20 @@ from .toml_text import relative, toml_key, toml_value
 from .validation import (
     END_POLICIES,
     ConfigError,
+    check_adapter,
     check_hal,
     check_keys,
     endpoint,
     in_range,
+    key_shown,
     log_folder,
+    participant_name,
+    path_field,
     read_toml,
 )
+
+#: A deployment id (the roll-out's, or ``eamos run``'s): what the wire's Start carries.
+DEPLOYMENT_ID = re.compile(r"[A-Za-z0-9._-]{0,64}")
 
 #: In a drone's log folder: its exit code, written when it ran in a process shared
 #: with other drones (the process's own exit code is the worst of theirs).
@@ -131,6 +142,9 @@ class NodeConfig:
     # Inside a Try's Body an action fails when the battery drops below this
     # (actors/logic/actions.py); None: a low battery fails nothing.
     battery_reserve_pct: float | None = None
+    # The roll-out (or ``eamos run``) this config belongs to: the node starts only on
+    # the ground station's Start naming it (actors/inbound.py); "": any Start.
+    deployment: str = ""
 
     @property
     def disarm_wait_s(self) -> float:
@@ -157,27 +171,32 @@ class NodeConfig:
                 "peer_wait_limit_s",
                 "on_stranded",
                 "battery_reserve_pct",
+                "deployment",
                 "net",
                 "hal",
             },
         )
         drone = doc.get("drone")
-        if not isinstance(drone, str) or not drone:
+        if drone is None or drone == "":
             raise ConfigError(
                 f'{w}drone: required, the drone\'s name as in the mission (e.g. "Drone1")'
             )
+        participant_name(f"{w}drone", drone, "drone name")
         program = doc.get("program")
-        if not isinstance(program, str) or not program:
+        if program is None or program == "":
             raise ConfigError(f"{w}program: required, the path of the drone's .program.json")
+        path_field(f"{w}program", program, "path of the drone's .program.json")
         net = doc.get("net")
         if not isinstance(net, dict):
             raise ConfigError(f"{w}net: required table with 'bind' and 'peers'")
         check_keys(f"{w}net.", net, NET_FIELDS)
-        bind = endpoint(f"{w}net.bind", net.get("bind"))
+        bind = endpoint(f"{w}net.bind", net.get("bind"), bind=True)
         peers = net.get("peers", {})
         if not isinstance(peers, dict):
             raise ConfigError(f"{w}net.peers: must be a table of name = endpoint")
-        peers = {str(k): endpoint(f"{w}net.peers.{k}", v) for k, v in peers.items()}
+        for name, value in peers.items():
+            participant_name(f"{w}net.peers.{key_shown(name)}", name)
+            endpoint(f"{w}net.peers.{name}", value)
         keys_dir, keys = _net_security(w, net, path.parent, drone, bind, peers)
         link = _link_settings(w, net)
         give_up = net.get("peer_give_up_s")
@@ -187,6 +206,7 @@ class NodeConfig:
         if not isinstance(hal, dict):
             raise ConfigError(f"{w}hal: must be a table")
         check_hal(f"{w}hal.", hal, drone=drone != GROUND_STATION)
+        check_adapter(w, hal, drone)
         timeouts: dict[str, float] = {}
         for key in ("ready_timeout_s", "land_timeout_s", "mission_timeout_s", "peer_wait_limit_s"):
             if key in doc:
@@ -200,11 +220,15 @@ class NodeConfig:
             raise ConfigError(
                 f"{w}on_stranded: must be one of {', '.join(END_POLICIES)}, got {on_stranded!r}"
             )
+        deployment = doc.get("deployment", "")
+        if not isinstance(deployment, str) or not DEPLOYMENT_ID.fullmatch(deployment):
+            raise ConfigError(
+                f"{w}deployment: must be at most 64 of the characters A-Z a-z 0-9 . _ - "
+                "(the roll-out's id, written by eamos rollout and eamos run)"
+            )
         base = path.parent
-        log_dir = doc.get("log_dir", f"logs/{drone}")
-        if not isinstance(log_dir, str) or not log_dir:
-            raise ConfigError(f"{w}log_dir: must be a path")
-        log_folder(f"{w}log_dir", (base / log_dir).resolve())
+        log_dir = path_field(f"{w}log_dir", doc.get("log_dir", f"logs/{drone}"))
+        log_folder(f"{w}log_dir", (base / log_dir).resolve(), base)
         return cls(
             path=path,
             drone=drone,
@@ -218,6 +242,7 @@ class NodeConfig:
             link=link,
             peer_give_up_s=give_up,
             on_stranded=on_stranded,
+            deployment=deployment,
             **timeouts,
         )
 
@@ -253,6 +278,7 @@ class NodeConfig:
                 if self.battery_reserve_pct is not None
                 else []
             ),
+            *([f"deployment = {toml_value(self.deployment)}"] if self.deployment else []),
             "",
             "[net]",
             f"bind = {toml_value(self.bind)}",
@@ -313,8 +339,7 @@ def _net_security(
             f"{w}net.keys: required: the folder `eamos keys` made for {drone} "
             "(or plain = true, for development on loopback only)"
         )
-    if not isinstance(net["keys"], str) or not net["keys"]:
-        raise ConfigError(f"{w}net.keys: must be the path of a key folder")
+    path_field(f"{w}net.keys", net["keys"], "path of a key folder")
     folder = (base / net["keys"]).resolve()
     try:
         keys = FleetKeys.load(folder, drone)

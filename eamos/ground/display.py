@@ -28,7 +28,8 @@ from .station import DroneView, GroundStation, ParticipantFailed
 
 #: Node states worth a line (``Progress.state``): every change of an action, a
 #: wait and its condition, a branch decision, a blocked or skipped node, a
-#: stranded drone.
+#: stranded drone, a node stopped by a signal, a vehicle a pilot took over and an
+#: adapter's warning (a MAVLink link whose telemetry stays slower than it needs).
 SHOWN_STATES = (
     "running",
     "ok",
@@ -40,7 +41,12 @@ SHOWN_STATES = (
     "blocked",
     "skipped",
     "stranded",
+    "taken_over",
+    "warning",
+    "stopped",
 )
+#: Progress states the live table also prints as a line: the operator must read them.
+OPERATOR_STATES = ("taken_over", "warning", "stranded")
 #: Lines are held this long and printed in the order things happened on the
 #: drones (progress batches arrive up to PROGRESS_INTERVAL_S late).
 HOLD_S = 0.3
@@ -68,6 +74,9 @@ def format_event(name: str, msg: Any, at: float) -> str | None:
     Pure.  A wait shows what it waits for, a decision which way it went.
     """
     head = f"{stamp(at)} {name:>8}"
+    if isinstance(msg, wire.Progress) and msg.state == "taken_over":
+        reason = msg.detail.get("detail") if isinstance(msg.detail, dict) else ""
+        return f"{head} TAKEN OVER: {reason or msg.action}"
     if isinstance(msg, wire.Progress) and msg.state in SHOWN_STATES:
         line = f"{head} {msg.state:<9} {msg.action}"
         reason = msg.detail.get("detail") if isinstance(msg.detail, dict) else ""
@@ -319,8 +328,10 @@ class LiveDisplay:
         return table
 
     def event(self, name: str, view: DroneView, msg: Any) -> None:
-        """Progress shows in the table; link changes and failures print as lines above it."""
-        if isinstance(msg, PeerStatus | ParticipantFailed):
+        """Progress shows in the table; link changes, failures, a pilot's takeover and
+        adapter warnings print as lines above it."""
+        operator = isinstance(msg, wire.Progress) and msg.state in OPERATOR_STATES
+        if operator or isinstance(msg, PeerStatus | ParticipantFailed):
             line = format_event(name, msg, self.clock())
             if line is not None:
                 self.say(line)

@@ -13,6 +13,7 @@ drone lands, then the processes end.
 from __future__ import annotations
 
 import os
+import secrets
 import signal
 import socket
 import subprocess
@@ -45,10 +46,16 @@ from .display import Display, make_display
 from .flight import Limits, fly, ground_runtime, hurried
 from .station import GroundStation
 from .summary import RunSummary, summarize
-from .vehicles import start_sim_vehicles
+from .vehicles import fleet_lla_homes, mavlink_fleet_settings, start_sim_vehicles
 
 #: The command line of one drone's node (``eamos-node`` in this Python).
 NODE_MODULE = "eamos.cli.node"
+
+
+def new_deployment_id() -> str:
+    """A fresh id for one run or roll-out (16 hex digits, random): its Start names it, and
+    its nodes start only on that Start (a ground station of another run cannot start them)."""
+    return secrets.token_hex(8)
 
 
 def free_ports(n: int) -> list[int]:
@@ -367,6 +374,12 @@ class LocalFleet:
             self.wait(10)
 
 
+def running(station: GroundStation, drones: list[str]) -> list[str]:
+    """The drones whose node runs: not exited, or exited and rejoined by a new node."""
+    views = station.snapshot()
+    return [n for n in drones if not views[n].exited]
+
+
 @dataclass(frozen=True)
 class LocalMission:
     """A compiled mission to fly here: its programs are in ``run_dir/programs/``."""
@@ -385,6 +398,7 @@ def write_node_configs(
     peers_of: Mapping[str, list[str]] | None = None,
     battery_reserve_pct: float | None = None,
     links: Mapping[str, LinkSettings] | None = None,
+    deployment: str = "",
 ) -> dict[str, Path]:
     """One ``configs/<Drone>.toml`` per drone of ``hals`` (paths relative to it); their paths.
 
@@ -393,6 +407,8 @@ def write_node_configs(
     default every other participant.  ``battery_reserve_pct``: the fleet's
     ``[safety]`` reserve, below which a Try's Body action fails.  ``links``:
     each drone's link settings (:func:`telemetry_links`; default the built-in ones).
+    ``deployment``: this run's id (:func:`new_deployment_id`): the drones start only
+    on the Start naming it.
     """
     keys_root = keys_dir or run_dir / "keys"
     configs: dict[str, Path] = {}
@@ -413,6 +429,7 @@ def write_node_configs(
             keys_dir=keys_root / name,
             battery_reserve_pct=battery_reserve_pct,
             link=links[name] if links is not None and name in links else LinkSettings(),
+            deployment=deployment,
         )
         configs[name] = config.write()
     return configs
@@ -473,10 +490,18 @@ def _fly_local(
     # encrypted and only this run's participants can connect (docs/network.md).
     keys_dir = create_fleet_keys(fresh_keys_folder(run_dir), names)
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
-    vehicles = start_sim_vehicles({n: fleet.hal_for(n) for n in drones}, run_dir / "logs", speedup)
+    # Every drone stands at its home in the fleet frame, as the check saw it: simulated
+    # drones and simulated MAVLink vehicles are placed there; a MAVLink drone's node is
+    # told where, and the fleet's fence (vehicles.py).
+    order = fleet_order(mission.programs)
+    homes = fleet.homes(order)
+    vehicles = start_sim_vehicles(
+        {n: fleet.hal_for(n) for n in drones},
+        run_dir / "logs",
+        speedup,
+        homes=fleet_lla_homes(fleet, order),
+    )
     hals: dict[str, dict[str, Any]] = {}
-    # Simulated drones stand at their homes in the fleet frame, as the check saw them.
-    homes = fleet.homes(fleet_order(mission.programs))
     try:
         for name in drones:
             hal = vehicles.hal_for(name)
@@ -484,6 +509,8 @@ def _fly_local(
                 hal["home_m"] = list(homes[name])
                 if speedup is not None:
                     hal["speedup"] = speedup
+            elif hal.get("adapter") == "mavlink":
+                hal = {**mavlink_fleet_settings(fleet, name, order), **hal}
             check_hal_settings(name, hal, fleet.path)
             hals[name] = hal
     except ConfigError:
@@ -491,6 +518,7 @@ def _fly_local(
         raise
     # Each drone connects only to the peers it works with and the ground station.
     peers_of = connected_peers(dict(mission.programs))
+    deployment = new_deployment_id()
     configs = write_node_configs(
         run_dir,
         endpoints,
@@ -500,9 +528,16 @@ def _fly_local(
         peers_of,
         battery_reserve_pct=fleet.safety.battery_reserve_pct,
         links=telemetry_links(mission.programs, drones, fleet),
+        deployment=deployment,
     )
     shown = display or make_display(None, drones)
-    station = GroundStation(drones, mission.mission_id, on_change=shown.event)
+    station = GroundStation(
+        drones,
+        mission.mission_id,
+        on_change=shown.event,
+        deployment=deployment,
+        checksums={name: program.checksum for name, program in mission.programs.items()},
+    )
     shown.watch(station)
     ground_hal: dict[str, Any] = {"adapter": "ground"}
     if speedup:
@@ -521,13 +556,13 @@ def _fly_local(
     exits: dict[str, int] = {}
 
     def on_exit(name: str, code: int) -> None:
+        # Every exit is counted at once (GroundStation.exited): the normal end after
+        # Complete, else a failure, with the last line its node wrote about it.
         exits[name] = code
-        view = station.snapshot().get(name)
-        if view is not None and view.report is None:
-            out = processes.outputs.get(name, run_dir / "logs" / name / "node.out")
-            # A shared process's output: the last line that names this drone.
-            why = last_line(out, "" if out.name == "node.out" else f" {name}:")
-            station.fail(name, exit_reason(code, processes.groups.get(name, (name,)), why))
+        out = processes.outputs.get(name, run_dir / "logs" / name / "node.out")
+        # A shared process's output: the last line that names this drone.
+        why = last_line(out, "" if out.name == "node.out" else f" {name}:")
+        station.exited(name, exit_reason(code, processes.groups.get(name, (name,)), why))
 
     processes = LocalFleet(on_exit)
     started = time.time()
@@ -546,9 +581,7 @@ def _fly_local(
                 )
         with shown:
             shown.say(f"mission {mission.name}: {len(drones)} drone(s), run folder {run_dir}")
-            flight = fly(
-                station, shown, stop, limits, alive=lambda: [n for n in drones if n not in exits]
-            )
+            flight = fly(station, shown, stop, limits, alive=lambda: running(station, drones))
             outcome, started = flight.outcome, flight.started
     finally:
         # After a second Ctrl-C nobody waits for a graceful end: SIGTERM now (each

@@ -38,7 +38,11 @@ def run_ground_node(
     drones = [n for n in program.fleet if n != GROUND_STATION]
     shown = display or PlainDisplay()
     station = GroundStation(
-        drones, program.mission_id, on_change=shown.event, give_up_s=config.peer_give_up_s
+        drones,
+        program.mission_id,
+        on_change=shown.event,
+        give_up_s=config.peer_give_up_s,
+        deployment=config.deployment,
     )
     shown.watch(station)
     runtime = ground_runtime(program, station, net_settings(config), config.log_dir, config.hal)

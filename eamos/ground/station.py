@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,6 +35,8 @@ from eamos.net import wire
 from eamos.net.effects import PeerStatus
 from eamos.net.progress import progress_events
 from eamos.program.uniform import GROUND_STATION
+
+from .last_seen import LastSeen
 
 Clock = Callable[[], float]
 
@@ -59,6 +61,8 @@ class DroneView:
     node: str = ""
     position: tuple[float, float, float] | None = None
     armed: bool | None = None
+    landed: bool | None = None
+    seen_at: float | None = None  # wall-clock time its latest telemetry arrived
     done_actions: int = 0
     failed_actions: int = 0
     report: DroneReport | None = None  # its final report, once received
@@ -67,6 +71,14 @@ class DroneView:
     link_serial: int = 0
     silent_since: float | None = None  # monotonic time the link was reported lost
     given_up: bool = False  # silent for longer than give_up_s: not waited for
+    exited: str = ""  # how its node's process ended, once it did ("" while it runs)
+
+    def last_seen(self) -> LastSeen | None:
+        """Where its latest telemetry placed it (None: no telemetry arrived)."""
+        if self.position is None or self.seen_at is None:
+            return None
+        x, y, z = self.position
+        return LastSeen(x, y, z, bool(self.armed), self.landed, self.seen_at)
 
 
 class GroundStation:
@@ -79,8 +91,14 @@ class GroundStation:
         on_change: Callable[[str, DroneView, Any], None] | None = None,
         give_up_s: float | None = None,
         clock: Clock = time.monotonic,
+        deployment: str = "",
+        checksums: Mapping[str, str] | None = None,
     ) -> None:
         self.mission_id = mission_id
+        self.deployment = deployment  # named in the Start: the drones of this roll-out start
+        # The checksum of each participant's compiled program: a Ready naming another
+        # program (a file edited, its checksum recomputed) is refused, not counted ready.
+        self.checksums = dict(checksums or {})
         self.give_up_s = give_up_s
         self.clock = clock  # monotonic seconds: when a silent drone is given up
         self.views = {name: DroneView(name) for name in drones}
@@ -92,6 +110,8 @@ class GroundStation:
         # Of those, the ones known dead (a process exit, a failed start): unlike a
         # silent drone, which may fly on behind a broken link, they fail the run.
         self.dead: list[str] = []
+        # Complete or Abort sent: from now on a drone's report and exit are its normal end.
+        self.over = False
 
     # -- wiring -------------------------------------------------------------------------
 
@@ -112,13 +132,27 @@ class GroundStation:
             self._handle_one(msg)
 
     def _handle_one(self, msg: Any) -> None:
+        stopped_early = ""
         with self._cond:
             view = self.views.get(getattr(msg, "sender", ""))
             if view is None:
                 return
             if isinstance(msg, wire.Ready):
-                view.ready = True
-                view.state = "ready"
+                expected = self.checksums.get(view.name, msg.program_checksum)
+                if msg.program_checksum == expected:
+                    if view.exited and not self.over:
+                        self._rejoined(view)
+                    view.ready = True
+                    view.state = "ready"
+                else:
+                    why = (
+                        f"{view.name}: runs a program other than the one compiled for this "
+                        f"run (checksum {msg.program_checksum[:23]}..., "
+                        f"expected {expected[:23]}...): not started"
+                    )
+                    if why not in self.failures:  # Ready is resent until acknowledged
+                        self.failures.append(why)
+                    view.state = "wrong program"
             elif isinstance(msg, wire.Resolved):
                 view.resolved = True
                 view.state = "resolved"
@@ -129,6 +163,8 @@ class GroundStation:
                     # Not waited for any longer: what it would send again is the same.
                     view.state = "lost"
                     self.failures.append(f"{view.name}: unreadable report ({exc})")
+                else:
+                    stopped_early = self._stopped_early(view)
             elif isinstance(msg, wire.Progress):
                 view.node = msg.node
                 view.action, view.state = msg.action, msg.state
@@ -149,6 +185,8 @@ class GroundStation:
             elif isinstance(msg, wire.TelemetrySample):
                 view.position = (msg.x_m, msg.y_m, msg.z_m)
                 view.armed = msg.armed
+                view.landed = msg.landed
+                view.seen_at = time.time()
             elif isinstance(msg, PeerStatus):
                 if msg.serial <= view.link_serial:
                     return  # an older event overtaken by a newer one (two threads report)
@@ -168,13 +206,67 @@ class GroundStation:
             self._cond.notify_all()
         if self.on_change is not None:
             self.on_change(view.name, view, msg)
+        if stopped_early:
+            self.fail(view.name, stopped_early)
+
+    def _rejoined(self, view: DroneView) -> None:
+        """A new node of ``view``'s drone, whose node had exited, says it is ready: it
+        rejoined (it proved nothing had run: :mod:`eamos.actors.rejoin`), so it is waited
+        for again and its earlier exit no longer fails the run; lock held."""
+        gone = f"{view.name}: "
+        self.failures = [f for f in self.failures if not f.startswith(gone)]
+        self.dead = [f for f in self.dead if not f.startswith(gone)]
+        view.events.append({"t": time.time(), "rejoined": view.exited})
+        view.exited = ""
+        view.resolved = False
+        view.report = None
+
+    def _stopped_early(self, view: DroneView) -> str:
+        """Why ``view``'s report, just received, ends its part before the mission's end
+        ("" when it is the normal end); lock held.
+
+        A drone reports last, when its node is about to exit: before Complete or Abort,
+        from a drone that has not resolved, that is its node stopping (a signal, ...),
+        a resolution counted at once, as a failure of the run.
+        """
+        if self.over or view.resolved or view.state == "lost" or view.report is None:
+            return ""
+        why = view.report.abort_reason or "its report says it did not finish"
+        return f"its node stopped before the mission ended ({why})"
+
+    def exited(self, name: str, why: str) -> None:
+        """``name``'s node ended (``why``: how, e.g. "process exited with code 1").
+
+        Every exit is counted at once: after the mission's end with a report, it is
+        the normal end; otherwise (no report can come any more, or it stopped before
+        the end) the participant failed and is no longer waited for.
+        """
+        with self._cond:
+            view = self.views.get(name)
+            if view is None:
+                return
+            view.exited = why
+            view.events.append({"t": time.time(), "exited": why})
+            counted = view.state == "lost"  # already failed (its early report, ...)
+            normal = view.report is not None and (self.over or view.resolved)
+            self._cond.notify_all()
+        if counted or normal:
+            return
+        self.fail(name, why if view.report is None else f"{why} before the mission ended")
 
     def fail(self, name: str, reason: str) -> None:
-        """A participant is gone (its process died, or it could not start)."""
+        """A participant is gone (its process died, or it could not start).
+
+        With no report from it, the reason says where its last telemetry placed it.
+        """
         with self._cond:
+            view = self.views.get(name)
+            if view is not None and view.report is None:
+                seen = view.last_seen()
+                if seen is not None:
+                    reason = f"{reason}; {seen.describe()}"
             self.failures.append(f"{name}: {reason}")
             self.dead.append(f"{name}: {reason}")
-            view = self.views.get(name)
             if view is not None:
                 view.state = "lost"
                 view.events.append({"t": time.time(), "failed": reason})
@@ -227,9 +319,12 @@ class GroundStation:
             return [d for d in self.drones() if not self.views[d].ready]
 
     def start(self) -> None:
-        """Send the start trigger: the ground station's initial node fires."""
+        """Send the start trigger (naming the deployment): the ground station's initial
+        node fires."""
         assert self.runtime is not None
-        self.runtime.send(wire.Start(mission=self.mission_id, sender=GROUND_STATION))
+        self.runtime.send(
+            wire.Start(mission=self.mission_id, sender=GROUND_STATION, deployment=self.deployment)
+        )
         self.runtime.fire()
 
     def wait_resolved(self, timeout_s: float | None, stop: threading.Event | None = None) -> bool:
@@ -277,10 +372,14 @@ class GroundStation:
     def complete(self) -> None:
         """Tell every drone the mission is over (they report and exit)."""
         assert self.runtime is not None
+        with self._cond:
+            self.over = True
         self.runtime.send(wire.Complete(mission=self.mission_id, sender=GROUND_STATION))
 
     def abort(self, reason: str) -> None:
         """Every drone stops its mission and lands now."""
+        with self._cond:
+            self.over = True
         if self.runtime is not None:
             self.runtime.send(
                 wire.Abort(mission=self.mission_id, sender=GROUND_STATION, reason=reason)

@@ -10,7 +10,12 @@ One typed :class:`RunSummary` for every ground station (``eamos run``,
 ``drones.<name>`` is the drone's own report (:class:`DroneReport`, as in its
 ``report.json``) plus what the ground station knows besides: ``exit_code``
 (a local process), ``host`` (over SSH); a drone that sent no report has
-``{"ok": false, "error": "no report", "link": ...}`` instead.
+``{"ok": false, "error": "no report", "link": ..., "last_seen": ...}`` instead,
+``last_seen`` (:class:`LastSeen`) being where its last telemetry placed it.  A
+MAVLink drone's report carries ``vehicle``: its autopilot, whether its link was ``signed``, and
+``taken_over`` (the pilot's mode and where, m) when a pilot took it: such a drone is
+not ok, and the run's detail says ``Drone2: taken over by the pilot in LOITER at
+(x, y, z)``.
 """
 
 from __future__ import annotations
@@ -23,10 +28,21 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.actors.report import ActionEntry, DroneReport, FinalState
+from eamos.hal.api import TakenOver
 from eamos.logs import report_write_error
 from eamos.program.uniform import GROUND_STATION
 
-__all__ = ["ActionEntry", "DroneReport", "DroneResult", "FinalState", "RunSummary", "summarize"]
+from .last_seen import LastSeen
+
+__all__ = [
+    "ActionEntry",
+    "DroneReport",
+    "DroneResult",
+    "FinalState",
+    "LastSeen",
+    "RunSummary",
+    "summarize",
+]
 
 if TYPE_CHECKING:
     from .station import DroneView
@@ -41,11 +57,33 @@ class DroneResult:
     report: DroneReport | None  # None: the ground station never received it
     exit_code: int | None = None  # the node's exit code when it ran here (eamos run)
     host: str | None = None  # where it ran, when over SSH (eamos start)
+    last_seen: LastSeen | None = None  # without a report: where its last telemetry placed it
 
     @property
     def ok(self) -> bool:
-        """The drone finished its part (a report that says so) and was left disarmed."""
-        return self.report is not None and self.report.ok and not self.left_armed
+        """The drone finished its part (a report that says so), was left disarmed, and no
+        pilot took it."""
+        return (
+            self.report is not None
+            and self.report.ok
+            and not self.left_armed
+            and self.taken_over is None
+        )
+
+    @property
+    def taken_over(self) -> TakenOver | None:
+        """The pilot's takeover the drone's adapter saw (None: none, or no report)."""
+        if self.report is None:
+            return None
+        return TakenOver.from_json(self.report.vehicle.get("taken_over"))
+
+    @property
+    def signed(self) -> bool | None:
+        """Whether the drone's MAVLink link was signed (None: not a MAVLink drone, no report)."""
+        if self.report is None:
+            return None
+        value = self.report.vehicle.get("signed")
+        return value if isinstance(value, bool) else None
 
     @property
     def left_armed(self) -> str:
@@ -57,8 +95,8 @@ class DroneResult:
         (armed, never flown, never disarmed), did not finish.
         """
         final = self.report.final if self.report is not None else None
-        if final is None or not final.armed:
-            return ""
+        if final is None or not final.armed or self.taken_over is not None:
+            return ""  # a pilot's vehicle is the pilot's: the takeover says where it was
         where = f"at ({final.x:.2f}, {final.y:.2f}, {final.z:.2f}) m from its home"
         if final.landed is True:
             return f"armed on the ground {where}"
@@ -74,6 +112,8 @@ class DroneResult:
             out = {"ok": False, "error": NO_REPORT}
             if link is not None:
                 out["link"] = link
+            if self.last_seen is not None:
+                out["last_seen"] = self.last_seen.to_json()
         if self.exit_code is not None:
             out["exit_code"] = self.exit_code
         if self.host is not None:
@@ -90,7 +130,7 @@ class DroneResult:
         exit_code = data.get("exit_code")
         host = data.get("host")
         if data.get("error") == NO_REPORT and "actions" not in data:
-            return cls(None, exit_code, host)
+            return cls(None, exit_code, host, LastSeen.from_json(data.get("last_seen")))
         return cls(DroneReport.from_json(data), exit_code, host)
 
 
@@ -143,7 +183,13 @@ class RunSummary:
         if self.outcome != "ok":
             return self.outcome
         left = [f"{n} left {d.left_armed}" for n, d in self.drones.items() if d.left_armed]
-        bad = [n for n, d in self.drones.items() if not d.ok and not d.left_armed]
+        taken = [f"{n}: {t.describe()}" for n, d in self.drones.items() if (t := d.taken_over)]
+        left += taken
+        bad = [
+            n
+            for n, d in self.drones.items()
+            if not d.ok and not d.left_armed and d.taken_over is None
+        ]
         if self.ground_station is None or not self.ground_station.ok:
             bad.append(GROUND_STATION)
         parts = (["not ok: " + ", ".join(bad)] if bad else []) + left
@@ -238,7 +284,15 @@ def summarize(
         started=started,
         duration_s=round(ended - started, 3),
         run_dir=str(run_dir),
-        drones={n: DroneResult(views[n].report, exits.get(n), hosts.get(n)) for n in drones},
+        drones={
+            n: DroneResult(
+                views[n].report,
+                exits.get(n),
+                hosts.get(n),
+                views[n].last_seen() if views[n].report is None else None,
+            )
+            for n in drones
+        },
         ground_station=ground_report,
         failures=tuple(failures),
         links={n: views[n].link for n in drones},

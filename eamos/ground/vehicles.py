@@ -12,9 +12,19 @@ ArduPilot style: the vehicle serves TCP, ``tcp:127.0.0.1:PORT``) and no
 run's ``--speedup``), ``prearm_delay_s`` (3; ``inf``: never armable),
 ``disarm_after_s`` (10),
 ``estimator_settle_s`` and ``estimator_bias_m`` (an estimator that settles late, and
-its error until then), ``sysid`` (1), ``home`` ([lat, lon, alt]), ``reject`` (list of commands,
+its error until then), ``sysid`` (1), ``home`` ([lat, lon, alt]; default: the drone's
+home in the fleet frame, :func:`fleet_lla_homes`), ``reject`` (list of commands,
 e.g. ``["MAV_CMD_NAV_LAND=FAILED"]``).  Each vehicle logs to
 ``<log_dir>/<drone>/sim-vehicle.log`` (its console to ``sim-vehicle.out``).
+
+One home per drone everywhere: every simulated vehicle stands where the fleet file
+puts its drone (``home_m``, ``home_lla``, or the default line 5 m apart), in WGS84
+around the fleet's origin (the first ``home_lla``, else eamos-sim-vehicle's own
+default home), so two of them are as far apart as ``eamos check`` assumes; and
+every MAVLink drone's node gets its ``home_m``, its ``home_lla`` and the fleet's
+``[safety]`` fence and ceiling (:func:`mavlink_fleet_settings`): the adapter logs the
+home in ``adapter.start`` (the monitor, the report and the replay place it there)
+and puts the fence on the vehicle.
 """
 
 from __future__ import annotations
@@ -27,11 +37,19 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from eamos.config import ConfigError
 from eamos.hal.api import AdapterError
+from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.settings import MavlinkSettings
+
+if TYPE_CHECKING:
+    from eamos.config import FleetConfig
+
+#: eamos-sim-vehicle's default home (``--home``): the fleet's origin when no drone
+#: has a ``home_lla``.
+SIM_VEHICLE_HOME = (46.6103, 14.2640, 450.0)
 
 SIM_VEHICLE_KEYS = frozenset(
     {
@@ -50,6 +68,42 @@ SIM_VEHICLE_KEYS = frozenset(
         "signing_key",  # MAVLink 2 signing: the fleet's key file
     }
 )
+
+
+def fleet_lla_homes(fleet: FleetConfig, drones: list[str]) -> dict[str, tuple[float, float, float]]:
+    """Each drone's home in WGS84 (lat, lon, alt AMSL), placed as ``fleet.homes`` places it
+    in the fleet frame: its ``home_lla``, else its fleet-frame home around the fleet's
+    origin (the first ``home_lla`` in ``drones``' order, else :data:`SIM_VEHICLE_HOME`)."""
+    homes = fleet.homes(drones)
+    lla = [d for d in drones if d in fleet.homes_lla]
+    if lla:
+        o = fleet.homes_lla[lla[0]]
+        origin = GeoFrame(o[0], o[1], o[2] if len(o) > 2 else SIM_VEHICLE_HOME[2])
+    else:
+        origin = GeoFrame(*SIM_VEHICLE_HOME)
+    out = {}
+    for d in drones:
+        given = fleet.homes_lla.get(d)
+        if given is not None:
+            out[d] = (given[0], given[1], given[2] if len(given) > 2 else origin.home_alt_m)
+        else:
+            lat, lon, _ = origin.to_lla(homes[d][0], homes[d][1], 0.0)
+            out[d] = (round(lat, 8), round(lon, 8), origin.home_alt_m)
+    return out
+
+
+def mavlink_fleet_settings(fleet: FleetConfig, drone: str, drones: list[str]) -> dict[str, Any]:
+    """What a MAVLink drone's node config gets from the fleet file: ``home_m`` (as the
+    check places it), ``home_lla`` when the fleet gives one, the ``[safety]`` geofence
+    and ceiling (put on the vehicle before its first arming)."""
+    out: dict[str, Any] = {"home_m": list(fleet.homes(drones)[drone])}
+    if drone in fleet.homes_lla:
+        out["home_lla"] = list(fleet.homes_lla[drone])
+    if fleet.safety.geofence_m:
+        out["geofence_m"] = [list(p) for p in fleet.safety.geofence_m]
+    if fleet.safety.max_altitude_m is not None:
+        out["max_altitude_m"] = fleet.safety.max_altitude_m
+    return out
 
 
 def free_port(kind: int) -> int:
@@ -167,14 +221,19 @@ def _vehicle_args(drone: str, spec: Any, speedup: float | None) -> list[str]:
 
 
 def start_sim_vehicles(
-    hals: Mapping[str, Mapping[str, Any]], log_dir: Path, speedup: float | None = None
+    hals: Mapping[str, Mapping[str, Any]],
+    log_dir: Path,
+    speedup: float | None = None,
+    homes: Mapping[str, tuple[float, float, float]] | None = None,
 ) -> SimVehicleFleet:
     """Start an ``eamos-sim-vehicle`` for every drone whose ``hal`` asks for one.
 
     ``hals`` maps each drone to its merged ``hal`` settings; the result's
     :meth:`SimVehicleFleet.hal_for` gives the settings to write into the
-    node's config.  Raises :class:`~eamos.config.ConfigError` for a bad
-    ``sim_vehicle`` table (no process is left running then).
+    node's config.  ``homes``: each drone's home in WGS84 (:func:`fleet_lla_homes`),
+    a vehicle's home unless its table names one.  Raises
+    :class:`~eamos.config.ConfigError` for a bad ``sim_vehicle`` table (no process
+    is left running then).
     """
     fleet = SimVehicleFleet({})
     plans: list[tuple[str, list[str], Path]] = []
@@ -191,6 +250,8 @@ def start_sim_vehicles(
                 "(eamos run picks a free port)"
             )
         args = _vehicle_args(drone, hal["sim_vehicle"], speedup)
+        if "--home" not in args and homes is not None and drone in homes:
+            args += ["--home", ",".join(repr(float(v)) for v in homes[drone])]
         if "--speedup" in args:
             # The vehicle's clock runs this much faster: the adapter scales its timeouts.
             node_hal.setdefault("speedup", float(args[args.index("--speedup") + 1]))
@@ -232,4 +293,12 @@ def start_sim_vehicles(
     return fleet
 
 
-__all__ = ["SIM_VEHICLE_KEYS", "SimVehicleFleet", "free_port", "start_sim_vehicles"]
+__all__ = [
+    "SIM_VEHICLE_HOME",
+    "SIM_VEHICLE_KEYS",
+    "SimVehicleFleet",
+    "fleet_lla_homes",
+    "free_port",
+    "mavlink_fleet_settings",
+    "start_sim_vehicles",
+]

@@ -29,6 +29,21 @@ Contract every adapter keeps:
 * ``abort()`` cancels every running action and lands the vehicle.
 * ``close()`` releases threads and sockets; it is idempotent.
 
+Two optional parts (an adapter without them has neither):
+
+* ``taken_over``: None, or a :class:`TakenOver` once a pilot has taken the vehicle
+  (a mode change that neither the adapter nor a documented failsafe made).  From
+  then on the adapter never commands that vehicle again, and whoever drives it
+  (the uniform API) asks nothing more of it: every action fails with
+  :meth:`TakenOver.reason`, and neither an abort nor ``close()`` lands, disarms or
+  restores a parameter.  :func:`taken_over` reads it.
+* ``facts()``: what the adapter knows about its vehicle for the run's summary, as
+  a small JSON object (whether its link was signed, where home is, a takeover);
+  :func:`vehicle_facts` reads it.
+* ``notices()``: what the operator must hear now, each :class:`AdapterNotice` once
+  (a pilot took the vehicle; telemetry slower than the adapter needs);
+  :func:`adapter_notices` reads them.
+
 Every adapter logs its position (``adapter.position``) at
 :data:`POSITION_LOG_HZ` of vehicle time while the position or the
 armed/landed flags change, so reports draw tracks from dense data.
@@ -39,7 +54,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 from eamos.program.plugins import PluginRegistry
 from eamos.program.uniform import Command
@@ -99,6 +114,88 @@ class ActionResult:
     @property
     def ok(self) -> bool:
         return self.status == "ok"
+
+
+#: How the reason of an action ends that a pilot's takeover stopped (and every later one).
+TAKEN_OVER_PREFIX = "taken over by the pilot"
+
+
+@dataclass(frozen=True)
+class TakenOver:
+    """A pilot took the vehicle: the mode they chose and where it was (mission frame, m).
+
+    ``mode`` is the autopilot's name for it (``LOITER``, ``POSCTL``); the position is
+    None where the vehicle had not reported one.
+    """
+
+    mode: str
+    x_m: float | None = None
+    y_m: float | None = None
+    z_m: float | None = None
+
+    def reason(self) -> str:
+        """Why actions of the vehicle fail from now on: ``taken over by the pilot (LOITER)``."""
+        return f"{TAKEN_OVER_PREFIX} ({self.mode})"
+
+    def where(self) -> str:
+        """``at (1.00, 2.00, 1.50)`` (m from its home), or ``""`` when unknown."""
+        if self.x_m is None or self.y_m is None or self.z_m is None:
+            return ""
+        return f"at ({self.x_m:.2f}, {self.y_m:.2f}, {self.z_m:.2f})"
+
+    def describe(self) -> str:
+        """``taken over by the pilot in LOITER at (1.00, 2.00, 1.50)``: the summary's words."""
+        where = self.where()
+        return f"{TAKEN_OVER_PREFIX} in {self.mode}" + (f" {where}" if where else "")
+
+    def to_json(self) -> dict[str, Any]:
+        return {"mode": self.mode, "x_m": self.x_m, "y_m": self.y_m, "z_m": self.z_m}
+
+    @classmethod
+    def from_json(cls, data: Any) -> TakenOver | None:
+        """The takeover a JSON object records (None for anything else)."""
+        if not isinstance(data, dict) or not isinstance(data.get("mode"), str):
+            return None
+
+        def number(key: str) -> float | None:
+            value = data.get(key)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                return None
+            return float(value)
+
+        return cls(data["mode"], number("x_m"), number("y_m"), number("z_m"))
+
+
+@dataclass(frozen=True)
+class AdapterNotice:
+    """Something the operator must hear while the mission flies (``kind``: ``taken_over``,
+    ``warning``), in words."""
+
+    kind: Literal["taken_over", "warning"]
+    text: str
+
+
+def adapter_notices(adapter: object) -> list[AdapterNotice]:
+    """The adapter's new ``notices()`` ([] for an adapter without them)."""
+    notices = getattr(adapter, "notices", None)
+    if not callable(notices):
+        return []
+    return [n for n in notices() if isinstance(n, AdapterNotice)]
+
+
+def taken_over(adapter: object) -> TakenOver | None:
+    """The adapter's :class:`TakenOver` (None: no pilot has its vehicle, or it cannot tell)."""
+    value = getattr(adapter, "taken_over", None)
+    return value if isinstance(value, TakenOver) else None
+
+
+def vehicle_facts(adapter: object) -> dict[str, Any]:
+    """The adapter's ``facts()`` for the run's summary ({} for an adapter without them)."""
+    facts = getattr(adapter, "facts", None)
+    if not callable(facts):
+        return {}
+    value = facts()
+    return dict(value) if isinstance(value, dict) else {}
 
 
 _handle_ids = itertools.count(1)

@@ -9,6 +9,15 @@ more (a limit only the graph phases see), its findings replace them: the editor 
 exactly what ``eamos compile`` prints.  A handler that
 fails logs the error (to the editor's log and to stderr) and answers empty: a bug of ours
 must not take the editor's language support down.
+
+The transport is this module's own (:meth:`MissionServer.start_io`, :mod:`.framing`):
+pygls' reader goes silent after one frame with a wrong ``Content-Length``, and a
+request whose params do not fit their type gets no answer from it at all.  Here every
+frame is read by :class:`~.framing.FrameReader`, which finds its way back to the next
+header; a request that cannot be decoded, or whose params do not fit, is answered with
+a JSON-RPC error (parse error, invalid request, invalid params); everything else goes
+to pygls' protocol (``structure_message``, ``handle_message``) as its own reader would
+hand it over.
 """
 
 from __future__ import annotations
@@ -16,13 +25,15 @@ from __future__ import annotations
 import asyncio
 import functools
 import logging
+import sys
 import urllib.parse
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, BinaryIO, TypeVar
 
 from lsprotocol import types as lsp
+from pygls.io_ import StdoutWriter
 from pygls.lsp.server import LanguageServer
 
 from .. import __version__
@@ -31,6 +42,7 @@ from .document import Finding, MissionIndex, Span, checked_findings, findings
 from .features import definition, hover, library_block_at, references, rename, symbols
 from .libraries import LibraryBlock
 from .positions import Encoding, LineIndex, Point
+from .transport import Transport
 
 log = logging.getLogger("eamos.lsp")
 
@@ -95,6 +107,26 @@ class MissionServer(LanguageServer):
         caps = self.client_capabilities.text_document
         item = caps.completion.completion_item if caps and caps.completion else None
         return bool(item and item.snippet_support)
+
+    # -- the transport: framing errors survived, every request answered -----------------
+
+    def tell(self, text: str) -> None:
+        """Show the editor a problem with what it sent (as pygls' own reader does)."""
+        self.window_show_message(lsp.ShowMessageParams(lsp.MessageType.Error, text))
+
+    def start_io(self, stdin: BinaryIO | None = None, stdout: BinaryIO | None = None) -> None:
+        """Serve the editor on ``stdin``/``stdout`` until it closes them or says ``exit``."""
+        writer = StdoutWriter(stdout or sys.stdout.buffer)
+        self.protocol.set_writer(writer)
+        transport = Transport(self.protocol, writer, self.tell)
+        try:
+            asyncio.run(transport.serve(stdin or sys.stdin.buffer))
+        except BrokenPipeError:
+            log.error("eamos lsp: the editor went away")
+        except (KeyboardInterrupt, SystemExit):
+            pass  # "exit" from the editor (pygls raises SystemExit), or Ctrl-C
+        finally:
+            self.shutdown()
 
 
 def to_range(lines: LineIndex, span: Span) -> lsp.Range:
@@ -333,9 +365,10 @@ class _OneLine(logging.Formatter):
         if self.verbose:
             return super().format(record)
         brief = logging.makeLogRecord(record.__dict__)
+        # pygls puts tracebacks in some messages' text: the first line only.
+        brief.msg, brief.args = record.getMessage().split("\n", 1)[0], None
         if record.exc_info and record.exc_info[1] is not None:
-            brief.msg = f"{record.getMessage()}: {record.exc_info[1]!r}"
-            brief.args = None
+            brief.msg = f"{brief.msg}: {record.exc_info[1]!r}"
         brief.exc_info = brief.exc_text = None
         brief.stack_info = None
         return super().format(brief)

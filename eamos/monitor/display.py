@@ -72,8 +72,9 @@ def start_live_monitor(
     """Serve the monitor of the run in ``run_dir`` (its programs and graphs already there).
 
     An abort with the run's token sets ``stop`` (the run loop aborts: every
-    drone lands); every request, accepted or not, is logged with its origin to
-    ``run_dir/logs/monitor.log`` and told with ``say``.
+    drone lands); it is logged with its origin to ``run_dir/logs/monitor.log`` and told
+    with ``say``, as are refused requests, those at a bounded rate (the first three,
+    then one line per 10 s with how many more: see :class:`~.server.RefusalLimiter`).
     """
     log = make_logger(run_dir / "logs" / "monitor.log", drone="monitor")
     hub = Hub(load_setup(run_dir, homes))
@@ -87,7 +88,13 @@ def start_live_monitor(
             log.warning("monitor.abort.refused", origin=origin, reason="not the run's token")
             say(f"abort refused (not the run's token) from the {origin}")
 
-    server = MonitorServer(hub, host=host, port=port, on_abort=on_abort).start()
+    def on_problem(text: str) -> None:
+        log.warning("monitor.refused", detail=text)
+        say(f"monitor: {text}")
+
+    server = MonitorServer(
+        hub, host=host, port=port, on_abort=on_abort, on_problem=on_problem
+    ).start()
     log.info("monitor.start", url=f"http://{host}:{server.port}/")
     say(f"monitor: {server.url}")
     if open_browser:

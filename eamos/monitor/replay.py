@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import bisect
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -219,9 +220,19 @@ def load_replay(run_dir: Path) -> Replay:
     return Replay(setup, summary, events)
 
 
-def serve_replay(run_dir: Path, *, port: int = 0, host: str = "127.0.0.1") -> MonitorServer:
-    """Serve the replay of ``run_dir``; the server is started (stop it with ``stop()``)."""
+def serve_replay(
+    run_dir: Path,
+    *,
+    port: int = 0,
+    host: str = "127.0.0.1",
+    on_problem: Callable[[str], None] | None = None,
+) -> MonitorServer:
+    """Serve the replay of ``run_dir``; the server is started (stop it with ``stop()``).
+
+    ``on_problem`` is told of refused requests (another site's page), at a bounded rate.
+    """
     replay = load_replay(run_dir)
     hub = Hub(replay.setup)
     hub.state = replay.model_at(replay.end)
-    return MonitorServer(hub, host=host, port=port, replay=replay).start()
+    server = MonitorServer(hub, host=host, port=port, replay=replay, on_problem=on_problem)
+    return server.start()

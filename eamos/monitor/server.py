@@ -16,6 +16,17 @@ microseconds) and schedule a wake-up of the loop.  Routes:
                        the page sends ``{"type": "seek", "t"}`` and gets a snapshot
 ``POST /api/abort``    ``{"token"}``: abort the run (403 without the run's token)
 =====================  =================================================================
+
+What it lets in (docs/monitor.md, "What the server refuses"): a ``Host`` naming this
+machine's loopback (or the address it listens on) only, so a DNS-rebinding page gets
+nothing (Starlette's ``TrustedHostMiddleware``); an ``Origin``, when a browser sends one,
+only this page's own (:func:`same_origin`), so no page of another site reads the state
+over the websocket or aborts; an abort body of at most :data:`MAX_BODY_BYTES`, read in
+pieces and JSON (``application/json``, which a page of another site cannot send without
+a preflight nobody answers); page messages of at most :data:`MAX_WS_MESSAGE_BYTES`; at
+most :data:`MAX_CONNECTIONS` at once.  What it refuses is told to the terminal at most
+once per :data:`REFUSALS_EVERY_S` after the first :data:`REFUSALS_FIRST`, with a count
+(:class:`RefusalLimiter`).
 """
 
 from __future__ import annotations
@@ -27,6 +38,7 @@ import secrets
 import socket
 import threading
 import time
+import urllib.parse
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
@@ -45,6 +57,51 @@ if TYPE_CHECKING:
 TICK_S = 0.1
 #: The page's files (package data).
 STATIC_FILES = {"monitor.js": "text/javascript", "monitor.css": "text/css"}
+#: The largest request body read (an abort is ``{"token": "..."}``: some 40 bytes).
+MAX_BODY_BYTES = 4096
+#: The largest message a page may send over the websocket (a replay's seek).
+MAX_WS_MESSAGE_BYTES = 65_536
+#: Connections served at once (one operator's pages); more are answered 503.
+MAX_CONNECTIONS = 64
+#: Refusals told to the terminal one by one, then at most one line per period.
+REFUSALS_FIRST = 3
+REFUSALS_EVERY_S = 10.0
+#: The host names a page of this machine's monitor may use (any port: an SSH tunnel's too).
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "[::1]")
+
+
+def same_origin(origin: str | None, host: str | None) -> bool:
+    """Whether a request's ``Origin`` is the page's own (its host and port are the
+    request's ``Host``); True without an ``Origin`` (not a browser's cross-site request:
+    browsers send it with every websocket and every cross-site request)."""
+    if origin is None:
+        return True
+    if not host or origin == "null":
+        return False
+    parts = urllib.parse.urlsplit(origin)
+    return parts.scheme in ("http", "https") and parts.netloc.lower() == host.lower()
+
+
+class RefusalLimiter:
+    """Which refusals to tell: the first :data:`REFUSALS_FIRST`, then one per
+    :data:`REFUSALS_EVERY_S` with how many were not told since.  Pure (time is given)."""
+
+    def __init__(self, first: int = REFUSALS_FIRST, every_s: float = REFUSALS_EVERY_S) -> None:
+        self.first = first
+        self.every_s = every_s
+        self.count = 0
+        self.untold = 0
+        self._last_told = float("-inf")
+
+    def tell(self, now: float) -> int | None:
+        """None: keep this one quiet; else how many were kept quiet before it."""
+        self.count += 1
+        if self.count > self.first and now - self._last_told < self.every_s:
+            self.untold += 1
+            return None
+        self._last_told = now
+        untold, self.untold = self.untold, 0
+        return untold
 
 
 def _static(name: str) -> str:
@@ -73,8 +130,10 @@ class _Client:
 class MonitorServer:
     """Serve the monitor page for ``hub`` (live) or ``replay`` on ``host:port`` in a thread.
 
-    ``on_abort(origin, accepted)`` is told of every abort request; only an
-    accepted one (with ``token``) should stop the run.
+    ``on_abort(origin, accepted)`` is told of every accepted abort request (which should
+    stop the run) and of refused ones as :class:`RefusalLimiter` lets through (with how
+    many were refused meanwhile in ``origin``); ``on_problem(text)`` of the other requests
+    refused (another site's page) and of the server's own failures, limited alike.
     """
 
     def __init__(
@@ -86,12 +145,19 @@ class MonitorServer:
         token: str | None = None,
         on_abort: Callable[[str, bool], None] | None = None,
         replay: ReplaySource | None = None,
+        on_problem: Callable[[str], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.hub = hub
         self.host = host
         self.port = port
         self.token = token or secrets.token_urlsafe(16)
         self.on_abort = on_abort
+        self.on_problem = on_problem
+        self.clock = clock
+        self.refusals = RefusalLimiter()
+        self.refused = 0  # requests refused, every kind
+        self.problems = 0  # the server's own failures (its flush timer)
         self.replay = replay
         self.bytes_sent = 0
         self.messages_sent = 0
@@ -128,7 +194,12 @@ class MonitorServer:
         self._socket = sock
         self.port = sock.getsockname()[1]
         config = uvicorn.Config(
-            self.app(), log_level="warning", ws="websockets-sansio", lifespan="on"
+            self.app(),
+            log_level="warning",
+            ws="websockets-sansio",
+            lifespan="on",
+            ws_max_size=MAX_WS_MESSAGE_BYTES,
+            limit_concurrency=MAX_CONNECTIONS,
         )
         self._server = uvicorn.Server(config)
         self._thread = threading.Thread(
@@ -219,7 +290,17 @@ class MonitorServer:
                 self._closing.set()
                 await ticker
 
+        from starlette.middleware import Middleware
+        from starlette.middleware.trustedhost import TrustedHostMiddleware
+
+        hosts = [*LOOPBACK_HOSTS]
+        if self.host not in ("0.0.0.0", "::", ""):
+            hosts.append(f"[{self.host}]" if ":" in self.host else self.host)
         return Starlette(
+            middleware=[
+                Middleware(TrustedHostMiddleware, allowed_hosts=hosts, www_redirect=False),
+                Middleware(_OriginGuard, server=self),
+            ],
             routes=[
                 Route("/", self._page),
                 Route("/static/{name}", self._file),
@@ -246,12 +327,17 @@ class MonitorServer:
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(closing.wait(), TICK_S)
             if self.replay is None and not closing.is_set():
-                self.hub.tick()
-                # Events never wake the pages (a thread switch per event would cost the
-                # ground station); what arrived since the last tick goes out now, at once.
-                if self.hub.seq != sent:
-                    sent = self.hub.seq
-                    self._notify()
+                try:
+                    self.hub.tick()
+                    # Events never wake the pages (a thread switch per event would cost
+                    # the ground station); what arrived since the last tick goes out now.
+                    if self.hub.seq != sent:
+                        sent = self.hub.seq
+                        self._notify()
+                # One failing tick must not stop the timer: the pages would freeze.
+                except Exception as exc:
+                    self.problems += 1
+                    self.problem(f"the monitor's flush timer failed: {exc!r:.200}")
 
     async def _page(self, request: Request) -> Response:
         from starlette.responses import HTMLResponse
@@ -291,23 +377,54 @@ class MonitorServer:
     async def _abort(self, request: Request) -> Response:
         from starlette.responses import JSONResponse
 
-        try:
-            body = await request.json()
-        except ValueError:
-            body = {}
-        token = body.get("token") if isinstance(body, dict) else None
         peer = request.client
         agent = request.headers.get("user-agent", "?")
         origin = f"monitor page at {peer.host}:{peer.port} ({agent[:60]})" if peer else "monitor"
         if self.replay is not None:
             return JSONResponse({"ok": False, "error": "a replay cannot abort"}, status_code=409)
+        kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        if kind != "application/json":
+            self.refuse(origin, "the body is not application/json")
+            return JSONResponse({"ok": False, "error": "send JSON"}, status_code=415)
+        body = await _bounded_body(request, MAX_BODY_BYTES)
+        if body is None:
+            self.refuse(origin, f"a body over {MAX_BODY_BYTES} bytes")
+            return JSONResponse({"ok": False, "error": "body too large"}, status_code=413)
+        try:
+            data = json.loads(body)
+        except (ValueError, RecursionError):
+            data = None
+        token = data.get("token") if isinstance(data, dict) else None
         accepted = isinstance(token, str) and secrets.compare_digest(token, self.token)
-        self.hub.abort_request(origin, accepted)
-        if self.on_abort is not None:
-            self.on_abort(origin, accepted)
-        if not accepted:
-            return JSONResponse({"ok": False, "error": "not the run's token"}, status_code=403)
-        return JSONResponse({"ok": True})
+        if accepted:
+            self.hub.abort_request(origin, True)
+            if self.on_abort is not None:
+                self.on_abort(origin, True)
+            return JSONResponse({"ok": True})
+        self.refuse(origin, "not the run's token", abort=True)
+        return JSONResponse({"ok": False, "error": "not the run's token"}, status_code=403)
+
+    # -- refusals and problems, told at a bounded rate -----------------------------------
+
+    def refuse(self, origin: str, why: str, abort: bool = False) -> None:
+        """A request refused: counted; told (and an abort recorded) as the limiter lets."""
+        self.refused += 1
+        untold = self.refusals.tell(self.clock())
+        if untold is None:
+            return
+        more = f"; {untold} more refused since" if untold else ""
+        if abort:
+            self.hub.abort_request(origin + more, False)
+            if self.on_abort is not None:
+                self.on_abort(origin + more, False)
+        elif self.on_problem is not None:
+            self.on_problem(f"refused a request from the {origin}: {why}{more}")
+
+    def problem(self, text: str) -> None:
+        """The server's own failure: told as the limiter lets (never raised to the loop)."""
+        if self.refusals.tell(self.clock()) is not None and self.on_problem is not None:
+            with contextlib.suppress(Exception):
+                self.on_problem(text)
 
     # -- the websocket ----------------------------------------------------------------------
 
@@ -363,3 +480,46 @@ class MonitorServer:
         finally:
             client.closed = True
             client.wake.set()
+
+
+async def _bounded_body(request: Request, limit: int) -> bytes | None:
+    """The request's body, read in pieces (Starlette's ``request.stream()``); None as soon
+    as it is over ``limit`` bytes (declared or sent), the rest never read."""
+    declared = request.headers.get("content-length")
+    if declared is not None and (not declared.isdigit() or int(declared) > limit):
+        return None
+    body = bytearray()
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > limit:
+            return None
+    return bytes(body)
+
+
+class _OriginGuard:
+    """ASGI middleware: a request (or websocket) whose ``Origin`` is not the page's own is
+    refused (HTTP 403; a websocket is closed before it is accepted) and told."""
+
+    def __init__(self, app: Any, server: MonitorServer) -> None:
+        self.app = app
+        self.server = server
+
+    async def __call__(self, scope: dict[str, Any], receive: Any, send: Any) -> None:
+        if scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope["headers"]}
+        origin = headers.get("origin")
+        if same_origin(origin, headers.get("host")):
+            await self.app(scope, receive, send)
+            return
+        client = scope.get("client")
+        where = f"page of {origin!r:.80}" + (f" at {client[0]}:{client[1]}" if client else "")
+        self.server.refuse(where, f"another site's page ({scope['path']!r:.60})")
+        if scope["type"] == "websocket":
+            await send({"type": "websocket.close", "code": 1008})
+            return
+        from starlette.responses import JSONResponse
+
+        refusal = JSONResponse({"ok": False, "error": "another site's page"}, status_code=403)
+        await refusal(scope, receive, send)

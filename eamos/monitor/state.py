@@ -25,6 +25,10 @@ Patch kinds (``k``):
   ``aborting``, then the outcome word: ``finished``, ``failed``, ``aborted``,
   ``timed out``), its start and end times.
 
+A MAVLink drone a pilot took over (``Progress`` ``taken_over``, or its report's
+``vehicle.taken_over`` at the end) shows the mode ``taken over (LOITER)`` from then
+on, whatever its telemetry says, and ``taken_over`` holds the words.
+
 The ground station hears about action and Wait nodes (``Progress``); a node
 that ran implies that a predecessor it has alone finished ``done`` (forks,
 the If before a branch); the final state of every node comes from the
@@ -41,6 +45,7 @@ from typing import Any
 
 from eamos.ground.display import format_event
 from eamos.ground.summary import DroneReport, RunSummary
+from eamos.hal.api import TAKEN_OVER_PREFIX, TakenOver
 from eamos.net import wire
 from eamos.net.effects import PeerStatus
 from eamos.program.uniform import GROUND_STATION
@@ -128,6 +133,7 @@ class DroneLive:
     resolved: bool = False
     triggers_sent: int | None = None
     triggers_received: int | None = None
+    taken_over: str = ""  # "taken over by the pilot in LOITER at (...)" once a pilot has it
     trail: list[list[float]] = field(default_factory=list)  # [t, x, y, z]
     sent_trail: int = 0  # trail points already in a drone patch
 
@@ -150,7 +156,13 @@ class DroneLive:
             "resolved": self.resolved,
             "triggers_sent": self.triggers_sent,
             "triggers_received": self.triggers_received,
+            "taken_over": self.taken_over,
         }
+
+    def take(self, mode: str, words: str) -> None:
+        """A pilot has the vehicle (in ``mode``): its panel says so from now on."""
+        self.mode = f"taken over ({mode})" if mode else "taken over"
+        self.taken_over = words
 
 
 class MonitorState:
@@ -233,7 +245,7 @@ class MonitorState:
                 drone.heading_deg = round(math.degrees(math.atan2(dy, dx)), 1)
         drone.x, drone.y, drone.z = x, y, z
         drone.battery, drone.armed, drone.landed = msg.battery_pct, msg.armed, msg.landed
-        if drone.mode not in ("resolved", "reported"):
+        if drone.mode not in ("resolved", "reported") and not drone.taken_over:
             drone.mode = "disarmed" if not msg.armed else ("landed" if msg.landed else "flying")
         last = drone.trail[-1] if drone.trail else None
         if (
@@ -252,9 +264,14 @@ class MonitorState:
     def _progress(self, name: str, msg: wire.Progress, now: float) -> list[dict[str, Any]]:
         out: list[dict[str, Any]] = []
         drone = self.drones.get(name)
+        detail = msg.detail if isinstance(msg.detail, dict) else {}
+        if msg.state in ("taken_over", "warning"):  # about the vehicle, not a node
+            if drone is not None and msg.state == "taken_over":
+                words = str(detail.get("detail") or msg.action)
+                drone.take(_taken_mode(words), words)
+            return out
         if drone is not None:
             drone.action, drone.node = msg.action, msg.node
-        detail = msg.detail if isinstance(msg.detail, dict) else {}
         iteration = detail.get("iteration") or []
         state = PROGRESS_TO_NODE.get(msg.state)
         if state is None:
@@ -347,6 +364,9 @@ class MonitorState:
             drone.triggers_sent = report.triggers_sent
             drone.triggers_received = report.triggers_received
             drone.mode = "reported"
+            taken = TakenOver.from_json(report.vehicle.get("taken_over"))
+            if taken is not None:
+                drone.take(taken.mode, taken.describe())
             if report.final is not None:
                 part = self.setup.participant(name)
                 hx, hy = part.home if part is not None else (0.0, 0.0)
@@ -463,6 +483,12 @@ class MonitorState:
     def node_states(self) -> dict[str, str]:
         """Every node's current state, by key."""
         return {k: v["state"] for k, v in self.nodes.items()}
+
+
+def _taken_mode(words: str) -> str:
+    """The mode in "taken over by the pilot in LOITER at (...)" ("" when not there)."""
+    _, _, rest = words.partition(f"{TAKEN_OVER_PREFIX} in ")
+    return rest.split(" ", 1)[0].rstrip(":") if rest else ""
 
 
 def link_key(src: str, dst: str) -> str:

@@ -90,6 +90,14 @@ class InBridge(BridgeThread):
     on the receive thread after each batch of messages (the reliability layer
     acknowledges there, once per batch instead of once per message).
 
+    No message stops the receive thread: whatever one message raises, in the
+    decoder, the filters or ``on_message`` (any exception, ``SystemExit``
+    included), is logged once (``net.in.message_error``, or
+    ``net.in.callback_error`` for the consumer; the first
+    :data:`~eamos.net.sockets.LOG_FIRST`, then every
+    :data:`~eamos.net.sockets.LOG_EVERY`-th), counted in :attr:`message_errors`
+    or :attr:`callback_errors`, and the thread goes on with the next message.
+
     A peer in ``announced`` is connected only once it announces itself
     (:meth:`announce`: it subscribed to this participant's Out-Bridge, so it
     listens), not retried while it is not up yet (:mod:`eamos.net.reconnect`).
@@ -185,6 +193,7 @@ class InBridge(BridgeThread):
         self._ignored = 0
         self._superseded = 0
         self._callback_errors = 0
+        self._message_errors = 0
         self._thread = threading.Thread(target=self._run, name="eamos-inbridge", daemon=True)
 
     def _close_sockets(self) -> None:
@@ -272,8 +281,18 @@ class InBridge(BridgeThread):
 
     @property
     def callback_errors(self) -> int:
-        """Calls of ``on_message`` that raised."""
+        """Calls of ``on_message`` (or ``on_batch_end``) that raised."""
         return self._callback_errors
+
+    @property
+    def message_errors(self) -> int:
+        """Messages whose filtering or decoding raised something unexpected (not a drop)."""
+        return self._message_errors
+
+    @property
+    def alive(self) -> bool:
+        """Whether the receive thread runs (started and not stopped)."""
+        return self._thread.is_alive()
 
     @property
     def auth_failures(self) -> int:
@@ -312,8 +331,8 @@ class InBridge(BridgeThread):
                 if delivered and self._on_batch_end is not None:
                     try:
                         self._on_batch_end()
-                    except Exception:
-                        self._log.exception("net.in.callback_error", type="batch_end")
+                    except BaseException as exc:  # see _handle
+                        self._consumer_failed(exc, type="batch_end")
         except zmq.ContextTerminated:
             self._log.warning("net.in.context_terminated")
         except zmq.ZMQError:
@@ -352,29 +371,63 @@ class InBridge(BridgeThread):
         return bool(batch)
 
     def _handle(self, frames: list[bytes], peer: str = "") -> None:
-        """Filter, decode and deliver one received multipart message from ``peer``."""
-        if not self._wanted(frames[0]):
-            self._ignored += 1
-            return
+        """Filter, decode and deliver one received multipart message from ``peer``.
+
+        Never raises: one message must not stop the receive thread, which would
+        cut this participant off from the mission for good.  A ``SystemExit`` or
+        ``KeyboardInterrupt`` raised on this thread (by a consumer's bug) is no
+        request to stop it either: the process's own signals reach its main thread.
+        """
         try:
-            msg = decode(frames)
-        except WireError as exc:
-            self._drop(exc.reason, frames[0], str(exc), peer=peer)
+            msg = self._accepted(frames, peer)
+        except BaseException as exc:  # any exception of one message
+            self._message_errors += 1
+            if should_log(self._message_errors):
+                self._log.error(
+                    "net.in.message_error",
+                    error=f"{type(exc).__name__}: {exc}"[:300],
+                    topic=frames[0][:64].decode("utf-8", "replace") if frames else "",
+                    peer=peer,
+                    errors=self._message_errors,
+                    exc_info=exc,
+                )
             return
-        if msg.mission != self.mission:
-            self._drop("other_mission", frames[0], msg.mission, sender=msg.sender, peer=peer)
-            return
-        if self._check_sender and msg.sender != peer:
-            self._drop("sender", frames[0], f"{msg.sender!r} on {peer!r}'s link", peer=peer)
+        if msg is None:
             return
         self._received += 1
         try:
             self._on_message(msg)
-        # Any failure in the consumer must not kill the receive thread: that
-        # would silently cut this participant off from the mission.
-        except Exception:
-            self._callback_errors += 1
-            self._log.exception("net.in.callback_error", type=type(msg).__name__, sender=msg.sender)
+        except BaseException as exc:  # a consumer's failure is its own
+            self._consumer_failed(exc, type=type(msg).__name__, sender=msg.sender)
+
+    def _accepted(self, frames: list[bytes], peer: str) -> Message | None:
+        """The message ``frames`` carry if it is for us (else None, counted and logged)."""
+        if not self._wanted(frames[0]):
+            self._ignored += 1
+            return None
+        try:
+            msg = decode(frames)
+        except WireError as exc:
+            self._drop(exc.reason, frames[0], str(exc), peer=peer)
+            return None
+        if msg.mission != self.mission:
+            self._drop("other_mission", frames[0], msg.mission, sender=msg.sender, peer=peer)
+            return None
+        if self._check_sender and msg.sender != peer:
+            self._drop("sender", frames[0], f"{msg.sender!r} on {peer!r}'s link", peer=peer)
+            return None
+        return msg
+
+    def _consumer_failed(self, exc: BaseException, **fields: Any) -> None:
+        self._callback_errors += 1
+        if should_log(self._callback_errors):
+            self._log.error(
+                "net.in.callback_error",
+                error=f"{type(exc).__name__}: {exc}"[:300],
+                errors=self._callback_errors,
+                exc_info=exc,
+                **fields,
+            )
 
     def _drop(self, reason: str, topic: bytes, detail: str, **extra: Any) -> None:
         self._dropped += 1

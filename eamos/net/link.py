@@ -18,6 +18,12 @@ link's wire order is its seq order; the application callback runs outside it.
 
 Local events (never on the wire) are passed to ``on_message`` with the
 messages: :class:`PeerStatus` and :class:`TelemetryStale`.
+
+Neither thread stops for one message or one tick: an exception of the
+application's callback is logged and counted (:attr:`LinkDriver.delivery_errors`),
+and one of the timer's turn is logged and counted (:attr:`LinkDriver.timer_errors`),
+after which the timer waits one heartbeat period and goes on (the In-Bridge
+does the same for every received message: :class:`~eamos.net.in_bridge.InBridge`).
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ from eamos.net.out_bridge import OutBridge
 from eamos.net.reports import ReportJoiner
 from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
+from eamos.net.sockets import should_log
 from eamos.net.transport import InSide, OutSide, Transport, ZmqTransport
 
 __all__ = ["Delivered", "Link", "LinkDriver", "LinkSettings", "PeerStatus", "TelemetryStale"]
@@ -86,6 +93,7 @@ class LinkDriver(Generic[OutT, InT]):
         self._flush_waiters = 0
         self._on_message: Callable[[Delivered], None] = lambda msg: None
         self.delivery_errors = 0
+        self.timer_errors = 0
         self.peer_events: list[dict[str, Any]] = []
         self._reports = ReportJoiner()  # ReportParts arrive on the receive thread only
         self.out: OutT = transport.open_out(self._on_subscription)
@@ -197,9 +205,18 @@ class LinkDriver(Generic[OutT, InT]):
                     continue
             try:
                 self._on_message(item)
-            except Exception:  # a consumer bug must not cut this participant off
+            # A consumer's bug (whatever it raises, on this thread) must not cut
+            # this participant off: logged, counted, and the next message goes on.
+            except BaseException as exc:
                 self.delivery_errors += 1
-                self.log.exception("net.in.callback_error", type=type(item).__name__)
+                if should_log(self.delivery_errors):
+                    self.log.error(
+                        "net.in.callback_error",
+                        type=type(item).__name__,
+                        error=f"{type(exc).__name__}: {exc}"[:300],
+                        errors=self.delivery_errors,
+                        exc_info=exc,
+                    )
 
     # -- sending ------------------------------------------------------------------------
 
@@ -263,20 +280,40 @@ class LinkDriver(Generic[OutT, InT]):
     # -- timer thread --------------------------------------------------------------------
 
     def _run(self) -> None:
-        try:
-            while True:
+        while True:
+            try:
+                if not self._turn():
+                    return
+            # A bug in one turn (the session's tick, a delivery) must not stop the
+            # timer: no retransmission, heartbeat or liveness check would follow.
+            except BaseException as exc:
+                self.timer_errors += 1
+                if should_log(self.timer_errors):
+                    self.log.error(
+                        "net.link.timer_error",
+                        error=f"{type(exc).__name__}: {exc}"[:300],
+                        errors=self.timer_errors,
+                        exc_info=exc,
+                    )
+                # Not at once again: a turn that keeps failing must not spin a core.
                 with self._cond:
                     if self.session.closed:
                         return
-                    actions, deadline = self.session.on_tick(self.clock())
-                    _, later = self._execute(actions)
-                    if not later:
-                        self._next_wake = deadline
-                        self._wake.wait(max(0.0, deadline - self.clock()))
-                        self._next_wake = float("-inf")  # awake: nobody needs to kick
-                self._deliver(later)
-        except Exception:  # pragma: no cover - a bug; say so rather than die silently
-            self.log.exception("net.link.timer_error")
+                    self._wake.wait(self.settings.heartbeat_s)
+
+    def _turn(self) -> bool:
+        """One turn of the timer: the session's tick, then a wait; False once closed."""
+        with self._cond:
+            if self.session.closed:
+                return False
+            actions, deadline = self.session.on_tick(self.clock())
+            _, later = self._execute(actions)
+            if not later:
+                self._next_wake = deadline
+                self._wake.wait(max(0.0, deadline - self.clock()))
+                self._next_wake = float("-inf")  # awake: nobody needs to kick
+        self._deliver(later)
+        return True
 
     # -- results and shutdown ------------------------------------------------------------------
 
@@ -348,6 +385,11 @@ class LinkDriver(Generic[OutT, InT]):
                 "abandoned": c.abandoned,
                 "dropped": dropped,
                 "telemetry_superseded": int(getattr(inb, "superseded", 0)),
+                # Messages (or turns) that raised and were skipped: each one logged.
+                "receive_errors": int(getattr(inb, "message_errors", 0))
+                + int(getattr(inb, "callback_errors", 0))
+                + self.delivery_errors,
+                "timer_errors": self.timer_errors,
                 "auth_denied": self.transport.auth_denied,
                 "auth_failures": self.out.auth_failures
                 + (inb.auth_failures if inb is not None else 0),

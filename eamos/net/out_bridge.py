@@ -146,7 +146,8 @@ class OutBridge(BridgeThread):
         return self.send_frames(frames, type(msg).__name__)
 
     def send_frames(self, frames: list[bytes], name: str = "raw") -> bool:
-        """Publish already encoded ``frames`` (``[topic, payload]``), counted under ``name``."""
+        """Publish already encoded ``frames`` (``[topic, payload]``, or any multipart message
+        a test sends raw), counted under ``name``."""
         with self._lock:
             if self._closed or not self._tx_open:
                 self._log.info("net.out.send_after_close", type=name)
@@ -158,7 +159,7 @@ class OutBridge(BridgeThread):
             # edge-triggered) with a subscription waiting: hand it to the thread.
             if self._started and self._xpub.getsockopt(EVENTS_OPT) & POLLIN_BIT:
                 self._ctrl_tx.send(CMD_WAKE)
-            size = len(frames[0]) + len(frames[1])
+            size = sum(len(frame) for frame in frames)  # raw frames may be any number
             self._sent_counts[name] = self._sent_counts.get(name, 0) + 1
             self._sent_bytes_by_type[name] = self._sent_bytes_by_type.get(name, 0) + size
             self._sent_bytes += size

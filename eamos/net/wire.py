@@ -1,4 +1,4 @@
-"""The EAMOS wire format, version 4: the only place messages become bytes and back.
+"""The EAMOS wire format, version 5: the only place messages become bytes and back.
 
 Every message crossing the network between participants (drones and the ground
 station) is one of the frozen :class:`msgspec.Struct` types below.  On the wire it is a two-frame
@@ -27,7 +27,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   =====  ======  ========================================================
   key    type    meaning
   =====  ======  ========================================================
-  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 4)
+  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 5)
   ``t``  str     message type code (table below)
   ``m``  str     mission id; receivers drop messages of other missions
   ``s``  str     sender: name of the participant that sent the message
@@ -65,7 +65,9 @@ ZeroMQ multipart message ``[topic, payload]``:
   ``rdy``    Ready           dest                    ``d``     str (default ``"GCS"``)
                              program_checksum        ``ck``    str
                              seq                     ``q``     int >= 0
-  ``sta``    Start           seq                     ``q``     int >= 0, broadcast sequence
+  ``sta``    Start           deployment              ``dp``    str, the roll-out it starts
+                                                               (<= 64 of A-Za-z0-9._-)
+                             seq                     ``q``     int >= 0, broadcast sequence
   ``abt``    Abort           reason                  ``r``     str
                              seq                     ``q``     int >= 0, broadcast sequence
   ``cmp``    Complete        seq                     ``q``     int >= 0, broadcast sequence;
@@ -156,7 +158,7 @@ Version history: 1 (first format); 2 adds ``q`` (sequence numbers), Ack and
 Heartbeat for reliable delivery and peer liveness; 3 adds the incarnation
 (``n`` in every message, ``di`` in Ack, ``ki`` in Heartbeat) so that peers
 resynchronise with a restarted participant; 4 adds ReportPart (reports of any
-size, in parts).
+size, in parts); 5 adds Start's deployment (``dp``).
 """
 
 from __future__ import annotations
@@ -207,7 +209,7 @@ __all__ = [
     "unpack_bounded",
 ]
 
-WIRE_VERSION: Final = 4
+WIRE_VERSION: Final = 5
 """Version of this format, carried in every payload under key ``v``."""
 
 GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground station
@@ -272,6 +274,7 @@ SeqMap: TypeAlias = Annotated[dict[Name, Seq], msgspec.Meta(max_length=_MAX_CONT
 PlainMap: TypeAlias = Annotated[dict[str, Any], msgspec.Meta(max_length=_MAX_CONTAINER_LEN)]
 """A str-keyed map of plain data; its nesting is bounded by :func:`plain_map` (no type can
 say it without recursing)."""
+DeploymentId: TypeAlias = Annotated[str, msgspec.Meta(pattern="^[A-Za-z0-9._-]{0,64}$")]
 PartCount: TypeAlias = Annotated[int, msgspec.Meta(ge=1, le=MAX_REPORT_PARTS)]
 PartData: TypeAlias = Annotated[bytes, msgspec.Meta(max_length=REPORT_PART_BYTES)]
 TriggerStatus: TypeAlias = Literal["done", "skipped", "failed"]
@@ -297,7 +300,7 @@ class _Base(_Fields, frozen=True, kw_only=True):
     KIND: ClassVar[str] = ""
 
     # In every payload; decode reads it before anything else (a WireError "version").
-    version: Literal[4] = msgspec.field(default=WIRE_VERSION, name="v")
+    version: Literal[5] = msgspec.field(default=WIRE_VERSION, name="v")
     # The session stamps it on sending.
     incarnation: Seq = msgspec.field(default=0, name="n")
 
@@ -366,10 +369,11 @@ class Ready(_Base, frozen=True, tag="rdy"):
 
 
 class Start(_Base, frozen=True, tag="sta"):
-    """Broadcast by the ground station: every drone starts its program."""
+    """Broadcast by the ground station: the drones of ``deployment`` start (only they)."""
 
     KIND: ClassVar[str] = "all"
 
+    deployment: DeploymentId = msgspec.field(default="", name="dp")
     seq: Seq = msgspec.field(default=0, name="q")
 
 

@@ -36,6 +36,7 @@ class Deployment:
     checksums: dict[str, str] = field(default_factory=dict)
     run_dir: Path | None = None
     keys_dir: Path | None = None  # the fleet's keys (`eamos keys`); None: plain sockets
+    deployment: str = ""  # the roll-out's id: the Start of `eamos start` names it
 
     def ground_keys(self) -> Any:
         """The ground station's :class:`~eamos.net.keys.FleetKeys` (None: plain sockets)."""
@@ -67,6 +68,7 @@ def from_run_dir(run_dir: Path) -> Deployment:
         checksums={n: doc["drones"][n]["program_checksum"] for n in drones},
         run_dir=Path(run_dir).resolve(),
         keys_dir=Path(doc["ground"]["keys"]) if doc["ground"].get("keys") else None,
+        deployment=str(doc.get("deployment") or ""),
     )
 
 

@@ -43,6 +43,8 @@ class DronePlan:
     copy_config: bool = True
     copy_keys: bool = False
     deployed_checksum: str = ""  # the program the drone will run (kept or new)
+    deployment: str = ""  # the roll-out's id (in the drone's config and stamp)
+    run_dir: str = ""  # the operator's run folder of this roll-out (in the stamp)
     state: str = ""
     pid: int | None = None
     old_node: int | None = None
@@ -99,6 +101,9 @@ def stamp_text(plan: DronePlan, keys_sha: str | None) -> str:
         keys_sha256=keys_sha,
         eamos=__version__,
         operator=socket.gethostname(),
+        # The next roll-out finds this one's ground station (eamos start) by these.
+        deployment=plan.deployment,
+        run_dir=plan.run_dir,
         updated_at=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     )
     return json.dumps(doc, indent=1) + "\n"
@@ -114,6 +119,7 @@ def drone_config(
     keys: bool,
     battery_reserve_pct: float | None = None,
     link: LinkSettings | None = None,
+    deployment: str = "",
 ) -> NodeConfig:
     """A drone's ``configs/<Drone>.toml`` in ``mission_dir``, the layout of ``eamos run``.
 
@@ -121,7 +127,8 @@ def drone_config(
     the same layout, and the config names its files relative to itself, so the
     text written here is the text the drone reads.  ``battery_reserve_pct``: the
     fleet's ``[safety]`` reserve, below which a Try's Body action fails; ``link``:
-    its link settings (the telemetry rate of :func:`eamos.ground.local.telemetry_links`).
+    its link settings (the telemetry rate of :func:`eamos.ground.local.telemetry_links`);
+    ``deployment``: the roll-out's id (the node starts only on the Start naming it).
     """
     peers = {GROUND_STATION: ground_bind}
     peers.update({n: e for n, e in endpoints.items() if n != drone})
@@ -140,6 +147,7 @@ def drone_config(
         keys_dir=mission_dir / "keys" / drone if keys else None,
         battery_reserve_pct=battery_reserve_pct,
         link=link if link is not None else LinkSettings(),
+        deployment=deployment,
     )
 
 

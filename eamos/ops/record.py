@@ -71,6 +71,7 @@ class Rollout:
     targets: FleetTargets
     durations: dict[str, float]
     speedup: float | None
+    deployment: str = ""  # this roll-out's id: its Start names it, its nodes take only that
 
     def to_json(self) -> dict[str, Any]:
         """The ``rollout.json`` document."""
@@ -80,6 +81,7 @@ class Rollout:
             "eamos": __version__,
             "mission": self.mission,
             "mission_id": self.mission_id,
+            "deployment": self.deployment,
             "run_dir": str(self.run_dir),
             "fleet_file": None if self.targets.path is None else str(self.targets.path),
             "speedup": self.speedup,

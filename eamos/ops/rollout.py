@@ -45,15 +45,20 @@ The parts: :mod:`.identity` (fleet mission id, execution digests), :mod:`.probe`
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import socket
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..compiler import CompiledMission, compile_file, write_artifacts
-from ..config import FleetConfig
+from ..config import FleetConfig, fleet_order
 from ..ground import check_hal_settings
-from ..ground.local import new_run_dir, telemetry_links, use_run_dir
+from ..ground.local import new_deployment_id, new_run_dir, telemetry_links, use_run_dir
+from ..ground.vehicles import mavlink_fleet_settings
 from ..program.uniform import GROUND_STATION
 from .identity import execution_digest, fleet_mission_id, folder_digest, restamp
 from .plan import (
@@ -75,10 +80,13 @@ from .record import (
     write_rollout,
 )
 from .ssh import DroneError, FleetError, copy_to, for_each, remote_error, run_remote
+from .start import running_ground_station, wait_pid_exit
 from .targets import FleetTargets, SshTarget, load_targets
 
 COPY_TIMEOUT_S = 300.0
 LAUNCH_TIMEOUT_S = 200.0
+#: How long an earlier roll-out's ground station gets to end (its drones land, report).
+OLD_GROUND_STOP_S = 120.0
 
 
 @dataclass
@@ -129,6 +137,7 @@ def _plans(
     compiled: CompiledMission,
     targets: FleetTargets,
     run_dir: Path,
+    deployment: str,
 ) -> dict[str, DronePlan]:
     """Every drone's plan (its program and config); the operator keeps a copy of each config."""
     keys = targets.ground.keys
@@ -142,6 +151,8 @@ def _plans(
         hal = dict(targets.hal[name])
         if opts.speedup is not None and hal.get("adapter", "sim") == "sim":
             hal["speedup"] = opts.speedup
+        if hal.get("adapter") == "mavlink":  # its fleet home and the [safety] fence, as eamos run
+            hal = {**mavlink_fleet_settings(fleet, name, fleet_order(compiled.programs)), **hal}
         check_hal_settings(name, hal, fleet.path)
         program = compiled.programs[name]
         config = drone_config(
@@ -154,6 +165,7 @@ def _plans(
             keys is not None,
             fleet.safety.battery_reserve_pct,
             links[name],
+            deployment,
         )
         plans[name] = DronePlan(
             drone=name,
@@ -163,6 +175,8 @@ def _plans(
             digest=execution_digest(program),
             config_text=config.to_toml(),
             staging=run_dir / "deploy" / name,
+            deployment=deployment,
+            run_dir=str(run_dir),
         )
         # The operator's copy of every drone's config, as eamos run keeps it.
         (run_dir / "configs").mkdir(exist_ok=True)
@@ -246,6 +260,46 @@ def _deploy_all(plans: dict[str, DronePlan], mission: str, say: Say) -> None:
         )
 
 
+def earlier_ground_stations(plans: dict[str, DronePlan], run_dir: Path) -> dict[Path, str]:
+    """The run folders of earlier roll-outs of this mission on these drones (their stamps
+    name them), with the host they were rolled out from."""
+    found: dict[Path, str] = {}
+    for plan in plans.values():
+        old = plan.old_stamp.get("run_dir")
+        if isinstance(old, str) and old and Path(old) != run_dir:
+            found[Path(old)] = str(plan.old_stamp.get("operator") or "")
+    return found
+
+
+def stop_earlier_ground_stations(plans: dict[str, DronePlan], run_dir: Path, say: Say) -> None:
+    """Stop the ground station (``eamos start``) of an earlier roll-out still running.
+
+    It would otherwise go on talking to the drones of this one: its drones are
+    about to be stopped, and the new nodes must start only on this roll-out's
+    Start.  Signalled as ``eamos abort`` does (its drones land, it writes its
+    summary), waited for; killed if it does not end.  One on another machine is
+    named (its Start cannot start this roll-out's nodes: the deployment differs).
+    """
+    here = socket.gethostname()
+    for old, operator in sorted(earlier_ground_stations(plans, run_dir).items()):
+        if operator and operator != here:
+            say(
+                f"  the roll-out in {old} was made on {operator}: if its `eamos start` still "
+                "runs there, stop it (its Start cannot start this roll-out's nodes)"
+            )
+            continue
+        pid = running_ground_station(old)
+        if pid is None:
+            continue
+        say(f"  stopping the ground station of the earlier roll-out {old} (pid {pid})")
+        os.kill(pid, signal.SIGTERM)
+        if not wait_pid_exit(pid, OLD_GROUND_STOP_S):
+            say(f"  it did not end within {OLD_GROUND_STOP_S:g} s: killed (pid {pid})")
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            wait_pid_exit(pid, 10.0)
+
+
 def _launch_all(plans: dict[str, DronePlan], mission: str, say: Say) -> list[DroneError]:
     """Step 4: install the staged files and start eamos-node on every drone; the failures."""
 
@@ -288,15 +342,24 @@ def rollout(opts: RolloutOptions, say: Say) -> Rollout:
         f"{len(drones)} drone(s); run folder {run_dir}"
     )
     check_security(targets, list(compiled.programs))
-    plans = _plans(opts, fleet, compiled, targets, run_dir)
+    deployment = new_deployment_id()
+    plans = _plans(opts, fleet, compiled, targets, run_dir, deployment)
     with steps.step("probe"):
         _probe_all(plans, mission, targets.ground.keys, say)
     with steps.step("deploy"):
         _deploy_all(plans, mission, say)
     with steps.step("launch"):
+        stop_earlier_ground_stations(plans, run_dir, say)
         errors = _launch_all(plans, mission, say)
     result = Rollout(
-        run_dir, mission, compiled.mission_id, plans, targets, steps.durations, opts.speedup
+        run_dir,
+        mission,
+        compiled.mission_id,
+        plans,
+        targets,
+        steps.durations,
+        opts.speedup,
+        deployment,
     )
     steps.durations["rollout"] = round(time.monotonic() - t_all, 3)
     write_rollout(result)

@@ -208,7 +208,7 @@ def fly_rollout(
             )
         shown.event(name, view, msg)
 
-    station = GroundStation(drones, dep.mission_id, on_change=on_change)
+    station = GroundStation(drones, dep.mission_id, on_change=on_change, deployment=dep.deployment)
     shown.watch(station)
     speedup = doc.get("speedup")
     runtime = ground_runtime(
@@ -221,14 +221,14 @@ def fly_rollout(
     exited: dict[str, str] = {}
 
     def on_exit(name: str, last_line: str) -> None:
+        # Every exit is counted at once (GroundStation.exited): the normal end after
+        # Complete, else a failure.
         exited[name] = last_line
-        view = station.snapshot().get(name)
-        if view is not None and view.report is None:
-            station.fail(
-                name,
-                f"eamos-node is not running on {dep.targets[name].label}"
-                + (f": {last_line}" if last_line else ""),
-            )
+        station.exited(
+            name,
+            f"eamos-node is not running on {dep.targets[name].label}"
+            + (f": {last_line}" if last_line else ""),
+        )
 
     def on_lost(name: str, why: str) -> None:
         speak(f"{name}: cannot watch its process any more ({why})")
@@ -328,6 +328,15 @@ def _is_alive_eamos(pid: int) -> bool:
             return False
         return True  # no /proc: trust the pid file
     return b"eamos" in cmdline
+
+
+def running_ground_station(run_dir: Path) -> int | None:
+    """The pid of the ``eamos start`` running for ``run_dir`` (None: none runs)."""
+    try:
+        pid = int((run_dir / GROUND_PID_FILE).read_text().strip())
+    except (OSError, ValueError):
+        return None
+    return pid if pid > 0 and _is_alive_eamos(pid) else None
 
 
 def wait_pid_exit(pid: int, timeout_s: float) -> bool:
@@ -502,5 +511,6 @@ __all__ = [
     "abort",
     "broadcast_abort",
     "fly_rollout",
+    "running_ground_station",
     "wait_pid_exit",
 ]

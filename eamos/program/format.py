@@ -42,11 +42,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import MISSING, dataclass, field, fields
 from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+from .conditions import MAX_DEPTH as MAX_CONDITION_DEPTH
 from .conditions import ConditionError, validate
 
 FORMAT = "eamos-program"
@@ -243,6 +245,36 @@ def _require(doc: dict[str, Any], key: str, kind: type | tuple[type, ...], where
     return value
 
 
+#: A number of a program: an int or a finite float (never a bool).
+_NUMBER = (int, float)
+
+
+def _typed(value: Any, kind: type | tuple[type, ...]) -> bool:
+    if isinstance(value, bool) and kind is not bool:
+        return False
+    if isinstance(value, float) and not math.isfinite(value):
+        return False
+    return isinstance(value, kind)
+
+
+def _opt(raw: dict[str, Any], key: str, kind: type, at: str, default: Any) -> Any:
+    """An optional field of ``kind`` (``default`` when absent or null)."""
+    value = raw.get(key)
+    if value is None:
+        return default
+    if not _typed(value, kind):
+        raise ProgramError(f"{at}: field '{key}' has the wrong type")
+    return value
+
+
+def _list(raw: dict[str, Any], key: str, kind: type | tuple[type, ...], at: str) -> list[Any]:
+    """An optional list field whose items are all of ``kind`` (empty when absent)."""
+    value = raw.get(key, [])
+    if not isinstance(value, list) or not all(_typed(item, kind) for item in value):
+        raise ProgramError(f"{at}: field '{key}' has the wrong type")
+    return value
+
+
 def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
     """Validate a decoded program document and build the :class:`DroneProgram`."""
     if not isinstance(doc, dict):
@@ -285,27 +317,27 @@ def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
                     kind=kind,
                     drone=_require(raw, "drone", str, at),
                     native=_require(raw, "native", bool, at),
-                    label=str(raw.get("label", "")),
-                    action=raw.get("action"),
-                    args=tuple(float(a) for a in raw.get("args", ())),
+                    label=_opt(raw, "label", str, at, ""),
+                    action=_opt(raw, "action", str, at, None),
+                    args=tuple(float(a) for a in _list(raw, "args", _NUMBER, at)),
                     cond=cond,
-                    count=raw.get("count"),
-                    loops=tuple(int(x) for x in raw.get("loops", ())),
-                    scopes=tuple(int(x) for x in raw.get("scopes", ())),
-                    begin=raw.get("begin"),
-                    end=raw.get("end"),
-                    interrupt_drones=tuple(str(d) for d in raw.get("interrupt_drones", ())),
-                    interrupt_mode=raw.get("interrupt_mode"),
-                    catch=None if raw.get("catch") is None else int(raw["catch"]),
-                    catch_loops=int(raw.get("catch_loops", 0)),
-                    catch_drones=tuple(str(d) for d in raw.get("catch_drones", ())),
-                    catch_line=int(raw.get("catch_line", 0)),
-                    suspend_drones=tuple(str(d) for d in raw.get("suspend_drones", ())),
-                    suspendable=bool(raw.get("suspendable", False)),
-                    in_handler=bool(raw.get("in_handler", False)),
-                    line=int(raw.get("line", 0)),
-                    col=int(raw.get("col", 0)),
-                    block=str(raw.get("block", "")),
+                    count=_opt(raw, "count", int, at, None),
+                    loops=tuple(_list(raw, "loops", int, at)),
+                    scopes=tuple(_list(raw, "scopes", int, at)),
+                    begin=_opt(raw, "begin", int, at, None),
+                    end=_opt(raw, "end", int, at, None),
+                    interrupt_drones=tuple(_list(raw, "interrupt_drones", str, at)),
+                    interrupt_mode=_opt(raw, "interrupt_mode", str, at, None),
+                    catch=_opt(raw, "catch", int, at, None),
+                    catch_loops=_opt(raw, "catch_loops", int, at, 0),
+                    catch_drones=tuple(_list(raw, "catch_drones", str, at)),
+                    catch_line=_opt(raw, "catch_line", int, at, 0),
+                    suspend_drones=tuple(_list(raw, "suspend_drones", str, at)),
+                    suspendable=_opt(raw, "suspendable", bool, at, False),
+                    in_handler=_opt(raw, "in_handler", bool, at, False),
+                    line=_opt(raw, "line", int, at, 0),
+                    col=_opt(raw, "col", int, at, 0),
+                    block=_opt(raw, "block", str, at, ""),
                 )
             )
         except (TypeError, ValueError) as exc:
@@ -334,14 +366,21 @@ def program_from_dict(doc: Any, where: str = "program") -> DroneProgram:
         mission_id=_require(doc, "mission_id", str, where),
         drone=_require(doc, "drone", str, where),
         drone_type=_require(doc, "drone_type", str, where),
-        fleet=tuple(_require(doc, "fleet", list, where)),
+        fleet=_names(_require(doc, "fleet", list, where), "fleet", where),
         nodes=tuple(nodes),
         arcs=tuple(arcs),
-        telemetry_from=tuple(doc.get("telemetry_from", ())),
+        telemetry_from=_names(doc.get("telemetry_from", []), "telemetry_from", where),
         source_file=str(doc.get("source_file", "")),
         compiler=str(doc.get("compiler", "")),
         libraries=_libraries(doc.get("libraries", []), where),
     )
+
+
+def _names(names: Any, key: str, where: str) -> tuple[str, ...]:
+    """The list of participant names in field ``key``, as a tuple."""
+    if not isinstance(names, list) or not all(isinstance(name, str) for name in names):
+        raise ProgramError(f"{where}: field '{key}' holds something other than names")
+    return tuple(names)
 
 
 def _libraries(raw: Any, where: str) -> tuple[tuple[str, str], ...]:
@@ -357,13 +396,32 @@ def _libraries(raw: Any, where: str) -> tuple[tuple[str, str], ...]:
     return tuple(out)
 
 
+#: Largest program file read (a mission at the compiler's caps makes far smaller ones).
+MAX_PROGRAM_BYTES = 256 << 20
+#: Deepest nesting of a program document: a condition nests at most
+#: :data:`~eamos.program.conditions.MAX_DEPTH` operators, inside a node, inside the list.
+MAX_PROGRAM_DEPTH = MAX_CONDITION_DEPTH + 8
+
+
 def load_program(path: Path) -> DroneProgram:
-    """Load and verify a program file; raise :class:`ProgramError` with the reason."""
+    """Load and verify a program file; raise :class:`ProgramError` with the reason.
+
+    Bounded before anything recurses: at most :data:`MAX_PROGRAM_BYTES` are read and
+    the document may nest at most :data:`MAX_PROGRAM_DEPTH` deep (a file of 100 000
+    nested arrays is damaged, not a crash).
+    """
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        with Path(path).open("rb") as file:
+            data = file.read(MAX_PROGRAM_BYTES + 1)
     except FileNotFoundError as exc:
         raise ProgramError(f"{path}: no such program file") from exc
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, ValueError) as exc:
+        raise ProgramError(f"{path}: cannot read the program: {exc}") from exc
+    if len(data) > MAX_PROGRAM_BYTES:
+        raise ProgramError(f"{path}: over {MAX_PROGRAM_BYTES} bytes: not a program file")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise ProgramError(f"{path}: cannot read the program: {exc}") from exc
     try:
         doc = json.loads(text)
@@ -371,4 +429,23 @@ def load_program(path: Path) -> DroneProgram:
         raise ProgramError(
             f"{path}: not valid JSON (line {exc.lineno}): the file is damaged"
         ) from exc
+    except RecursionError as exc:
+        raise ProgramError(
+            f"{path}: nested more than {MAX_PROGRAM_DEPTH} deep: the file is damaged"
+        ) from exc
+    _check_depth(doc, str(path))
     return program_from_dict(doc, str(path))
+
+
+def _check_depth(doc: Any, where: str) -> None:
+    """Refuse a document nested deeper than :data:`MAX_PROGRAM_DEPTH` (iterative)."""
+    todo: list[tuple[Any, int]] = [(doc, 0)]
+    while todo:
+        value, depth = todo.pop()
+        if isinstance(value, dict | list) and value:
+            if depth >= MAX_PROGRAM_DEPTH:
+                raise ProgramError(
+                    f"{where}: nested more than {MAX_PROGRAM_DEPTH} deep: the file is damaged"
+                )
+            items = value.values() if isinstance(value, dict) else value
+            todo.extend((item, depth + 1) for item in items)

@@ -12,8 +12,10 @@ from dataclasses import dataclass
 from eamos.compiler import CompiledMission, Diagnostic, MissionError, compile_mission
 from eamos.compiler.source import split_lines
 
-# Per mission, on a loaded 2-core machine; the slowest input within the caps
-# (2 MB of junk) takes about 6 s, every fuzzed or corpus mission well under 1 s.
+# CPU seconds of this process per mission: the bound is on the compiler's work, so other
+# processes on a loaded machine (a CI run, parallel test workers) cannot make it fail; the
+# slowest input within the caps takes a few CPU seconds, every fuzzed or corpus mission well
+# under one.
 SECONDS_PER_MISSION = 10.0
 
 
@@ -23,7 +25,7 @@ class Outcome:
 
     compiled: CompiledMission | None
     error: MissionError | None
-    seconds: float
+    seconds: float  # CPU seconds (time.process_time)
 
     @property
     def diagnostics(self) -> list[Diagnostic]:
@@ -39,15 +41,15 @@ class Outcome:
 
 def compile_checked(text: str, name: str = "odd.go") -> Outcome:
     """Compile ``text``: anything but a MissionError fails; every location is checked."""
-    start = time.monotonic()
+    start = time.process_time()
     try:
         compiled = compile_mission(text, name)
     except MissionError as exc:
-        outcome = Outcome(None, exc, time.monotonic() - start)
+        outcome = Outcome(None, exc, time.process_time() - start)
         rendered = exc.render(name, text)
         assert rendered.startswith(f"{name}:"), rendered[:200]
     else:
-        outcome = Outcome(compiled, None, time.monotonic() - start)
+        outcome = Outcome(compiled, None, time.process_time() - start)
     assert outcome.seconds < SECONDS_PER_MISSION, f"{outcome.seconds:.1f} s"
     assert_located(outcome.diagnostics, text)
     return outcome

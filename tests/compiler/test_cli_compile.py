@@ -6,6 +6,7 @@ import argparse
 import io
 import json
 import os
+import shutil
 import subprocess
 import sys
 from contextlib import redirect_stderr, redirect_stdout
@@ -91,7 +92,12 @@ def test_parsers_register_with_a_host_cli() -> None:
 
 def test_compile_writes_artifacts_and_prints_a_summary(tmp_path: Path) -> None:
     code, out, err = _run(["compile", str(MISSIONS / "experiment_c.go"), "-o", str(tmp_path)])
-    assert code == 0 and err == ""
+    assert code == 0
+    if shutil.which("dot") is None:  # the built-in renderer draws; one warning says so
+        (line,) = err.splitlines()
+        assert line.startswith("warning: Graphviz 'dot' is not installed"), err
+    else:
+        assert err == ""
     assert "MEG 33 nodes" in out
     for drone in ("GCS", "Drone1", "Drone2", "Drone3"):
         assert f"{tmp_path / 'programs' / drone}.program.json" in out

@@ -9,6 +9,8 @@ import pytest
 
 from tests.support.runs import MISSIONS, REPO, run_mission
 
+pytestmark = pytest.mark.e2e
+
 REJECT = REPO / "tests" / "virtual" / "try_reject.toml"
 
 

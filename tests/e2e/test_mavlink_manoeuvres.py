@@ -3,8 +3,9 @@
 A hybrid fleet: Drone1 is a MAVLink drone on a simulated autopilot (PX4 or
 ArduCopter personality) that ``eamos run`` starts itself.  The mission flies each
 new uniform action once; the vehicle's own log shows the modes and commands each
-autopilot was given (eamos/hal/mavlink/manoeuvres.py), and the summary where the
-drone ended: back home, landed and disarmed.
+autopilot was given (eamos/hal/mavlink/manoeuvres.py: everything in the motion mode,
+then the autopilot's LAND), and the summary where the drone ended: back home, landed
+and disarmed.  The real autopilots fly the same in tests/sitl/test_sitl_actions.py.
 """
 
 from __future__ import annotations
@@ -44,13 +45,15 @@ connect_timeout_s = 30
 armable_timeout_s = 90
 """
 
-#: The modes each autopilot flew, in order (after the motion mode of the take-off).
+#: The modes each autopilot flew, in order (from the motion mode of the take-off): it
+#: stays there (Hold, Orbit and ReturnHome steered by the adapter) until it lands.
 MODES = {
-    "px4": ["ORBIT", "OFFBOARD", "HOLD", "AUTO.RTL"],
-    "ardupilot": ["CIRCLE", "GUIDED", "LOITER", "RTL"],
+    "px4": ["OFFBOARD", "AUTO.LAND"],
+    "ardupilot": ["GUIDED", "LAND"],
 }
-#: MAV_CMD numbers each autopilot must have accepted.
-COMMANDS = {"px4": {20, 34}, "ardupilot": {20, 115, 178}}
+#: MAV_CMD numbers each autopilot must have accepted: NAV_LAND (and ArduCopter's
+#: DO_CHANGE_SPEED); never RTL, DO_ORBIT or CONDITION_YAW.
+COMMANDS = {"px4": {21}, "ardupilot": {21, 178}}
 
 
 @pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
@@ -78,6 +81,7 @@ def test_new_actions_through_eamos_run(tmp_path: Path, autopilot: str) -> None:
         e["command"] for e in events if e.get("event") == "vehicle.command" and e["result"] == 0
     }
     assert COMMANDS[autopilot] <= accepted_ok, sorted(accepted)
+    assert not {20, 34, 115} & accepted, sorted(accepted)
 
 
 CAMERA_MISSION = """\

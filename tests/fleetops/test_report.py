@@ -16,6 +16,8 @@ from eamos import report
 
 REPO = Path(__file__).resolve().parents[2]
 NOTEBOOK = REPO / "notebooks" / "analyse_run.ipynb"
+# The tests on the session's one `eamos run` (local_run) share one worker: it is flown once.
+pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("fleet-local-run")]
 
 
 def test_table7_matches_the_summary_and_the_logs(local_run):

@@ -17,7 +17,7 @@ from eamos import __version__
 
 from .fleet_lab import REPO, Lab
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("fleet-lab")]
 MISSION = REPO / "missions" / "experiment_b.go"
 
 

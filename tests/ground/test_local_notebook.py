@@ -18,6 +18,8 @@ import pytest
 
 from tests.support.runs import MISSIONS, REPO, RUN_TIMEOUT_S
 
+pytestmark = pytest.mark.e2e
+
 NOTEBOOK = REPO / "notebooks" / "analyse_run.ipynb"
 
 

@@ -22,7 +22,7 @@ from eamos.ground import Limits, LocalMission, fly_local, make_display
 # The same 20 000-action mission as the report's folding tests.
 from .test_local_long_missions import ACTIONS, LONG
 
-pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timeout(900)]
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(900)]
 
 
 def test_a_report_of_20000_actions_reaches_the_ground_station_whole(tmp_path: Path) -> None:

@@ -111,6 +111,7 @@ def test_a_reserved_port_is_taken_by_zeromq_only() -> None:
             ctx.term()
 
 
+@pytest.mark.e2e
 def test_five_runs_started_together_all_succeed(tmp_path: Path) -> None:
     """Five ``eamos run`` of one mission, same folder, no --run-dir: five good runs."""
     argv = [

@@ -456,7 +456,11 @@ def test_settings_are_parsed() -> None:
         ({"battery_pct": 150}, "hal.battery_pct", "<= 100"),
         ({"home_lat_deg": 91}, "hal.home_lat_deg", "<= 90"),
         ({"arm_delay_s": -1}, "hal.arm_delay_s", ">= 0"),
-        ({"telemetry_hz": 0}, "hal.telemetry_hz", "> 0"),
+        ({"telemetry_hz": 0}, "hal.telemetry_hz", ">= 0.1"),
+        ({"telemetry_hz": 1e308}, "hal.telemetry_hz", "<= 50"),
+        ({"accel_mps2": 1e308}, "hal.accel_mps2", "<= 50"),
+        ({"accel_mps2": 1e-9}, "hal.accel_mps2", ">= 0.1"),
+        ({"climb_speed_mps": 1e-9}, "hal.climb_speed_mps", ">= 0.05"),
         ({"reject_actions": "Land"}, "hal.reject_actions", "list"),
         ({"reject_actions": ["Lnd"]}, "hal.reject_actions[0]", "did you mean 'Land'"),
         ({"pilot": {"x_m": 1}}, "hal.pilot", "list"),
@@ -546,3 +550,11 @@ def test_adapter_log_is_json_lines(make_sim: SimFactory, tmp_path: Path) -> None
     period = 1.0 / POSITION_LOG_HZ
     assert all(b - a >= period - 0.01 for a, b in itertools.pairwise(t_sims))
     assert any(b - a == pytest.approx(period, abs=0.01) for a, b in itertools.pairwise(t_sims))
+
+
+def test_the_telemetry_rate_bound_is_one_sample_per_simulator_step() -> None:
+    from eamos.hal.sim.actions import SIM_DT_S
+    from eamos.hal.sim.settings import SIM_STEP_S
+
+    assert SIM_STEP_S == SIM_DT_S
+    assert SimSettings.from_mapping({"telemetry_hz": 1 / SIM_DT_S}).telemetry_hz == 50

@@ -24,9 +24,10 @@ def test_a_malformed_message_is_one_log_line_without_a_traceback() -> None:
     done = subprocess.run(LSP, input=bad, capture_output=True, timeout=120)
     assert done.returncode == 0
     stderr = done.stderr.decode()
-    assert "Traceback" not in stderr and "Unable to handle message" in stderr
+    assert "Traceback" not in stderr and "a body that is not JSON" in stderr
     assert len(stderr.strip().splitlines()) == 1, stderr
     assert b"window/showMessage" in done.stdout  # and the editor is told
+    assert b'"id": null, "error": {"code": -32700' in done.stdout  # with a parse error
     verbose = subprocess.run([*LSP, "-v"], input=bad, capture_output=True, timeout=120)
     assert "Traceback" in verbose.stderr.decode()
 

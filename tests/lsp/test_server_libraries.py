@@ -19,7 +19,10 @@ from pytest_lsp import ClientServerConfig, LanguageClient, client_capabilities
 from .lsp_helpers import position_of
 from .test_server_stdio import _open
 
-pytestmark = pytest.mark.asyncio(loop_scope="module")
+pytestmark = [
+    pytest.mark.asyncio(loop_scope="module"),
+    pytest.mark.xdist_group("lsp-libraries-server"),
+]
 
 HERE = Path(__file__).resolve().parent / "libraries"
 MISSION = HERE / "mission" / "uses.go"

@@ -20,7 +20,7 @@ from eamos.compiler import MissionError, compile_mission
 
 from .lsp_helpers import MISSIONS, THREE_ERRORS, position_of, too_many_sync_arcs
 
-pytestmark = pytest.mark.asyncio(loop_scope="module")
+pytestmark = [pytest.mark.asyncio(loop_scope="module"), pytest.mark.xdist_group("lsp-stdio-server")]
 
 TIMEOUT_S = 60.0  # generous: a loaded 2-core machine starts Python slowly
 

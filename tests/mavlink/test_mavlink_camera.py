@@ -24,7 +24,7 @@ from eamos.program.uniform import PluginAction
 
 from .mavlink_helpers import Done, Flight
 
-pytestmark = pytest.mark.timeout(240)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(240)]
 
 AUTOPILOTS = ["px4", "ardupilot"]
 IMAGE_START_CAPTURE, VIDEO_START, VIDEO_STOP, GIMBAL_PITCHYAW = 2000, 2500, 2501, 1000

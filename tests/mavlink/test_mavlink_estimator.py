@@ -23,6 +23,8 @@ from eamos.hal.sitl.wire import ESTIMATOR_SETTLED_FLAGS, ESTIMATOR_UNSETTLED_FLA
 
 from .test_sim_vehicle_core import Rig
 
+pytestmark = pytest.mark.e2e
+
 SETTLE_S = 8.0
 BIAS_M = 3.0
 
@@ -41,6 +43,25 @@ def test_flags_verdict_and_what_is_missing() -> None:
         "missing POS_HORIZ_REL, POS_HORIZ_ABS; CONST_POS_MODE"
     )
     assert describe(ESTIMATOR_SETTLED_FLAGS) == "settled"
+
+
+#: What PX4 main's ESTIMATOR_STATUS reads on the ground with a good GNSS fix (the SITL:
+#: 1023 from 1.5 s after start): every solution bit, CONST_POS_MODE included, since PX4
+#: main sets it whenever the vehicle is at rest (``Ekf::get_ekf_soln_status``).
+PX4_MAIN_AT_REST = 1023
+
+
+def test_px4_main_at_rest_is_good_enough_to_fly_but_not_a_faked_position() -> None:
+    assert verdict(PX4_MAIN_AT_REST, "px4") is True
+    assert describe(PX4_MAIN_AT_REST, "px4") == "settled"
+    # In the air CONST_POS_MODE means a faked position (fake_pos / valid_fake_pos).
+    assert verdict(PX4_MAIN_AT_REST, "px4", landed=False) is False
+    # No GNSS really fused (PRED_POS_HORIZ_ABS clear): not good, whatever else is set.
+    assert verdict(PX4_MAIN_AT_REST & ~512, "px4") is False
+    assert "PRED_POS_HORIZ_ABS" in describe(PX4_MAIN_AT_REST & ~512, "px4")
+    assert verdict(PX4_MAIN_AT_REST | 1024, "px4") is False  # GPS glitch
+    # On ArduPilot CONST_POS_MODE is "no aiding at all": never good.
+    assert verdict(PX4_MAIN_AT_REST, "ardupilot") is False
 
 
 @pytest.mark.parametrize(("autopilot", "message"), [("px4", 230), ("ardupilot", 193)])
@@ -83,7 +104,7 @@ def test_arm_waits_for_the_settled_estimate_and_the_first_move_is_accurate(
     f.ok("Takeoff", 2.0)
     f.ok("FlyByX", 3.0)
     # The truth (the model's position, from the boot point) against the mission's target.
-    tolerance = f.adapter.vehicle.tolerance_m
+    tolerance = f.adapter.vehicle.settling.tolerance_m
     x, y, z = f.vehicle.position
     assert math.dist((x, y, z), (3.0, 0.0, 2.0)) <= tolerance, (x, y, z)
     vehicle_log = next(tmp_path.glob("vehicle-*.log"))
@@ -108,5 +129,5 @@ def test_an_estimator_that_never_settles_fails_arming_with_the_missing_flags(
     result = f.do("Arm")
     assert result.status == "failed"
     assert "position estimate did not settle within 4 s" in result.reason
-    assert "missing POS_HORIZ_REL, POS_HORIZ_ABS; CONST_POS_MODE" in result.reason
+    assert "missing POS_HORIZ_REL, POS_HORIZ_ABS, PRED_POS_HORIZ_ABS" in result.reason
     assert not f.vehicle.armed

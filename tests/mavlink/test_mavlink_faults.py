@@ -21,7 +21,7 @@ from eamos.hal.sitl.vehicle import (
 
 from .mavlink_helpers import WAIT_S
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
 AUTOPILOTS = ["px4", "ardupilot"]
 
@@ -176,9 +176,13 @@ def test_pilot_switches_mode_mid_action(flight, autopilot, mode):
     f.wait_vehicle(lambda v: v.position[1] > 2.0)
     f.vehicle.set_mode(mode)
     result = done.wait()
-    assert result.reason.startswith(f"vehicle switched to mode {mode} under us")
-    # The mission may take the vehicle back afterwards.
-    f.ok("FlyByY", 1.0)
+    # Issue 27: not "switched to mode ... under us" (nor a stale STATUSTEXT): the pilot's.
+    assert result.reason == f"taken over by the pilot ({mode})"
+    # The mission never takes the vehicle back: no action reaches it any more.
+    assert f.do("FlyByY", 1.0).reason == f"taken over by the pilot ({mode})"
+    f.adapter.abort()  # no landing either
+    f.adapter.close()
+    assert f.vehicle.mode == mode and f.vehicle.armed
 
 
 # -- link drops ---------------------------------------------------------------------------------

@@ -31,9 +31,9 @@ from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
 from eamos.hal.sitl.vehicle import SimVehicle, VehicleOptions
 
-from .mavlink_helpers import connections
+from .mavlink_helpers import RawClient, connections
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 #: Bound of one whole MAVSDK flight (wall seconds).
 FLIGHT_S = 120.0
 M_PER_DEG_LAT = 111_320.0
@@ -67,11 +67,21 @@ def fly(vehicle: SimVehicle, url: str, body: Callable[[Any], Awaitable[None]]) -
             await body(system)
 
     t0 = time.monotonic()
+    station: RawClient | None = None
     if url.startswith("tcpout"):
         vehicle.start()  # ArduPilot style: the vehicle must listen before MAVSDK dials
+        # ArduCopter streams nothing unasked (not even SYS_STATUS, which MAVSDK's health
+        # needs) and MAVSDK asks only for what it subscribes to: a ground station on the
+        # same link asks for all streams, as MAVProxy or QGroundControl would.
+        host, port = vehicle.address
+        station = RawClient(f"tcp:{host}:{port}")
+        station.heartbeat()
+        station.mav.request_data_stream_send(vehicle.options.sysid, 1, 0, 4, 1)
     try:
         asyncio.run(asyncio.wait_for(main(), FLIGHT_S))
     finally:
+        if station is not None:
+            station.close()
         vehicle.stop()
     return time.monotonic() - t0
 

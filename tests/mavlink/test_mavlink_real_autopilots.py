@@ -16,18 +16,18 @@ from typing import Any
 import pytest
 
 from eamos.hal.api import Telemetry
-from eamos.hal.sitl.ardupilot import BRAKE_DECEL_MPS2
+from eamos.hal.mavlink.autopilots import autopilot_named
 from eamos.hal.sitl.core import LAND_DECEL_MPS2
 from eamos.program.uniform import decode_command
 
 from .mavlink_helpers import WAIT_S, Done, Flight
 
-pytestmark = pytest.mark.timeout(240)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(240)]
 
 AUTOPILOTS = ["px4", "ardupilot"]
-#: The autopilots' fastest stops as the simulated vehicle models them (m/s/s):
-#: PX4's zero-velocity setpoint (MPC_ACC_HOR_MAX 5), ArduCopter's BRAKE mode (7.5).
-STOP_DECEL = {"px4": 5.0, "ardupilot": BRAKE_DECEL_MPS2}
+#: The deceleration the adapter's brake plans with (a position target at the stopping
+#: point; braking.py): what stopped both real autopilots soonest (docs, "Braking").
+STOP_DECEL = {name: autopilot_named(name).brake_decel_mps2 for name in ("px4", "ardupilot")}
 #: Condition seen within 100 ms of the telemetry crossing (10 Hz) plus the command's way.
 REACTION_S = 0.3
 

@@ -6,6 +6,7 @@ import os
 import stat
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -23,9 +24,9 @@ from eamos.hal.mavlink.signing import (
     signing_timestamp,
 )
 
-from .mavlink_helpers import RawClient
+from .mavlink_helpers import RawClient, connections
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
 ARM = 400
 KEY = bytes(range(32))
@@ -111,7 +112,7 @@ def test_signed_flight_and_unsigned_or_wrong_commands_ignored(flight, tmp_path, 
     for key in (None, OTHER):
         refused = f.vehicle.refused
         # Straight at the vehicle's own UDP port (PX4 style: it sends from there).
-        port = f.vehicle._conn.port.getsockname()[1]
+        port = f.vehicle.address[1]
         intruder = RawClient(f"udpout:127.0.0.1:{port}")
         try:
             if key is not None:
@@ -128,23 +129,68 @@ def test_signed_flight_and_unsigned_or_wrong_commands_ignored(flight, tmp_path, 
     assert KEY.hex() not in log
 
 
-def test_adapter_ignores_an_unsigned_or_wrongly_signed_vehicle(
+def test_adapter_refuses_an_unsigned_or_wrongly_signed_vehicle_and_says_why(
     make_vehicle, make_adapter, tmp_path
 ):
     path = key_file(tmp_path, KEY)
-    for vehicle_key in (None, OTHER):
-        _, conn = make_vehicle("px4", signing_key=vehicle_key)
-        adapter = make_adapter(conn, signing_key=str(path), connect_timeout_s=2.0)
+    for autopilot, vehicle_key, why in (
+        ("px4", None, r"signing required, the vehicle sends unsigned messages.*PX4 has no"),
+        ("ardupilot", None, r"signing required, the vehicle sends unsigned messages"),
+        ("px4", OTHER, r"signs its messages with another key than hal\.signing_key"),
+    ):
+        _, conn = make_vehicle(autopilot, signing_key=vehicle_key)
+        adapter = make_adapter(conn, signing_key=str(path), connect_timeout_s=20.0)
         t0 = time.monotonic()
-        with pytest.raises(AdapterError, match="no heartbeat from"):
+        with pytest.raises(AdapterError, match=why):
             adapter.start(lambda s: None)
+        # Refused on the vehicle's first heartbeats, not at the connect timeout.
         assert time.monotonic() - t0 < 10
+        assert adapter.facts()["signed"] is False
+
+
+def test_signing_off_flies_unsigned_and_says_so(flight, tmp_path):
+    path = key_file(tmp_path, KEY)
+    f = flight("px4", signing_key=str(path), signing="off")
+    f.ok("Arm")
+    f.ok("Disarm")
+    assert f.adapter.facts()["signed"] is False
+
+
+def test_setup_that_never_signs_stops_the_run_within_its_bound(make_adapter, tmp_path):
+    """A vehicle that ignores SETUP_SIGNING (PX4 main) is refused after signing_timeout_s."""
+    path = key_file(tmp_path, KEY)
+    vehicle_conn, conn = connections("px4")
+    stop = threading.Event()
+    # A PX4-like vehicle that only ever sends unsigned HEARTBEATs (SETUP_SIGNING ignored).
+    px4 = RawClient(vehicle_conn, sysid=1)
+    px4.conn.mav.srcComponent = 1
+
+    def beat() -> None:
+        while not stop.wait(0.1):
+            px4.mav.heartbeat_send(2, 12, 0, 0, 3)
+
+    beater = threading.Thread(target=beat, daemon=True)
+    beater.start()
+    try:
+        adapter = make_adapter(
+            conn, signing_key=str(path), signing_setup=True, signing_timeout_s=2.0
+        )
+        t0 = time.monotonic()
+        with pytest.raises(AdapterError, match=r"signing setup failed: .*unsigned.*PX4 has no"):
+            adapter.start(lambda s: None)
+        assert 2.0 <= time.monotonic() - t0 < 10
+        assert px4.count("SETUP_SIGNING") >= 1  # it was asked, and it never signed
+    finally:
+        stop.set()
+        beater.join(5)
+        px4.close()
 
 
 def test_setup_signing_provisions_the_vehicle(flight, tmp_path):
     path = key_file(tmp_path, KEY)
     f = flight("px4", signing_key=str(path), signing_setup=True)
     assert f.vehicle.wait_until(lambda v: v.signing, 30)
+    assert f.adapter.facts()["signed"] is True  # start() returned once the vehicle signed
     f.ok("Arm")  # signed both ways from here on
     f.ok("Disarm")
 

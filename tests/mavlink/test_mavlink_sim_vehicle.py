@@ -27,7 +27,7 @@ from eamos.hal.sitl.vehicle import (
 
 from .mavlink_helpers import WAIT_S, RawClient, connections
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
 
 ARM, SET_MODE, TAKEOFF, LAND = 400, 176, 22, 21
 SET_INTERVAL, REQUEST_MESSAGE = 511, 512
@@ -60,7 +60,9 @@ def test_ardupilot_heartbeat_and_quiet_link(make_vehicle, raw_client):
     hb = client.wait("HEARTBEAT")
     assert (hb.autopilot, hb.type, hb.custom_mode) == (3, 2, 0)  # STABILIZE
     client.wait("HEARTBEAT", after=2)
-    assert client.count("LOCAL_POSITION_NED") == 0  # nothing until asked
+    # Nothing until asked (ArduCopter SITL on SERIAL0: HEARTBEAT and STATUSTEXT only).
+    assert client.count("LOCAL_POSITION_NED") == 0
+    assert client.count("SYS_STATUS") == 0
     client.mav.request_data_stream_send(1, 1, 6, 4, 1)  # MAV_DATA_STREAM_POSITION at 4 Hz
     client.wait("GLOBAL_POSITION_INT")
     client.wait("LOCAL_POSITION_NED")
@@ -88,6 +90,7 @@ def test_arming_before_pre_arm_checks_pass(make_vehicle, raw_client, autopilot, 
     client.wait("HEARTBEAT")
     if autopilot == "ardupilot":
         client.wait("TEXT", lambda t: t == "ArduPilot Ready")
+        client.mav.request_data_stream_send(1, 1, 2, 2, 1)  # EXTENDED_STATUS: SYS_STATUS
     status = client.wait("SYS_STATUS")
     assert status.onboard_control_sensors_present & PREARM
     assert not status.onboard_control_sensors_health & PREARM
@@ -236,6 +239,56 @@ def test_tcp_vehicle_accepts_a_new_client(make_vehicle, raw_client):
     second = raw_client(conn)  # ArduPilot SITL takes a reconnecting GCS
     second.heartbeat()
     assert second.command(ARM, 0) == ACCEPTED
+
+
+def test_two_tcp_clients_at_once(make_vehicle, raw_client):
+    vehicle, conn = make_vehicle("ardupilot", speedup=2.0)
+    first, second = raw_client(conn), RawClient(conn, sysid=251)
+    first.heartbeat()
+    second.heartbeat()
+    assert vehicle.wait_until(lambda v: v.clients == 2, WAIT_S)
+    first.wait("HEARTBEAT")
+    second.wait("HEARTBEAT")
+    # One link shared by every client (as behind MAVProxy): rates are the vehicle's.
+    first.mav.request_data_stream_send(1, 1, 6, 4, 1)
+    second.wait("LOCAL_POSITION_NED")
+    # A command's acknowledgement goes to the client that sent it only.
+    assert second.command(ARM, 0) == ACCEPTED
+    first.wait("HEARTBEAT", after=first.count("HEARTBEAT") + 1)
+    assert first.count("COMMAND_ACK") == 0
+    first.close()  # one leaves, the other stays served
+    try:
+        assert vehicle.wait_until(lambda v: v.clients == 1, WAIT_S)
+        after = second.count("HEARTBEAT")
+        second.wait("HEARTBEAT", after=after + 1)
+    finally:
+        second.close()
+
+
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_a_second_client_watches_a_flight_without_disturbing_it(flight, autopilot):
+    f = flight(autopilot, vehicle={"speedup": 4.0})
+    host, port = f.vehicle.address
+    # ArduPilot style: another TCP client on the same port; PX4 style: a peer that sends
+    # to the vehicle's own UDP port and is answered from then on.
+    watcher = RawClient(
+        f"tcp:{host}:{port}" if autopilot == "ardupilot" else f"udpout:{host}:{port}"
+    )
+    try:
+        watcher.heartbeat()
+        assert f.vehicle.wait_until(lambda v: v.clients == 2, WAIT_S)
+        f.airborne(2.0)
+        f.ok("FlyByX", 3.0)
+        seen = watcher.wait("LOCAL_POSITION_NED", lambda m: m.x > 2.9)
+        assert abs(seen.y) < 0.2
+        f.ok("Land")
+        f.wait_vehicle(lambda v: not v.armed)
+        watcher.wait("HEARTBEAT", lambda m: not m.base_mode & 128)
+        # It saw the flight, sent no command, and got none of the adapter's acknowledgements.
+        assert watcher.count("COMMAND_ACK") == 0
+        assert f.vehicle.position[0] == pytest.approx(3.0, abs=0.3)
+    finally:
+        watcher.close()
 
 
 # -- the command line ------------------------------------------------------------------------

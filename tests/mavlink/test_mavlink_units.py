@@ -125,7 +125,7 @@ def test_settings_defaults():
     assert (s.autopilot, s.takeoff_mode) == ("auto", "offboard")
     assert (s.connect_timeout_s, s.armable_timeout_s, s.command_timeout_s) == (30, 60, 1.5)
     assert (s.command_retries, s.heartbeat_timeout_s, s.action_timeout_s) == (3, 3, 120)
-    assert (s.tolerance_m, s.settle_speed_mps, s.settle_s) == (None, None, 0.5)
+    assert (s.tolerance_m, s.settle_speed_mps, s.settle_s) == (None, None, None)
     assert (s.setpoint_hz, s.telemetry_hz, s.speedup) == (20, 10, 1)
     assert (s.horizontal_speed_mps, s.climb_speed_mps, s.descent_speed_mps) == (2, 1, 0.7)
     assert s.set_speeds and s.rearm and s.land_on_close

@@ -80,7 +80,9 @@ def test_a_vehicle_dying_mid_flight_leaves_the_other_landed(tmp_path):
         assert "heartbeat lost" in d1
         assert '"event": "adapter.stranded"' in d1  # the dead one is named, loudly
         d2 = (run / "logs" / "Drone2" / "adapter.log").read_text()
-        assert '"event": "adapter.close_land.done"' in d2 or '"Land"' in d2
+        # Landed by its end policy (stranded in the air: issue 28), not left to land-on-close.
+        assert '"event": "adapter.abort.done"' in d2 or '"Land"' in d2
+        assert '"event": "adapter.close_land' not in d2
     finally:
         for proc_ in (dead, alive):
             if proc_.poll() is None:

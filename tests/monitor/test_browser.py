@@ -25,7 +25,7 @@ from eamos.ground.summary import RunSummary
 from tests.monitor.live import URL, start_live_run
 from tests.support.runs import REPO
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("monitor-browser")]
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
@@ -227,7 +227,8 @@ def test_abort_needs_the_token_and_lands_every_drone(tmp_path: Path, browser: An
         wait_until(browser, lambda d: mission_state(d) == "running")
         assert not browser.find_element(By.ID, "abort").is_enabled()
         status = browser.execute_script(
-            "return await fetch('/api/abort', {method: 'POST', body: '{}'}).then(r => r.status)"
+            "return await fetch('/api/abort', {method: 'POST', body: '{}',"
+            " headers: {'Content-Type': 'application/json'}}).then(r => r.status)"
         )
         assert status == 403
         assert mission_state(browser) == "running"

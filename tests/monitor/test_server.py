@@ -23,7 +23,7 @@ from eamos.report import load_run, table7
 from tests.monitor.live import URL, start_live_run
 from tests.support.runs import INDEPENDENT, eamos
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("monitor-live-b")]
 
 FINAL_WORDS = {"finished", "failed", "aborted", "timed out"}
 #: Node states a node may go to from each state (a loop's next iteration starts over).

@@ -76,10 +76,17 @@ def test_start_with_the_monitor_on_a_rolled_out_fleet(lab: Lab, tmp_path: Path):
         "rollout", str(MISSION), str(fleet), "--run-dir", str(run_dir), "--speedup", "5"
     )
     assert rolled.returncode == 0, rolled.stdout + rolled.stderr
+    # The watcher starts first and waits for the port on stdin: started once the port is
+    # known, its interpreter came up on a loaded machine after this short run had ended.
+    watcher = subprocess.Popen(
+        ["ip", "netns", "exec", lab.operator_ns, sys.executable, "-m",
+         "tests.monitor.watch_page", "-"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=REPO,
+    )  # fmt: skip
     start = lab.popen_eamos("start", str(run_dir), "--monitor", "--plain")
     lines = lines_of(start)
     seen: list[str] = []
-    watcher = None
     try:
         port = None
         while port is None:
@@ -88,21 +95,18 @@ def test_start_with_the_monitor_on_a_rolled_out_fleet(lab: Lab, tmp_path: Path):
             seen.append(line)
             if found := URL.search(line):
                 port = found.group(2)
-        watcher = subprocess.run(
-            ["ip", "netns", "exec", lab.operator_ns, sys.executable, "-m",
-             "tests.monitor.watch_page", port],
-            capture_output=True, text=True, timeout=240, cwd=REPO,
-        )  # fmt: skip
-        assert watcher.returncode == 0, watcher.stderr
+        watched, why = watcher.communicate(f"{port}\n", timeout=240)
+        assert watcher.returncode == 0, why
         code = start.wait(timeout=240)
         while (line := lines.get(timeout=30)) is not None:
             seen.append(line)
         assert code == 0, "\n".join(seen) + (start.stderr.read() if start.stderr else "")
     finally:
-        if start.poll() is None:
-            start.kill()
-            start.communicate()
-    got = json.loads(watcher.stdout)
+        for proc in (start, watcher):
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+    got = json.loads(watched)
     page = got["page"]
     summary = RunSummary.read(run_dir / "summary.json")
     assert summary.ok and page["mission"]["state"] == summary.word == "finished"

@@ -268,3 +268,34 @@ def test_a_replay_played_forward_equals_one_built_from_scratch():
         assert seen == replay.model_at(t).snapshot()
     assert replay.state_at(10.0)["nodes"]["n4@D1"]["state"] == "waiting"  # back in time
     assert replay.state_at(replay.end)["mission"]["state"] == "finished"
+
+
+def test_a_drone_a_pilot_took_over_says_so_whatever_its_telemetry_or_report():
+    state = MonitorState(setup(), 0.0)
+    words = "taken over by the pilot in LOITER at (1.00, 2.00, 1.50): no longer commanded"
+    taken = wire.Progress(
+        mission=MID,
+        sender="D2",
+        state="taken_over",
+        node="",
+        action="the pilot has the vehicle",
+        detail={"detail": words},
+    )
+    patches = state.apply("D2", taken, 1.0)
+    drone = [p for p in patches if p["k"] == "drone"][-1]
+    assert drone["mode"] == "taken over (LOITER)" and drone["taken_over"] == words
+    assert not [p for p in patches if p["k"] == "node"]  # about the vehicle, not a node
+    state.apply("D2", tel("D2", 3.0), 2.0)
+    assert state.drones["D2"].mode == "taken over (LOITER)"  # telemetry does not undo it
+    # A replay (or a page that missed the line) learns it from the report at the end.
+    late = MonitorState(setup(), 0.0)
+    report = DroneReport(
+        ok=False, resolved=True, aborted=False, abort_reason="", triggers_sent=0,
+        triggers_received=0, external_out=0, external_in=0, mdg={}, blocked_nodes=(),
+        actions=(), final=FinalState(1.0, 2.0, 1.5, True, 90.0, False),
+        vehicle={"signed": True, "taken_over": {"mode": "POSCTL", "x_m": 1.0, "y_m": 2.0,
+                                                "z_m": 1.5}},
+    )  # fmt: skip
+    late.apply("D2", wire.Report(mission=MID, sender="D2", report=report.to_json()), 5.0)
+    assert late.drones["D2"].mode == "taken over (POSCTL)"
+    assert "taken over by the pilot in POSCTL at (1.00, 2.00, 1.50)" in late.drones["D2"].taken_over

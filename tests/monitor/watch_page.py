@@ -1,8 +1,9 @@
 """Watch a monitor page over its websocket until the run's outcome word; print it as JSON.
 
-``python -m tests.monitor.watch_page PORT`` -- tests run it where the monitor
-listens (inside a lab's operator network namespace, whose 127.0.0.1 is not
-the test's).  Output: ``{"page": ..., "messages": N, "link_patches_running": N}``.
+``python -m tests.monitor.watch_page PORT`` (or ``-``: PORT on stdin) -- tests
+run it where the monitor listens (inside a lab's operator network namespace,
+whose 127.0.0.1 is not the test's).  Output:
+``{"page": ..., "messages": N, "link_patches_running": N}``.
 """
 
 from __future__ import annotations
@@ -34,4 +35,6 @@ def watch(port: int, timeout_s: float = 180) -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps(watch(int(sys.argv[1]))))
+    # PORT, or "-": the first line of stdin (a watcher started ahead of the monitor is up,
+    # its imports done, the moment the port is known).
+    print(json.dumps(watch(int(sys.stdin.readline() if sys.argv[1] == "-" else sys.argv[1]))))

@@ -49,7 +49,7 @@ KINDS: list[tuple[wire.Message, bytes, dict[str, Any]]] = [
         b"to/GCS",
         {"ck": "sha256:abc", "d": "GCS", "q": 1, "n": 0},
     ),
-    (wire.Start(M, "GCS", seq=1), b"all", {"q": 1, "n": 0}),
+    (wire.Start(M, "GCS", "run-7f3a", seq=1), b"all", {"dp": "run-7f3a", "q": 1, "n": 0}),
     (wire.Abort(M, "GCS", "operator", seq=2), b"all", {"r": "operator", "q": 2, "n": 0}),
     (wire.Complete(M, "GCS", seq=3, incarnation=5), b"all", {"q": 3, "n": 5}),
     (
@@ -113,7 +113,7 @@ CODES = {
 
 
 def expected(msg: wire.Message, own: dict[str, Any]) -> dict[str, Any]:
-    return {"v": 4, "t": CODES[type(msg)], "m": M, "s": msg.sender, **own}
+    return {"v": 5, "t": CODES[type(msg)], "m": M, "s": msg.sender, **own}
 
 
 def test_every_kind_is_here() -> None:

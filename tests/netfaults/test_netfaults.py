@@ -24,7 +24,7 @@ from eamos.program.uniform import GROUND_STATION
 
 from .netfault_helpers import REPO, check_table7
 
-pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(600)]
 
 EXPERIMENT_C = REPO / "missions" / "experiment_c.go"
 

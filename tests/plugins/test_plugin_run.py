@@ -20,7 +20,7 @@ from eamos.logs import read_log
 
 from .lab import env_with, install_lab
 
-pytestmark = pytest.mark.timeout(600)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(600)]
 
 INSPECT = """\
 package Inspect

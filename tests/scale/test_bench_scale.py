@@ -62,7 +62,6 @@ def test_relay_gaps_pair_each_drone_with_the_next() -> None:
 
 
 @pytest.mark.e2e
-@pytest.mark.slow
 def test_smoke_run_at_10_and_25_drones_has_every_field() -> None:
     bench = _bench()
     proc = subprocess.run(

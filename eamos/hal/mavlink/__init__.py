@@ -7,7 +7,9 @@ a command) and the phases: :mod:`.arming` (Arm, Disarm, a settled estimate first
 :mod:`.takeoff`, :mod:`.moves` (FlyBy*, FlyTo*), :mod:`.landing` (Land, abort, landing at
 close), :mod:`.braking` (stop now, hold), :mod:`.manoeuvres` (ReturnHome, Hold, Yaw,
 SetSpeed, Orbit); :mod:`.control` (one run's hold on the vehicle: the autopilots'
-controller) and :mod:`.waits` (how actions wait and end); :mod:`.vehicle` (the vehicle
+controller) and :mod:`.waits` (how actions wait and end), :mod:`.completion` and
+:mod:`.settling` (when a move has arrived: tolerances scaled for short moves, the settle
+window); :mod:`.vehicle` (the vehicle
 in mission terms), :mod:`.link`, :mod:`.ticker` and :mod:`.state` (the MAVLink
 connection, its periodic jobs and the messages it reads), :mod:`.command_protocol` and
 :mod:`.param_protocol` (the MAVLink exchanges), :mod:`.signing` (MAVLink 2 signing keys
@@ -15,8 +17,8 @@ and rules), :mod:`.autopilots` (what differs between PX4 and ArduPilot), :mod:`.
 (mission frame <-> NED), :mod:`.settings` (the ``hal`` section), :mod:`.params` and
 :mod:`.keeper` (the drone type's speeds set on the vehicle and restored),
 :mod:`.targets` (SET_POSITION_TARGET_* messages), :mod:`.estimator` and :mod:`.home` (a
-settled estimate, home from it), :mod:`.payload` and :mod:`.camera` (plugin actions: the
-"mavlink" seam, the camera and gimbal).
+position estimate good enough to fly, per autopilot; home from it), :mod:`.payload`
+and :mod:`.camera` (plugin actions: the "mavlink" seam, the camera and gimbal).
 Importing this package does not load pymavlink; connecting does.
 """
 

@@ -42,8 +42,8 @@ A mode change within ``heartbeat_timeout_s`` after a link gap or a
 "failsafe" STATUSTEXT is therefore tolerated for that long; any other mode
 change ends the action (a pilot took over).
 
-``cancel`` ends the action at once and brakes the vehicle the fastest way its
-autopilot documents (PX4: a zero-velocity setpoint; ArduPilot: BRAKE mode),
+``cancel`` ends the action at once and brakes the vehicle with a position target
+at its stopping point (what stopped both real autopilots soonest, braking.py),
 then holds where it came to rest; the next motion action waits for that
 (:class:`~eamos.hal.mavlink.braking.Brakes`).  ``abort`` cancels
 everything, brakes, lands and disarms.  :meth:`MavlinkAdapter.close` never
@@ -51,9 +51,11 @@ leaves a flying vehicle silently: it lands it first, or logs
 ``adapter.stranded`` at error level.  After connecting, the drone type's
 speeds are set on the vehicle and restored at close
 (:mod:`eamos.hal.mavlink.params`); a vehicle that disarmed itself after our
-Arm is armed again before Takeoff (``adapter.rearm``); Arm waits for a settled
-position estimate (:mod:`eamos.hal.mavlink.arming`).  ReturnHome, Hold, Yaw, SetSpeed
-and Orbit fly each autopilot's own way (:mod:`eamos.hal.mavlink.manoeuvres`).
+Arm is armed again before Takeoff (``adapter.rearm``); Arm waits for a position
+estimate good enough to fly, as the autopilot reports it (:mod:`eamos.hal.mavlink.arming`,
+:mod:`~eamos.hal.mavlink.estimator`).  ReturnHome, Hold, Yaw, SetSpeed and Orbit are
+flown in the motion mode with targets the adapter streams
+(:mod:`eamos.hal.mavlink.manoeuvres`).
 Plugin actions (TakePhoto, Gimbal...) run their "mavlink" implementation on the
 action's thread (:mod:`eamos.hal.mavlink.payload`); the fixed payload actions (TurnOn,
 Calibrate...) are acknowledged at once; ``PauseFor`` is a timer.
@@ -61,9 +63,9 @@ Calibrate...) are acknowledged at once; ``PauseFor`` is a timer.
 Telemetry: x/y/z from LOCAL_POSITION_NED (mission frame), lat/lon/alt from
 GLOBAL_POSITION_INT (alt = relative_alt), battery from SYS_STATUS or
 BATTERY_STATUS, armed from the HEARTBEAT, landed from EXTENDED_SYS_STATE (or
-z below 0.1 m without it); sampled at ``telemetry_hz`` and sent only when it
-changed, plus one sample when an action ends, so whoever reacts to the end
-already sees the state it ended in.
+z below 0.1 m without it); sampled at ``telemetry_hz`` of vehicle time (scaled by
+``speedup``) and sent only when it changed, plus one sample when an action ends,
+so whoever reacts to the end already sees the state it ended in.
 
 Adapter log events: ``adapter.start``, ``adapter.connected``,
 ``adapter.interval``, ``adapter.home``, ``adapter.action.start``/``.end``,
@@ -87,13 +89,16 @@ from eamos.hal.api import (
     ActionHandle,
     ActionResult,
     AdapterError,
+    AdapterNotice,
     DoneCallback,
+    TakenOver,
     TelemetryCallback,
 )
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.flight import Flight
 from eamos.hal.mavlink.frames import Vector
+from eamos.hal.mavlink.geofence import GeofenceError
 from eamos.hal.mavlink.manoeuvres import MANOEUVRES, perform_manoeuvre
 from eamos.hal.mavlink.payload import payload_context
 from eamos.hal.mavlink.publisher import TelemetryPublisher
@@ -134,6 +139,7 @@ class MavlinkAdapter:
         self._closed = False
         self._aborting = False
         self._abort_thread: threading.Thread | None = None
+        self.vehicle.on_taken_over = self._on_taken_over
 
     # -- Adapter protocol ----------------------------------------------------
 
@@ -159,9 +165,13 @@ class MavlinkAdapter:
             system_id=s.system_id,
             source_system=s.source_system,
             source_component=s.source_component,
+            # Where the fleet places its home (the check, monitor, report and replay too).
+            home_m=None if s.home_m is None else list(s.home_m),
         )
         self.vehicle.connect(
-            extra_jobs=((1.0 / s.telemetry_hz, self._telemetry.publish, "telemetry"),)
+            # At the vehicle's own rate: a condition is seen as early in vehicle time at
+            # a speed-up of 10 as at 1 (telemetry_hz of wall time was a tenth of it).
+            extra_jobs=((s.wall_period(s.telemetry_hz), self._telemetry.publish, "telemetry"),)
         )
 
     def run(self, command: Command, done: DoneCallback) -> ActionHandle:
@@ -175,16 +185,18 @@ class MavlinkAdapter:
         elif isinstance(command, Disarm):
             kind = "disarm"
         run = Run(handle, done, kind, time.monotonic(), command)
-        missing: str | None = None  # a plugin action without a "mavlink" implementation
+        refused: str | None = None  # a plugin action without a "mavlink" implementation
         if isinstance(command, PluginAction):
             try:
                 self.plugins.implementation(command.name, self.family)
             except PluginError as exc:
-                missing = str(exc)
+                refused = str(exc)
         with self._cond:
             if self._closed:
                 raise AdapterError(f"{self.drone}: adapter closed")
-            immediate = self._actions.admit(run, self._started, self._aborting, missing)
+            if self.vehicle.taken_over is not None:
+                refused = self.vehicle.taken_over.reason()  # never command it again
+            immediate = self._actions.admit(run, self._started, self._aborting, refused)
         if immediate is not None:
             self._actions.finish(run, immediate)
             return handle
@@ -206,6 +218,7 @@ class MavlinkAdapter:
         if (
             self._actions.finish(run, ActionResult("cancelled", "cancelled"))
             and run.kind == "motion"
+            and self.taken_over is None  # the pilot's vehicle is not braked by us
         ):
             self._flight.brakes.start_hold(f"mavlink-{self.drone}-hold")
 
@@ -214,11 +227,16 @@ class MavlinkAdapter:
         with self._cond:
             if self._closed or not self._started:
                 return
-            self._aborting = True
+            taken = self.vehicle.taken_over
+            self._aborting = taken is None
             runs = self._actions.all_running()
         self._log.info("adapter.abort", running=len(runs))
         for run in runs:
             self._actions.finish(run, ActionResult("cancelled", "aborted"))
+        if taken is not None:
+            # A pilot has it: no landing, no disarm (adapter.taken_over said so).
+            self._log.warning("adapter.abort.skipped", reason=taken.reason())
+            return
         thread = threading.Thread(
             target=self._abort, name=f"mavlink-{self.drone}-abort", daemon=True
         )
@@ -233,7 +251,9 @@ class MavlinkAdapter:
         A vehicle still in the air is braked, landed and disarmed first
         (``land_on_close``; ``adapter.close_land.done``); when it cannot be (link
         lost, landing failed, ``land_on_close = false``) ``adapter.stranded`` is
-        logged at error level with where it was left and why.
+        logged at error level with where it was left and why.  A vehicle armed on the
+        ground is disarmed (``adapter.close_disarm``).  Last, a telemetry sample of the
+        state it ended in is published.
         """
         with self._cond:
             if self._closed:
@@ -247,13 +267,83 @@ class MavlinkAdapter:
         if started:
             if abort is not None:
                 abort.join(self.settings.scaled(self.settings.action_timeout_s))
-            self._flight.landing.land_at_close()
             with self._cond:
                 link_ok = self.vehicle.state.link_ok
-            if link_ok:
-                self.vehicle.restore_params()
+                taken = self.vehicle.taken_over
+            if taken is not None:
+                self._leave_to_pilot(taken)
+            else:
+                self._flight.landing.land_at_close()
+                if link_ok:
+                    self.vehicle.restore_params()
+            # The state the vehicle ended in (every landing and disarm above seen in a
+            # HEARTBEAT) reaches the mission before the link closes: a summary must not
+            # say "armed" of a vehicle that disarmed.
+            self._telemetry.publish()
         self.vehicle.close()
         self._log.info("adapter.close")
+
+    # -- a pilot's takeover (takeover.py) ---------------------------------------
+
+    @property
+    def taken_over(self) -> TakenOver | None:
+        """The pilot's takeover, once seen (the Adapter protocol's optional part)."""
+        with self._cond:
+            return self.vehicle.taken_over
+
+    def _on_taken_over(self, taken: TakenOver) -> None:
+        """A pilot took the vehicle (link thread): every running action fails with it,
+        and the operator hears it at once."""
+        left = self._params_left()
+        kept = f"; parameters left as EAMOS set them: {left}" if left else ""
+        self.vehicle.notify(
+            "taken_over",
+            f"{taken.describe()}: EAMOS no longer commands it (no land, no disarm, "
+            f"no mode change){kept}",
+        )
+        with self._cond:
+            runs = self._actions.all_running()
+        for run in runs:
+            self._actions.finish(run, ActionResult("failed", taken.reason()))
+        self._telemetry.publish()
+
+    def _params_left(self) -> str:
+        """The parameters the adapter changed, as they stay on a vehicle a pilot has."""
+        return ", ".join(
+            f"{c.name} = {c.after:g} (was {c.before:g})" for c in self.vehicle.keeper.changes
+        )
+
+    def _leave_to_pilot(self, taken: TakenOver) -> None:
+        """At close, a vehicle a pilot has: not landed, not disarmed, nothing restored;
+        the log says which parameters stay as the adapter set them."""
+        self._log.warning(
+            "adapter.close.taken_over",
+            mode=taken.mode,
+            params_left=self._params_left(),
+            note="left to the pilot: not landed, not disarmed, parameters not restored",
+        )
+
+    def notices(self) -> list[AdapterNotice]:
+        """What the operator must hear, each once (the Adapter protocol's optional part)."""
+        with self._cond:
+            out, self.vehicle.notices = self.vehicle.notices, []
+        return out
+
+    def facts(self) -> dict[str, Any]:
+        """What the run's summary records about this vehicle (the Adapter protocol's
+        optional part): the autopilot, whether the link was signed, whether the fleet's
+        geofence went on the vehicle (None: the fleet has none), a takeover."""
+        with self._cond:
+            taken = self.vehicle.taken_over
+            fence = self.vehicle.geofence
+            out: dict[str, Any] = {
+                "autopilot": self.vehicle.autopilot.name if self._started else None,
+                "signed": self.vehicle.link.signed,
+                "fence": fence.uploaded if fence.wanted else None,
+            }
+        if taken is not None:
+            out["taken_over"] = taken.to_json()
+        return out
 
     # -- observation (tests, tools) ------------------------------------------
 
@@ -302,7 +392,7 @@ class MavlinkAdapter:
             if run.kind == "motion":
                 self._flight.brakes.start_hold(f"mavlink-{self.drone}-hold")
             result = ActionResult("failed", str(exc))
-        except (Failed, CommandRejected) as exc:
+        except (Failed, CommandRejected, GeofenceError) as exc:
             result = ActionResult("failed", str(exc))
         except Exception as exc:  # a bug must still answer the caller
             self._log.exception("adapter.error", action=run.handle.action, error=repr(exc))

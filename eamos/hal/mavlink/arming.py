@@ -50,9 +50,14 @@ def await_settled(waiter: Waiter, v: MavlinkVehicle, run: Run, deadline: float) 
     flags still missing at ``deadline``.
     """
     s = v.settings
+    name = v.autopilot.name
+
+    def good(flags: int | None) -> bool | None:
+        return verdict(flags, name)  # before arming: on the ground
+
     with v.cond:
         flags = v.state.estimator_flags
-    if verdict(flags):
+    if good(flags):
         return
     began = time.monotonic()
     if flags is None:
@@ -72,16 +77,16 @@ def await_settled(waiter: Waiter, v: MavlinkVehicle, run: Run, deadline: float) 
                 note="no estimator report: arming on the pre-arm checks alone",
             )
             return
-        if verdict(flags):
+        if good(flags):
             return
-    v.log.info("adapter.estimator.wait", flags=flags, why=describe(flags))
+    v.log.info("adapter.estimator.wait", flags=flags, why=describe(flags, name))
     waiter.wait(
         run,
-        lambda st: bool(verdict(st.estimator_flags)),
+        lambda st: bool(good(st.estimator_flags)),
         deadline,
         lambda st: (
             f"the vehicle's position estimate did not settle within {s.armable_timeout_s:g} s "
-            f"({describe(st.estimator_flags or 0)})"
+            f"({describe(st.estimator_flags or 0, name)})"
         ),
     )
     v.log.info("adapter.estimator.settled", waited_s=round(time.monotonic() - began, 2))
@@ -153,6 +158,7 @@ class Arming:
         with v.cond:
             v.capture_origin(ground=True)
             here = v.here_ned()
+        v.geofence.before_arming(lambda: run.finished)  # the fleet's fence, once (geofence.py)
         v.autopilot.prepare_arm(ctl, here)
         while True:
             try:

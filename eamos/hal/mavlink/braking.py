@@ -1,10 +1,13 @@
 """Stopping a MAVLink vehicle now, waiting until it is at rest, and holding there.
 
-A position target at the current spot does not stop a fast vehicle (ArduCopter
-overshot 9.4 m at 5 m/s, braking at WPNAV_ACCEL), and LAND brakes gently (10 m
-on ArduCopter, 14 m on PX4).  :func:`brake_to_rest` asks the autopilot for its
-fastest documented stop (:meth:`~eamos.hal.mavlink.autopilots.Autopilot.brake`:
-PX4 a zero-velocity setpoint, ArduPilot BRAKE mode) and waits on the vehicle's
+A position target at the current spot does not stop a fast vehicle well (ArduCopter
+overshot 9.4 m at 5 m/s and came back), LAND brakes gently (10 m on ArduCopter, 14 m on
+PX4), ArduCopter's BRAKE mode decelerates at only ~0.7 m/s/s (3.4 m from 2 m/s) and a
+zero-velocity target is no better (1.8 m on ArduCopter, 5.6 m on PX4: both measured on
+the SITLs).  What stops both soonest is a position target where the vehicle comes to
+rest when it brakes at its own acceleration limit (:func:`stopping_point`): 0.9 m
+(ArduCopter) and 0.7 m (PX4) from 2 m/s.  :func:`brake_to_rest` sends that
+(:meth:`~eamos.hal.mavlink.autopilots.Autopilot.brake`) and waits on the vehicle's
 condition until the settle window shows it at rest.  :class:`Brakes` does that for a
 cancel (then holds where the vehicle came to rest, on a thread of its own), for Land
 and for an abort.
@@ -18,7 +21,9 @@ import time
 from collections.abc import Callable
 
 from eamos.hal.mavlink.autopilots import CommandRejected, Controller
+from eamos.hal.mavlink.completion import Arrival
 from eamos.hal.mavlink.control import RunControl
+from eamos.hal.mavlink.frames import Vector, ned_to_mission
 from eamos.hal.mavlink.state import LinkState
 from eamos.hal.mavlink.vehicle import MavlinkVehicle
 from eamos.hal.mavlink.waits import Ended, Failed, Run, Waiter
@@ -27,17 +32,36 @@ from eamos.hal.mavlink.waits import Ended, Failed, Run, Waiter
 Wait = Callable[[Callable[[LinkState], bool], float, Callable[[LinkState], str]], None]
 
 
+def stopping_distance_m(speed_mps: float, decel_mps2: float) -> float:
+    """How far a vehicle at ``speed_mps`` flies braking at ``decel_mps2``: v^2 / 2a (pure)."""
+    return speed_mps**2 / (2.0 * decel_mps2)
+
+
+def stopping_point(position_ned: Vector, velocity_ned: Vector, decel_mps2: float) -> Vector:
+    """Where a vehicle comes to rest braking horizontally at ``decel_mps2`` (NED; pure)."""
+    vn, ve = velocity_ned[0], velocity_ned[1]
+    speed = math.hypot(vn, ve)
+    if speed == 0:
+        return position_ned
+    ahead = stopping_distance_m(speed, decel_mps2) / speed
+    return (position_ned[0] + vn * ahead, position_ned[1] + ve * ahead, position_ned[2])
+
+
 def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
-    """Stop now if flying faster than the settle speed: the autopilot's fastest stop
-    (PX4: a zero-velocity setpoint; ArduPilot: BRAKE mode), then wait
-    (``brake_timeout_s``) until the vehicle is at rest over the settle window."""
+    """Stop now if flying faster than the settle speed: a position target at the
+    stopping point (:func:`stopping_point`), then wait (``brake_timeout_s``) until the
+    vehicle is at rest over the settle window."""
     with v.cond:
         st = v.state
-        if st.local is None or v.on_ground(st) or v.speed(st) <= v.settle_speed_mps:
+        if st.local is None or v.on_ground(st) or v.speed(st) <= v.settling.settle_speed_mps:
             return
         speed, position = v.speed(st), v.mission_position()
+        local = st.local
+        stop_ned = stopping_point(local[:3], local[3:6], v.autopilot.brake_decel_mps2)
+        if v.origin is not None:
+            v.commanded = ned_to_mission(stop_ned, v.origin)
     t0 = time.monotonic()
-    braking = v.autopilot.brake(ctl)
+    braking = v.autopilot.brake(ctl, stop_ned)
     v.log.info(
         "adapter.brake",
         braking=braking,
@@ -47,8 +71,27 @@ def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
         z_m=round(position[2], 2),
         send_s=round(time.monotonic() - t0, 3),
     )
+    if braking and v.origin is not None:
+        # At rest at the stopping point: a vehicle that overshoots it turns round there
+        # (ArduCopter's jerk-limited path), and a settle window at that turn is not rest.
+        stop = ned_to_mission(stop_ned, v.origin)
+        arrival = Arrival(stop, v.settling.tolerance_m, t0)
+        until: Callable[[LinkState], bool] = lambda st: v.settling.arrived(st, arrival)  # noqa: E731
+    else:
+        until = v.settling.settled
+    # How far along its way the vehicle got before it came back (it may overshoot).
+    vn, ve = local[3], local[4]
+    norm = math.hypot(vn, ve) or 1.0
+    furthest = [0.0]
+
+    def watched(st: LinkState) -> bool:
+        if st.local is not None:
+            along = ((st.local[0] - local[0]) * vn + (st.local[1] - local[1]) * ve) / norm
+            furthest[0] = max(furthest[0], along)
+        return until(st)
+
     wait(
-        lambda st: v.settled(st),
+        watched,
         time.monotonic() + v.settings.scaled(v.settings.brake_timeout_s),
         lambda st: f"vehicle still moving {v.speed(st):.1f} m/s after braking",
     )
@@ -60,6 +103,7 @@ def brake_to_rest(v: MavlinkVehicle, ctl: Controller, wait: Wait) -> None:
         y_m=round(rest[1], 2),
         z_m=round(rest[2], 2),
         overshoot_m=round(math.dist(rest, position), 2),
+        furthest_m=round(furthest[0], 2),
         duration_s=round(time.monotonic() - t0, 3),
     )
 

@@ -10,11 +10,13 @@ stops when the run is over and a cancel's hold has the last word.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.command_protocol import MAV_RESULT_ACCEPTED
 from eamos.hal.mavlink.frames import Vector
 from eamos.hal.mavlink.state import result_name
+from eamos.hal.mavlink.targets import CirclePath
 from eamos.hal.mavlink.waits import Failed, Run, Waiter
 
 MAV_CMD_DO_SET_MODE = 176
@@ -57,9 +59,12 @@ class RunControl:
 
     def command(self, command: int, params: tuple[float, ...], frame: int | None = None) -> None:
         v, run, s = self.v, self.run, self.v.settings
+        # A mode change nobody explained yet may be a pilot's: know before commanding.
+        self.waiter.settle_mode(run)
         with v.cmd_lock:
             with v.cond:
                 self.waiter.raise_if_over(run)
+                v.takeover.expect_command(command, time.monotonic())
                 text_seen = v.state.statustext_serial
             result = v.commands.request(
                 command,
@@ -86,6 +91,9 @@ class RunControl:
     def set_mode(self, mode: str) -> None:
         if self.mode() == mode:
             return  # "already in that mode" is success
+        with self.v.cond:
+            # Ours, when the HEARTBEAT shows it (a mode nobody asked for is a pilot's).
+            self.v.takeover.expect({mode}, time.monotonic())
         self.command(MAV_CMD_DO_SET_MODE, (*self.v.autopilot.mode_params(mode), 0.0, 0.0, 0.0, 0.0))
         # An accepted mode change shows in the next HEARTBEAT; confirm it there.
         self.waiter.wait(
@@ -101,10 +109,10 @@ class RunControl:
         v = self.v
         with v.cmd_lock, v.cond:
             self.waiter.raise_if_over(self.run)
-            if target_ned is not None and v.stream_target is None and not v.stream_stop:
+            if target_ned is not None and v.stream_target is None and v.path is None:
                 v.stream_since = time.monotonic()
             v.stream_target = target_ned
-            v.stream_stop = False
+            v.path = None
         if target_ned is not None:
             v.send_setpoint(target_ned)  # at once, not at the next tick
 
@@ -112,15 +120,16 @@ class RunControl:
         with self.v.cond:
             self.v.stream_yaw = heading_deg
 
-    def stop_target(self) -> None:
+    def follow(self, path: CirclePath, flown: Callable[[], float]) -> None:
+        """Stream ``path`` (both autopilots, in the motion mode) instead of a target;
+        ``flown()`` (condition held) says how far round the vehicle has got."""
         v = self.v
         with v.cmd_lock, v.cond:
             self.waiter.raise_if_over(self.run)
-            if v.stream_target is None and not v.stream_stop:
-                v.stream_since = time.monotonic()
-            v.stream_stop = True
+            v.path, v.path_flown = path, flown
+            v.stream_target = None
             v.guided_target = None
-        v.send_stop()  # at once: braking starts with this datagram
+        v.send_path_point(path)  # at once, not at the next tick
 
     def wait_stream_warm(self, seconds: float) -> None:
         with self.v.cond:
@@ -140,6 +149,7 @@ class RunControl:
         with v.cmd_lock, v.cond:
             self.waiter.raise_if_over(self.run)
             v.guided_target = target
+            v.path = None
         v.send_guided_target(target)
 
     def amsl_m(self, height_m: float) -> float:

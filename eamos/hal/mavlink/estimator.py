@@ -1,16 +1,25 @@
-"""Is the position estimate settled?  PX4 ESTIMATOR_STATUS, ArduPilot EKF_STATUS_REPORT.
+"""Is the position estimate good enough to fly?  PX4 ESTIMATOR_STATUS, ArduPilot EKF_STATUS_REPORT.
 
 PX4 main accepts arming 2-4 s after start, long before its estimate has
 settled, and flights armed that early drift the most (the notes); the pre-arm
 bit of SYS_STATUS alone does not say so.  Both autopilots report their
 estimator's health as flags (ESTIMATOR_STATUS_FLAGS / EKF_STATUS_FLAGS, the
-same bits up to 512):
+same bits up to 512), but a flag does not mean the same on both:
 
-* settled: attitude, horizontal and vertical velocity, relative and absolute
-  horizontal position and absolute height (``REQUIRED``);
-* not settled: any of those missing, or "constant position mode" (no aiding
-  yet), a GPS glitch, an accelerometer error, or ArduPilot's "uninitialised"
-  (``BAD``).
+* every autopilot: attitude, horizontal and vertical velocity, relative and
+  absolute horizontal position and absolute height must be set (``REQUIRED``);
+* ArduPilot (EKF3 ``getFilterStatus``): CONST_POS_MODE is ``PV_AidingMode ==
+  AID_NONE``, no position aiding at all, so it counts as bad, like
+  UNINITIALIZED (1024) and GPS_GLITCHING (32768);
+* PX4 main (``Ekf::get_ekf_soln_status``): CONST_POS_MODE is ``fake_pos ||
+  valid_fake_pos || vehicle_at_rest``, so it is set whenever the vehicle stands
+  still on the ground, with a perfect GNSS fix; older PX4 (1.13/1.14) set it as
+  ``!velocity_horiz``, which ``REQUIRED`` already covers.  On the ground it is
+  therefore ignored; what tells a real fix from a faked one there is
+  PRED_POS_HORIZ_ABS (512: ``gnss_pos || aux_gpos`` on main, the absolute
+  position flag on older versions), which is required instead.  In the air
+  CONST_POS_MODE means a faked position and counts as bad.  GPS_GLITCH (1024)
+  and ACCEL_ERROR (2048) are bad.
 
 :func:`verdict` and :func:`describe` are pure; the adapter's wait before
 arming is :func:`eamos.hal.mavlink.arming.await_settled`.
@@ -34,11 +43,15 @@ FLAG_NAMES: dict[int, str] = {
     256: "PRED_POS_HORIZ_REL",
     512: "PRED_POS_HORIZ_ABS",
 }
+CONST_POS_MODE = 128
+PRED_POS_HORIZ_ABS = 512
 #: Every one of these must be set.
 REQUIRED = 1 | 2 | 4 | 8 | 16 | 32
+#: ...and on PX4 this one too (a GNSS position really fused, not a faked one).
+PX4_REQUIRED = REQUIRED | PRED_POS_HORIZ_ABS
 #: None of these may be set: CONST_POS_MODE, GPS_GLITCH (PX4) / UNINITIALIZED (EKF),
 #: ACCEL_ERROR (PX4), GPS_GLITCHING (EKF).
-BAD = 128 | 1024 | 2048 | 32768
+BAD = CONST_POS_MODE | 1024 | 2048 | 32768
 BAD_NAMES = {128: "CONST_POS_MODE", 1024: "GPS_GLITCH/UNINITIALIZED", 2048: "ACCEL_ERROR"}
 BAD_NAMES[32768] = "GPS_GLITCHING"
 #: How long to wait for a first estimator report before not waiting for one (vehicle s).
@@ -50,18 +63,28 @@ def estimator_message(autopilot: str) -> int:
     return MSG_ESTIMATOR_STATUS if autopilot == "px4" else MSG_EKF_STATUS_REPORT
 
 
-def verdict(flags: int | None) -> bool | None:
-    """True when ``flags`` show a settled estimate, False when not, None when unreported."""
+def _rules(autopilot: str, landed: bool) -> tuple[int, int]:
+    """(flags that must be set, flags that must not) for ``autopilot`` (module docstring)."""
+    if autopilot == "px4":
+        return PX4_REQUIRED, BAD & ~CONST_POS_MODE if landed else BAD
+    return REQUIRED, BAD
+
+
+def verdict(flags: int | None, autopilot: str = "ardupilot", landed: bool = True) -> bool | None:
+    """True when ``flags`` show a position estimate good enough to fly on ``autopilot``
+    (``landed``: the vehicle stands on the ground), False when not, None when unreported."""
     if flags is None:
         return None
-    return flags & REQUIRED == REQUIRED and not flags & BAD
+    required, bad = _rules(autopilot, landed)
+    return flags & required == required and not flags & bad
 
 
-def describe(flags: int) -> str:
-    """What keeps ``flags`` from being settled: ``"missing POS_HORIZ_ABS; CONST_POS_MODE"``."""
-    missing = [name for bit, name in FLAG_NAMES.items() if bit & REQUIRED and not flags & bit]
-    bad = [name for bit, name in BAD_NAMES.items() if flags & bit]
-    parts = ([f"missing {', '.join(missing)}"] if missing else []) + bad
+def describe(flags: int, autopilot: str = "ardupilot", landed: bool = True) -> str:
+    """What keeps ``flags`` from being good enough: ``"missing POS_HORIZ_ABS; CONST_POS_MODE"``."""
+    required, bad = _rules(autopilot, landed)
+    missing = [name for bit, name in FLAG_NAMES.items() if bit & required and not flags & bit]
+    wrong = [name for bit, name in BAD_NAMES.items() if bit & bad and flags & bit]
+    parts = ([f"missing {', '.join(missing)}"] if missing else []) + wrong
     return "; ".join(parts) or "settled"
 
 
@@ -69,6 +92,7 @@ __all__ = [
     "BAD",
     "MSG_EKF_STATUS_REPORT",
     "MSG_ESTIMATOR_STATUS",
+    "PX4_REQUIRED",
     "REQUIRED",
     "describe",
     "estimator_message",

@@ -10,7 +10,8 @@ reports positions metres off in its first seconds (the notes).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Protocol
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Literal, Protocol
 
 from eamos.hal.kinematics import EARTH_RADIUS_M, GeoFrame
 from eamos.hal.mavlink.estimator import verdict
@@ -18,6 +19,9 @@ from eamos.hal.mavlink.frames import NedOrigin, ned_to_mission
 from eamos.hal.mavlink.state import LinkState
 
 if TYPE_CHECKING:
+    from eamos.hal.mavlink.autopilots import Autopilot
+    from eamos.hal.mavlink.link import MavlinkLink
+    from eamos.hal.mavlink.settings import MavlinkSettings
     from eamos.logs import EventLog
 
 
@@ -30,6 +34,70 @@ class HomeOwner(Protocol):
     flown: bool
     geo: GeoFrame | None
     log: EventLog
+    autopilot: Autopilot
+
+
+#: A vehicle's HOME_POSITION this far (m) from the fleet's home_lla is reported.
+HOME_MISMATCH_M = 5.0
+
+
+def check_home(home: tuple[float, float, float], home_lla: tuple[float, ...] | None) -> str:
+    """Why the vehicle's HOME_POSITION (lat, lon, alt) disagrees with the fleet's
+    ``home_lla`` for it ("" when it agrees, or the fleet gives none).  The check, the
+    monitor and the report place the drone at the fleet's home; the vehicle flies
+    from its own."""
+    if home_lla is None:
+        return ""
+    frame = GeoFrame(home_lla[0], home_lla[1], 0.0)
+    north, east, _ = frame.from_lla(home[0], home[1], 0.0)
+    off = math.hypot(north, east)
+    if off <= HOME_MISMATCH_M:
+        return ""
+    return (
+        f"the vehicle's home (HOME_POSITION {home[0]:.7f}, {home[1]:.7f}) is {off:.1f} m "
+        f"from the fleet's home_lla ({home_lla[0]:.7f}, {home_lla[1]:.7f}): the check, the "
+        "monitor and the report place it at the fleet's; fix home_lla in the fleet file"
+    )
+
+
+class VehicleHomeCheck:
+    """The vehicle's HOME_POSITION, once it is known: logged (``adapter.home.vehicle``) and
+    compared with the fleet's ``home_lla`` (``adapter.home.mismatch``, told to the operator)."""
+
+    def __init__(
+        self,
+        link: MavlinkLink,
+        settings: MavlinkSettings,
+        log: EventLog,
+        tell: Callable[[Literal["taken_over", "warning"], str], None],
+    ) -> None:
+        self.link = link
+        self.settings = settings
+        self.log = log
+        self.tell = tell
+        self.done = False
+
+    def tick(self) -> None:
+        """Look once HOME_POSITION has arrived (the link's ticker)."""
+        if self.done:
+            return
+        with self.link.cond:
+            home = self.link.state.home
+        if home is None:
+            return
+        self.done = True
+        s = self.settings
+        self.log.info(
+            "adapter.home.vehicle",
+            lat_deg=round(home[0], 7),
+            lon_deg=round(home[1], 7),
+            alt_m=round(home[2], 2),
+            home_m=None if s.home_m is None else list(s.home_m),
+        )
+        note = check_home(home, s.home_lla)
+        if note:
+            self.log.warning("adapter.home.mismatch", note=note)
+            self.tell("warning", note)
 
 
 def capture_home(self: HomeOwner, ground: bool = False) -> None:
@@ -38,7 +106,7 @@ def capture_home(self: HomeOwner, ground: bool = False) -> None:
     st = self.state
     if st.local is None:
         return
-    settled = verdict(st.estimator_flags)
+    settled = verdict(st.estimator_flags, self.autopilot.name, landed=not st.armed)
     again = (
         ground
         and not st.armed
@@ -71,4 +139,4 @@ def capture_home(self: HomeOwner, ground: bool = False) -> None:
         self.geo = GeoFrame(lat0, lon0, g.alt_amsl_m - z)
 
 
-__all__ = ["HomeOwner", "capture_home"]
+__all__ = ["HOME_MISMATCH_M", "HomeOwner", "VehicleHomeCheck", "capture_home", "check_home"]

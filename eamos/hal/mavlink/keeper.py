@@ -11,6 +11,7 @@ values are speeds, never secrets.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from eamos.hal.mavlink.param_protocol import ParamProtocol
@@ -31,8 +32,17 @@ if TYPE_CHECKING:
 class ParamKeeper:
     """The parameters the adapter changed on one vehicle (see module docstring)."""
 
-    def __init__(self, link: MavlinkLink, settings: MavlinkSettings, log: EventLog) -> None:
+    def __init__(
+        self,
+        link: MavlinkLink,
+        settings: MavlinkSettings,
+        log: EventLog,
+        blocked: Callable[[], bool] = lambda: False,
+    ) -> None:
         self.link = link
+        #: True once the adapter may no longer command the vehicle (a pilot took it):
+        #: nothing is written then.
+        self.blocked = blocked
         self.params = ParamProtocol(link)
         self.settings = settings
         self.log = log
@@ -44,6 +54,8 @@ class ParamKeeper:
     ) -> ParamChange | None:
         """Read ``name`` (``value`` None) or set it; what the vehicle answers, or None."""
         s = self.settings
+        if value is not None and self.blocked():
+            return None  # a pilot has the vehicle: never written again
         write = None if value is None else (to_wire(value, param_type, self._bytewise), param_type)
         answer = self.params.request(
             name,
@@ -106,15 +118,37 @@ class ParamKeeper:
         return True
 
     def restore(self) -> None:
-        """Write back what :meth:`apply_speeds` found (in reverse order); log each."""
+        """Write back what the adapter found, in the order it set them, each confirmed by
+        its echo; log each.
+
+        In that order a limit comes back before what it limits: PX4 keeps MPC_XY_CRUISE
+        at or below MPC_XY_VEL_MAX (it clamps the cruise speed by itself, after the
+        echo), so putting the cruise speed back first left it clamped.  A value the
+        vehicle echoes otherwise is written again after the others.
+        """
         changes, self.changes = self.changes, []
-        for change in reversed(changes):
-            if self._exchange(change.name, change.before, change.param_type) is None:
-                self.log.error(
-                    "adapter.param.restore_failed", name=change.name, value=change.before
-                )
-            else:
-                self.log.info("adapter.param.restore", name=change.name, value=change.before)
+        pending = list(changes)
+        for attempt in range(2):
+            again: list[ParamChange] = []
+            for change in pending:
+                answer = self._exchange(change.name, change.before, change.param_type)
+                if answer is None:
+                    self.log.error(
+                        "adapter.param.restore_failed", name=change.name, value=change.before
+                    )
+                elif not math.isclose(answer.before, change.before, rel_tol=1e-3, abs_tol=1e-3):
+                    if attempt == 0:
+                        again.append(change)
+                    else:
+                        self.log.error(
+                            "adapter.param.restore_failed",
+                            name=change.name,
+                            value=change.before,
+                            echoed=answer.before,
+                        )
+                else:
+                    self.log.info("adapter.param.restore", name=change.name, value=change.before)
+            pending = again
 
 
 __all__ = ["ParamKeeper"]

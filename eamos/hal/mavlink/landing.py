@@ -89,16 +89,41 @@ class Landing:
             v.log.error(f"adapter.{why}.failed", error=str(exc))
             return False
 
+    def disarm_at_close(self) -> None:
+        """A vehicle armed on the ground at close is disarmed, seen in a HEARTBEAT
+        (``adapter.close_disarm``); when it will not, ``adapter.armed_at_close`` says so at
+        error level.  It is never sent LAND: ArduCopter, told to land on the ground, stays
+        armed in LAND and never reports landed (the notes)."""
+        v = self.v
+        run = Run(None, None, "internal", time.monotonic())
+        ctl = RunControl(self.waiter, run)
+        v.log.info("adapter.close_disarm", note="armed on the ground at close: disarming")
+        try:
+            with v.cond:
+                armed = v.state.armed
+            if armed:
+                ctl.command(MAV_CMD_COMPONENT_ARM_DISARM, DISARM)
+            self.arming.confirm_disarmed(run)
+        except (Failed, Ended, CommandRejected) as exc:
+            with v.cond:
+                armed = v.state.armed
+            if armed:
+                v.log.error("adapter.armed_at_close", reason=str(exc))
+
     def land_at_close(self) -> None:
         """Never leave a flying vehicle silently at close: land it (``land_on_close``), or
-        log ``adapter.stranded`` at error level with where it was left and why."""
+        log ``adapter.stranded`` at error level with where it was left and why; a vehicle
+        armed on the ground is disarmed (:meth:`disarm_at_close`)."""
         v = self.v
         with v.cond:
             st = v.state
             known = st.local is not None
             flying = known and st.armed and not v.on_ground(st)
+            armed_on_ground = known and st.armed and not flying
             link_ok = st.link_ok
             where = v.mission_position() if known and v.origin else None
+        if armed_on_ground and link_ok:
+            self.disarm_at_close()
         if not flying:
             return
         why = ""

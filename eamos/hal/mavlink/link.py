@@ -34,7 +34,7 @@ from collections.abc import Callable
 from types import ModuleType
 from typing import Any
 
-from eamos.hal.mavlink.signing import LinkSigning
+from eamos.hal.mavlink.signing import LinkSigning, refused_frame
 from eamos.hal.mavlink.state import (
     MAV_AUTOPILOT_INVALID,
     MAV_RESULT_NAMES,
@@ -219,7 +219,14 @@ class MavlinkLink:
         )
         self._boot = time.monotonic()
         self._transport_down = False
+        #: Called with the condition held after each message folded into the state, with
+        #: the events it caused and the receive time; it may append events of its own
+        #: (the vehicle's takeover watch: a mode change classified before any waiter
+        #: wakes to it).
+        self.observe: Callable[[Events, float], None] | None = None
+        self.message_errors = 0  # messages the reader could not fold into the state
         self._signing = None if signing_key is None else LinkSigning(signing_key, signing_setup)
+        self._signed_seen = False  # kept for the summary once the connection is closed
 
     # -- opening and closing -------------------------------------------------
 
@@ -267,6 +274,7 @@ class MavlinkLink:
         with self.cond:
             self.state.closed = True
             self.cond.notify_all()
+        _ = self.signed  # remembered for the summary, read after closing
         conn, self._conn = self._conn, None
         if conn is not None:
             try:
@@ -342,12 +350,60 @@ class MavlinkLink:
                 continue
             now = time.monotonic()
             events: Events = []
-            with self.cond:
-                if msg is not None and msg.get_type() != "BAD_DATA":
-                    self._tracker.handle(msg, now, events)
-                self._tracker.check_heartbeat(now, events)
+            try:
+                with self.cond:
+                    if msg is not None and msg.get_type() != "BAD_DATA":
+                        self._tracker.handle(msg, now, events)
+                    elif msg is not None and self._signing is not None:
+                        self._refused(msg, now, events)
+                    self._tracker.check_heartbeat(now, events)
+                    if events and self.observe is not None:
+                        self.observe(events, now)
+            # One message the tracker cannot fold in must not stop the reader: the
+            # vehicle's state would freeze (heartbeats, position) for the whole flight.
+            except Exception as exc:
+                self.message_errors += 1
+                if self.message_errors <= 20 or self.message_errors % 1000 == 0:
+                    kind = msg.get_type() if msg is not None else ""
+                    events.append(
+                        (
+                            "link.message_error",
+                            {
+                                "message": kind,
+                                "error": repr(exc)[:300],
+                                "errors": self.message_errors,
+                            },
+                        )
+                    )
             for name, fields in events:
                 self._on_event(name, fields)
+
+    def _refused(self, msg: Any, now: float, events: Events) -> None:
+        """A frame refused for its signature: who sent it (condition held)."""
+        if getattr(msg, "reason", "") != "Invalid signature":
+            return
+        frame = refused_frame(bytes(getattr(msg, "data", b"")))
+        if frame is not None:
+            self._tracker.refused(frame, now, events)
+
+    @property
+    def signed(self) -> bool:
+        """Whether this link signs and the vehicle's messages arrive signed with our key."""
+        conn, signing = self._conn, self._signing
+        if conn is None or signing is None:
+            return self._signed_seen
+        self._signed_seen = signing.signed(conn.mav) and not signing.provisioning(conn.mav)
+        return self._signed_seen
+
+    @property
+    def signing(self) -> bool:
+        """Whether this link has a signing key (it signs what it sends)."""
+        return self._signing is not None
+
+    def provisioning(self) -> bool:
+        """Whether the vehicle still has to show it signs with our key (hal.signing_setup)."""
+        conn, signing = self._conn, self._signing
+        return conn is not None and signing is not None and signing.provisioning(conn.mav)
 
     def _transport_error(self, exc: BaseException) -> None:
         if not self._transport_down:

@@ -1,27 +1,37 @@
-"""ReturnHome, Hold, Yaw, SetSpeed and Orbit on a MAVLink autopilot, each the way it flies them.
+"""ReturnHome, Hold, Yaw, SetSpeed and Orbit on a MAVLink autopilot.
 
 =========== ============================================ ===========================================
 action      PX4                                          ArduCopter
 =========== ============================================ ===========================================
-ReturnHome  RTL_RETURN_ALT = current height (m), then    RTL_ALT = current height (cm), then
-            MAV_CMD_NAV_RETURN_TO_LAUNCH: AUTO.RTL flies MAV_CMD_NAV_RETURN_TO_LAUNCH: RTL flies
-            over home, lands, disarms                    over home, lands, disarms
-Hold        mode HOLD (AUTO.LOITER) for the duration     mode LOITER for the duration
-Yaw         the OFFBOARD setpoints carry the yaw         MAV_CMD_CONDITION_YAW in GUIDED
+ReturnHome  OFFBOARD back above home at the current     GUIDED back above home at the current
+            height, then Land (AUTO.LAND), it disarms    height, then Land (LAND), it disarms
+Hold        OFFBOARD, the setpoint stream at the point   GUIDED, a position target at the point
+            where the drone is meant to be               where the drone is meant to be
+Yaw         every setpoint from then on carries the yaw  every GUIDED target from then on carries
+                                                         the yaw
 SetSpeed    MPC_XY_VEL_MAX and MPC_XY_CRUISE (DO_CHANGE_ WPNAV_SPEED (cm/s), and in GUIDED
             SPEED is ignored in OFFBOARD)                MAV_CMD_DO_CHANGE_SPEED (lasts until the
                                                          next mode change)
-Orbit       MAV_CMD_DO_ORBIT (COMMAND_INT: centre lat/   CIRCLE_RADIUS (cm) and CIRCLE_RATE (deg/s),
-            lon, radius positive = clockwise, speed):    then mode CIRCLE (its centre is the radius
-            mode ORBIT                                   ahead of the nose)
+Orbit       OFFBOARD, a streamed path round the centre   GUIDED, the same streamed path
+            (position, velocity, nose to the centre)
 =========== ============================================ ===========================================
+
+Hold and Orbit stay in the mode where the adapter steers, with targets it streams:
+ArduCopter's LOITER and CIRCLE take their climb rate from the RC throttle and, without
+a transmitter (a SITL, a companion-only vehicle), descended into the ground at 2.5 m/s
+(the notes); PX4's HOLD and ORBIT would do no harm, but one way for both is simpler to
+test.  ReturnHome flies home the same way and lands there: RTL climbs to its own return
+altitude unless a parameter says otherwise (PX4 60 m), and a parameter the vehicle
+refuses (PX4 main echoed no RTL_RETURN_ALT) must not send a drone up there.  Yaw
+travels inside the targets: ArduCopter resets its yaw mode on every GUIDED
+target that ignores yaw, which cancelled a MAV_CMD_CONDITION_YAW heading within a second.
 
 Every parameter changed is put back at close (:class:`~eamos.hal.mavlink.keeper.ParamKeeper`).
 Completion is read from telemetry: ReturnHome when the vehicle is landed and
 disarmed; Yaw when ATTITUDE's heading is within :data:`YAW_TOLERANCE_DEG`; Orbit
 when the angle flown around the centre (unwrapped from LOCAL_POSITION_NED)
 reaches ``turns`` full circles, after which the vehicle flies back to where it
-started (in the motion mode) and settles there.
+started and settles there.
 """
 
 from __future__ import annotations
@@ -34,16 +44,14 @@ from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.flight import Flight
 from eamos.hal.mavlink.frames import mission_to_ned
 from eamos.hal.mavlink.link import LinkState
+from eamos.hal.mavlink.targets import CirclePath
 from eamos.hal.mavlink.waits import Failed, Run
 from eamos.program.uniform import Hold, Orbit, ReturnHome, SetSpeed, Yaw
 
 #: The commands :func:`perform_manoeuvre` runs.
 MANOEUVRES = (ReturnHome, Hold, Yaw, SetSpeed, Orbit)
 
-MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
-MAV_CMD_DO_ORBIT = 34
 MAV_CMD_DO_CHANGE_SPEED = 178
-MAV_FRAME_GLOBAL_INT = 5
 #: A Yaw is done within this many degrees of the heading.
 YAW_TOLERANCE_DEG = 2.0
 #: Orbits fly at most this centripetal acceleration (m/s/s): v <= sqrt(a r).
@@ -125,24 +133,28 @@ def _set(flight: Flight, name: str, value: float) -> None:
 
 
 def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
-    """Back above home at the current height, land there and disarm (the autopilot's RTL)."""
+    """Back above home at the current height, land there and disarm (steered by the
+    adapter in GUIDED / OFFBOARD, then the autopilot's LAND)."""
     v, s, waiter = flight.v, flight.s, flight.waiter
-    flight.brakes.brake(run, ctl)  # at rest first: RTL's own turn would overshoot at speed
+    flight.brakes.brake(run, ctl)  # at rest first
     with v.cond:
-        height = v.mission_position()[2]
-    _set(flight, *v.autopilot.return_altitude(height))
-    ctl.command(MAV_CMD_NAV_RETURN_TO_LAUNCH, (0.0,) * 7)
-    with v.cond:
-        v.stop_steering()  # the autopilot flies now; our targets would fight it
-    modes = frozenset({v.autopilot.rtl_mode, v.autopilot.land_mode})
-    waiter.confirm_modes(run, modes, done=v.landed)
+        here = v.mission_position()
+        home = (0.0, 0.0, here[2])
+        v.commanded = home
+        arrival = v.settling.arrival(here, home, time.monotonic())
+        assert v.origin is not None
+        home_ned = mission_to_ned(home, v.origin)
+    v.autopilot.goto(ctl, home_ned)
+    modes = frozenset({v.autopilot.motion_mode})
+    waiter.confirm_modes(run, modes, done=lambda st: False)
     waiter.wait(
         run,
-        v.landed,
+        lambda st: v.settling.arrived(st, arrival),
         run.started + s.scaled(s.action_timeout_s),
-        waiter.timeout_reason("not back home and landed"),
-        guard=waiter.guard(modes, need_armed=False, unless=v.landed),
+        waiter.timeout_reason("not back above home"),
+        guard=waiter.guard(modes),
     )
+    flight.landing.land(run, ctl)
     waiter.wait(
         run,
         lambda st: not st.armed,
@@ -156,36 +168,45 @@ def return_home(flight: Flight, run: Run, ctl: RunControl) -> ActionResult:
     return ActionResult("ok")
 
 
+def _stay(flight: Flight, ctl: RunControl) -> frozenset[str]:
+    """Fly to (stay at) the point where the drone is meant to be, in the motion mode; the
+    modes the action must stay in."""
+    v = flight.v
+    with v.cond:
+        here = v.base_point()
+        v.commanded = here
+        assert v.origin is not None
+        here_ned = mission_to_ned(here, v.origin)
+    v.autopilot.goto(ctl, here_ned)
+    modes = frozenset({v.autopilot.motion_mode})
+    flight.waiter.confirm_modes(ctl.run, modes, done=lambda st: False)
+    return modes
+
+
 def hold(flight: Flight, run: Run, ctl: RunControl, duration_s: float) -> ActionResult:
-    """Hover in the autopilot's hold mode (PX4 HOLD, ArduCopter LOITER) for ``duration_s``."""
-    v, s, waiter = flight.v, flight.s, flight.waiter
+    """Hover where the drone is meant to be for ``duration_s`` (GUIDED / OFFBOARD)."""
+    s, waiter = flight.s, flight.waiter
     if duration_s < 0:
         raise Failed("duration_s must be >= 0")
-    mode = v.autopilot.hold_mode
-    ctl.set_mode(mode)
+    modes = _stay(flight, ctl)
     waiter.wait(
         run,
         lambda st: False,
         run.started + s.scaled(duration_s),
         lambda st: "",
-        guard=waiter.guard(frozenset({mode})),
+        guard=waiter.guard(modes),
         quiet_timeout=True,
     )
     return ActionResult("ok")
 
 
 def yaw(flight: Flight, run: Run, ctl: RunControl, heading_deg: float) -> ActionResult:
-    """Turn on the spot to ``heading_deg``; done when ATTITUDE shows it."""
-    v, s, waiter = flight.v, flight.s, flight.waiter
+    """Turn on the spot to ``heading_deg`` (kept by every later target); done when
+    ATTITUDE shows it."""
+    s, waiter = flight.s, flight.waiter
     target = heading_deg % 360.0
-    with v.cond:
-        here = v.base_point()
-        v.commanded = here
-        assert v.origin is not None
-        here_ned = mission_to_ned(here, v.origin)
-    v.autopilot.yaw(ctl, here_ned, target)
-    modes = frozenset({v.autopilot.motion_mode})
-    waiter.confirm_modes(run, modes, done=lambda st: False)
+    ctl.set_yaw(target)
+    modes = _stay(flight, ctl)
 
     def turned(st: LinkState) -> bool:
         return (
@@ -222,7 +243,9 @@ def set_speed(flight: Flight, ctl: RunControl, speed_mps: float) -> ActionResult
 
 
 def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: float) -> ActionResult:
-    """Circle ``turns`` times clockwise around the point ``radius_m`` ahead, end at the start."""
+    """Circle ``turns`` times clockwise around the point ``radius_m`` ahead, the nose to the
+    centre (a streamed path, :class:`~eamos.hal.mavlink.targets.CirclePath`), then back
+    at the start."""
     v, s, waiter = flight.v, flight.s, flight.waiter
     if not radius_m > 0 or not turns > 0:
         raise Failed("radius_m and turns must be > 0")
@@ -233,32 +256,32 @@ def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: flo
         start = v.base_point()
         cx, cy = orbit_centre(start, heading, radius_m)
         speed = orbit_speed_mps(v.horizontal_speed_mps, radius_m)
-        geo = v.geo
-    autopilot = v.autopilot
-    if autopilot.name == "px4":
-        if geo is None:
-            raise Failed("no GLOBAL_POSITION_INT from the vehicle: cannot place the centre")
-        lat, lon, _ = geo.to_lla(cx, cy, start[2])
-        # param1 radius (> 0: clockwise), param2 speed, param3 0: nose to the centre,
-        # param4 NaN: orbit until told otherwise; z NaN: at the current altitude.
-        nan = math.nan
-        ctl.command(
-            MAV_CMD_DO_ORBIT, (radius_m, speed, 0.0, nan, lat, lon, nan), MAV_FRAME_GLOBAL_INT
-        )
-    else:
-        _set(flight, "CIRCLE_RADIUS", round(radius_m * 100.0))
-        _set(flight, "CIRCLE_RATE", round(math.degrees(speed / radius_m), 2))
-        ctl.set_mode(autopilot.orbit_mode)
-    modes = frozenset({autopilot.orbit_mode})
-    waiter.confirm_modes(run, modes, done=lambda st: False)
-    flown = AngleFlown(cx, cy)
+        assert v.origin is not None
+        centre_ned = mission_to_ned((cx, cy, start[2]), v.origin)
+    # The nose to the centre: at the start that is the heading the vehicle has now.
+    ctl.set_yaw(heading)
+    modes = _stay(flight, ctl)
     goal = turns * 2 * math.pi
+    path = CirclePath(
+        centre_ned[0],
+        centre_ned[1],
+        centre_ned[2],
+        radius_m,
+        speed,
+        math.radians(heading + 180.0),
+        goal,
+    )
+    flown = AngleFlown(cx, cy)
+    ctl.follow(path, lambda: flown.total)
+    # The path ends at the start and the vehicle follows it from behind: the angle it
+    # flew approaches the goal from below; within the position tolerance is round.
+    round_enough = goal - v.settling.tolerance_m / radius_m
 
     def around(st: LinkState) -> bool:
         if st.local is None:
             return False
         x, y, _ = v.mission_position(st)
-        return flown.add(x, y) >= goal
+        return flown.add(x, y) >= round_enough
 
     lap_s = 2 * math.pi * radius_m / speed
     waiter.wait(
@@ -268,20 +291,19 @@ def orbit(flight: Flight, run: Run, ctl: RunControl, radius_m: float, turns: flo
         lambda st: f"orbit not finished: {math.degrees(flown.total):.0f} of {turns * 360:g} deg",
         guard=waiter.guard(modes),
     )
-    # Back to where it started, in the motion mode, and settled there.
+    # Back to where it started (the path ends there too), settled there.
     with v.cond:
         v.commanded = start
+        arrival = v.settling.arrival(v.mission_position(), start, time.monotonic())
         assert v.origin is not None
         start_ned = mission_to_ned(start, v.origin)
-    autopilot.goto(ctl, start_ned)
-    motion = frozenset({autopilot.motion_mode})
-    waiter.confirm_modes(run, motion, done=lambda st: False)
+    v.autopilot.goto(ctl, start_ned)
     waiter.wait(
         run,
-        lambda st: v.settled(st, start),
+        lambda st: v.settling.arrived(st, arrival),
         time.monotonic() + s.scaled(s.action_timeout_s),
         waiter.timeout_reason("orbit's start point not reached again"),
-        guard=waiter.guard(motion),
+        guard=waiter.guard(modes),
     )
     return ActionResult("ok")
 

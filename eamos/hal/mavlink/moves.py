@@ -4,15 +4,17 @@ The target is worked out in the mission frame (relative moves add up from the la
 commanded point, :meth:`~eamos.hal.mavlink.vehicle.MavlinkVehicle.base_point`; a
 latitude/longitude goes through the vehicle's home in WGS84), sent the autopilot's way
 (:meth:`~eamos.hal.mavlink.autopilots.Autopilot.goto`), and the move completes when the
-vehicle is within tolerance of it and at rest over the settle window.
+vehicle is within tolerance of it and at rest over a settle window that began after the
+command (:mod:`~eamos.hal.mavlink.completion`: the tolerance scaled for short moves).
 """
 
 from __future__ import annotations
 
+import time
+
 from eamos.hal.api import ActionResult
 from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.frames import mission_to_ned
-from eamos.hal.mavlink.state import LinkState
 from eamos.hal.mavlink.waits import Failed, Run, Waiter
 from eamos.program.uniform import FlyBy, FlyToLLA, FlyToXYZ, target_xyz
 
@@ -34,7 +36,8 @@ class Moves:
             if v.on_ground(v.state) or v.origin is None:
                 raise Failed("not flying")
             lla: tuple[float, float, float] | None = None
-            relative = target_xyz(command, v.base_point())
+            start = v.base_point()
+            relative = target_xyz(command, start)
             if relative is not None:
                 target = relative
             elif isinstance(command, FlyToLLA):
@@ -49,8 +52,10 @@ class Moves:
                 raise Failed(f"{command.action} has no target")
             if target[2] <= 0:
                 raise Failed(f"target z {target[2]:.2f} m is not above ground (use Land)")
+            v.geofence.check_target(target)  # outside the fleet's fence: fail, do not send
             v.commanded = target
             target_ned = mission_to_ned(target, v.origin)
+        arrival = v.settling.arrival(start, target, time.monotonic())
         if lla is not None:
             v.autopilot.goto_global(ctl, lla[0], lla[1], lla[2], target_ned)
         else:
@@ -58,19 +63,15 @@ class Moves:
         modes = frozenset({v.autopilot.motion_mode})
         self.waiter.confirm_modes(run, modes, done=lambda st: False)
 
-        def arrived(st: LinkState) -> bool:
-            return v.settled(st, target)
-
         self.waiter.wait(
             run,
-            arrived,
+            lambda st: v.settling.arrived(st, arrival),
             run.started + s.scaled(s.action_timeout_s),
             self.waiter.timeout_reason("target not reached"),
             guard=self.waiter.guard(modes),
         )
+        v.settling.log_arrival(command.action, arrival)
         return ActionResult("ok")
-
-    # -- holding and aborting (their own threads) -----------------------------------------
 
 
 __all__ = ["Moves"]

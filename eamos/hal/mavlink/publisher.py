@@ -1,6 +1,7 @@
 """Telemetry from a MAVLink vehicle to the mission: a sample whenever the state changed.
 
-The link's ticker publishes at ``telemetry_hz``; a finishing action publishes once more
+The link's ticker publishes at ``telemetry_hz`` of vehicle time (``speedup`` times as
+often on the wall clock); a finishing action publishes once more
 before its ``done``, so whoever reacts to the end already sees the state it ended in.
 """
 

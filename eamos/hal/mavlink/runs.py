@@ -25,8 +25,8 @@ class ActionBook:
     """The actions an adapter runs: one motion at a time, and exactly one end each.
 
     :meth:`admit` records a run and says whether it ends at once (a plugin without a
-    ``"mavlink"`` implementation, a payload action acknowledged, not started,
-    aborting, busy); :meth:`finish` ends a run once: its end logged
+    ``"mavlink"`` implementation, a vehicle a pilot took, a payload action
+    acknowledged, not started, aborting, busy); :meth:`finish` ends a run once: its end logged
     (``adapter.action.end``, with where the vehicle is), the state it ended in
     published, then its ``done`` called outside the condition.
     """
@@ -40,11 +40,12 @@ class ActionBook:
         self._motion: Run | None = None
 
     def admit(
-        self, run: Run, started: bool, aborting: bool, missing: str | None
+        self, run: Run, started: bool, aborting: bool, refused: str | None
     ) -> ActionResult | None:
         """Record ``run`` (condition held); the result it ends with at once, if any.
 
-        ``missing``: why a plugin action has no "mavlink" implementation.
+        ``refused``: why it fails at once (a plugin action without a "mavlink"
+        implementation; a vehicle a pilot has taken over).
         """
         handle, command = run.handle, run.command
         assert handle is not None
@@ -55,8 +56,8 @@ class ActionBook:
             args=list(handle.args),
             handle=handle.id,
         )
-        if missing is not None:
-            return ActionResult("failed", missing)
+        if refused is not None:
+            return ActionResult("failed", refused)
         if isinstance(command, Payload):
             self._log.info(
                 "adapter.payload",

@@ -16,7 +16,26 @@ adapter (``hal.signing_key = "<path>"``) and ``eamos-sim-vehicle``
 
 Provisioning (``hal.signing_setup = true``): the adapter sends SETUP_SIGNING
 with the key to the vehicle, and accepts the vehicle's unsigned messages only
-until the first correctly signed one arrives.  The key itself is never logged.
+until the first correctly signed one arrives; a vehicle that still sends
+unsigned ones ``hal.signing_timeout_s`` after connecting is refused (the run
+stops with that reason).  The key itself is never logged.
+
+Signing never downgrades silently: with a key, a vehicle whose HEARTBEATs come
+unsigned is refused ("signing required, the vehicle sends unsigned messages"),
+and one whose HEARTBEATs are signed with another key is refused too
+(:func:`refused_frame` reads who sent a refused frame).  An autopilot without
+MAVLink signing (PX4 main: it never answers SETUP_SIGNING and keeps sending
+unsigned) flies only when its drone says ``hal.signing = "off"``; the run's
+summary records, per drone, whether its link was signed.
+
+Where ArduPilot enforces signing: once it has a key it signs everything it sends
+on every channel, and its ``accept_unsigned_callback``
+(``libraries/GCS_MAVLink/GCS_Signing.cpp``) lets unsigned or wrongly signed
+messages through on its first MAVLink channel, ``MAVLINK_COMM_0`` ("assumed to be
+secure channel ... USB": SERIAL0, the SITL's TCP 5760+10N, a flight controller's
+USB port), and only RADIO_STATUS and RADIO on the others.  Fly signed links through
+SERIAL1 or a later port (the SITL's TCP 5762+10N, a telemetry radio).
+
 :class:`LinkSigning` applies these rules to the adapter's link.
 """
 
@@ -27,8 +46,16 @@ import binascii
 import os
 import stat
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
+
+from eamos.hal.api import AdapterError
+
+if TYPE_CHECKING:
+    from eamos.hal.mavlink.state import LinkState
+    from eamos.logs import EventLog
 
 #: RADIO_STATUS: the only message accepted unsigned.
 MSG_RADIO_STATUS = 109
@@ -37,6 +64,13 @@ SIGNING_EPOCH_S = 1_420_070_400
 #: File name of the fleet's signing key, beside the CURVE keys.
 SIGNING_KEY_FILE = "mavlink_signing.key"
 KEY_BYTES = 32
+#: HEARTBEAT's message id, and MAV_TYPE_GCS / MAV_AUTOPILOT_INVALID (not a vehicle).
+MSG_HEARTBEAT = 0
+_MAV_TYPE_GCS = 6
+_MAV_AUTOPILOT_INVALID = 8
+_MAV_AUTOPILOT_PX4 = 12
+#: MAVLink 2's "signed" incompatibility flag.
+_MAVLINK_IFLAG_SIGNED = 0x01
 
 
 class SigningKeyError(ValueError):
@@ -57,6 +91,48 @@ def refresh_timestamp(mav: Any, wall_s: float | None = None) -> None:
 def radio_status_only(mav: Any, msg_id: int) -> bool:
     """pymavlink's ``allow_unsigned_callback``: only RADIO_STATUS passes unsigned."""
     return msg_id == MSG_RADIO_STATUS
+
+
+@dataclass(frozen=True)
+class RefusedFrame:
+    """A frame the link refused for its signature: who sent it, and whether signed at all."""
+
+    signed: bool  # signed, but not with our key (or replayed); False: unsigned
+    system_id: int
+    component_id: int
+    msg_id: int
+    #: For a HEARTBEAT: MAV_TYPE and MAV_AUTOPILOT (None for other messages).
+    vehicle_type: int | None = None
+    autopilot: int | None = None
+
+    @property
+    def vehicle_heartbeat(self) -> bool:
+        """A HEARTBEAT from an autopilot (not from a ground station on a shared port)."""
+        return (
+            self.msg_id == MSG_HEARTBEAT
+            and self.vehicle_type != _MAV_TYPE_GCS
+            and self.autopilot != _MAV_AUTOPILOT_INVALID
+        )
+
+
+def refused_frame(data: bytes) -> RefusedFrame | None:
+    """Who sent a raw MAVLink frame (pymavlink's BAD_DATA "Invalid signature"); None when
+    it is not a whole frame.  Pure: reads the header (and a HEARTBEAT's payload), trusts
+    nothing else in it."""
+    if len(data) >= 10 and data[0] == 0xFD:  # MAVLink 2
+        signed = bool(data[2] & _MAVLINK_IFLAG_SIGNED)
+        system, component = data[5], data[6]
+        msg_id = data[7] | data[8] << 8 | data[9] << 16
+        payload = bytes(data[10 : 10 + data[1]])
+    elif len(data) >= 6 and data[0] == 0xFE:  # MAVLink 1: never signed
+        signed, system, component, msg_id = False, data[3], data[4], data[5]
+        payload = bytes(data[6 : 6 + data[1]])
+    else:
+        return None
+    if msg_id != MSG_HEARTBEAT:
+        return RefusedFrame(signed, system, component, msg_id)
+    payload = payload.ljust(9, b"\x00")  # MAVLink 2 trims trailing zero bytes
+    return RefusedFrame(signed, system, component, msg_id, payload[4], payload[5])
 
 
 def parse_key(text: str) -> bytes:
@@ -107,6 +183,68 @@ def create_signing_key(out: Path, force: bool = False) -> Path:
     return path
 
 
+#: Refused (unsigned or wrongly signed) vehicle HEARTBEATs that end the wait to connect.
+REFUSED_HEARTBEATS = 2
+#: What a PX4 vehicle's refusal adds: PX4 main has no MAVLink signing.
+NO_SIGNING_HINT = (
+    " (PX4 has no MAVLink signing: it ignores SETUP_SIGNING; give this drone "
+    'hal.signing = "off" to fly it unsigned)'
+)
+
+
+def refused_reason(st: LinkState, connection: str) -> str:
+    """Why a vehicle whose HEARTBEATs were all refused for their signature is refused."""
+    hint = NO_SIGNING_HINT if st.refused_autopilot == _MAV_AUTOPILOT_PX4 else ""
+    if st.refused_signed:
+        return (
+            f"the vehicle on {connection} signs its messages with another key than "
+            f"hal.signing_key (or a timestamp more than a minute old){hint}"
+        )
+    return (
+        f"signing required, the vehicle sends unsigned messages (on {connection}; "
+        f"hal.signing_key is set{'' if hint else ': provision it with hal.signing_setup = true'})"
+        f"{hint}"
+    )
+
+
+class SigningLink(Protocol):
+    """What :func:`await_signing` needs of the link (a :class:`.link.MavlinkLink`)."""
+
+    cond: Any
+    state: LinkState
+
+    @property
+    def signing(self) -> bool: ...
+
+    def provisioning(self) -> bool: ...
+
+    def wait_for(self, predicate: Callable[[], bool], deadline: float) -> bool: ...
+
+    def close(self) -> None: ...
+
+
+def await_signing(
+    link: SigningLink, timeout_s: float, speedup: float, drone: str, log: EventLog
+) -> None:
+    """Provisioning (``hal.signing_setup``): the vehicle signs within ``timeout_s`` of its
+    own seconds (``speedup`` times faster than the wall clock), or it is refused:
+    :class:`~eamos.hal.api.AdapterError` (the link closed); never flown unsigned."""
+    if not link.provisioning():
+        log.info("adapter.signing", signed=link.signing, setup=False)
+        return
+    deadline = time.monotonic() + timeout_s / speedup
+    if not link.wait_for(lambda: not link.provisioning(), deadline):
+        with link.cond:
+            autopilot = link.state.autopilot
+        link.close()
+        hint = NO_SIGNING_HINT if autopilot == _MAV_AUTOPILOT_PX4 else ""
+        raise AdapterError(
+            f"{drone}: signing setup failed: the vehicle still sends unsigned "
+            f"messages {timeout_s:g} s after SETUP_SIGNING{hint}"
+        )
+    log.info("adapter.signing", signed=True, setup=True)
+
+
 class LinkSigning:
     """The signing rules on one link: sign what goes out, refuse what comes in unsigned,
     keep the outgoing timestamp up with the clock, provision a vehicle without the key.
@@ -137,20 +275,33 @@ class LinkSigning:
         refresh_timestamp(mav)
         return self.provisioning(mav)
 
+    @staticmethod
+    def signed(mav: Any) -> bool:
+        """Whether correctly signed messages have arrived (the vehicle signs)."""
+        return bool(mav.signing.goodsig_count > 0)
+
     def setup_fields(self, wall_s: float) -> tuple[list[int], int]:
         """SETUP_SIGNING's ``secret_key`` and ``initial_timestamp`` at wall-clock ``wall_s``."""
         return list(self._key), signing_timestamp(wall_s)
 
 
 __all__ = [
+    "MSG_HEARTBEAT",
     "MSG_RADIO_STATUS",
+    "NO_SIGNING_HINT",
+    "REFUSED_HEARTBEATS",
     "SIGNING_KEY_FILE",
     "LinkSigning",
+    "RefusedFrame",
     "SigningKeyError",
+    "SigningLink",
+    "await_signing",
     "create_signing_key",
     "parse_key",
     "radio_status_only",
     "read_key",
     "refresh_timestamp",
+    "refused_frame",
+    "refused_reason",
     "signing_timestamp",
 ]

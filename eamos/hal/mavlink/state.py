@@ -108,7 +108,7 @@ class LinkState:
     estimator_flags: int | None = None
     #: Compass heading from ATTITUDE.yaw (degrees, 0 north, 90 east); None: not heard.
     heading_deg: float | None = None
-    #: CAMERA_IMAGE_CAPTURED (latest first seen last), and how many were heard.
+    #: CAMERA_IMAGE_CAPTURED or ArduPilot's CAMERA_FEEDBACK (latest last), and how many.
     images: deque[CapturedImage] = field(default_factory=lambda: deque(maxlen=20))
     image_serial: int = 0
     #: The gimbal's pitch from GIMBAL_DEVICE_ATTITUDE_STATUS (degrees); None: not heard.
@@ -117,6 +117,20 @@ class LinkState:
     ack_serial: int = 0
     statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
     statustext_serial: int = 0
+    #: Vehicle HEARTBEATs the link refused for their signature (signing.refused_frame):
+    #: how many, whether the latest was signed (with another key) and by which autopilot.
+    refused_heartbeats: int = 0
+    refused_signed: bool = False
+    refused_autopilot: int | None = None
+    refused_at: float = -math.inf
+    #: Messages heard from the vehicle so far, by type (rates.py measures their rates).
+    counts: dict[str, int] = field(default_factory=dict)
+    #: The vehicle's clock: the latest ``time_boot_ms`` it sent (ms since its boot).
+    boot_ms: int | None = None
+    #: The mission protocol's answers addressed to us (MISSION_COUNT, MISSION_REQUEST(_INT),
+    #: MISSION_ITEM_INT, MISSION_ACK), each with its serial number (mission_protocol.py).
+    mission: deque[tuple[int, Any]] = field(default_factory=lambda: deque(maxlen=64))
+    mission_serial: int = 0
     closed: bool = False
 
     def window(self, now: float, span_s: float) -> tuple[tuple[float, float, float], float] | None:
@@ -199,10 +213,39 @@ class StateTracker:
             st.gap_ended_at = now
             events.append(("link.gap", {"silent_s": round(now - st.last_rx, 3)}))
         st.last_rx = now
+        st.counts[kind] = st.counts.get(kind, 0) + 1
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if isinstance(boot_ms, int) and boot_ms > 0:
+            st.boot_ms = boot_ms
         handler = getattr(self, f"_on_{kind.lower()}", None)
         if handler is not None:
             handler(msg, now, events)
             self._notify()
+
+    def refused(self, frame: Any, now: float, events: Events) -> None:
+        """A frame the link refused for its signature (a :class:`~.signing.RefusedFrame`):
+        counted when it is the vehicle's HEARTBEAT (who it is, as for a good one)."""
+        st = self.state
+        if not frame.vehicle_heartbeat:
+            return
+        if frame.component_id != self._component_id and not (
+            self._component_id == 0 and frame.component_id == 1
+        ):
+            return
+        if st.system_id is not None and frame.system_id != st.system_id:
+            return
+        st.refused_heartbeats += 1
+        st.refused_signed = frame.signed
+        st.refused_autopilot = frame.autopilot
+        st.refused_at = now
+        if st.refused_heartbeats == 1:
+            events.append(
+                (
+                    "link.refused",
+                    {"system_id": frame.system_id, "signed": frame.signed},
+                )
+            )
+        self._notify()
 
     def _is_vehicle_heartbeat(self, msg: Any, src: int, comp: int) -> bool:
         st = self.state
@@ -257,6 +300,16 @@ class StateTracker:
         self.state.local_count += 1
         self.state.recent.append((now, self.state.local))
 
+    def _mission(self, msg: Any, now: float, events: Events) -> None:
+        if getattr(msg, "target_system", 0) not in (0, self._source_system):
+            return  # another ground station's mission exchange on a shared port
+        st = self.state
+        st.mission_serial += 1
+        st.mission.append((st.mission_serial, msg))
+
+    _on_mission_count = _on_mission_request = _on_mission_request_int = _mission
+    _on_mission_item_int = _on_mission_ack = _mission
+
     def _on_param_value(self, msg: Any, now: float, events: Events) -> None:
         raw = msg.param_id
         name = (raw.decode("utf-8", "replace") if isinstance(raw, bytes) else raw).rstrip("\x00")
@@ -305,6 +358,19 @@ class StateTracker:
         st.images.append(image)
         st.image_serial += 1
         events.append(("vehicle.image", {"index": image.index, "ok": image.ok}))
+
+    def _on_camera_feedback(self, msg: Any, now: float, events: Events) -> None:
+        # ArduPilot's report of a photo (AP_Camera_Backend::log_picture): it never sends
+        # CAMERA_IMAGE_CAPTURED.  alt_msl / alt_rel are metres already.
+        st = self.state
+        image = CapturedImage(
+            int(msg.img_idx), msg.lat / 1e7, msg.lng / 1e7, msg.alt_msl, msg.alt_rel, True
+        )
+        st.images.append(image)
+        st.image_serial += 1
+        events.append(
+            ("vehicle.image", {"index": image.index, "ok": True, "via": "CAMERA_FEEDBACK"})
+        )
 
     def _on_gimbal_device_attitude_status(self, msg: Any, now: float, events: Events) -> None:
         w, x, y, z = msg.q

@@ -8,12 +8,13 @@ while the mission kept it waiting, then waits until the height is reached and he
 
 from __future__ import annotations
 
+import time
+
 from eamos.hal.api import ActionResult
 from eamos.hal.mavlink.arming import Arming, disarmed_on_ground
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.control import RunControl
 from eamos.hal.mavlink.frames import mission_to_ned
-from eamos.hal.mavlink.state import LinkState
 from eamos.hal.mavlink.waits import Failed, Run, Waiter
 
 
@@ -58,25 +59,24 @@ class TakeOff:
         with v.cond:
             if v.origin is None:
                 raise Failed("no LOCAL_POSITION_NED from the vehicle yet")
-            x, y, _ = v.mission_position()
+            x, y, z = v.mission_position()
             v.commanded = (x, y, height)
             v.flown = True
             target_ned = mission_to_ned(v.commanded, v.origin)
+        # Vertical only: a real take-off may drift a little sideways.
+        arrival = v.settling.arrival((x, y, z), (x, y, height), time.monotonic(), vertical=True)
         v.autopilot.takeoff(ctl, target_ned, height)
         modes = v.autopilot.takeoff_modes()
         self.waiter.confirm_modes(run, modes, done=lambda st: False)
 
-        def arrived(st: LinkState) -> bool:
-            # Vertical only: a real take-off may drift a little sideways.
-            return v.settled(st, (x, y, height), vertical=True)
-
         self.waiter.wait(
             run,
-            arrived,
+            lambda st: v.settling.arrived(st, arrival),
             run.started + s.scaled(s.action_timeout_s),
             self.waiter.timeout_reason("take-off height not reached"),
             guard=self.waiter.guard(modes),
         )
+        v.settling.log_arrival("Takeoff", arrival)
         return ActionResult("ok")
 
 

@@ -20,35 +20,39 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
-from eamos.hal.api import POSITION_LOG_HZ, AdapterError, Telemetry
+from eamos.hal.api import POSITION_LOG_HZ, AdapterError, AdapterNotice, TakenOver, Telemetry
 from eamos.hal.kinematics import GeoFrame
 from eamos.hal.mavlink.autopilots import Autopilot, autopilot_from_heartbeat, autopilot_named
 from eamos.hal.mavlink.command_protocol import CommandProtocol
-from eamos.hal.mavlink.estimator import (
-    MSG_EKF_STATUS_REPORT,
-    MSG_ESTIMATOR_STATUS,
-    estimator_message,
-)
 from eamos.hal.mavlink.frames import NedOrigin, Vector, ned_to_mission
-from eamos.hal.mavlink.home import capture_home
+from eamos.hal.mavlink.geofence import GeofenceKeeper
+from eamos.hal.mavlink.home import VehicleHomeCheck, capture_home
 from eamos.hal.mavlink.keeper import ParamKeeper
 from eamos.hal.mavlink.link import (
     MAV_SYS_STATUS_PREARM_CHECK,
     LinkError,
     LinkState,
     MavlinkLink,
-    result_name,
 )
-from eamos.hal.mavlink.signing import SigningKeyError, read_key
+from eamos.hal.mavlink.pilot import PilotHand, takeover_watch
+from eamos.hal.mavlink.rates import RateKeeper, request_intervals, watched
+from eamos.hal.mavlink.settling import Settling
+from eamos.hal.mavlink.signing import (
+    REFUSED_HEARTBEATS,
+    SigningKeyError,
+    await_signing,
+    read_key,
+    refused_reason,
+)
 from eamos.hal.mavlink.targets import (
     TYPE_MASK_POSITION,
-    TYPE_MASK_VELOCITY,
+    CirclePath,
     GuidedTarget,
     send_global,
+    send_path,
     send_position,
-    send_stop,
 )
 from eamos.hal.settings import field_error
 
@@ -58,26 +62,6 @@ if TYPE_CHECKING:
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_LANDED_STATE_ON_GROUND = 1
-#: Messages requested with MAV_CMD_SET_MESSAGE_INTERVAL, and their rate in Hz
-#: (None: ``telemetry_hz``).
-MSG_LOCAL_POSITION_NED = 32
-MSG_GLOBAL_POSITION_INT = 33
-MSG_SYS_STATUS = 1
-MSG_EXTENDED_SYS_STATE = 245
-MSG_BATTERY_STATUS = 147
-MSG_HOME_POSITION = 242
-MSG_ATTITUDE = 30
-TELEMETRY_INTERVALS: dict[int, float | None] = {
-    MSG_LOCAL_POSITION_NED: None,
-    MSG_GLOBAL_POSITION_INT: None,
-    MSG_EXTENDED_SYS_STATE: None,
-    MSG_ATTITUDE: None,  # the heading (Yaw, Orbit)
-    MSG_SYS_STATUS: 2.0,
-    MSG_BATTERY_STATUS: 1.0,
-    MSG_HOME_POSITION: 0.5,
-    MSG_ESTIMATOR_STATUS: 2.0,  # PX4 only
-    MSG_EKF_STATUS_REPORT: 2.0,  # ArduPilot only
-}
 #: Below this height (m above the take-off ground) a vehicle without
 #: EXTENDED_SYS_STATE counts as on the ground.
 GROUND_Z_M = 0.1
@@ -86,16 +70,34 @@ GROUND_Z_M = 0.1
 TARGET_REFRESH_S = 1.0
 #: The adapter log gets the vehicle's position this often while it changes.
 POSITION_LOG_S = 1.0 / POSITION_LOG_HZ
+#: How often a mode change waiting for a failsafe's STATUSTEXT is looked at again.
+TAKEOVER_TICK_S = 0.1
+#: How often the telemetry rates are looked at (a window ends every RATE_WINDOW_S).
+RATE_TICK_S = 0.25
 
 
 def _signing_key(settings: MavlinkSettings) -> bytes | None:
-    """The fleet's signing key from ``hal.signing_key`` (never logged), or None."""
-    if settings.signing_key is None:
+    """The fleet's signing key from ``hal.signing_key`` (never logged), or None (no key,
+    or ``hal.signing = "off"`` for this vehicle)."""
+    if settings.signing_key is None or settings.signing == "off":
         return None
     try:
         return read_key(Path(settings.signing_key).expanduser())
     except SigningKeyError as exc:
         raise field_error("hal.signing_key", str(exc)) from None
+
+
+def heartbeat_lost(st: LinkState, settings: MavlinkSettings) -> str:
+    """Why an action ends when HEARTBEATs stop: the last STATUSTEXT, or that the vehicle's
+    messages come unsigned (or signed with another key) since the last good HEARTBEAT."""
+    text = st.last_statustext
+    why = f" (last STATUSTEXT: {text})" if text else ""
+    if st.refused_at > st.last_heartbeat:
+        why = f" ({refused_reason(st, settings.connection)})"
+    return (
+        f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
+        f"{settings.heartbeat_timeout_s:g} s{why}"
+    )
 
 
 class MavlinkVehicle:
@@ -133,14 +135,32 @@ class MavlinkVehicle:
         self.geo: GeoFrame | None = None  # home, in WGS84
         self.commanded: Vector | None = None  # last motion target, mission frame
         self.stream_target: Vector | None = None  # PX4 setpoint stream (NED)
-        self.stream_stop = False  # the stream carries a zero velocity instead (a brake)
-        self.stream_yaw: float | None = None  # heading the PX4 stream asks for (Yaw), degrees
+        #: A path streamed instead of a target, on both autopilots (Orbit), and since when.
+        self.path: CirclePath | None = None
+        #: How far round the vehicle has flown so far (radians), for the path's target.
+        self.path_flown: Callable[[], float] = lambda: 0.0
+        #: The heading every target carries once a Yaw set one (degrees); None: yaw ignored.
+        self.stream_yaw: float | None = None
         #: Horizontal speed the vehicle was told (the drone type's, then SetSpeed's).
         self.horizontal_speed_mps = settings.horizontal_speed_mps
-        self.keeper = ParamKeeper(self.link, settings, log)  # speeds set, to restore
+        # Speeds (and fence parameters) set, to restore; never written once a pilot has it.
+        self.keeper = ParamKeeper(self.link, settings, log, lambda: self.taken_over is not None)
         self.stream_since = 0.0  # when the stream (re)started, time.monotonic()
         self.guided_target: GuidedTarget | None = None  # ArduPilot, refreshed every second
+        # Whose every mode change is (pilot.py): once a pilot's, nothing but heartbeats is
+        # sent any more (taken_over set; on_taken_over told, outside the condition).
+        self.takeover = takeover_watch(settings)
+        self.taken_over: TakenOver | None = None
+        self.on_taken_over: Callable[[TakenOver], None] | None = None
+        self.pilot = PilotHand(self)
+        self.link.observe = self.pilot.observe
+        self.notices: list[AdapterNotice] = []  # for the operator, drained by notices()
+        self.geofence = GeofenceKeeper(self)
+        self.rates = RateKeeper(self.link, log, self.notify, lambda: self.taken_over is not None)
+        self.home_check = VehicleHomeCheck(self.link, settings, log, self.notify)
         self._was_armed = False
+        #: When it is at rest, when a move has arrived (settling.py).
+        self.settling = Settling(self)
         self._last_position_key: tuple[float | bool, ...] | None = None
 
     # -- connecting ----------------------------------------------------------------
@@ -155,9 +175,12 @@ class MavlinkVehicle:
         """
         s = self.settings
         deadline = time.monotonic() + s.connect_timeout_s
-        self.link.every(1.0 / s.setpoint_hz, self._steer_tick, "setpoints")
+        self.link.every(s.wall_period(s.setpoint_hz), self._steer_tick, "setpoints")
         self.link.every(TARGET_REFRESH_S, self._refresh_tick, "target-refresh")
         self.link.every(POSITION_LOG_S, self._position_log_tick, "position-log")
+        self.link.every(TAKEOVER_TICK_S, self.pilot.tick, "takeover")
+        self.link.every(RATE_TICK_S, self.rates.tick, "rates")
+        self.link.every(1.0, self.home_check.tick, "home")
         for period, job, name in extra_jobs:
             self.link.every(period, job, name)
         try:
@@ -170,11 +193,18 @@ class MavlinkVehicle:
                     f"{s.connect_timeout_s:g} s ({exc})"
                 ) from exc
             raise AdapterError(f"{self.drone}: {exc}") from exc
-        if not self.link.wait_for(lambda: self.state.heartbeats > 0, deadline):
+        st = self.state
+        if not self.link.wait_for(
+            lambda: st.heartbeats > 0 or st.refused_heartbeats >= REFUSED_HEARTBEATS, deadline
+        ):
             self.link.close()
             raise AdapterError(
                 f"{self.drone}: no heartbeat from {s.connection} within {s.connect_timeout_s:g} s"
             )
+        if st.heartbeats == 0:
+            self.link.close()
+            raise AdapterError(f"{self.drone}: {refused_reason(st, s.connection)}")
+        await_signing(self.link, s.signing_timeout_s, s.speedup, self.drone, self.log)
         with self.cond:
             detected, sysid = self.state.autopilot or 0, self.state.system_id
         try:
@@ -189,31 +219,20 @@ class MavlinkVehicle:
                 f"is {s.autopilot!r} but the vehicle's HEARTBEAT "
                 f"announces {found.name} ({detected})",
             )
-        self.autopilot = found
+        with self.cond:
+            self.autopilot = found
+            self.takeover.set_autopilot(found.name)
         self.log.info(
             "adapter.connected", system_id=sysid, autopilot=found.name, mode=self.mode_name()
         )
-        self._request_intervals(deadline)
+        request_intervals(self.commands, self.autopilot.name, s, self.log, deadline)
+        self.rates.start(watched(s.telemetry_hz))
         self.apply_speeds()
 
-    def _request_intervals(self, deadline: float) -> None:
-        """Ask for the telemetry the adapter reads (best effort; each answer is logged)."""
-        s = self.settings
-        for msg_id, hz in TELEMETRY_INTERVALS.items():
-            if time.monotonic() >= deadline:
-                break
-            if msg_id in (MSG_ESTIMATOR_STATUS, MSG_EKF_STATUS_REPORT) and msg_id != (
-                estimator_message(self.autopilot.name)
-            ):
-                continue  # the other autopilot's estimator report
-            rate = s.telemetry_hz if hz is None else min(hz, s.telemetry_hz)
-            result = self.commands.request(
-                MAV_CMD_SET_MESSAGE_INTERVAL,
-                (float(msg_id), 1e6 / rate, 0, 0, 0, 0, 0),
-                timeout_s=s.command_timeout_s,
-                retries=1,
-            )
-            self.log.info("adapter.interval", message=msg_id, hz=rate, result=result_name(result))
+    def notify(self, kind: Literal["taken_over", "warning"], text: str) -> None:
+        """Queue something for the operator (AdapterNotice; any thread)."""
+        with self.cond:
+            self.notices.append(AdapterNotice(kind, text))
 
     def close(self) -> None:
         """Close the link (its threads end; waiters wake and see ``state.closed``)."""
@@ -280,41 +299,6 @@ class MavlinkVehicle:
             return self.commanded
         return self.mission_position()
 
-    @property
-    def tolerance_m(self) -> float:
-        """Completion tolerance: the settings', else the autopilot's."""
-        return self.settings.tolerance_m or self.autopilot.tolerance_m
-
-    @property
-    def settle_speed_mps(self) -> float:
-        """Settle speed: the settings', else the autopilot's."""
-        return self.settings.settle_speed_mps or self.autopilot.settle_speed_mps
-
-    def window(self, st: LinkState, now: float) -> tuple[Vector, float] | None:
-        """Mean mission position and speed over the settle window ending ``now``, or None
-        until LOCAL_POSITION_NED has been heard for the whole window (a single sample of
-        a wandering estimate proves nothing)."""
-        seen = st.window(now, self.settings.scaled(self.settings.settle_s))
-        if seen is None or st.local is None:
-            return None
-        origin = self.origin or NedOrigin(st.local[0], st.local[1], st.local[2])
-        return ned_to_mission(seen[0], origin), seen[1]
-
-    def settled(self, st: LinkState, target: Vector | None = None, vertical: bool = False) -> bool:
-        """At rest over the settle window (and within tolerance of ``target``, if given;
-        ``vertical``: of its height only)."""
-        seen = self.window(st, time.monotonic())
-        if seen is None:
-            return False
-        position, speed = seen
-        if speed > self.settle_speed_mps:
-            return False
-        if target is None:
-            return True
-        if vertical:
-            return abs(position[2] - target[2]) <= self.tolerance_m
-        return math.dist(position, target) <= self.tolerance_m
-
     def capture_origin(self, ground: bool = False) -> None:
         """Record home at the first (settled) fix and, with ``ground``, the ground height
         before arming (:func:`eamos.hal.mavlink.home.capture_home`; condition held)."""
@@ -349,13 +333,8 @@ class MavlinkVehicle:
         )
 
     def lost_reason(self) -> str:
-        """Why an action ends when HEARTBEATs stop."""
-        text = self.state.last_statustext
-        why = f" (last STATUSTEXT: {text})" if text else ""
-        return (
-            f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
-            f"{self.settings.heartbeat_timeout_s:g} s{why}"
-        )
+        """Why an action ends when HEARTBEATs stop (:func:`heartbeat_lost`)."""
+        return heartbeat_lost(self.state, self.settings)
 
     # -- steering (link ticker thread) -------------------------------------------------
 
@@ -366,21 +345,30 @@ class MavlinkVehicle:
         send_position(self.link, target, yaw)
 
     def send_guided_target(self, target: GuidedTarget) -> None:
-        """A local or global (relative altitude) position target."""
+        """A local or global (relative altitude) position target, with the held heading.
+
+        ArduCopter resets its yaw mode to ``WP_YAW_BEHAVIOR`` on every GUIDED target that
+        ignores yaw (the notes): a heading set by Yaw must travel inside each target.
+        """
+        with self.cond:
+            yaw = self.stream_yaw
         kind, point = target
         if kind == "local":
-            send_position(self.link, point)
+            send_position(self.link, point, yaw)
         else:
-            send_global(self.link, point)
+            send_global(self.link, point, yaw)
 
-    def send_stop(self) -> None:
-        """A zero-velocity target (velocity only): stop now."""
-        send_stop(self.link)
+    def send_path_point(self, path: CirclePath) -> None:
+        """The target of ``path`` just ahead of the vehicle, with its velocity."""
+        with self.cond:
+            flown = self.path_flown()
+        position, velocity, heading = path.at(flown)
+        send_path(self.link, position, velocity, heading)
 
     def stop_steering(self) -> None:
-        """No more setpoints or position targets (condition held)."""
+        """No more setpoints, paths or position targets (condition held)."""
         self.stream_target = None
-        self.stream_stop = False
+        self.path = None
         self.guided_target = None
 
     def apply_speeds(self) -> None:
@@ -388,24 +376,28 @@ class MavlinkVehicle:
         self.keeper.apply_speeds(self.autopilot.name)
 
     def restore_params(self) -> None:
-        """Write back the parameters :meth:`apply_speeds` changed."""
+        """Write back the parameters the adapter changed (speeds, fence), then the
+        vehicle's own fence (geofence.py)."""
         self.keeper.restore()
+        self.geofence.restore()
 
     def _steer_tick(self) -> None:
         with self.cond:
+            if self.taken_over is not None:
+                return  # a pilot has it: no setpoint ever again
             if self._was_armed and not self.state.armed:
                 # Disarmed (landed, auto-disarm, or by someone else): stop steering.
                 self.stop_steering()
             self._was_armed = self.state.armed
-            target, stop = self.stream_target, self.stream_stop
-        if stop:
-            self.send_stop()
+            target, path = self.stream_target, self.path
+        if path is not None:
+            self.send_path_point(path)
         elif target is not None:
             self.send_setpoint(target)
 
     def _refresh_tick(self) -> None:
         with self.cond:
-            target = self.guided_target
+            target = None if self.taken_over is not None else self.guided_target
         if target is not None:
             self.send_guided_target(target)
 
@@ -426,6 +418,8 @@ class MavlinkVehicle:
             self.log.info("adapter.statustext", **event)
         elif name == "vehicle.ack":
             self.log.debug("adapter.ack", **event)
+        elif self.pilot.event(name, event):
+            pass  # a takeover, a failsafe (pilot.py)
         elif name in ("link.lost", "link.transport_error", "link.job_error", "link.send_error"):
             self.log.warning(f"adapter.{name}", **event)
         else:
@@ -462,7 +456,6 @@ def _log_position(self: MavlinkVehicle) -> None:
 __all__ = [
     "GROUND_Z_M",
     "TYPE_MASK_POSITION",
-    "TYPE_MASK_VELOCITY",
     "GuidedTarget",
     "MavlinkVehicle",
 ]

@@ -109,10 +109,24 @@ class Waiter:
         """Raise if ``run`` must stop (condition held)."""
         if run.finished:
             raise Ended
+        if self.v.taken_over is not None:
+            raise Failed(self.v.taken_over.reason())  # a pilot has it: never command it again
         if self.v.state.closed:
             raise Failed("adapter closed")
         if watch_link and not self.v.state.link_ok:
             raise Failed(self.v.lost_reason())
+
+    def settle_mode(self, run: Run) -> None:
+        """Before commanding: wait until a mode change nobody explained yet is classified
+        (a failsafe's STATUSTEXT may trail it; takeover.py), then raise if a pilot has it."""
+        watch = self.v.takeover
+        self.wait(
+            run,
+            lambda st: watch.pending is None,
+            time.monotonic() + watch.grace_s + 1.0,
+            lambda st: "",
+            quiet_timeout=True,
+        )
 
     def confirm_modes(self, run: Run, modes: frozenset[str], done: Check) -> None:
         """Wait until a HEARTBEAT shows one of ``modes`` (or ``done``): acks run ahead of it."""
@@ -140,10 +154,18 @@ class Waiter:
                 return f"vehicle disarmed{text}"
             mode = v.mode_name(st)
             if mode not in modes:
+                watch = v.takeover
+                if v.taken_over is not None:
+                    return v.taken_over.reason()
+                if watch.pending is not None:
+                    return None  # whose change it is will be known within the grace
                 # PX4 leaves OFFBOARD when setpoints stop for a second and comes
                 # back when they resume: tolerate that after a gap or failsafe.
                 if time.monotonic() < max(st.gap_ended_at, st.failsafe_at) + grace:
                     return None
+                failsafe = watch.failsafe
+                if failsafe is not None and failsafe.mode == mode:
+                    return f"failsafe: {failsafe.why} (mode {mode})"
                 return f"vehicle switched to mode {mode} under us{text}"
             return None
 

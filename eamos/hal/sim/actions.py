@@ -71,7 +71,7 @@ Finished = tuple[DoneCallback, ActionResult]
 
 # "motion": to a fixed target; "orbit": a moving one (guide); "home": above home, then
 # "land"; "yaw": turning on the spot; "plugin": its implementation computes the outcome.
-_Kind = Literal["arm", "motion", "land", "timer", "orbit", "home", "yaw", "plugin"]
+_Kind = Literal["arm", "motion", "liftoff", "land", "timer", "orbit", "home", "yaw", "plugin"]
 
 
 @dataclass(eq=False)
@@ -87,6 +87,7 @@ class SimAction:
     deadline_s: float = math.inf  # "arm"/"motion"/"land": when it times out
     target: tuple[float, float, float] | None = None
     deferred: bool = False  # waiting for the scripted pilot
+    touched_down: bool = False  # "land": on the ground, its detector not yet reporting
     guide: OrbitGuide | None = None  # "orbit": the moving setpoint
     heading_deg: float = 0.0  # "yaw": the heading turned to
     call: PluginCall | None = None  # "plugin": the implementation's call
@@ -325,8 +326,12 @@ class ActionRules:
         if target[2] <= 0:
             reason = f"target z {target[2]:.2f} m is not above ground (use Land)"
             return self._finish(act, ActionResult("failed", reason), finished)
-        act.kind = "motion"
         act.target = target
+        if isinstance(command, Takeoff) and model.landed and s.liftoff_delay_s > 0:
+            act.kind = "liftoff"  # the motors spool up first
+            act.until_s = self.t_s + s.liftoff_delay_s
+            return None
+        act.kind = "motion"
         model.set_target(*target)
         return None
 
@@ -359,8 +364,15 @@ class ActionRules:
                 if model.armed:
                     self._finish(act, ActionResult("ok"), finished)
                     continue
+            elif act.kind == "liftoff":
+                if self.t_s >= act.until_s - _EPS_S and act.target is not None:
+                    act.kind = "motion"
+                    model.set_target(*act.target)
             elif act.kind == "land":
-                if model.landed:
+                if model.landed and s.land_detect_s > 0 and not act.touched_down:
+                    act.touched_down = True  # its land detector reports it a moment later
+                    act.until_s = self.t_s + s.land_detect_s
+                if model.landed and (s.land_detect_s <= 0 or self.t_s >= act.until_s - _EPS_S):
                     if isinstance(act.command, ReturnHome):
                         model.disarm()  # as both autopilots' RTL does after touchdown
                     self._finish(act, ActionResult("ok"), finished)

@@ -28,6 +28,18 @@ from eamos.program.uniform import ACTIONS, DRONE_TYPES
 
 #: The longest deadline a plugin's "sim" implementation may be given (an hour).
 PLUGIN_DEADLINE_MAX_S = 3600.0
+#: Every setting is bounded (docs/configuration.md, "Ranges"): a value far out (a speed of
+#: 1e-9 m/s, an acceleration of 1e308) leaves the drone armed on the ground or spins its
+#: simulator.  The simulator's step (its SIM_DT_S) caps the telemetry rate.
+SIM_STEP_S = 0.02
+MAX_SPEEDUP = 1000.0
+MIN_SPEED_MPS = 0.05
+MAX_DRAIN = 6000.0  # percent per minute: an empty battery in a hundredth of a minute
+#: Scripted pilot: coordinates within this many metres of home, waypoints at most.
+MAX_PILOT_M = 10_000.0
+MAX_WAYPOINTS = 10_000
+#: A drone's home in the fleet frame within this many metres of the origin.
+MAX_HOME_M = 1_000_000.0
 
 
 @dataclass(frozen=True)
@@ -92,6 +104,12 @@ class SimSettings:
     tolerance_m: float = 0.1
     settle_speed_mps: float = 0.2
     arm_delay_s: float = 2.0
+    # Told to take off, the vehicle leaves the ground this long later (motors spooling up,
+    # an autopilot's take-off ramp); a landing is reported this long after touchdown (an
+    # autopilot's land detector).  0 for a simulated drone; the pre-flight check's model
+    # of a MAVLink drone sets the measured ones (eamos.config.types.MAVLINK_MODELS).
+    liftoff_delay_s: float = 0.0
+    land_detect_s: float = 0.0
     # Disarm by itself this long after a touchdown ending a flight, as PX4 (COM_DISARM_LAND)
     # and ArduCopter do; 0: never (eamos.hal.sim.landing).
     disarm_after_landing_s: float = DISARM_AFTER_LANDING_S
@@ -145,25 +163,29 @@ class SimSettings:
             _home_m(mapping["home_m"], f"{prefix}.home_m") if "home_m" in mapping else (0.0, 0.0)
         )
         return cls(
-            speedup=num("speedup", gt=0),
-            horizontal_speed_mps=num("horizontal_speed_mps", gt=0),
-            climb_speed_mps=num("climb_speed_mps", gt=0),
-            descent_speed_mps=num("descent_speed_mps", gt=0),
-            accel_mps2=num("accel_mps2", gt=0),
-            tolerance_m=num("tolerance_m", gt=0),
-            settle_speed_mps=num("settle_speed_mps", gt=0),
-            arm_delay_s=num("arm_delay_s", ge=0),
-            disarm_after_landing_s=num("disarm_after_landing_s", ge=0),
-            telemetry_hz=num("telemetry_hz", gt=0),
+            speedup=num("speedup", gt=0, le=MAX_SPEEDUP),
+            horizontal_speed_mps=num("horizontal_speed_mps", ge=MIN_SPEED_MPS, le=50),
+            climb_speed_mps=num("climb_speed_mps", ge=MIN_SPEED_MPS, le=20),
+            descent_speed_mps=num("descent_speed_mps", ge=MIN_SPEED_MPS, le=20),
+            accel_mps2=num("accel_mps2", ge=0.1, le=50),
+            tolerance_m=num("tolerance_m", ge=0.01, le=10),
+            settle_speed_mps=num("settle_speed_mps", gt=0, le=5),
+            arm_delay_s=num("arm_delay_s", ge=0, le=600),
+            liftoff_delay_s=num("liftoff_delay_s", ge=0, le=600),
+            land_detect_s=num("land_detect_s", ge=0, le=600),
+            disarm_after_landing_s=num("disarm_after_landing_s", ge=0, le=3600),
+            telemetry_hz=num("telemetry_hz", ge=0.1, le=1 / SIM_STEP_S),
             home_lat_deg=num("home_lat_deg", ge=-90, le=90),
             home_lon_deg=num("home_lon_deg", ge=-180, le=180),
-            home_alt_m=num("home_alt_m"),
+            home_alt_m=num("home_alt_m", ge=-1000, le=10_000),
             battery_pct=num("battery_pct", ge=0, le=100),
-            drain_airborne_pct_per_min=num("drain_airborne_pct_per_min", ge=0),
-            drain_per_mps_pct_per_min=num("drain_per_mps_pct_per_min", ge=0),
-            drain_climb_per_mps_pct_per_min=num("drain_climb_per_mps_pct_per_min", ge=0),
-            drain_idle_pct_per_min=num("drain_idle_pct_per_min", ge=0),
-            action_timeout_s=num("action_timeout_s", gt=0),
+            drain_airborne_pct_per_min=num("drain_airborne_pct_per_min", ge=0, le=MAX_DRAIN),
+            drain_per_mps_pct_per_min=num("drain_per_mps_pct_per_min", ge=0, le=MAX_DRAIN),
+            drain_climb_per_mps_pct_per_min=num(
+                "drain_climb_per_mps_pct_per_min", ge=0, le=MAX_DRAIN
+            ),
+            drain_idle_pct_per_min=num("drain_idle_pct_per_min", ge=0, le=MAX_DRAIN),
+            action_timeout_s=num("action_timeout_s", gt=0, le=86_400),
             plugin_deadline_s=num("plugin_deadline_s", gt=0, le=PLUGIN_DEADLINE_MAX_S),
             reject_actions=reject,
             pilot=pilot,
@@ -197,12 +219,17 @@ class SimSettings:
 def _home_m(value: Any, path: str) -> tuple[float, float]:
     if isinstance(value, str) or not isinstance(value, list | tuple) or len(value) != 2:
         raise field_error(path, f"expected [north_m, east_m], got {value!r}")
-    return (as_number(value[0], f"{path}[0]"), as_number(value[1], f"{path}[1]"))
+    return (
+        as_number(value[0], f"{path}[0]", ge=-MAX_HOME_M, le=MAX_HOME_M),
+        as_number(value[1], f"{path}[1]", ge=-MAX_HOME_M, le=MAX_HOME_M),
+    )
 
 
 def _pilot_path(value: Any, path: str) -> tuple[Waypoint, ...]:
     if isinstance(value, str) or not isinstance(value, list | tuple):
         raise field_error(path, f"expected a list of waypoints, got {value!r}")
+    if len(value) > MAX_WAYPOINTS:
+        raise field_error(path, f"at most {MAX_WAYPOINTS} waypoints, got {len(value)}")
     points = []
     for i, raw in enumerate(value):
         where = f"{path}[{i}]"
@@ -213,11 +240,11 @@ def _pilot_path(value: Any, path: str) -> tuple[Waypoint, ...]:
                 raise field_error(f"{where}.{key}", "missing")
         points.append(
             Waypoint(
-                x_m=as_number(item["x_m"], f"{where}.x_m"),
-                y_m=as_number(item["y_m"], f"{where}.y_m"),
+                x_m=as_number(item["x_m"], f"{where}.x_m", ge=-MAX_PILOT_M, le=MAX_PILOT_M),
+                y_m=as_number(item["y_m"], f"{where}.y_m", ge=-MAX_PILOT_M, le=MAX_PILOT_M),
                 # The pilot flies; landing is the mission's (or abort's) business.
-                z_m=as_number(item["z_m"], f"{where}.z_m", gt=0),
-                hold_s=as_number(item.get("hold_s", 0.0), f"{where}.hold_s", ge=0),
+                z_m=as_number(item["z_m"], f"{where}.z_m", gt=0, le=MAX_PILOT_M),
+                hold_s=as_number(item.get("hold_s", 0.0), f"{where}.hold_s", ge=0, le=86_400),
             )
         )
     return tuple(points)

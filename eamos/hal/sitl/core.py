@@ -24,12 +24,15 @@ import math
 import random
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter
 from eamos.hal.sim.core import SIM_DT_S
+from eamos.hal.sitl.fence import Geofence
 from eamos.hal.sitl.manoeuvres import Manoeuvres
+from eamos.hal.sitl.missions import FENCE, MISSION, Dialect, MissionServer
+from eamos.hal.sitl.params import Param, Params, ParamTable
 from eamos.hal.sitl.payload import CameraGimbal
 from eamos.hal.sitl.streams import Identity, Send, Status, Streams
 from eamos.hal.sitl.wire import (
@@ -49,9 +52,6 @@ from eamos.hal.sitl.wire import (
 if TYPE_CHECKING:
     from eamos.logs import EventLog
 
-#: A parameter: its value and MAV_PARAM_TYPE.
-Param = tuple[float, int]
-Params = dict[str, Param]
 #: Modes in which the vehicle lands, and returns to launch (either autopilot's names).
 LAND_MODES = frozenset({"AUTO.LAND", "LAND"})
 RTL_MODES = frozenset({"AUTO.RTL", "RTL"})
@@ -64,6 +64,16 @@ LAND_SPEED_MPS = 0.7
 GIMBAL_STATUS_PERIOD_S = 0.2
 #: The wandering estimate's correlation time (seconds): slow, like an EKF's drift.
 WANDER_TAU_S = 2.0
+
+
+@dataclass(frozen=True)
+class FenceLimits:
+    """What an autopilot's fence parameters enable: a ceiling (m above home), a radius
+    around home (m), and the uploaded polygons and circles."""
+
+    ceiling_m: float | None = None
+    radius_m: float | None = None
+    uploaded: bool = True
 
 
 def stopping_point(
@@ -102,8 +112,12 @@ class Personality:
     refused: int
     #: Whether REQUEST_DATA_STREAM is understood.
     data_streams: bool = False
+    #: Whether MAV_CMD_DO_REPOSITION is understood as COMMAND_LONG too (not only COMMAND_INT).
+    reposition_long: bool = True
     #: The mode MAV_CMD_NAV_LAND switches to.
     land_mode: str
+    #: How it speaks the mission protocol (:mod:`eamos.hal.sitl.missions`).
+    mission_dialect: Dialect
     #: STATUSTEXT narration.
     text_armable: str
     text_not_ready: str
@@ -134,6 +148,21 @@ class Personality:
     def preflight_disarm_s(self, v: VehicleCore) -> float:
         """Armed on the ground without a take-off, disarm after this (<= 0: never)."""
         raise NotImplementedError
+
+    #: Seconds from touchdown until it reports being on the ground (its land detector).
+    land_detect_s: float = 1.5
+
+    def land_speed(self, v: VehicleCore) -> float:
+        """The descent speed in its land mode (from its parameters)."""
+        return LAND_SPEED_MPS
+
+    def land_disarm_s(self, v: VehicleCore) -> float:
+        """Seconds from reporting on the ground until it disarms by itself."""
+        return LAND_DISARM_S
+
+    def liftoff_delay_s(self, v: VehicleCore) -> float:
+        """Seconds from being told to climb (armed, on the ground) until it leaves it."""
+        return 0.0
 
     def estimator_settle_s(self, options: VehicleOptions) -> float:
         """When its estimator settles unless the options say (simulated seconds from start)."""
@@ -204,8 +233,10 @@ class Personality:
     def landing(self, v: VehicleCore) -> None:
         """MAV_CMD_NAV_LAND accepted: narrate it."""
 
-    def reposition_mode(self, v: VehicleCore, p: tuple[float, ...]) -> int | None:
-        """Enter the mode a reposition flies in; a MAV_RESULT if it is refused."""
+    def reposition_mode(
+        self, v: VehicleCore, p: tuple[float, ...], target: tuple[float, float, float]
+    ) -> int | None:
+        """Enter the mode a reposition to ``target`` flies in; a MAV_RESULT if it is refused."""
         raise NotImplementedError
 
     def setpoint(self, v: VehicleCore) -> None:
@@ -236,54 +267,25 @@ class Personality:
         """MAV_CMD_DO_CHANGE_SPEED: the MAV_RESULT."""
         return UNSUPPORTED
 
+    # -- geofence (eamos.hal.sitl.fence) -------------------------------------------------------
 
-class ParamTable:
-    """The vehicle's parameters: PARAM_REQUEST_LIST/READ and PARAM_SET, each answered with
-    PARAM_VALUE in the personality's wire encoding."""
+    def fence_limits(self, v: VehicleCore) -> FenceLimits | None:
+        """What its fence parameters enable now; None: no fence is enforced."""
+        return None
 
-    def __init__(
-        self, personality: Personality, initial: Params, log: EventLog, send: Send
-    ) -> None:
-        self._p = personality
-        self._params: Params = dict(initial)
-        self._log = log
-        self._send = send
+    def fence_breached(self, v: VehicleCore, kind: str) -> None:
+        """The vehicle just left its fence (``kind``: altitude, circle, polygon): react."""
 
-    def value(self, name: str) -> float:
-        """A parameter's current value."""
-        return self._params[name][0]
+    def fence_cleared(self, v: VehicleCore) -> None:
+        """The vehicle is back inside its fence."""
 
-    def snapshot(self) -> Params:
-        """A copy of every parameter."""
-        return dict(self._params)
+    def armable_announced(self, v: VehicleCore) -> None:
+        """The pre-arm checks just passed (ArduPilot: home and origin are set then)."""
 
-    def send_all(self) -> None:
-        """PARAM_REQUEST_LIST: every parameter, in order."""
-        for index, name in enumerate(self._params):
-            self._send_param(name, index)
-
-    def read(self, name: str, index: int) -> None:
-        """PARAM_REQUEST_READ by index (if valid) or name; unknown ones stay unanswered."""
-        names = list(self._params)
-        if 0 <= index < len(names):
-            name = names[index]
-        if name in self._params:
-            self._send_param(name, names.index(name))
-
-    def set(self, name: str, raw: float) -> None:
-        """PARAM_SET: store and echo; both SITLs stay silent about unknown parameters."""
-        if name not in self._params:
-            return
-        _, ptype = self._params[name]
-        value = self._p.param_from_wire(raw, ptype)
-        self._params[name] = (value, ptype)
-        self._log.info("vehicle.param", name=name, value=value)
-        self._send_param(name, list(self._params).index(name))
-
-    def _send_param(self, name: str, index: int) -> None:
-        value, ptype = self._params[name]
-        wire = self._p.param_to_wire(value, ptype)
-        self._send("param_value", name.encode(), wire, ptype, len(self._params), index)
+    def coordinates_refused(self, v: VehicleCore) -> int | None:
+        """MAV_CMD_DO_REPOSITION to a latitude or longitude out of range: the MAV_RESULT,
+        or None if it accepts it (and the vehicle then holds where it is)."""
+        return None
 
 
 class VehicleCore:
@@ -322,6 +324,10 @@ class VehicleCore:
         self.armed_at = 0.0
         self.flew = False  # left the ground (or was told to) since arming
         self.touchdown_at: float | None = None
+        self._climb_asked_at: float | None = None  # told to climb while on the ground
+        self._touchdown_told = True
+        self.move_m = 0.0  # the length of the current move (from where it was steered)
+        self.move_from_mps = 0.0  # the speed it had when that move began
         self._was_landed = True
         self.mode = personality.initial_mode
         self._armable_announced = False
@@ -343,6 +349,11 @@ class VehicleCore:
             else personality.estimator_settle_s(o)
         )
         self.streams = Streams(identity, personality.default_rates, o, self.offset_m, send)
+        self.missions = MissionServer(
+            personality.mission_dialect, send, lambda: o.home, self._missions_changed
+        )
+        self.geofence = Geofence()
+        self.fence_breach: str | None = None  # what the vehicle is outside of, if anything
 
     # -- sending -------------------------------------------------------------------------
 
@@ -378,6 +389,10 @@ class VehicleCore:
             (tuple(error) if erring else None),  # type: ignore[arg-type]
             ESTIMATOR_SETTLED_FLAGS if self.estimator_settled() else ESTIMATOR_UNSETTLED_FLAGS,
             self.manoeuvres.heading_deg,
+            (self.missions.current, len(self.missions.lists[MISSION])),
+            self.p.fence_limits(self) is not None,
+            self.fence_breach is not None,
+            self.on_ground,
         )
 
     def estimator_settled(self) -> bool:
@@ -411,6 +426,7 @@ class VehicleCore:
         if self.armable() and not self._armable_announced:
             self._armable_announced = True
             self.text(p.text_armable)
+            p.armable_announced(self)
         if not self.armable() and t >= self._next_prearm_text and t >= BOOT_S:
             self._next_prearm_text = t + PREARM_TEXT_PERIOD_S
             self.text(self.prearm_reason(), SEV_CRITICAL)
@@ -421,24 +437,111 @@ class VehicleCore:
         self.manoeuvres.step(self, SIM_DT_S)
         self.camera.step(SIM_DT_S)
         model.limits = self.flight_limits()
+        held = self._spooling_up()
         model.step(SIM_DT_S)
+        if held is not None:
+            model.set_target(*held)
         self._wander()
         if not model.landed:
             self.flew = True
         if model.landed and not self._was_landed:
             self.touchdown_at = t
-            self.text(p.text_touchdown, SEV_INFO)
+            self._touchdown_told = False
             if not self.armed and model.armed:
                 model.disarm()  # a force-disarmed vehicle has now hit the ground
+        if not self._touchdown_told and self.touchdown_at is not None and self.on_ground:
+            self._touchdown_told = True  # when its land detector says so
+            self.text(p.text_touchdown, SEV_INFO)
         self._was_landed = model.landed
+        self._check_fence()
+        self.missions.tick(self.wall())
         if (
             self.touchdown_at is not None
             and self.armed
             and model.landed
-            and t - self.touchdown_at >= LAND_DISARM_S
+            and t - self.touchdown_at >= p.land_detect_s + p.land_disarm_s(self)
         ):
             self.disarm(p.text_land_disarm)
         self._log_position()
+
+    # -- geofence ----------------------------------------------------------------------------
+
+    def _missions_changed(self, mission_type: int) -> None:
+        if mission_type != FENCE:
+            return
+        try:
+            self.geofence = Geofence.from_items(self.missions.items(FENCE), self.frame)
+        except ValueError as exc:
+            self.geofence = Geofence()
+            self.text(f"Fence: {exc}", SEV_CRITICAL)
+            return
+        self.log.info(
+            "vehicle.fence",
+            inclusion=len(self.geofence.inclusion),
+            exclusion=len(self.geofence.exclusion),
+            circles=len(self.geofence.circles_in) + len(self.geofence.circles_out),
+            t_sim=round(self.t, 3),
+        )
+
+    def outside_fence(self, point: tuple[float, float, float]) -> str | None:
+        """What of the enforced fence ``point`` is outside of (altitude, circle, polygon)."""
+        limits = self.p.fence_limits(self)
+        if limits is None:
+            return None
+        x, y, z = point
+        if limits.ceiling_m is not None and z > limits.ceiling_m:
+            return "altitude"
+        if limits.radius_m is not None and math.hypot(x, y) > limits.radius_m:
+            return "circle"
+        if limits.uploaded:
+            return self.geofence.horizontal_breach((x, y))
+        return None
+
+    def _check_fence(self) -> None:
+        """A breach (leaving the fence while flying) is told to the personality once."""
+        if not self.armed or self.model.landed:
+            self.fence_breach = None
+            return
+        kind = self.outside_fence(self.model.position)
+        if kind is not None and self.fence_breach is None:
+            self.fence_breach = kind
+            st = self.model.state
+            self.log.warning(
+                "vehicle.fence.breach",
+                kind=kind,
+                x_m=round(st.x_m, 2),
+                y_m=round(st.y_m, 2),
+                z_m=round(st.z_m, 2),
+                t_sim=round(self.t, 3),
+            )
+            self.p.fence_breached(self, kind)
+        elif kind is None and self.fence_breach is not None:
+            self.fence_breach = None
+            self.log.info("vehicle.fence.cleared", t_sim=round(self.t, 3))
+            self.p.fence_cleared(self)
+
+    def _spooling_up(self) -> tuple[float, float, float] | None:
+        """Told to climb from the ground: the target, withheld for this step while the motors
+        spool up (the personality's lift-off delay); None when the model may move."""
+        model = self.model
+        target = model.target
+        if not (self.armed and model.landed and target is not None and target[2] > 0):
+            self._climb_asked_at = None
+            return None
+        if self._climb_asked_at is None:
+            self._climb_asked_at = self.t
+            self.flew = True  # taking off: no preflight auto-disarm while the motors spool up
+        if self.t - self._climb_asked_at >= self.p.liftoff_delay_s(self):
+            return None
+        model.hold()
+        return target
+
+    @property
+    def on_ground(self) -> bool:
+        """Landed as its land detector says: on the ground for ``land_detect_s`` (or since boot)."""
+        if not self.model.landed:
+            return False
+        return self.touchdown_at is None or self.t - self.touchdown_at >= self.p.land_detect_s
 
     def flight_limits(self) -> Limits:
         """The model's limits now: the autopilot's speed parameters, the mode's deceleration."""
@@ -447,7 +550,7 @@ class VehicleCore:
             horizontal = self.manoeuvres.speed_override_mps
         accel = self.braking_accel or self.p.accel(self)
         if self.mode in LAND_MODES:
-            accel, descent = LAND_DECEL_MPS2, LAND_SPEED_MPS
+            accel, descent = LAND_DECEL_MPS2, self.p.land_speed(self)
         return replace(
             self.options.limits,
             horizontal_speed_mps=max(horizontal, 0.05),
@@ -468,6 +571,12 @@ class VehicleCore:
     def steer(self, x: float, y: float, z: float) -> None:
         """A new position target: the autopilot's own acceleration applies again."""
         self.braking_accel = None
+        new = (x, y, max(z, 0.0))
+        old = self.model.target
+        if old is None or math.dist(old, new) > 0.01:
+            # A new move (a target re-sent every second, as the adapter does, is not).
+            self.move_m = math.dist(self.model.position, new)
+            self.move_from_mps = self.model.state.speed_mps
         self.model.set_target(x, y, z)
 
     def _wander(self) -> None:
@@ -565,6 +674,7 @@ __all__ = [
     "LAND_DECEL_MPS2",
     "LAND_MODES",
     "RTL_MODES",
+    "FenceLimits",
     "Param",
     "ParamTable",
     "Params",

@@ -19,10 +19,12 @@ from eamos.hal.sitl.wire import (
     CMD_COMPONENT_ARM_DISARM,
     CMD_CONDITION_YAW,
     CMD_DO_CHANGE_SPEED,
+    CMD_DO_FENCE_ENABLE,
     CMD_DO_GIMBAL_MANAGER_PITCHYAW,
     CMD_DO_MOUNT_CONTROL,
     CMD_DO_ORBIT,
     CMD_DO_REPOSITION,
+    CMD_DO_SET_MISSION_CURRENT,
     CMD_DO_SET_MODE,
     CMD_GET_HOME_POSITION,
     CMD_IMAGE_START_CAPTURE,
@@ -35,6 +37,7 @@ from eamos.hal.sitl.wire import (
     CMD_VIDEO_START_CAPTURE,
     CMD_VIDEO_STOP_CAPTURE,
     DENIED,
+    FAILED,
     FORCE_MAGIC,
     FRAME_GLOBAL,
     FRAME_GLOBAL_INT,
@@ -129,6 +132,8 @@ class Inbox:
             CMD_REQUEST_MESSAGE: self._cmd_request_message,
             CMD_GET_HOME_POSITION: lambda p, f: self._send_now(MSG_HOME_POSITION),
             CMD_REQUEST_AUTOPILOT_CAPABILITIES: lambda p, f: self._send_now(MSG_AUTOPILOT_VERSION),
+            CMD_DO_SET_MISSION_CURRENT: self._cmd_set_mission_current,
+            CMD_DO_FENCE_ENABLE: self._cmd_fence_enable,
         }
         if command in self.v.options.reject:
             result = self.v.options.reject[command]
@@ -195,6 +200,8 @@ class Inbox:
 
     def _cmd_reposition(self, p: tuple[float, ...], frame: int | None) -> int:
         model = self.v.model
+        if frame is None and not self.v.p.reposition_long:
+            return UNSUPPORTED
         if not self.v.armed or model.landed:
             return self.v.p.refused
         x, y, z = model.position
@@ -202,16 +209,33 @@ class Inbox:
         if frame is not None:  # COMMAND_INT: degrees * 1e7
             lat, lon = lat / 1e7, lon / 1e7
         relative = frame in (FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_RELATIVE_ALT_INT)
-        tx, ty = (
-            (x, y)
-            if not (math.isfinite(lat) and math.isfinite(lon) and (lat or lon))
-            else self.v.frame.from_lla(lat, lon, 0.0)[:2]
-        )
+        placed = math.isfinite(lat) and math.isfinite(lon) and bool(lat or lon)
+        if placed and not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            # Out of range (MAVSDK once sent -214.7 degrees): ArduCopter refuses it; PX4
+            # main accepts it, and here the vehicle then stays where it is.
+            self.v.log.warning("vehicle.reposition.out_of_range", lat=lat, lon=lon)
+            refused = self.v.p.coordinates_refused(self.v)
+            return ACCEPTED if refused is None else refused
+        tx, ty = (x, y) if not placed else self.v.frame.from_lla(lat, lon, 0.0)[:2]
         tz = z if not math.isfinite(alt) else (alt if relative else alt - self.v.options.home[2])
-        refused = self.v.p.reposition_mode(self.v, p)
+        target = (tx, ty, max(tz, 0.5))
+        refused = self.v.p.reposition_mode(self.v, p, target)
         if refused is not None:
             return refused
-        self.v.steer(tx, ty, max(tz, 0.5))
+        self.v.steer(*target)
+        return ACCEPTED
+
+    def _cmd_set_mission_current(self, p: tuple[float, ...], frame: int | None) -> int:
+        return ACCEPTED if self.v.missions.on_set_current(param_int(p[0], -1)) else FAILED
+
+    def _cmd_fence_enable(self, p: tuple[float, ...], frame: int | None) -> int:
+        # ArduPilot: param1 0 off, 1 on (FENCE_ENABLE); PX4 main does not know it.
+        if "FENCE_ENABLE" not in self.v.params.snapshot():
+            return UNSUPPORTED
+        enable = param_int(p[0], -1)
+        if enable not in (0, 1):
+            return FAILED
+        self.v.params.set("FENCE_ENABLE", float(enable))
         return ACCEPTED
 
     def _cmd_request_message(self, p: tuple[float, ...], frame: int | None) -> int:
@@ -246,7 +270,12 @@ class Inbox:
         self.v.p.setpoint(self.v)
         if msg.type_mask & IGNORE_POSITION:
             return
-        x, y, _ = self.v.frame.from_lla(msg.lat_int / 1e7, msg.lon_int / 1e7, 0.0)
+        lat, lon = msg.lat_int / 1e7, msg.lon_int / 1e7
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            # ArduCopter ignores a target out of range (check_latlng), and so does this vehicle.
+            self.v.log.warning("vehicle.target.out_of_range", lat=lat, lon=lon)
+            return
+        x, y, _ = self.v.frame.from_lla(lat, lon, 0.0)
         if msg.coordinate_frame in (FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_RELATIVE_ALT_INT):
             z = msg.alt
         elif msg.coordinate_frame in (FRAME_GLOBAL, FRAME_GLOBAL_INT):
@@ -262,6 +291,50 @@ class Inbox:
                 msg.req_stream_id, bool(msg.start_stop), msg.req_message_rate, self.v.t
             )
 
+    # -- the mission protocol (eamos.hal.sitl.missions) ----------------------------------------
+
+    @staticmethod
+    def _client(msg: Any) -> tuple[int, int]:
+        return (msg.get_srcSystem(), msg.get_srcComponent())
+
+    def _on_mission_count(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_count(
+                self._client(msg), msg.count, _mission_type(msg), self.v.wall()
+            )
+
+    def _on_mission_item_int(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_item(self._client(msg), _item_fields(msg, True), self.v.wall())
+
+    def _on_mission_item(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_item(self._client(msg), _item_fields(msg, False), self.v.wall())
+
+    def _on_mission_ack(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_ack(self._client(msg), msg.type, _mission_type(msg))
+
+    def _on_mission_request_list(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_request_list(self._client(msg), _mission_type(msg))
+
+    def _on_mission_request_int(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_request(self._client(msg), msg.seq, _mission_type(msg), True)
+
+    def _on_mission_request(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_request(self._client(msg), msg.seq, _mission_type(msg), False)
+
+    def _on_mission_clear_all(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_clear_all(self._client(msg), _mission_type(msg))
+
+    def _on_mission_set_current(self, msg: Any) -> None:
+        if self._for_us(msg):
+            self.v.missions.on_set_current(msg.seq)
+
     # -- parameters --------------------------------------------------------------------------
 
     def _on_param_request_list(self, msg: Any) -> None:
@@ -275,6 +348,33 @@ class Inbox:
     def _on_param_set(self, msg: Any) -> None:
         if self._for_us(msg):
             self.v.params.set(_param_name(msg.param_id), msg.param_value)
+
+
+def _mission_type(msg: Any) -> int:
+    return int(getattr(msg, "mission_type", 0) or 0)
+
+
+_ITEM_FIELDS = (
+    "seq",
+    "frame",
+    "command",
+    "current",
+    "autocontinue",
+    "param1",
+    "param2",
+    "param3",
+    "param4",
+    "x",
+    "y",
+    "z",
+)
+
+
+def _item_fields(msg: Any, as_int: bool) -> dict[str, Any]:
+    fields = {name: getattr(msg, name) for name in _ITEM_FIELDS}
+    fields["mission_type"] = _mission_type(msg)
+    fields["int"] = as_int
+    return fields
 
 
 def _param_name(raw: str | bytes) -> str:

@@ -26,11 +26,11 @@ import math
 import struct
 
 from eamos.hal.mavlink.autopilots import MAV_AUTOPILOT_PX4, PX4_MODES, px4_custom_mode
-from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.core import FenceLimits, Params, Personality, VehicleCore
 from eamos.hal.sitl.manoeuvres import Orbit
+from eamos.hal.sitl.missions import PX4_DIALECT
 from eamos.hal.sitl.wire import (
     ACCEPTED,
-    DEFAULT_STREAM_RATES,
     DENIED,
     LAND_DISARM_S,
     MSG_ESTIMATOR_STATUS,
@@ -38,6 +38,7 @@ from eamos.hal.sitl.wire import (
     OFFBOARD_LOSS_WALL_S,
     PARAM_INT32,
     PARAM_REAL32,
+    PX4_ONBOARD_RATES,
     SEV_CRITICAL,
     SEV_NOTICE,
     TEMPORARILY_REJECTED,
@@ -54,6 +55,13 @@ OFFBOARD_CRUISE_MPS = 6.0
 #: pre-arm delay).
 ESTIMATOR_SETTLE_S = 6.0
 ESTIMATOR_AFTER_ARMABLE_S = 2.0
+#: Measured on PX4 main SITL (SIH, experiment A): OFFBOARD or AUTO.TAKEOFF leaves the
+#: ground MPC_TKO_RAMP_T plus this long after being told to climb (its smooth take-off
+#: also climbs slowly at first: 0.65 m/s at most towards 1.5 m)...
+LIFTOFF_AFTER_RAMP_S = 2.0
+#: ...and "Landing detected" comes about this long after touchdown (three landings from
+#: 1.5 m took 4.8-7.3 s from MAV_CMD_NAV_LAND to ON_GROUND).
+LAND_DETECT_S = 2.2
 #: Modes a GCS cannot switch to without an RC transmitter.
 _RC_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED"})
 _BY_NUMBERS = {pair: name for name, pair in PX4_MODES.items()}
@@ -71,9 +79,12 @@ class Px4Personality(Personality):
     target_mode = "OFFBOARD"
     modes = PX4_MODES
     default_ground_offset_m = 1.5
-    default_rates = DEFAULT_STREAM_RATES  # PX4's onboard link streams a lot by default
+    default_rates = PX4_ONBOARD_RATES  # PX4's onboard link streams a lot by default
+    mission_dialect = PX4_DIALECT
     refused = DENIED
     estimator_msg = MSG_ESTIMATOR_STATUS
+    #: MAV_CMD_DO_REPOSITION as COMMAND_LONG or COMMAND_INT.
+    reposition_long = True
     land_mode = "AUTO.LAND"
     text_armable = "Ready for takeoff!"
     text_not_ready = "Preflight Fail: ekf2 missing data"
@@ -103,6 +114,10 @@ class Px4Personality(Personality):
             "MIS_TAKEOFF_ALT": (2.5, PARAM_REAL32),
             "COM_DISARM_PRFLT": (options.disarm_after_s, PARAM_REAL32),
             "COM_DISARM_LAND": (LAND_DISARM_S, PARAM_REAL32),
+            "MPC_LAND_SPEED": (0.7, PARAM_REAL32),
+            "MPC_LAND_ALT3": (1.0, PARAM_REAL32),
+            "MPC_LAND_CRWL": (0.3, PARAM_REAL32),
+            "MPC_TKO_RAMP_T": (3.0, PARAM_REAL32),
             "COM_OF_LOSS_T": (OFFBOARD_LOSS_S, PARAM_REAL32),
             "COM_OBL_RC_ACT": (5.0, PARAM_INT32),
             # PX4's defaults, not the drone type's.
@@ -112,14 +127,32 @@ class Px4Personality(Personality):
             "MPC_Z_VEL_MAX_DN": (1.5, PARAM_REAL32),
             "MPC_ACC_HOR": (3.0, PARAM_REAL32),
             "MPC_ACC_HOR_MAX": (5.0, PARAM_REAL32),
-            "RTL_RETURN_ALT": (60.0, PARAM_REAL32),
+            "MPC_XY_P": (0.95, PARAM_REAL32),
+            "MPC_Z_P": (1.0, PARAM_REAL32),
+            "RTL_RETURN_ALT": (30.0, PARAM_REAL32),  # PX4 main's default (read on its SITL)
+            # The geofence: GF_ACTION 2 holds on a breach (PX4 main's default); a ceiling
+            # and a radius around home when set above 0; uploaded polygons always.
+            "GF_ACTION": (2.0, PARAM_INT32),
+            "GF_MAX_HOR_DIST": (0.0, PARAM_REAL32),
+            "GF_MAX_VER_DIST": (0.0, PARAM_REAL32),
         }
 
     def speeds(self, v: VehicleCore) -> tuple[float, float, float]:
         value = v.params.value
         limit = value("MPC_XY_VEL_MAX")
         cruise = OFFBOARD_CRUISE_MPS if v.mode == "OFFBOARD" else value("MPC_XY_CRUISE")
-        return (min(cruise, limit), value("MPC_Z_VEL_MAX_UP"), value("MPC_Z_VEL_MAX_DN"))
+        horizontal = min(cruise, limit)
+        up, down = value("MPC_Z_VEL_MAX_UP"), value("MPC_Z_VEL_MAX_DN")
+        target = v.model.target
+        if v.mode == "OFFBOARD" and target is not None:
+            # OFFBOARD position setpoints go straight to the position controller, whose
+            # velocity is MPC_XY_P (MPC_Z_P) times the distance left: it slows down as it
+            # nears the setpoint (1 m legs peaked at 0.7-0.8 m/s on the SITL).
+            x, y, z = v.model.position
+            horizontal = min(horizontal, value("MPC_XY_P") * math.dist((x, y), target[:2]))
+            vertical = value("MPC_Z_P") * abs(target[2] - z)
+            up, down = min(up, vertical), min(down, vertical)
+        return (horizontal, up, down)
 
     def accel(self, v: VehicleCore) -> float:
         return max(v.params.value("MPC_ACC_HOR"), 0.5)
@@ -129,6 +162,21 @@ class Px4Personality(Personality):
 
     def preflight_disarm_s(self, v: VehicleCore) -> float:
         return v.params.value("COM_DISARM_PRFLT")
+
+    land_detect_s = LAND_DETECT_S
+
+    def land_speed(self, v: VehicleCore) -> float:
+        # Below MPC_LAND_ALT3 (SIH has a distance sensor) it crawls at MPC_LAND_CRWL.
+        value = v.params.value
+        if v.model.position[2] < value("MPC_LAND_ALT3"):
+            return max(value("MPC_LAND_CRWL"), 0.1)
+        return max(value("MPC_LAND_SPEED"), 0.1)
+
+    def land_disarm_s(self, v: VehicleCore) -> float:
+        return max(v.params.value("COM_DISARM_LAND"), 0.0)
+
+    def liftoff_delay_s(self, v: VehicleCore) -> float:
+        return max(v.params.value("MPC_TKO_RAMP_T"), 0.0) + LIFTOFF_AFTER_RAMP_S
 
     def estimator_settle_s(self, options: VehicleOptions) -> float:
         return max(ESTIMATOR_SETTLE_S, options.prearm_delay_s + ESTIMATOR_AFTER_ARMABLE_S)
@@ -246,7 +294,9 @@ class Px4Personality(Personality):
     def landing(self, v: VehicleCore) -> None:
         v.text("Landing at current position")
 
-    def reposition_mode(self, v: VehicleCore, p: tuple[float, ...]) -> int | None:
+    def reposition_mode(
+        self, v: VehicleCore, p: tuple[float, ...], target: tuple[float, float, float]
+    ) -> int | None:
         if v.mode != "HOLD":
             v.enter_mode("HOLD", "reposition")
         return None
@@ -280,6 +330,41 @@ class Px4Personality(Personality):
         v.manoeuvres.speed_override_mps = min(speed, v.params.value("MPC_XY_VEL_MAX"))
         v.manoeuvres.start_orbit(v, Orbit(cx, cy, abs(radius), speed, clockwise=radius > 0))
         return ACCEPTED
+
+    # -- the geofence ---------------------------------------------------------------------------
+
+    def fence_limits(self, v: VehicleCore) -> FenceLimits | None:
+        value = v.params.value
+        if param_int(value("GF_ACTION")) == 0:
+            return None
+        ceiling, radius = value("GF_MAX_VER_DIST"), value("GF_MAX_HOR_DIST")
+        return FenceLimits(
+            ceiling_m=ceiling if ceiling > 0 else None,
+            radius_m=radius if radius > 0 else None,
+        )
+
+    def fence_breached(self, v: VehicleCore, kind: str) -> None:
+        if kind == "altitude":
+            v.text("Geofence violation: exceeding maximum altitude above Home", SEV_CRITICAL)
+        else:
+            v.text("Geofence violation: approaching or outside geofence", SEV_CRITICAL)
+        # GF_ACTION: 1 warning, 2 hold, 3 return, 4 terminate, 5 land.
+        action = param_int(v.params.value("GF_ACTION"))
+        if action < 2:
+            return
+        v.text("Failsafe activated", SEV_CRITICAL)
+        if action == 2:
+            # PX4 main held about 1 m past the fence it crossed at 6 m/s (its SITL):
+            # it brakes, then comes back to about where it crossed.
+            here = v.model.position
+            v.enter_mode("HOLD", "geofence")
+            v.steer(*here)
+        elif action == 3:
+            v.enter_mode("AUTO.RTL", "geofence")
+        elif action == 4:
+            v.disarm("Flight termination active", force=True)
+        else:
+            v.enter_mode("AUTO.LAND", "geofence")
 
     def position_target(self, v: VehicleCore, target: tuple[float, float, float]) -> None:
         self._offboard_target = target

@@ -21,6 +21,7 @@ from eamos.hal.sitl.wire import (
     DATA_STREAMS,
     DEFAULT_STREAM_RATES,
     FAILED,
+    GEOFENCE,
     LANDED_IN_AIR,
     LANDED_LANDING,
     LANDED_ON_GROUND,
@@ -43,7 +44,9 @@ from eamos.hal.sitl.wire import (
     MSG_HEARTBEAT,
     MSG_HOME_POSITION,
     MSG_LOCAL_POSITION_NED,
+    MSG_MISSION_CURRENT,
     MSG_SYS_STATUS,
+    MSG_VFR_HUD,
     PREARM_CHECK,
     SENSORS,
     STREAMABLE,
@@ -74,6 +77,13 @@ class Status:
     estimator_flags: int = 0
     #: Compass heading (degrees, 0 north, 90 east).
     heading_deg: float = 0.0
+    #: The mission's current item and its length (MISSION_CURRENT).
+    mission: tuple[int, int] = (0, 0)
+    #: A fence is enforced, and the vehicle is outside it (SYS_STATUS's GEOFENCE bits).
+    fence_enforced: bool = False
+    fence_breached: bool = False
+    #: On the ground as its land detector says (a moment after touchdown).
+    on_ground: bool = True
 
 
 @dataclass(frozen=True)
@@ -248,6 +258,16 @@ class Streams:
                 0,
             ),
             MSG_AUTOPILOT_VERSION: self._autopilot_version,
+            MSG_VFR_HUD: lambda: (
+                "vfr_hud",
+                st.horizontal_speed_mps,  # airspeed: no wind here
+                st.horizontal_speed_mps,
+                round(status.heading_deg) % 360,
+                (50 if not st.landed else 0) if status.armed else 0,  # throttle %
+                amsl,
+                st.vz_mps,
+            ),
+            MSG_MISSION_CURRENT: lambda: ("mission_current", status.mission[0], status.mission[1]),
             MSG_ESTIMATOR_STATUS: lambda: (
                 "estimator_status",
                 int(t * 1e6),
@@ -270,8 +290,11 @@ class Streams:
 
     def _sys_status(self, status: Status) -> tuple[Any, ...]:
         report = self._options.report_prearm
-        reported = SENSORS | (PREARM_CHECK if report else 0)
-        health = SENSORS | (PREARM_CHECK if status.armable and report else 0)
+        fence = GEOFENCE if status.fence_enforced else 0
+        reported = SENSORS | fence | (PREARM_CHECK if report else 0)
+        # As ArduPilot: the geofence is healthy unless breached (MAVProxy says "fence breach").
+        health = SENSORS | (0 if status.fence_breached else GEOFENCE)
+        health |= PREARM_CHECK if status.armable and report else 0
         battery = round(status.state.battery_pct)
         current = 500 if status.armed else 50
         return ("sys_status", reported, reported, health, 250, 12600, current, battery) + (0,) * 6
@@ -332,7 +355,7 @@ def _battery_status(st: VehicleState) -> tuple[Any, ...]:
 
 
 def _landed_state(status: Status) -> int:
-    if status.state.landed:
+    if status.on_ground:
         return LANDED_ON_GROUND
     if status.mode in ("AUTO.LAND", "LAND"):
         return LANDED_LANDING

@@ -75,20 +75,21 @@ from eamos.hal.mavlink.signing import radio_status_only, refresh_timestamp
 from eamos.hal.sim.adapter import paced_ticks
 from eamos.hal.sitl.ardupilot import ArduPilotPersonality
 from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.fence import Geofence
 from eamos.hal.sitl.inbox import Inbox
+from eamos.hal.sitl.missions import MISSION, MissionItem
 from eamos.hal.sitl.px4 import Px4Personality
+from eamos.hal.sitl.transport import Links
 from eamos.hal.sitl.wire import (
     ACCEPTED,
     DENIED,
     FAILED,
-    MAX_MESSAGES_PER_TICK,
     RESULTS,
     TEMPORARILY_REJECTED,
     UNSUPPORTED,
     AutopilotName,
     VehicleOptions,
     parse_reject,
-    tcp_server,
 )
 from eamos.logs import close_logger, make_logger
 
@@ -115,7 +116,7 @@ class SimVehicle:
         self._cond = threading.Condition(self._lock)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._conn: Any = None
+        self._links: Links | None = None
         self._log = make_logger(o.log, vehicle=f"{o.autopilot}-{o.sysid}")
         self._drop_until = -math.inf  # wall clock: link dropped until then
         self._core = VehicleCore(o, PERSONALITIES[o.autopilot](), self._log, self._send)
@@ -130,12 +131,7 @@ class SimVehicle:
         """Open the connection and start the simulation thread (OSError if the port is taken)."""
         mavutil = load_mavutil()
         o = self.options
-        if o.connection.startswith("tcpin:"):
-            self._conn = tcp_server(mavutil, o.connection[6:], o.sysid)
-        else:
-            self._conn = mavutil.mavlink_connection(
-                o.connection, source_system=o.sysid, source_component=1
-            )
+        self._links = Links(mavutil.mavlink, o.connection, o.sysid)
         if o.signing_key is not None:
             self._sign(o.signing_key)
         self._log.info(
@@ -165,12 +161,9 @@ class SimVehicle:
         thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout=10)
-        conn, self._conn = self._conn, None
-        if conn is not None:
-            try:
-                conn.close()
-            except OSError:
-                pass
+        links, self._links = self._links, None
+        if links is not None:
+            links.close()
         with self._cond:
             self._cond.notify_all()
         if self._log is not None:
@@ -251,6 +244,17 @@ class SimVehicle:
             return self._core.model.state.speed_mps
 
     @property
+    def geofence(self) -> Geofence:
+        """The fence uploaded to the vehicle (empty: none)."""
+        with self._lock:
+            return self._core.geofence
+
+    def mission_items(self, mission_type: int = MISSION) -> list[MissionItem]:
+        """The items of one of the vehicle's lists (0 mission, 1 fence, 2 rally points)."""
+        with self._lock:
+            return self._core.missions.items(mission_type)
+
+    @property
     def params(self) -> Params:
         """A copy of the vehicle's parameters (name -> (value, MAV_PARAM_TYPE))."""
         with self._lock:
@@ -276,24 +280,32 @@ class SimVehicle:
     def signing(self) -> bool:
         """True once the vehicle signs its messages and refuses unsigned ones."""
         with self._lock:
-            conn = self._conn
-            return conn is not None and conn.mav.signing.secret_key is not None
+            return self._links is not None and self._links.signing
 
     @property
     def refused(self) -> int:
         """Messages dropped as unsigned or wrongly signed (signing on)."""
         with self._lock:
-            conn = self._conn
-            return 0 if conn is None else int(conn.mav.signing.reject_count)
+            return 0 if self._links is None else self._links.rejected
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """The vehicle's own socket address (host, port): where a client may reach it."""
+        with self._lock:
+            if self._links is None:
+                raise RuntimeError("the vehicle is not started")
+            return self._links.address
+
+    @property
+    def clients(self) -> int:
+        """How many clients the vehicle serves now (TCP connections, UDP peers)."""
+        with self._lock:
+            return 0 if self._links is None else self._links.clients
 
     def _sign(self, key: bytes, timestamp: int | None = None) -> None:
         # The key is never logged.
-        self._conn.setup_signing(
-            key,
-            sign_outgoing=True,
-            allow_unsigned_callback=radio_status_only,
-            initial_timestamp=timestamp,
-        )
+        assert self._links is not None
+        self._links.sign(key, timestamp, radio_status_only)
         self._log.info("vehicle.signing", enabled=True, t_sim=round(self._core.t, 3))
 
     # -- the simulation thread ----------------------------------------------------------
@@ -302,14 +314,17 @@ class SimVehicle:
         for steps in paced_ticks(self._stop, self.options.speedup):
             try:
                 with self._cond:
-                    if self._conn is not None and self._conn.mav.signing.secret_key is not None:
-                        refresh_timestamp(self._conn.mav)  # >= 1 Hz, from the clock
+                    links = self._links
+                    if links is not None and links.signing:
+                        refresh_timestamp(links.mav)  # >= 1 Hz, from the clock
                     self._receive()
                     for _ in range(steps):
                         self._core.step()
                     if self._dies():
                         return
                     self._core.send_due()
+                    if self._links is not None:
+                        self._links.flush()
                     self._cond.notify_all()
             except Exception as exc:  # keep the process alive and tell why
                 self._log.exception("vehicle.error", error=repr(exc))
@@ -327,12 +342,9 @@ class SimVehicle:
         if core.t - self._airborne_since < limit:
             return False
         self._log.warning("vehicle.death", t_sim=round(core.t, 3), position=list(self.position))
-        conn, self._conn = self._conn, None
-        if conn is not None:
-            try:
-                conn.close()
-            except OSError:
-                pass
+        links, self._links = self._links, None
+        if links is not None:
+            links.close()
         self.dead.set()
         self._cond.notify_all()
         if self._on_death is not None:
@@ -340,16 +352,10 @@ class SimVehicle:
         return True
 
     def _receive(self) -> None:
-        conn = self._conn
-        if conn is None:
+        links = self._links
+        if links is None:
             return
-        for _ in range(MAX_MESSAGES_PER_TICK):
-            try:
-                msg = conn.recv_msg()
-            except OSError:
-                return
-            if msg is None:
-                return
+        for _link, msg in links.receive():
             if time.monotonic() < self._drop_until or msg.get_type() == "BAD_DATA":
                 continue  # lost on the way
             kind = msg.get_type()
@@ -363,13 +369,11 @@ class SimVehicle:
                 self._log.exception("vehicle.message_error", message=kind, error=repr(exc))
 
     def _send(self, message: str, *args: Any) -> None:
-        conn = self._conn
-        if conn is None or time.monotonic() < self._drop_until:
+        links = self._links
+        if links is None or time.monotonic() < self._drop_until:
             return
-        try:
-            getattr(conn.mav, f"{message}_send")(*args)
-        except OSError:
-            pass  # nobody listening yet (UDP) or the client left (TCP)
+        msg = getattr(links.mav, f"{message}_encode")(*args)
+        links.send(msg)
 
 
 __all__ = [

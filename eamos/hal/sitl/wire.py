@@ -12,8 +12,7 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
-from typing import Any, Literal
+from typing import Literal
 
 from eamos.hal.kinematics import Limits
 from eamos.hal.mavlink.link import load_mavutil
@@ -44,6 +43,7 @@ CMD_DO_SET_MODE, CMD_DO_REPOSITION = 176, 192
 CMD_COMPONENT_ARM_DISARM = 400
 CMD_NAV_RETURN_TO_LAUNCH, CMD_DO_ORBIT, CMD_CONDITION_YAW = 20, 34, 115
 CMD_DO_CHANGE_SPEED = 178
+CMD_DO_FENCE_ENABLE, CMD_DO_SET_MISSION_CURRENT = 207, 224
 CMD_DO_MOUNT_CONTROL, CMD_DO_GIMBAL_MANAGER_PITCHYAW = 205, 1000
 CMD_IMAGE_START_CAPTURE, CMD_VIDEO_START_CAPTURE, CMD_VIDEO_STOP_CAPTURE = 2000, 2500, 2501
 CMD_GET_HOME_POSITION = 410
@@ -52,6 +52,7 @@ CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
 
 MSG_HEARTBEAT, MSG_SYS_STATUS, MSG_GPS_RAW_INT, MSG_ATTITUDE = 0, 1, 24, 30
 MSG_LOCAL_POSITION_NED, MSG_GLOBAL_POSITION_INT = 32, 33
+MSG_MISSION_CURRENT, MSG_VFR_HUD = 42, 74
 MSG_BATTERY_STATUS, MSG_AUTOPILOT_VERSION = 147, 148
 MSG_HOME_POSITION, MSG_EXTENDED_SYS_STATE = 242, 245
 #: The estimator's health: PX4's ESTIMATOR_STATUS, ArduPilot's EKF_STATUS_REPORT.
@@ -73,6 +74,8 @@ STREAMABLE = frozenset(
         MSG_EXTENDED_SYS_STATE,
         MSG_ESTIMATOR_STATUS,
         MSG_EKF_STATUS_REPORT,
+        MSG_MISSION_CURRENT,
+        MSG_VFR_HUD,
     }
 )
 #: The rate (Hz, simulated time) a stream returns to when MAV_CMD_SET_MESSAGE_INTERVAL
@@ -88,12 +91,31 @@ DEFAULT_STREAM_RATES: Mapping[int, float] = {
     MSG_BATTERY_STATUS: 0.5,
     MSG_ESTIMATOR_STATUS: 1.0,
     MSG_EKF_STATUS_REPORT: 1.0,
+    MSG_MISSION_CURRENT: 1.0,
+    MSG_VFR_HUD: 4.0,
+}
+#: What PX4's onboard link (MAVLINK_MODE_ONBOARD, the 14540+N link) streams unasked (Hz,
+#: simulated time), for the messages simulated here; PX4 main's SITL measured the same.
+#: The vehicle sends each stream at most once per tick (at a speed-up of 10: 10 Hz).
+PX4_ONBOARD_RATES: Mapping[int, float] = {
+    MSG_SYS_STATUS: 5.0,
+    MSG_EXTENDED_SYS_STATE: 5.0,
+    MSG_LOCAL_POSITION_NED: 30.0,
+    MSG_GLOBAL_POSITION_INT: 50.0,
+    MSG_ATTITUDE: 100.0,
+    MSG_HOME_POSITION: 0.5,
+    MSG_GPS_RAW_INT: 5.0,
+    MSG_BATTERY_STATUS: 0.5,
+    MSG_ESTIMATOR_STATUS: 1.0,
+    MSG_MISSION_CURRENT: 1.0,
+    MSG_VFR_HUD: 10.0,
 }
 #: ArduPilot's REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) of the messages simulated here.
 DATA_STREAMS: dict[int, tuple[int, ...]] = {
-    2: (MSG_SYS_STATUS, MSG_GPS_RAW_INT),  # EXTENDED_STATUS
+    2: (MSG_SYS_STATUS, MSG_GPS_RAW_INT, MSG_MISSION_CURRENT),  # EXTENDED_STATUS
     6: (MSG_GLOBAL_POSITION_INT, MSG_LOCAL_POSITION_NED),  # POSITION
     10: (MSG_ATTITUDE,),  # EXTRA1
+    11: (MSG_VFR_HUD,),  # EXTRA2
     # EXTRA3
     12: (MSG_BATTERY_STATUS, MSG_EXTENDED_SYS_STATE, MSG_HOME_POSITION, MSG_EKF_STATUS_REPORT),
 }
@@ -124,6 +146,7 @@ SENSORS = (
     | 0x2000000  # AHRS, battery
 )
 PREARM_CHECK = 0x10000000
+GEOFENCE = 0x100000  # MAV_SYS_STATUS_GEOFENCE
 
 #: Simulated seconds from start to the first HEARTBEAT (both SITLs take ~1 s).
 BOOT_S = 1.0
@@ -137,8 +160,6 @@ OFFBOARD_LOSS_WALL_S = 0.5
 LAND_DISARM_S = 2.0
 #: How often an unready vehicle repeats why it cannot arm (simulated seconds).
 PREARM_TEXT_PERIOD_S = 10.0
-#: Most messages handled per tick (a flood must not starve the simulation).
-MAX_MESSAGES_PER_TICK = 200
 #: STATUSTEXT payload length; longer texts go out in chunks sharing an id.
 STATUSTEXT_LEN = 50
 
@@ -225,37 +246,6 @@ def parse_reject(specs: Iterable[str]) -> dict[int, int]:
             )
         out[command] = RESULTS[result_key]
     return out
-
-
-def tcp_server(mavutil: ModuleType, address: str, source_system: int) -> Any:
-    """pymavlink's TCP listener, able to accept a new client after one leaves."""
-
-    class TcpServer(mavutil.mavtcpin):  # type: ignore[name-defined,misc]
-        port: Any  # the client's socket, None while nobody is connected
-        fd: int
-
-        def recv(self, n: int | None = None) -> bytes:
-            if self.port is None:
-                try:
-                    self.port, _ = self.listen.accept()
-                except OSError:
-                    return b""
-                self.port.setblocking(False)
-                self.fd = self.port.fileno()
-            try:
-                data: bytes = self.port.recv(n or self.mav.bytes_needed())
-            except BlockingIOError:
-                return b""
-            except OSError:
-                data = b""
-            if not data:
-                # The client went away: accept the next one.
-                self.port.close()
-                self.port = None
-                self.fd = self.listen.fileno()
-            return data
-
-    return TcpServer(address, source_system=source_system, source_component=1)
 
 
 def param_int(value: float, default: int = 0) -> int:
