@@ -13,6 +13,7 @@ import enum
 import json
 import threading
 import time
+from typing import TYPE_CHECKING
 
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
@@ -36,6 +37,9 @@ from .stranded import (
     silent_since,
     trigger_sources,
 )
+
+if TYPE_CHECKING:
+    from eamos.hal.sim import SimClock
 
 #: How long the drone's loop waits for the executive's answer (it answers in ms).
 ASK_TIMEOUT_S = 30.0
@@ -89,13 +93,15 @@ def run_drone(
     program: DroneProgram,
     stop: threading.Event,
     log_writer: LogWriter | None = None,
+    sim_clock: SimClock | None = None,
 ) -> DroneEnd:
     """Run one drone until the mission completes or is aborted, or it must end on its own.
 
     A drone stranded by a lost peer, or left without ``Complete`` by a silent
     ground station, ends after ``peer_wait_limit_s`` (see :mod:`.stranded`).
     ``log_writer``: the process's writer when several drones share a process
-    (without one, this drone's logs get their own).
+    (without one, this drone's logs get their own); ``sim_clock``: the clock that
+    steps the process's simulated drones (without one, a simulated drone has its own).
     """
     journal = NodeJournal(
         config.log_dir, config.drone, program.mission_id, program.checksum, config.deployment
@@ -116,7 +122,7 @@ def run_drone(
     journal.mark("ready")
     writer = log_writer if log_writer is not None else LogWriter()
     adapter_log = make_logger(config.log_dir / "adapter.log", writer=writer, drone=config.drone)
-    adapter = make_adapter(config.drone, config.hal, adapter_log)
+    adapter = make_adapter(config.drone, config.hal, adapter_log, sim_clock)
     runtime = DroneRuntime(
         program,
         adapter,

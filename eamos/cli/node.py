@@ -3,7 +3,8 @@
 ``eamos-node --config d1.toml --config d2.toml ...`` runs several drones that
 share a machine in one process, each in a thread of its own with its own
 runtime, sockets, keys and logs (``eamos run --drones-per-process``): one
-interpreter and one set of imports instead of one per drone.  A real drone
+interpreter and one set of imports instead of one per drone, one thread writing
+the logs and one clock stepping the simulated drones.  A real drone
 runs one config per process.  Each drone's exit code is written to
 ``<log_dir>/exit_code``; the process exits with the worst of them.
 
@@ -32,6 +33,7 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
 from eamos import __version__
 from eamos.actors.drone import DroneEnd, NodeStop, load_node_program, run_drone
@@ -40,6 +42,9 @@ from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EX
 from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
 from eamos.logs import LogWriter
 from eamos.program.uniform import GROUND_STATION
+
+if TYPE_CHECKING:
+    from eamos.hal.sim import SimClock
 
 EXITS = {
     DroneEnd.DONE: EXIT_OK,
@@ -94,10 +99,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run_node(config: NodeConfig, stop: threading.Event, log_writer: LogWriter | None = None) -> int:
+def run_node(
+    config: NodeConfig,
+    stop: threading.Event,
+    log_writer: LogWriter | None = None,
+    sim_clock: SimClock | None = None,
+) -> int:
     """Run the participant ``config`` names until the mission ends; return the exit code.
 
-    ``log_writer``: the process's log writer when drones share the process.
+    ``log_writer``, ``sim_clock``: the process's log writer and the clock stepping its
+    simulated drones, when drones share the process.
     """
     program = load_node_program(config)
     if program.drone == GROUND_STATION:
@@ -105,7 +116,7 @@ def run_node(config: NodeConfig, stop: threading.Event, log_writer: LogWriter | 
 
         summary = run_ground_node(config, program, stop)
         return EXIT_OK if summary.ok else EXIT_MISSION_FAILED
-    return EXITS[run_drone(config, program, stop, log_writer)]
+    return EXITS[run_drone(config, program, stop, log_writer, sim_clock)]
 
 
 def load_group(paths: list[Path]) -> list[NodeConfig]:
@@ -123,11 +134,15 @@ def load_group(paths: list[Path]) -> list[NodeConfig]:
 def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -> int:
     """Run each drone of ``configs`` in its own thread; the worst exit code of them."""
     codes: dict[str, int] = {}
-    # One thread writes every drone's log lines, in batches (not one per drone).
+    # One thread writes every drone's log lines, in batches (not one per drone); one
+    # clock steps every simulated drone (not a thread each).
+    from eamos.hal.sim import SimClock  # here: a process of one drone never loads it
+
     writer = LogWriter()
+    clock = SimClock("sim-clock")
 
     def one(config: NodeConfig) -> None:
-        code = guarded(lambda: run_node(config, stop, writer), verbose, config.drone)
+        code = guarded(lambda: run_node(config, stop, writer, clock), verbose, config.drone)
         codes[config.drone] = code
         try:
             (config.log_dir / EXIT_CODE_FILE).write_text(f"{code}\n")
@@ -141,6 +156,7 @@ def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -
         # Bounded waits so that the main thread still takes signals (they set ``stop``).
         while thread.is_alive():
             thread.join(0.5)
+    clock.close()
     writer.close()
     return max(codes.values(), default=EXIT_INTERNAL)
 

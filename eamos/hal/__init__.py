@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     from .fake import fake_adapter_from_settings
     from .mavlink.adapter import mavlink_adapter_from_settings
     from .sim.adapter import sim_adapter_from_settings
+    from .sim.clock import SimClock
     from .station_adapter import ground_adapter_from_settings
 
 AdapterFactory = Callable[[str, Mapping[str, Any], Any], Adapter]
@@ -61,11 +62,15 @@ ADAPTERS: Mapping[str, str] = MappingProxyType(
 )
 
 
-def make_adapter(drone: str, settings: Mapping[str, Any], adapter_log: Any) -> Adapter:
+def make_adapter(
+    drone: str, settings: Mapping[str, Any], adapter_log: Any, sim_clock: SimClock | None = None
+) -> Adapter:
     """Build the adapter for ``drone`` chosen by ``settings["adapter"]``.
 
     ``settings`` is the drone's ``hal`` section; every adapter validates its own
     keys and raises :class:`AdapterError` ``"hal.<field>: <problem>"``.
+    ``sim_clock``: the stepping clock the simulated drones of this process share
+    (:class:`~eamos.hal.sim.SimClock`; None: each has its own).
     """
     if not isinstance(settings, Mapping):
         raise field_error("hal", f"expected a mapping, got {type(settings).__name__}")
@@ -81,6 +86,9 @@ def make_adapter(drone: str, settings: Mapping[str, Any], adapter_log: Any) -> A
         )
     # This package's own lazy export: the adapter's module loads here, the first time.
     factory: AdapterFactory = __getattr__(factory_name)
+    if kind == "sim" and sim_clock is not None:
+        sim_factory: Callable[..., Adapter] = factory
+        return sim_factory(drone, settings, adapter_log, sim_clock)
     return factory(drone, settings, adapter_log)
 
 

@@ -1,13 +1,16 @@
 """Peer liveness and telemetry freshness, the part of the session that watches the clock.
 
 :class:`Liveness` decides when a peer is up, lost, back or gone (from what is
-heard of it and its goodbye) and when a drone's telemetry is stale;
+heard of it and its goodbye) and when a drone's telemetry is stale, with
+deadlines that grow with how late this participant's own timer runs
+(:class:`Lateness`);
 :class:`TelemetryOut` paces this participant's own telemetry (latest-value:
 rate cap, coalescing, refresh).  Both are pure: time is passed in.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
@@ -28,11 +31,56 @@ from eamos.net.settings import LinkSettings
 if TYPE_CHECKING:
     from eamos.logs import EventLog
 
-__all__ = ["LATE_TICK_S", "Liveness", "TelemetryOut"]
+__all__ = [
+    "LATENESS_FACTOR",
+    "LATENESS_WINDOW_S",
+    "LATE_TICK_S",
+    "MAX_EXTENSION",
+    "Lateness",
+    "Liveness",
+    "TelemetryOut",
+]
 
 LATE_TICK_S: Final = 0.1
 """A timer call later than asked by more than this means this participant's loop stalled
 (a busy machine); the driver's own jitter stays far below it."""
+
+LATENESS_WINDOW_S: Final = 30.0
+"""How long the lateness of this participant's own timer is remembered (seconds)."""
+
+LATENESS_FACTOR: Final = 2.0
+"""A peer's silence is judged against ``peer_timeout_s`` plus this many times the largest
+lateness of this participant's own timer within the window: a peer on a machine as busy
+sends its heartbeats as late, and two in a row may be."""
+
+MAX_EXTENSION: Final = 2.0
+"""The deadlines grow by at most this many times themselves (a lost peer is still found)."""
+
+
+class Lateness:
+    """The largest lateness of this participant's own timer within the last window (pure).
+
+    A sliding-window maximum: the calls kept are those no later call was as late as,
+    so it holds a handful of entries whatever the rate of calls.
+    """
+
+    def __init__(self, window_s: float = LATENESS_WINDOW_S) -> None:
+        self.window_s = window_s
+        self._kept: deque[tuple[float, float]] = deque()  # (when, how late), lateness falling
+
+    def note(self, now: float, late_s: float) -> None:
+        """The timer, due earlier, was called at ``now``, ``late_s`` seconds late."""
+        kept = self._kept
+        while kept and kept[-1][1] <= late_s:
+            kept.pop()
+        kept.append((now, late_s))
+
+    def peak(self, now: float) -> float:
+        """The largest lateness noted within the window before ``now`` (0: none)."""
+        kept = self._kept
+        while kept and kept[0][0] < now - self.window_s:
+            kept.popleft()
+        return kept[0][1] if kept else 0.0
 
 
 class Liveness:
@@ -47,6 +95,13 @@ class Liveness:
         self.log = log
         self._serial = 0
         self.tick_due = float("inf")  # when the session's timer asked to be called next
+        self.lateness = Lateness()
+
+    def margin_s(self, deadline_s: float, now: float) -> float:
+        """How much later than ``deadline_s`` a silence counts, the machine as busy as it is:
+        :data:`LATENESS_FACTOR` times the peak lateness, at most :data:`MAX_EXTENSION` times
+        ``deadline_s``."""
+        return min(MAX_EXTENSION * deadline_s, LATENESS_FACTOR * self.lateness.peak(now))
 
     def event(self, peer: Peer, state: str, silent_s: float) -> PeerChanged:
         """Report ``peer`` ``state`` (lost, back, left, restarted): ``mission.peer.<state>``."""
@@ -106,6 +161,8 @@ class Liveness:
         with this one; resending now would only repeat what arrived.
         """
         late = now - self.tick_due
+        if late > 0.0:
+            self.lateness.note(now, late)
         if late > LATE_TICK_S:
             counters.late_ticks += 1
             counters.stalled_s += late
@@ -132,24 +189,31 @@ class Liveness:
                 peer.tel_heard = min(now, peer.tel_heard + stalled_s)
 
     def check(self, peer: Peer, now: float, effects: list[SessionEffect]) -> float:
-        """Report ``peer`` lost or its telemetry stale if due; return the next deadline."""
+        """Report ``peer`` lost or its telemetry stale if due; return the next deadline.
+
+        Both deadlines (``peer_timeout_s``, ``telemetry_stale_s``) grow by the
+        :meth:`margin_s` this machine's load calls for: peers on a machine as busy
+        are as late, and load is not a lost peer.
+        """
         s = self.settings
         deadline = float("inf")
         if peer.watched and peer.state == "up" and peer.heard is not None:
             silent = now - peer.heard
-            if silent > s.peer_timeout_s:
+            timeout = s.peer_timeout_s + self.margin_s(s.peer_timeout_s, now)
+            if silent > timeout:
                 peer.state = "lost"
                 effects.append(self.event(peer, "lost", silent))
             else:
-                deadline = peer.heard + s.peer_timeout_s + 1e-3
+                deadline = peer.heard + timeout + 1e-3
         if peer.tel_heard is not None and not peer.tel_stale:
             age = now - peer.tel_heard
-            if age > s.telemetry_stale_s:
+            stale = s.telemetry_stale_s + self.margin_s(s.telemetry_stale_s, now)
+            if age > stale:
                 peer.tel_stale = True
                 self.log.warning("mission.telemetry.stale", drone=peer.name, age_s=round(age, 3))
                 effects.append(Deliver(TelemetryStale(peer.name, round(age, 3))))
             else:
-                deadline = min(deadline, peer.tel_heard + s.telemetry_stale_s + 1e-3)
+                deadline = min(deadline, peer.tel_heard + stale + 1e-3)
         return deadline
 
 

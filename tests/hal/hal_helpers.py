@@ -9,6 +9,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import pykka
@@ -82,6 +83,13 @@ class TelemetrySink:
         with self._cond:
             assert self._cond.wait_for(lambda: len(self.samples) >= n, timeout)
             return list(self.samples)
+
+    def wait_last(self, predicate: Callable[[Telemetry], bool], timeout: float = WAIT_S) -> bool:
+        """Wait until the latest sample satisfies ``predicate``; False on timeout."""
+        with self._cond:
+            return self._cond.wait_for(
+                lambda: bool(self.samples) and predicate(self.samples[-1]), timeout
+            )
 
 
 class Collector(pykka.ThreadingActor):

@@ -63,6 +63,8 @@ def test_square_mission_ends_where_it_started(make_sim: SimFactory) -> None:
     assert s.landed and s.z_m == 0.0 and math.hypot(s.x_m, s.y_m) <= tol
     assert do(sim, "Disarm").ok
     assert not sim.state.armed
+    # The sample showing the disarm may follow the answer (the same step, sent after it).
+    assert sink.wait_last(lambda last: last.landed and not last.armed, WAIT_S)
     # Telemetry followed the flight: it went up to 5 m and reached every corner.
     samples = sink.snapshot()
     assert max(t.z_m for t in samples) == pytest.approx(5.0, abs=tol)

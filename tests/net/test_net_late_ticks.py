@@ -2,7 +2,9 @@
 
 Pure: one :class:`ReliableSession` driven with a fake clock.  Its timer called
 on time, a silent peer is lost after ``peer_timeout_s``; called late (a busy
-machine), the lateness is credited to every peer and counted.
+machine), the lateness is credited to every peer and counted, and the deadlines
+grow by twice the largest lateness of the last 30 s (bounded): a peer on a
+machine as busy is as late.
 """
 
 from __future__ import annotations
@@ -10,7 +12,8 @@ from __future__ import annotations
 from typing import Any
 
 from eamos.net import wire
-from eamos.net.effects import PeerChanged
+from eamos.net.effects import PeerChanged, TelemetryStale
+from eamos.net.liveness import LATENESS_FACTOR, LATENESS_WINDOW_S, MAX_EXTENSION, Lateness
 from eamos.net.session import LATE_TICK_S, ReliableSession
 
 from .session_helpers import FAST, MISSION
@@ -68,7 +71,10 @@ def test_a_stall_credits_only_its_own_length() -> None:
         actions, due = s.on_tick(now)
         events = lost_events(actions)
     assert events == ["lost"]
-    assert now <= FAST.peer_timeout_s + 2 * LATE_TICK_S + FAST.heartbeat_s + 1e-3
+    # ... but the deadline allows for a peer as late as this loop was.
+    margin = LATENESS_FACTOR * 2 * LATE_TICK_S
+    assert now > FAST.peer_timeout_s + 2 * LATE_TICK_S + margin
+    assert now <= FAST.peer_timeout_s + 2 * LATE_TICK_S + margin + FAST.heartbeat_s + 1e-3
 
 
 def test_a_call_slightly_late_is_jitter_not_a_stall() -> None:
@@ -98,3 +104,73 @@ def test_a_stalled_timer_waits_before_resending_what_may_have_been_acknowledged(
         now = due
         actions, due = s.on_tick(now)
     assert [m.iteration for m in retransmitted(actions)] == [(0,)]
+
+
+def silent_until_lost(s: ReliableSession, due: float, late_by: float) -> float:
+    """Call the timer ``late_by`` after each time it asks, until B is lost: when."""
+    start = due
+    while True:
+        now = due + late_by
+        actions, due = s.on_tick(now)
+        if lost_events(actions):
+            return now
+        assert now - start < 100 * FAST.peer_timeout_s
+
+
+def test_a_timer_running_late_gives_a_silent_peer_as_much_longer() -> None:
+    # Late by less than a stall: nothing is credited, yet the deadline grows with it.
+    late = 0.8 * LATE_TICK_S
+    s, due = session_hearing_b()
+    lost_at = silent_until_lost(s, due, late)
+    assert s.counters.late_ticks == 0
+    timeout = FAST.peer_timeout_s + LATENESS_FACTOR * late
+    assert timeout < lost_at <= timeout + FAST.heartbeat_s + late + 1e-3
+    # On time, the same peer is lost at peer_timeout_s (the first test): load is not silence.
+
+
+def test_the_extension_is_bounded_and_forgotten_after_the_window() -> None:
+    s, due = session_hearing_b()
+    _, due = s.on_tick(due + 100.0)  # frozen 100 s: forgiven, remembered as lateness
+    s.on_receive(heartbeat_from("B"), due)
+    # Silent from here, the timer on time: lost within the bounded deadline.
+    lost_at = silent_until_lost(s, due, 0.0)
+    limit = (1 + MAX_EXTENSION) * FAST.peer_timeout_s
+    assert FAST.peer_timeout_s < lost_at - due <= limit + FAST.heartbeat_s + 1e-3
+    # Once the window has passed with the timer on time, the plain deadline holds again.
+    _, due = s.on_tick(lost_at)
+    while due < lost_at + LATENESS_WINDOW_S + 1.0:
+        _, due = s.on_tick(due)
+    heard = due
+    s.on_receive(heartbeat_from("B"), heard)
+    _, due = s.on_tick(heard)
+    lost_again = silent_until_lost(s, due, 0.0)
+    assert lost_again - heard <= FAST.peer_timeout_s + FAST.heartbeat_s + 1e-3
+
+
+def test_stale_telemetry_waits_as_long_as_the_timer_runs_late() -> None:
+    late = 0.8 * LATE_TICK_S
+    s, due = session_hearing_b()
+    sample = wire.TelemetrySample(MISSION, "B", 0.0, 0, 0, 0, 0, 0, 0, 100.0, False, True)
+    s.on_receive(sample, 0.0)
+    now, stale_at = 0.0, None
+    while stale_at is None:
+        now = due + late
+        actions, due = s.on_tick(now)
+        if any(isinstance(getattr(a, "item", None), TelemetryStale) for a in actions):
+            stale_at = now
+        assert now < 100 * FAST.telemetry_stale_s
+    assert stale_at > FAST.telemetry_stale_s + LATENESS_FACTOR * late
+
+
+def test_lateness_keeps_the_largest_of_the_window() -> None:
+    w = Lateness(10.0)
+    assert w.peak(0.0) == 0.0
+    w.note(1.0, 0.5)
+    w.note(2.0, 0.2)
+    w.note(3.0, 0.3)
+    assert w.peak(3.0) == 0.5
+    assert w.peak(11.5) == 0.3  # the 0.5 of t = 1 s is out of the window
+    assert w.peak(13.5) == 0.0
+    for k in range(1000):  # rising lateness keeps one entry
+        w.note(20.0 + k, k / 1000)
+    assert len(w._kept) == 1

@@ -1,16 +1,18 @@
 """A simulated quadcopter adapter built on the kinematic model.
 
 The vehicle itself is the pure :class:`~eamos.hal.sim.core.SimCore` (no
-threads, no clock); :class:`SimAdapter` runs one thread that steps it every
-:data:`SIM_DT_S` simulated seconds.  The thread paces itself in wall time
-with ``stop_event.wait(...)``: that wait *is* the simulator's clock, and
+threads, no clock); :class:`SimAdapter` has it stepped every :data:`SIM_DT_S`
+simulated seconds by a :class:`~eamos.hal.sim.clock.SimClock`: the process's one
+clock when drones share a process (``eamos-node`` with several configs passes
+it), else a clock of its own.  The clock paces the steps against the wall clock
+(:meth:`SimAdapter.pace`): that pacing *is* the simulator's clock, and
 ``speedup`` makes it run faster than real time.  Everything else (action
 durations, timeouts, telemetry rate, pause lengths) is counted in simulated
 steps, so a mission behaves the same at any speed-up, only faster.  While the
 vehicle rests (nothing but the clock and an unseen battery change, as
-:meth:`~eamos.hal.sim.core.SimCore.idle_steps` says), the thread sleeps on an
-event instead of stepping, for as long as the rest lasts in wall time, and a new
-request wakes it; the steps slept through are skipped exactly, so simulated time,
+:meth:`~eamos.hal.sim.core.SimCore.idle_steps` says), the clock leaves it out
+of its ticks for as long as the rest lasts in wall time, and a new request
+pokes it awake; the steps rested through are skipped exactly, so simulated time,
 telemetry and the position log are those of stepping every step (100 hovering
 drones cost next to nothing).
 
@@ -70,6 +72,7 @@ armed/landed flags change.  ``t_sim`` fields are simulated seconds since start.
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
@@ -84,20 +87,14 @@ from eamos.hal.api import (
     TelemetryCallback,
 )
 from eamos.hal.kinematics import VehicleState
+from eamos.hal.sim.clock import MAX_LAG_S, MIN_WALL_TICK_S, Pacer, SimClock
 from eamos.hal.sim.core import SIM_DT_S, Finished, SimCore
 from eamos.hal.sim.settings import SimSettings, Waypoint
 from eamos.logs import EventLog, make_logger
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
 
-#: Shortest wall-clock tick: at high speed-ups several steps run per tick, so
-#: the thread wakes at most ~200 times a second on a shared machine.
-MIN_WALL_TICK_S = 0.005
-#: If the thread falls this far behind its wall schedule (a loaded machine),
-#: the simulation slows down instead of bursting to catch up.
-MAX_LAG_S = 0.1
-#: The longest rest the pacing thread sleeps through at once (steps; the core
-#: says how many are idle, at most this many).
+#: The longest rest taken at once (steps; the core says how many are idle, at most this many).
 MAX_REST_STEPS = 1_000_000
 
 
@@ -126,7 +123,8 @@ def paced_ticks(stop: threading.Event, speedup: float) -> Iterator[int]:
 class SimAdapter:
     """An :class:`~eamos.hal.api.Adapter` driving a simulated quadcopter (see module doc).
 
-    A thin threaded pacer: all vehicle logic is in its :class:`SimCore`.
+    A thin pacer over its :class:`SimCore`, stepped by a :class:`SimClock`
+    (``clock``: the process's; None: one of its own, with a thread of its own).
     """
 
     #: The adapter family plugins name implementations for (docs/plugins.md).
@@ -138,8 +136,10 @@ class SimAdapter:
         settings: SimSettings | None = None,
         adapter_log: EventLog | None = None,
         plugins: PluginRegistry = EMPTY_PLUGINS,
+        clock: SimClock | None = None,
     ) -> None:
-        """A simulated ``drone``; ``plugins``: the plugin actions it runs (their "sim" code)."""
+        """A simulated ``drone``; ``plugins``: the plugin actions it runs (their "sim" code);
+        ``clock``: the stepping clock it shares (None: its own)."""
         self.drone = drone
         self.settings = settings or SimSettings()
         self.plugins = plugins
@@ -149,81 +149,82 @@ class SimAdapter:
         self._core = SimCore(
             drone, self.settings, self._log, plugins=plugins, wait_for_plugins=False
         )
+        self._own_clock = clock is None
+        self._clock = clock if clock is not None else SimClock(f"sim-{drone}")
+        self._pacer = Pacer(self.settings.speedup)
         # One lock guards the core; the condition lets observers (tests, tools)
         # wait for the next simulator tick.
         self._lock = threading.Lock()
         self._tick_cond = threading.Condition(self._lock)
-        self._stop = threading.Event()
-        # Set by every request (and close): the pacing thread, asleep while the
-        # vehicle rests, wakes at once.
-        self._wake = threading.Event()
-        # While asleep: (monotonic time it fell asleep, idle steps it may skip).
+        # Held through a whole pace() (callbacks included): close() waits for one
+        # under way, so nothing is delivered after it returns (reentrant: a callback
+        # may close the adapter).
+        self._pacing = threading.RLock()
+        # While resting: (wall time the rest was last caught up to, idle steps left).
         self._asleep: tuple[float, int] | None = None
-        self._wakeups = 0  # pacing-thread wake-ups (ticks and rests): cheap to watch
-        self._thread: threading.Thread | None = None
+        self._wakeups = 0  # times the clock paced it (ticks and rests): cheap to watch
+        self._started = False
         self._closed = False
         self._on_telemetry: TelemetryCallback | None = None
 
     # -- Adapter protocol ----------------------------------------------------
 
     def start(self, on_telemetry: TelemetryCallback) -> None:
-        """Start the simulator thread and send the first telemetry sample."""
+        """Hand the vehicle to the clock and send the first telemetry sample."""
         with self._lock:
             if self._closed:
                 raise AdapterError(f"{self.drone}: simulator already closed")
-            if self._thread is not None:
+            if self._started:
                 raise AdapterError(f"{self.drone}: simulator already started")
+            self._started = True
             self._on_telemetry = on_telemetry
             first = self._core.start()
-            self._thread = threading.Thread(
-                target=self._loop, name=f"sim-{self.drone}", daemon=True
-            )
+            self._pacer.restart(self._clock.now())
         self._emit([first])
-        self._thread.start()
+        self._clock.attach(self)
 
     def run(self, command: Command, done: DoneCallback) -> ActionHandle:
-        """Queue ``command``; the simulator thread starts it at its next step."""
+        """Queue ``command``; the clock starts it at the vehicle's next step."""
         with self._lock:
             if self._closed:
                 raise AdapterError(f"{self.drone}: simulator closed")
-            self._catch_up()
+            self._catch_up(waking=True)  # the rest ends: news
             handle = self._core.run(command, done)
-        self._wake.set()
+        self._clock.poke(self)
         return handle
 
     def cancel(self, handle: ActionHandle) -> None:
         """Interrupt ``handle``: the vehicle holds where it is; done gets "cancelled"."""
         with self._lock:
             if not self._closed:
-                self._catch_up()
+                self._catch_up(waking=True)  # the rest ends: news
                 self._core.cancel(handle)
-        self._wake.set()
+        self._clock.poke(self)
 
     def abort(self) -> None:
         """Cancel every action, take control from the pilot, land, then disarm."""
         with self._lock:
             if not self._closed:
-                self._catch_up()
+                self._catch_up(waking=True)  # the rest ends: news
                 self._core.abort()
-        self._wake.set()
+        self._clock.poke(self)
 
     def close(self) -> None:
-        """Stop the simulator thread; actions still running end "cancelled". Idempotent."""
+        """Stop stepping; actions still running end "cancelled". Idempotent."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
-            thread = self._thread
-        self._stop.set()
-        self._wake.set()
-        if thread is not None and thread is not threading.current_thread():
-            thread.join()
-        with self._lock:
-            self._catch_up()
-            finished = self._core.finish_all(ActionResult("cancelled", "adapter closed"))
-            self._log.info("adapter.close", t_sim=round(self._core.t_s, 3))
-            self._tick_cond.notify_all()
-        self._deliver(finished)
+        self._clock.detach(self)
+        if self._own_clock:
+            self._clock.close()
+        with self._pacing:  # a pace() under way finishes first
+            with self._lock:
+                self._catch_up()
+                finished = self._core.finish_all(ActionResult("cancelled", "adapter closed"))
+                self._log.info("adapter.close", t_sim=round(self._core.t_s, 3))
+                self._tick_cond.notify_all()
+            self._deliver(finished)
 
     # -- observation (tests, tools) ------------------------------------------
 
@@ -243,7 +244,7 @@ class SimAdapter:
 
     @property
     def wakeups(self) -> int:
-        """How often the pacing thread has woken (a resting vehicle costs next to none)."""
+        """How often the clock has paced it (a resting vehicle costs next to none)."""
         with self._lock:
             return self._wakeups
 
@@ -268,94 +269,88 @@ class SimAdapter:
                 self._tick_cond.wait(remaining)
             return True
 
-    # -- simulator thread ----------------------------------------------------
+    # -- stepped by the clock --------------------------------------------------
 
-    def _loop(self) -> None:
-        try:
-            self._pace()
-        except BaseException as exc:  # keep the adapter's promise: done is always called
-            # (BaseException too: this thread is never the main one, so a KeyboardInterrupt
-            # here is no Ctrl-C, and a SystemExit would end the thread silently.)
-            # Fail the running actions first: logging may itself fail (a full disk).
-            self._crash(exc)
-            with contextlib.suppress(Exception):
-                self._log.exception("adapter.error", error=repr(exc))
+    @property
+    def wall_tick_s(self) -> float:
+        """Wall seconds between two of its ticks while it moves (several steps each, fast)."""
+        return self._pacer.wall_tick_s
 
-    def _pace(self) -> None:
-        """Step the core on a wall schedule (as :func:`paced_ticks`), resting while it rests.
+    def pace(self, now: float) -> float | None:
+        """The clock's call at wall time ``now``: run the steps wall time has covered.
 
-        While the core says its next steps are idle (:meth:`SimCore.idle_steps`: only
-        the clock and an unseen battery change), the thread waits on ``_wake`` for as
-        long as those steps last in wall time instead of stepping them; a request wakes
-        it.  Whoever touches the core first (a request or the thread) skips the steps
-        that wall time has covered (:meth:`_catch_up`), so simulated time, battery,
-        telemetry and the position log are those of stepping every step.
+        Returns None to be paced again next tick, or, when the core says its next
+        steps are idle (more than a tick's), the wall time that rest ends: the clock
+        leaves the vehicle out until then or a request's poke.  Never raises: an
+        error of the simulator fails the running actions and stops the vehicle.
         """
-        speedup = self.settings.speedup
-        steps = max(1, round(MIN_WALL_TICK_S * speedup / SIM_DT_S))
-        wall_tick = steps * SIM_DT_S / speedup
-        next_tick = time.monotonic()
-        while not self._stop.is_set():
-            rest = self._fall_asleep(steps)
-            if rest:
-                # The wait is the simulator's clock (as in paced_ticks), ended early by a request.
-                self._wake.wait(rest * SIM_DT_S / speedup)
-                with self._lock:
-                    self._catch_up()
-                next_tick = time.monotonic()
-                continue
-            next_tick += wall_tick
-            delay = next_tick - time.monotonic()
-            if delay < -MAX_LAG_S:
-                next_tick = time.monotonic()
-                delay = 0.0
-            if self._stop.wait(max(0.0, delay)):
-                return
-            self._tick(steps)
+        with self._pacing:
+            try:
+                return self._pace(now)
+            except BaseException as exc:  # keep the adapter's promise: done is always called
+                # (BaseException too: this thread is never the main one, so a KeyboardInterrupt
+                # here is no Ctrl-C, and a SystemExit would end the thread silently.)
+                # Fail the running actions first: logging may itself fail (a full disk).
+                self._crash(exc)
+                with contextlib.suppress(Exception):
+                    self._log.exception("adapter.error", error=repr(exc))
+                return math.inf
 
-    def _fall_asleep(self, steps: int) -> int:
-        """If more than one tick's ``steps`` are idle: note the rest, return its steps; else 0."""
-        with self._lock:
-            self._wakeups += 1
-            if self._closed:
-                return 0
-            rest = self._core.idle_steps(MAX_REST_STEPS)
-            if rest <= steps:
-                return 0
-            self._wake.clear()
-            self._asleep = (time.monotonic(), rest)
-            return rest
+    def _pace(self, now: float) -> float | None:
+        finished: list[Finished] = []
+        samples: list[Telemetry] = []
+        wake: float | None = None
+        try:
+            with self._lock:
+                self._wakeups += 1
+                if self._closed:
+                    return math.inf
+                if self._asleep is not None:
+                    self._catch_up(now, waking=True)  # the rest is over (or a request came)
+                steps = self._pacer.due(now)
+                for _ in range(steps):
+                    done, sampled = self._core.step()
+                    finished += done
+                    samples += sampled
+                if steps:
+                    self._tick_cond.notify_all()
+                rest = self._core.idle_steps(MAX_REST_STEPS)
+                if rest > self._pacer.steps_per_tick:
+                    self._asleep = (now, rest)
+                    wake = now + rest * SIM_DT_S / self.settings.speedup
+        finally:
+            # Actions that ended in the steps before an exception still get their answer.
+            self._deliver(finished)
+        self._emit(samples)
+        return wake
 
-    def _catch_up(self) -> None:
-        """Skip the idle steps wall time has covered since the thread fell asleep (lock held)."""
+    def _catch_up(self, now: float | None = None, waking: bool = False) -> None:
+        """Skip the idle steps wall time has covered while resting (lock held).
+
+        The rest goes on for what is left of it (someone only looked), unless
+        ``waking`` (a request, or the clock at its end) or nothing is left; then
+        the pacing counts from ``now``.
+        """
         if self._asleep is None:
             return
+        now = self._clock.now() if now is None else now
         since, most = self._asleep
-        self._asleep = None
-        covered = int((time.monotonic() - since) * self.settings.speedup / SIM_DT_S)
-        self._core.skip(min(most, covered))
+        covered = min(most, int((now - since) * self.settings.speedup / SIM_DT_S))
+        self._core.skip(covered)
+        if waking or covered >= most:
+            self._asleep = None
+            self._pacer.restart(now)
+        else:
+            # Counted from the last whole step skipped: no fraction of a step is lost.
+            self._asleep = (since + covered * SIM_DT_S / self.settings.speedup, most - covered)
 
     def _crash(self, exc: BaseException) -> None:
         with self._lock:
             self._closed = True
             finished = self._core.finish_all(ActionResult("failed", f"simulator error: {exc!r}"))
             self._tick_cond.notify_all()
+        self._clock.detach(self)
         self._deliver(finished)
-
-    def _tick(self, steps: int) -> None:
-        finished: list[Finished] = []
-        samples: list[Telemetry] = []
-        try:
-            with self._lock:
-                for _ in range(steps):
-                    done, sampled = self._core.step()
-                    finished += done
-                    samples += sampled
-                self._tick_cond.notify_all()
-        finally:
-            # Actions that ended in the steps before an exception still get their answer.
-            self._deliver(finished)
-        self._emit(samples)
 
     def _deliver(self, finished: list[Finished]) -> None:
         # Callbacks run outside the lock so they may call run()/cancel() freely.
@@ -377,12 +372,16 @@ class SimAdapter:
 
 
 def sim_adapter_from_settings(
-    drone: str, settings: Mapping[str, Any], adapter_log: EventLog | None = None
+    drone: str,
+    settings: Mapping[str, Any],
+    adapter_log: EventLog | None = None,
+    clock: SimClock | None = None,
 ) -> SimAdapter:
     """Build a :class:`SimAdapter` from a drone's ``hal`` settings mapping.
 
     It runs the plugin actions installed through entry points (``eamos.actions``);
-    broken plugins are logged (``adapter.plugin_problem``) and left out.
+    broken plugins are logged (``adapter.plugin_problem``) and left out.  ``clock``:
+    the process's stepping clock, shared by its simulated drones (None: its own).
     """
     log = adapter_log if adapter_log is not None else make_logger(None)
     # Looked up on first use (a mission without plugin actions never reads the entry
@@ -391,12 +390,15 @@ def sim_adapter_from_settings(
     plugins = discover_plugins(
         on_problem=lambda problem: log.warning("adapter.plugin_problem", problem=problem)
     )
-    return SimAdapter(drone, SimSettings.from_mapping(settings), log, plugins)
+    return SimAdapter(drone, SimSettings.from_mapping(settings), log, plugins, clock)
 
 
 __all__ = [
+    "MAX_LAG_S",
+    "MIN_WALL_TICK_S",
     "SIM_DT_S",
     "SimAdapter",
+    "SimClock",
     "SimSettings",
     "Waypoint",
     "paced_ticks",

@@ -7,8 +7,9 @@ telemetry sampling and the adapter log events, all described in
 :meth:`SimCore.step` is one :data:`SIM_DT_S` step of simulated time.  The action
 lifecycle is its base class (:class:`~eamos.hal.sim.actions.ActionRules`); telemetry,
 the pilot and the guided motions have modules of their own.  Whoever owns the core is its
-clock: :class:`eamos.hal.sim.adapter.SimAdapter` steps it from a thread paced in wall
-time; a virtual-time driver steps it as fast as it likes.
+clock: :class:`eamos.hal.sim.adapter.SimAdapter` has it stepped in wall time by the
+process's :class:`~eamos.hal.sim.clock.SimClock`; a virtual-time driver steps it as fast
+as it likes.
 
 Requests (:meth:`~SimCore.run`, :meth:`~SimCore.cancel`, :meth:`~SimCore.abort`)
 are queued and taken up at the start of the next step, in order.  A step never

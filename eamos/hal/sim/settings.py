@@ -1,6 +1,6 @@
 """Settings of one simulated quadcopter (:class:`SimSettings`) and its scripted pilot's path.
 
-Shared by the pure simulator core (:mod:`eamos.hal.sim.core`) and its threaded
+Shared by the pure simulator core (:mod:`eamos.hal.sim.core`) and its wall-clock
 pacer (:mod:`eamos.hal.sim.adapter`); see :mod:`eamos.hal.sim.adapter` for what each setting does.
 """
 
