@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import signal
 import sys
 import threading
 from collections.abc import Iterator, Mapping
@@ -165,15 +166,22 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         )
     except MonitorError as exc:
         raise BadInput(str(exc)) from exc
-    print(f"monitor (replay of {args.run_dir}): {server.url}  (Ctrl-C ends)", flush=True)
-    if args.open:
-        webbrowser.open(server.url)
+    # Ctrl-C and SIGTERM end it through a handler, not a KeyboardInterrupt that could
+    # land anywhere (before the server is stopped, leaving its threads running).
+    ended = threading.Event()
+    previous = {
+        signum: signal.signal(signum, lambda *_: ended.set())
+        for signum in (signal.SIGINT, signal.SIGTERM)
+    }
     try:
-        threading.Event().wait()  # until Ctrl-C
-    except KeyboardInterrupt:
-        pass
+        print(f"monitor (replay of {args.run_dir}): {server.url}  (Ctrl-C ends)", flush=True)
+        if args.open:
+            webbrowser.open(server.url)
+        ended.wait()
     finally:
         server.stop(drain_s=0)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     return EXIT_OK
 
 
