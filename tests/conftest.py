@@ -67,16 +67,32 @@ TIERS = (
 HERE = Path(__file__).parent
 
 
-def _rank(item: pytest.Item) -> tuple[bool, int]:
+#: The tier that flies the real autopilots (tests/sitl).  Its vehicles lose their heartbeats
+#: when the machine is far beyond its cores, so its tests run one after the other on one
+#: worker (an ``xdist_group``), first of the real-time tests: once the tiers that only
+#: compute are done, beside the flights that mostly wait.  They fly in real time, so they
+#: are ``e2e`` too (``-m "not e2e"`` leaves them out).
+SITL_TIER = "sitl"
+
+
+def _top(item: pytest.Item) -> str:
     try:
-        top = item.path.relative_to(HERE).parts[0]
+        return item.path.relative_to(HERE).parts[0]
     except ValueError:  # a test file outside tests/
-        top = ""
+        return ""
+
+
+def _rank(item: pytest.Item) -> tuple[bool, bool, int]:
+    top = _top(item)
     tier = TIERS.index(top) if top in TIERS else len(TIERS)
-    return item.get_closest_marker("e2e") is not None, tier
+    return item.get_closest_marker("e2e") is not None, top != SITL_TIER, tier
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        if _top(item) == SITL_TIER:
+            item.add_marker(pytest.mark.e2e)
+            item.add_marker(pytest.mark.xdist_group(SITL_TIER))
     # A stable sort: within a tier, tests keep the order pytest collected them in.  Every
     # xdist worker sorts the same way, so all report the same collection.
     items.sort(key=_rank)

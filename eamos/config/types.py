@@ -29,7 +29,7 @@ from .validation import ConfigError, check_hal, key_shown, participant_name
 
 #: The pre-flight check's model of a MAVLink drone, per autopilot: what each SITL was
 #: measured to do with the drone type's speeds set (experiment A on ArduCopter 4.7.0-dev
-#: and PX4 main SIH in ../shared/sitl, vehicle seconds; tests/check/test_mavlink_model_vs_sitl.py
+#: and PX4 main SIH in ../shared/sitl, vehicle seconds; tests/sitl/test_check_model_vs_sitl.py
 #: compares the prediction with a real flight).  ``arm_delay_s``: from the connection until
 #: it may arm (ArduCopter's EKF takes ~39 s of vehicle time at any speed-up, PX4 main 2-4 s);
 #: ``liftoff_delay_s``: take-off command to leaving the ground; ``accel_mps2``: ArduCopter's

@@ -22,7 +22,7 @@ from eamos.compiler import compile_file
 from eamos.config import FleetConfig
 from eamos.config.types import MAVLINK_MODELS
 
-from ..sitl.square_flight import SquareFlight, load_average, sitl_dir, sitl_vehicle
+from .square_flight import SquareFlight, load_average, sitl_dir, sitl_vehicle
 
 ROOT = Path(__file__).resolve().parents[2]
 EXPERIMENT_A = ROOT / "missions" / "experiment_a.go"
