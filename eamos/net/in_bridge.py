@@ -71,6 +71,73 @@ def read_batch(sub: zmq.Socket[Any], limit: int = 256) -> list[list[bytes]]:
     return batch
 
 
+class ReceiveLedger:
+    """What became of the messages one In-Bridge received: the counts, and their log lines.
+
+    Each message taken off a socket ends one way: delivered (:attr:`received`),
+    on a topic that only shares a prefix with a subscription (:attr:`ignored`),
+    skipped undecoded for a newer telemetry sample (:attr:`superseded`),
+    dropped for a reason (:attr:`dropped`, :attr:`dropped_by_reason`), or
+    raising, in filtering or decoding (:attr:`message_errors`) or in the
+    consumer (:attr:`callback_errors`).  Kept apart from the receive loop so
+    that each outcome is counted and logged in one place, by one rule: the
+    first :data:`~eamos.net.sockets.LOG_FIRST` and then every
+    :data:`~eamos.net.sockets.LOG_EVERY`-th, so a flood of bad messages
+    cannot flood the log.
+
+    Written only by the receive thread; its plain ints are safe to read elsewhere.
+    """
+
+    def __init__(self, log: EventLog) -> None:
+        self._log = log
+        self.received = 0
+        self.dropped = 0
+        self.dropped_by_reason: dict[str, int] = {}
+        self.ignored = 0
+        self.superseded = 0
+        self.callback_errors = 0
+        self.message_errors = 0
+
+    def drop(self, reason: str, topic: bytes, detail: str, **extra: Any) -> None:
+        """A message refused for ``reason`` (``net.in.drop``)."""
+        self.dropped += 1
+        self.dropped_by_reason[reason] = self.dropped_by_reason.get(reason, 0) + 1
+        if should_log(self.dropped):
+            self._log.warning(
+                "net.in.drop",
+                reason=reason,
+                topic=topic.decode("utf-8", "replace"),
+                detail=detail,
+                dropped=self.dropped,
+                **extra,
+            )
+
+    def message_failed(self, exc: BaseException, frames: list[bytes], peer: str) -> None:
+        """Filtering or decoding ``frames`` from ``peer`` raised (``net.in.message_error``)."""
+        self.message_errors += 1
+        if should_log(self.message_errors):
+            self._log.error(
+                "net.in.message_error",
+                error=f"{type(exc).__name__}: {exc}"[:300],
+                topic=frames[0][:64].decode("utf-8", "replace") if frames else "",
+                peer=peer,
+                errors=self.message_errors,
+                exc_info=exc,
+            )
+
+    def consumer_failed(self, exc: BaseException, **fields: Any) -> None:
+        """The consumer's callback raised ``exc`` (``net.in.callback_error``)."""
+        self.callback_errors += 1
+        if should_log(self.callback_errors):
+            self._log.error(
+                "net.in.callback_error",
+                error=f"{type(exc).__name__}: {exc}"[:300],
+                errors=self.callback_errors,
+                exc_info=exc,
+                **fields,
+            )
+
+
 class InBridge(BridgeThread):
     """The participant's incoming side: one SUB socket per peer it connects to.
 
@@ -86,7 +153,8 @@ class InBridge(BridgeThread):
     messages, messages of another wire version or mission, and (with
     ``check_sender``) messages whose sender is not the peer they came from are
     dropped, logged (``net.in.drop`` with a ``reason``) and counted in
-    :attr:`dropped` and :attr:`dropped_by_reason`.  ``on_batch_end`` is called
+    :attr:`dropped` and :attr:`dropped_by_reason` (the accounting of every
+    message is a :class:`ReceiveLedger`).  ``on_batch_end`` is called
     on the receive thread after each batch of messages (the reliability layer
     acknowledges there, once per batch instead of once per message).
 
@@ -186,14 +254,7 @@ class InBridge(BridgeThread):
         self._started = False
         self._closed = False
         self._tx_open = True
-        # Written only by the receive thread; plain ints are safe to read elsewhere.
-        self._received = 0
-        self._dropped = 0
-        self._dropped_by_reason: dict[str, int] = {}
-        self._ignored = 0
-        self._superseded = 0
-        self._callback_errors = 0
-        self._message_errors = 0
+        self._ledger = ReceiveLedger(self._log)
         self._thread = threading.Thread(target=self._run, name="eamos-inbridge", daemon=True)
 
     def _close_sockets(self) -> None:
@@ -257,37 +318,37 @@ class InBridge(BridgeThread):
     @property
     def received(self) -> int:
         """Messages passed to ``on_message``."""
-        return self._received
+        return self._ledger.received
 
     @property
     def dropped(self) -> int:
         """Messages dropped (malformed, other version or mission, wrong sender)."""
-        return self._dropped
+        return self._ledger.dropped
 
     @property
     def dropped_by_reason(self) -> dict[str, int]:
         """:attr:`dropped` per reason (a copy)."""
-        return dict(self._dropped_by_reason)
+        return dict(self._ledger.dropped_by_reason)
 
     @property
     def superseded(self) -> int:
         """Telemetry samples skipped undecoded: a newer one of the same drone was waiting."""
-        return self._superseded
+        return self._ledger.superseded
 
     @property
     def ignored(self) -> int:
         """Messages on topics that only share a prefix with a subscription."""
-        return self._ignored
+        return self._ledger.ignored
 
     @property
     def callback_errors(self) -> int:
         """Calls of ``on_message`` (or ``on_batch_end``) that raised."""
-        return self._callback_errors
+        return self._ledger.callback_errors
 
     @property
     def message_errors(self) -> int:
         """Messages whose filtering or decoding raised something unexpected (not a drop)."""
-        return self._message_errors
+        return self._ledger.message_errors
 
     @property
     def alive(self) -> bool:
@@ -332,7 +393,7 @@ class InBridge(BridgeThread):
                     try:
                         self._on_batch_end()
                     except BaseException as exc:  # see _handle
-                        self._consumer_failed(exc, type="batch_end")
+                        self._ledger.consumer_failed(exc, type="batch_end")
         except zmq.ContextTerminated:
             self._log.warning("net.in.context_terminated")
         except zmq.ZMQError:
@@ -363,7 +424,7 @@ class InBridge(BridgeThread):
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
         batch = read_batch(sub)
         kept, skipped = latest_telemetry(batch)
-        self._superseded += skipped
+        self._ledger.superseded += skipped
         for frames in kept:
             if self._closed:
                 break  # close() was called from on_message: deliver nothing more
@@ -381,63 +442,30 @@ class InBridge(BridgeThread):
         try:
             msg = self._accepted(frames, peer)
         except BaseException as exc:  # any exception of one message
-            self._message_errors += 1
-            if should_log(self._message_errors):
-                self._log.error(
-                    "net.in.message_error",
-                    error=f"{type(exc).__name__}: {exc}"[:300],
-                    topic=frames[0][:64].decode("utf-8", "replace") if frames else "",
-                    peer=peer,
-                    errors=self._message_errors,
-                    exc_info=exc,
-                )
+            self._ledger.message_failed(exc, frames, peer)
             return
         if msg is None:
             return
-        self._received += 1
+        self._ledger.received += 1
         try:
             self._on_message(msg)
         except BaseException as exc:  # a consumer's failure is its own
-            self._consumer_failed(exc, type=type(msg).__name__, sender=msg.sender)
+            self._ledger.consumer_failed(exc, type=type(msg).__name__, sender=msg.sender)
 
     def _accepted(self, frames: list[bytes], peer: str) -> Message | None:
         """The message ``frames`` carry if it is for us (else None, counted and logged)."""
         if not self._wanted(frames[0]):
-            self._ignored += 1
+            self._ledger.ignored += 1
             return None
         try:
             msg = decode(frames)
         except WireError as exc:
-            self._drop(exc.reason, frames[0], str(exc), peer=peer)
+            self._ledger.drop(exc.reason, frames[0], str(exc), peer=peer)
             return None
         if msg.mission != self.mission:
-            self._drop("other_mission", frames[0], msg.mission, sender=msg.sender, peer=peer)
+            self._ledger.drop("other_mission", frames[0], msg.mission, sender=msg.sender, peer=peer)
             return None
         if self._check_sender and msg.sender != peer:
-            self._drop("sender", frames[0], f"{msg.sender!r} on {peer!r}'s link", peer=peer)
+            self._ledger.drop("sender", frames[0], f"{msg.sender!r} on {peer!r}'s link", peer=peer)
             return None
         return msg
-
-    def _consumer_failed(self, exc: BaseException, **fields: Any) -> None:
-        self._callback_errors += 1
-        if should_log(self._callback_errors):
-            self._log.error(
-                "net.in.callback_error",
-                error=f"{type(exc).__name__}: {exc}"[:300],
-                errors=self._callback_errors,
-                exc_info=exc,
-                **fields,
-            )
-
-    def _drop(self, reason: str, topic: bytes, detail: str, **extra: Any) -> None:
-        self._dropped += 1
-        self._dropped_by_reason[reason] = self._dropped_by_reason.get(reason, 0) + 1
-        if should_log(self._dropped):
-            self._log.warning(
-                "net.in.drop",
-                reason=reason,
-                topic=topic.decode("utf-8", "replace"),
-                detail=detail,
-                dropped=self._dropped,
-                **extra,
-            )

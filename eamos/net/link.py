@@ -9,12 +9,13 @@ Out-/In-Bridges, CURVE with fleet keys), what a participant's runtime uses.
 
 Threads: the In-Bridge's receive thread runs :meth:`LinkDriver._receive` and
 the explicit acks at the end of each batch; the Out-Bridge's thread reports
-(re)subscriptions; one timer thread per link calls ``on_tick`` and then waits
-on a Condition until the session's next deadline (or until a send or a
-receive brings an earlier one: a :class:`~eamos.net.session.Wake` action),
-never polling.  One lock serialises every call into the session, and the
-wire messages it returns are handed to the Out-Bridge under that lock, so a
-link's wire order is its seq order; the application callback runs outside it.
+(re)subscriptions; one timer thread per link (:class:`LinkTimer`) calls
+``on_tick`` and then waits on a Condition until the session's next deadline
+(or until a send or a receive brings an earlier one: a
+:class:`~eamos.net.session.Wake` action), never polling.  One lock serialises
+every call into the session, and the wire messages it returns are handed to
+the Out-Bridge under that lock, so a link's wire order is its seq order; the
+application callback runs outside it.
 
 Local events (never on the wire) are passed to ``on_message`` with the
 messages: :class:`PeerStatus` and :class:`TelemetryStale`.
@@ -32,7 +33,7 @@ import random
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 import zmq
 
@@ -59,6 +60,105 @@ Clock = Callable[[], float]
 Delivered = wire.Message | PeerStatus | TelemetryStale
 
 
+class TimerOwner(Protocol):
+    """What a :class:`LinkTimer` calls back: the driver of the session it ticks."""
+
+    clock: Clock
+
+    @property
+    def closed(self) -> bool:
+        """Whether the session was closed (the timer's end); read with the lock held."""
+        ...
+
+    def tick(self) -> tuple[list[SessionEffect], float]:
+        """The session's tick carried out (lock held): what to deliver, the next deadline."""
+        ...
+
+    def deliver(self, later: list[SessionEffect]) -> None:
+        """Hand ``later`` to the application (lock not held)."""
+        ...
+
+
+class LinkTimer:
+    """A link's timer thread: the session's tick at each of its deadlines, and nothing between.
+
+    Kept apart from :class:`LinkDriver` because its job is one of time alone:
+    when to run the next tick.  Between two ticks it waits on ``wake``, a
+    Condition on the driver's lock, until the deadline the last tick returned,
+    or until the driver reports an earlier one (:meth:`kick`, for a
+    :class:`~eamos.net.effects.Wake` action); it never polls.  It is kicked
+    only for an earlier deadline, so a busy link does not wake it for every
+    message.  A turn that raises is logged (``net.link.timer_error``) and
+    counted (:attr:`errors`), and the next comes ``retry_s`` later.
+    """
+
+    def __init__(
+        self, owner: TimerOwner, wake: threading.Condition, log: EventLog, name: str, retry_s: float
+    ) -> None:
+        self._owner = owner
+        self._wake = wake
+        self._log = log
+        self._retry_s = retry_s
+        self._next_wake = float("inf")
+        self.errors = 0
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> None:
+        """Start the thread."""
+        self._thread.start()
+
+    def kick(self, at: float) -> None:
+        """A deadline at ``at`` appeared (lock held): wake the thread if it sleeps past it."""
+        if at < self._next_wake:
+            self._next_wake = at
+            self._wake.notify()
+
+    def wake_all(self) -> None:
+        """Wake the thread to see that the session closed (lock held)."""
+        self._wake.notify_all()
+
+    def join(self, timeout_s: float) -> None:
+        """Wait for the thread to end, unless called on it or it never started."""
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout_s)
+
+    def _run(self) -> None:
+        while True:
+            try:
+                if not self._turn():
+                    return
+            # A bug in one turn (the session's tick, a delivery) must not stop the
+            # timer: no retransmission, heartbeat or liveness check would follow.
+            except BaseException as exc:
+                self.errors += 1
+                if should_log(self.errors):
+                    self._log.error(
+                        "net.link.timer_error",
+                        error=f"{type(exc).__name__}: {exc}"[:300],
+                        errors=self.errors,
+                        exc_info=exc,
+                    )
+                # Not at once again: a turn that keeps failing must not spin a core.
+                with self._wake:
+                    if self._owner.closed:
+                        return
+                    self._wake.wait(self._retry_s)
+
+    def _turn(self) -> bool:
+        """One turn of the timer: the session's tick, then a wait; False once closed."""
+        owner = self._owner
+        with self._wake:
+            if owner.closed:
+                return False
+            later, deadline = owner.tick()
+            if not later:
+                self._next_wake = deadline
+                self._wake.wait(max(0.0, deadline - owner.clock()))
+                self._next_wake = float("-inf")  # awake: nobody needs to kick
+        owner.deliver(later)
+        return True
+
+
 class LinkDriver(Generic[OutT, InT]):
     """Runs ``session`` over ``transport`` on threads, reading time from ``clock``.
 
@@ -83,25 +183,24 @@ class LinkDriver(Generic[OutT, InT]):
         self.log = log if log is not None else make_logger(None)
         self.clock = clock
         # One lock guards the session.  Two conditions on it: _cond for flush()
-        # waiters, _wake for the timer thread, notified only when a deadline
-        # earlier than its planned wake-up appears: a busy link must not wake
-        # the timer for every message.
+        # waiters, the timer's for its thread (see LinkTimer).
         lock = threading.RLock()
         self._cond = threading.Condition(lock)
-        self._wake = threading.Condition(lock)
-        self._next_wake = float("inf")
+        self._timer = LinkTimer(
+            self,
+            threading.Condition(lock),
+            self.log,
+            f"eamos-link-{self.name}",
+            retry_s=self.settings.heartbeat_s,
+        )
         self._flush_waiters = 0
         self._on_message: Callable[[Delivered], None] = lambda msg: None
         self.delivery_errors = 0
-        self.timer_errors = 0
         self.peer_events: list[dict[str, Any]] = []
         self._reports = ReportJoiner()  # ReportParts arrive on the receive thread only
         self.out: OutT = transport.open_out(self._on_subscription)
         self.inb: InT | None = None
         self._listening: set[str] = set()  # subscribed to us before connect()
-        self._thread = threading.Thread(
-            target=self._run, name=f"eamos-link-{self.name}", daemon=True
-        )
         # Started after self.out is set: its thread reports subscriptions to us.
         self.out.start()
 
@@ -153,7 +252,7 @@ class LinkDriver(Generic[OutT, InT]):
         for peer in listening:  # subscribed before the In-Bridge existed
             self.inb.announce(peer)
         self.inb.start()
-        self._thread.start()
+        self._timer.start()
 
     def wait_subscribed(self, topics: Iterable[bytes], timeout_s: float) -> bool:
         """See :meth:`OutBridge.wait_subscribed`."""
@@ -171,9 +270,7 @@ class LinkDriver(Generic[OutT, InT]):
                 # Looked up each time: tests wrap ``out.send`` to lose messages.
                 ok = self.out.send(action.message) and ok  # type: ignore[union-attr]
             elif kind is Wake:
-                if action.at < self._next_wake:  # type: ignore[union-attr]
-                    self._next_wake = action.at  # type: ignore[union-attr]
-                    self._wake.notify()
+                self._timer.kick(action.at)  # type: ignore[union-attr]
             else:
                 if kind is PeerChanged:
                     status: PeerStatus = action.status  # type: ignore[union-attr]
@@ -190,7 +287,7 @@ class LinkDriver(Generic[OutT, InT]):
             self._cond.notify_all()
         return ok, later
 
-    def _deliver(self, later: list[SessionEffect]) -> None:
+    def deliver(self, later: list[SessionEffect]) -> None:
         """Hand deliveries and peer events to the application (lock not held)."""
         for action in later:
             item = action.status if type(action) is PeerChanged else action.item  # type: ignore[union-attr]
@@ -254,7 +351,7 @@ class LinkDriver(Generic[OutT, InT]):
         with self._cond:
             _, later = self._execute(self.session.on_receive(msg, now))
         if later:
-            self._deliver(later)
+            self.deliver(later)
 
     def _flush_acks(self) -> None:
         """In-Bridge batch end: the explicit Acks this batch called for (gaps, duplicates)."""
@@ -277,43 +374,23 @@ class LinkDriver(Generic[OutT, InT]):
         if inb is not None and peer:
             inb.announce(peer)  # a peer connected to us: it listens, connect to it
 
-    # -- timer thread --------------------------------------------------------------------
+    # -- the timer's turn (LinkTimer) -------------------------------------------------------
 
-    def _run(self) -> None:
-        while True:
-            try:
-                if not self._turn():
-                    return
-            # A bug in one turn (the session's tick, a delivery) must not stop the
-            # timer: no retransmission, heartbeat or liveness check would follow.
-            except BaseException as exc:
-                self.timer_errors += 1
-                if should_log(self.timer_errors):
-                    self.log.error(
-                        "net.link.timer_error",
-                        error=f"{type(exc).__name__}: {exc}"[:300],
-                        errors=self.timer_errors,
-                        exc_info=exc,
-                    )
-                # Not at once again: a turn that keeps failing must not spin a core.
-                with self._cond:
-                    if self.session.closed:
-                        return
-                    self._wake.wait(self.settings.heartbeat_s)
+    @property
+    def closed(self) -> bool:
+        """Whether the link was closed (:meth:`close_receiving`)."""
+        return self.session.closed
 
-    def _turn(self) -> bool:
-        """One turn of the timer: the session's tick, then a wait; False once closed."""
-        with self._cond:
-            if self.session.closed:
-                return False
-            actions, deadline = self.session.on_tick(self.clock())
-            _, later = self._execute(actions)
-            if not later:
-                self._next_wake = deadline
-                self._wake.wait(max(0.0, deadline - self.clock()))
-                self._next_wake = float("-inf")  # awake: nobody needs to kick
-        self._deliver(later)
-        return True
+    def tick(self) -> tuple[list[SessionEffect], float]:
+        """The session's tick carried out (lock held): what to deliver, the next deadline."""
+        actions, deadline = self.session.on_tick(self.clock())
+        _, later = self._execute(actions)
+        return later, deadline
+
+    @property
+    def timer_errors(self) -> int:
+        """Turns of the timer that raised (each logged, ``net.link.timer_error``)."""
+        return self._timer.errors
 
     # -- results and shutdown ------------------------------------------------------------------
 
@@ -410,9 +487,8 @@ class LinkDriver(Generic[OutT, InT]):
             if not self.session.closed:
                 self._execute(self.session.close())
                 self._cond.notify_all()
-                self._wake.notify_all()
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join(5.0)
+                self._timer.wake_all()
+        self._timer.join(5.0)
         if self.inb is not None:
             self.inb.close()
 

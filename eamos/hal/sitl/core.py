@@ -3,12 +3,13 @@
 :class:`VehicleCore` is what PX4 SITL and ArduCopter SITL have in common: the
 kinematic model, arming and disarming (pre-arm delay, automatic disarm before
 take-off and after touchdown, forced disarm), modes, parameters
-(:class:`ParamTable`) and STATUSTEXT; the messages that act on it are decoded
-by :mod:`eamos.hal.sitl.inbox`.  Everything that differs between the
-two is asked of its :class:`Personality` (:mod:`eamos.hal.sitl.px4`,
+(:class:`ParamTable`), the fence it enforces
+(:class:`~eamos.hal.sitl.fence.FenceWatch`) and STATUSTEXT; the messages that
+act on it are decoded by :mod:`eamos.hal.sitl.inbox`.  Everything that differs
+between the two is asked of its :class:`Personality` (:mod:`eamos.hal.sitl.px4`,
 :mod:`eamos.hal.sitl.ardupilot`): mode names and numbers, arming rules
-and texts, take-off, landing and repositioning, setpoint streams, parameters
-and their wire encoding.
+and texts, take-off, landing and repositioning, setpoint streams, the fence's
+limits and a breach's reaction, parameters and their wire encoding.
 
 The core owns no thread and no connection: its owner
 (:class:`eamos.hal.sitl.vehicle.SimVehicle`) feeds it messages (through an
@@ -24,12 +25,12 @@ import math
 import random
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 from eamos.hal.kinematics import GeoFrame, Limits, Quadcopter
 from eamos.hal.sim.core import SIM_DT_S
-from eamos.hal.sitl.fence import Geofence
+from eamos.hal.sitl.fence import FenceLimits, FenceWatch, Geofence
 from eamos.hal.sitl.manoeuvres import Manoeuvres
 from eamos.hal.sitl.missions import FENCE, MISSION, Dialect, MissionServer
 from eamos.hal.sitl.params import Param, Params, ParamTable
@@ -64,16 +65,6 @@ LAND_SPEED_MPS = 0.7
 GIMBAL_STATUS_PERIOD_S = 0.2
 #: The wandering estimate's correlation time (seconds): slow, like an EKF's drift.
 WANDER_TAU_S = 2.0
-
-
-@dataclass(frozen=True)
-class FenceLimits:
-    """What an autopilot's fence parameters enable: a ceiling (m above home), a radius
-    around home (m), and the uploaded polygons and circles."""
-
-    ceiling_m: float | None = None
-    radius_m: float | None = None
-    uploaded: bool = True
 
 
 def stopping_point(
@@ -267,7 +258,7 @@ class Personality:
         """MAV_CMD_DO_CHANGE_SPEED: the MAV_RESULT."""
         return UNSUPPORTED
 
-    # -- geofence (eamos.hal.sitl.fence) -------------------------------------------------------
+    # -- geofence (eamos.hal.sitl.fence: its FencePolicy) --------------------------------------
 
     def fence_limits(self, v: VehicleCore) -> FenceLimits | None:
         """What its fence parameters enable now; None: no fence is enforced."""
@@ -352,8 +343,7 @@ class VehicleCore:
         self.missions = MissionServer(
             personality.mission_dialect, send, lambda: o.home, self._missions_changed
         )
-        self.geofence = Geofence()
-        self.fence_breach: str | None = None  # what the vehicle is outside of, if anything
+        self.fence = FenceWatch(self, personality)
 
     # -- sending -------------------------------------------------------------------------
 
@@ -391,7 +381,7 @@ class VehicleCore:
             self.manoeuvres.heading_deg,
             (self.missions.current, len(self.missions.lists[MISSION])),
             self.p.fence_limits(self) is not None,
-            self.fence_breach is not None,
+            self.fence.breach is not None,
             self.on_ground,
         )
 
@@ -453,7 +443,7 @@ class VehicleCore:
             self._touchdown_told = True  # when its land detector says so
             self.text(p.text_touchdown, SEV_INFO)
         self._was_landed = model.landed
-        self._check_fence()
+        self.fence.check()
         self.missions.tick(self.wall())
         if (
             self.touchdown_at is not None
@@ -464,61 +454,20 @@ class VehicleCore:
             self.disarm(p.text_land_disarm)
         self._log_position()
 
-    # -- geofence ----------------------------------------------------------------------------
+    # -- geofence (FenceWatch) --------------------------------------------------------------
 
     def _missions_changed(self, mission_type: int) -> None:
-        if mission_type != FENCE:
-            return
-        try:
-            self.geofence = Geofence.from_items(self.missions.items(FENCE), self.frame)
-        except ValueError as exc:
-            self.geofence = Geofence()
-            self.text(f"Fence: {exc}", SEV_CRITICAL)
-            return
-        self.log.info(
-            "vehicle.fence",
-            inclusion=len(self.geofence.inclusion),
-            exclusion=len(self.geofence.exclusion),
-            circles=len(self.geofence.circles_in) + len(self.geofence.circles_out),
-            t_sim=round(self.t, 3),
-        )
+        if mission_type == FENCE:
+            self.fence.load(self.missions.items(FENCE))
+
+    @property
+    def geofence(self) -> Geofence:
+        """The fence uploaded to the vehicle (empty: none)."""
+        return self.fence.geofence
 
     def outside_fence(self, point: tuple[float, float, float]) -> str | None:
         """What of the enforced fence ``point`` is outside of (altitude, circle, polygon)."""
-        limits = self.p.fence_limits(self)
-        if limits is None:
-            return None
-        x, y, z = point
-        if limits.ceiling_m is not None and z > limits.ceiling_m:
-            return "altitude"
-        if limits.radius_m is not None and math.hypot(x, y) > limits.radius_m:
-            return "circle"
-        if limits.uploaded:
-            return self.geofence.horizontal_breach((x, y))
-        return None
-
-    def _check_fence(self) -> None:
-        """A breach (leaving the fence while flying) is told to the personality once."""
-        if not self.armed or self.model.landed:
-            self.fence_breach = None
-            return
-        kind = self.outside_fence(self.model.position)
-        if kind is not None and self.fence_breach is None:
-            self.fence_breach = kind
-            st = self.model.state
-            self.log.warning(
-                "vehicle.fence.breach",
-                kind=kind,
-                x_m=round(st.x_m, 2),
-                y_m=round(st.y_m, 2),
-                z_m=round(st.z_m, 2),
-                t_sim=round(self.t, 3),
-            )
-            self.p.fence_breached(self, kind)
-        elif kind is None and self.fence_breach is not None:
-            self.fence_breach = None
-            self.log.info("vehicle.fence.cleared", t_sim=round(self.t, 3))
-            self.p.fence_cleared(self)
+        return self.fence.outside(point)
 
     def _spooling_up(self) -> tuple[float, float, float] | None:
         """Told to climb from the ground: the target, withheld for this step while the motors
