@@ -8,8 +8,9 @@ skip fails the run, so CI always runs everything.
 Order: the tiers that start no process run first and the tests marked ``e2e``
 (they fly in real time: ``eamos`` processes, simulated vehicles, namespaces,
 SSH, a browser) last, so a broken compiler or node logic fails in seconds, not
-after the flights.  ``pytest -m "not e2e"`` runs only the first part (what
-``.ci/run`` runs on the other interpreters).
+after the flights; the real autopilots (``tests/sitl``) first among those.
+``pytest -m "not e2e"`` runs only the first part (``.ci/run`` runs it, for the
+computing tiers, on the other interpreters).
 
 Parallel: the default options spread tests over every core
 (``-n auto --dist loadgroup``, pytest-xdist).  Ports are ephemeral and
