@@ -52,7 +52,7 @@ def test_graph_size_tables_match_the_compiler() -> None:
 
 def test_error_example_in_the_language_reference_is_real_output() -> None:
     text = (DOCS / "mission-language.md").read_text(encoding="utf-8")
-    source = re.search(r"`eamos compile bad.go` on\n\n```go\n(.*?)```", text, re.S)
+    source = re.search(r"`eamos compile bad.go` on\n\n(?:<!--.*?-->\n)?```go\n(.*?)```", text, re.S)
     output = re.search(r"prints\n\n```text\n(.*?)```", text, re.S)
     assert source and output
     with pytest.raises(MissionError) as info:
