@@ -36,22 +36,29 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 from eamos import __version__
-from eamos.actors.drone import DroneEnd, NodeStop, load_node_program, run_drone
 from eamos.cli.errors import run_reported
 from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EXIT_OK
-from eamos.config import EXIT_CODE_FILE, ConfigError, NodeConfig
-from eamos.logs import LogWriter
-from eamos.program.uniform import GROUND_STATION
 
 if TYPE_CHECKING:
+    from eamos.actors.drone import DroneEnd
+    from eamos.config import NodeConfig
     from eamos.hal.sim import SimClock
+    from eamos.logs import LogWriter
 
-EXITS = {
-    DroneEnd.DONE: EXIT_OK,
-    DroneEnd.FAILED: EXIT_MISSION_FAILED,
-    DroneEnd.UNREACHABLE: EXIT_CONNECT,
-    DroneEnd.REFUSED: EXIT_MISSION_FAILED,  # restarted mid-mission, refuses to rejoin
-}
+# The runtime (ZeroMQ, Pykka, structlog, the HAL) is imported where a node runs, not at
+# the top: ``eamos-node --help`` and ``--version`` answer without loading it.
+
+
+def exit_code(end: DroneEnd) -> int:
+    """The process's exit code for how a drone's part ended."""
+    from eamos.actors.drone import DroneEnd
+
+    return {
+        DroneEnd.DONE: EXIT_OK,
+        DroneEnd.FAILED: EXIT_MISSION_FAILED,
+        DroneEnd.UNREACHABLE: EXIT_CONNECT,
+        DroneEnd.REFUSED: EXIT_MISSION_FAILED,  # restarted mid-mission, refuses to rejoin
+    }[end]
 
 
 #: What ``eamos-node --help`` says about the config (every key: docs/operations.md).
@@ -110,17 +117,23 @@ def run_node(
     ``log_writer``, ``sim_clock``: the process's log writer and the clock stepping its
     simulated drones, when drones share the process.
     """
+    from eamos.actors.drone import load_node_program, run_drone
+    from eamos.program.uniform import GROUND_STATION
+
     program = load_node_program(config)
     if program.drone == GROUND_STATION:
         from eamos.ground import run_ground_node
 
         summary = run_ground_node(config, program, stop)
         return EXIT_OK if summary.ok else EXIT_MISSION_FAILED
-    return EXITS[run_drone(config, program, stop, log_writer, sim_clock)]
+    return exit_code(run_drone(config, program, stop, log_writer, sim_clock))
 
 
 def load_group(paths: list[Path]) -> list[NodeConfig]:
     """The configs of drones to run in one process; ConfigError if they cannot share it."""
+    from eamos.config import ConfigError, NodeConfig
+    from eamos.program.uniform import GROUND_STATION
+
     configs = [NodeConfig.load(p) for p in paths]
     names = [c.drone for c in configs]
     if GROUND_STATION in names and len(configs) > 1:
@@ -136,7 +149,9 @@ def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -
     codes: dict[str, int] = {}
     # One thread writes every drone's log lines, in batches (not one per drone); one
     # clock steps every simulated drone (not a thread each).
+    from eamos.config import EXIT_CODE_FILE
     from eamos.hal.sim import SimClock  # here: a process of one drone never loads it
+    from eamos.logs import LogWriter
 
     writer = LogWriter()
     clock = SimClock("sim-clock")
@@ -169,13 +184,16 @@ def guarded(body: Callable[[], int], verbose: bool, who: str = "") -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Console entry point of ``eamos-node``."""
+    args = build_parser().parse_args(argv)  # --help, --version: answered, nothing loaded
+    from eamos.actors.drone import NodeStop
+    from eamos.config import NodeConfig
+
     # What is loaded by now (modules, classes, functions: tens of thousands of objects)
     # lives as long as the process.  Frozen, the cyclic collector leaves it out of every
     # later collection, which would otherwise walk all of it again, holding the GIL,
     # while the node's threads carry triggers.  Here, in the process's entry point, not
     # at import: what the collector does is the whole process's business.
     gc.freeze()
-    args = build_parser().parse_args(argv)
     stop = NodeStop()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:

@@ -86,6 +86,13 @@ def test_eamos_sim_vehicle_help_and_version_import_nothing_heavy(args: list[str]
     assert found == {"code": 0, "heavy": []}
 
 
+@pytest.mark.parametrize("args", [["--version"], ["--help"]], ids=" ".join)
+def test_eamos_node_help_and_version_import_nothing_heavy(args: list[str]) -> None:
+    # The node's runtime (ZeroMQ, Pykka, structlog) loads once a config is to be run.
+    found = imported("eamos.cli.node", ["eamos-node", *args])
+    assert found == {"code": 0, "heavy": []}
+
+
 def test_the_probe_sees_a_heavy_import_when_there_is_one() -> None:
     # The probe can fail: a command that does its work imports the compiler.
     found = imported("eamos.cli.main", ["eamos", "compile", "--stats", "no-such-file.go"])
