@@ -33,7 +33,14 @@ ARDUPILOT_CAMERA = {
 #: (lockstep) and its estimate wanders more on a loaded machine; ArduCopter is light.
 SPEEDUP = {"arducopter": 10.0, "px4": 5.0}
 #: Generous for a loaded 2-core machine (vehicle seconds; the adapter scales them).
-HAL_TIMEOUTS = {"connect_timeout_s": 60, "armable_timeout_s": 120, "action_timeout_s": 120}
+#: Generous for a loaded 2-core CI machine: a SITL starved of CPU for a few seconds is slow,
+#: not dead (a killed vehicle is still found lost, 10 s later).
+HAL_TIMEOUTS = {
+    "connect_timeout_s": 60,
+    "armable_timeout_s": 120,
+    "action_timeout_s": 120,
+    "heartbeat_timeout_s": 10,
+}
 
 
 def _toml(value: Any) -> str:

@@ -185,6 +185,7 @@ def adapters(tmp_path: Path) -> Iterator[Callable[..., MavlinkAdapter]]:
 
     def factory(connection: str, drone: str = "D1", **settings: Any) -> MavlinkAdapter:
         settings.setdefault("speedup", SPEEDUP)
+        settings.setdefault("heartbeat_timeout_s", 10.0)  # a loaded machine
         settings.setdefault("armable_timeout_s", 300.0)
         settings.setdefault("connect_timeout_s", 60.0)
         log = make_logger(tmp_path / f"{drone}-adapter.log", drone=drone)
