@@ -33,6 +33,7 @@ from .syntax import (
     expr_text,
     member_name,
     props_in,
+    sub_expressions,
 )
 
 
@@ -175,18 +176,12 @@ class Resolver:
         (a loop counter, an int parameter, len, %), whose rules the runtime does not have."""
         if _reads_props(expr):
             return False
-        stack: list[Expr] = [expr]
-        while stack:
-            node = stack.pop()
-            if isinstance(node, Len) or (isinstance(node, Binary) and node.op == "%"):
-                return True
-            if isinstance(node, Name) and isinstance(self.b.numbers.get(node.name), int):
-                return True
-            if isinstance(node, Unary):
-                stack.append(node.operand)
-            elif isinstance(node, Binary):
-                stack.extend((node.left, node.right))
-        return False
+        return any(
+            isinstance(node, Len)
+            or (isinstance(node, Binary) and node.op == "%")
+            or (isinstance(node, Name) and isinstance(self.b.numbers.get(node.name), int))
+            for node in sub_expressions(expr)
+        )
 
     def _bind(self, expr: Expr, each: tuple[str, str] | None, *, compact: bool) -> Expr:
         """``expr`` with its names replaced; ``each`` = (group, member) inside ``All(...)``."""
@@ -263,16 +258,7 @@ def _reads_props(expr: Expr) -> bool:
 
 
 def _has_quantifier(expr: Expr) -> bool:
-    stack: list[Expr] = [expr]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, Quantifier):
-            return True
-        if isinstance(node, Unary):
-            stack.append(node.operand)
-        elif isinstance(node, Binary):
-            stack.extend((node.left, node.right))
-    return False
+    return any(isinstance(node, Quantifier) for node in sub_expressions(expr))
 
 
 def _depth(expr: Expr) -> int:

@@ -59,8 +59,8 @@ from .syntax import (
     Unary,
     expansion_needed,
     flat_statements,
+    named_drone_calls,
     props_in,
-    scoped_statements,
 )
 
 _ARITH = {"+", "-", "*", "/", "%"}
@@ -79,19 +79,9 @@ def drone_types(mission: Mission, vocab: Vocabulary | None = None) -> dict[str, 
     types: dict[str, DroneType] = {}
     for decl in mission.drones.values():
         types[decl.name] = known.get(decl.type, default)
-    for block in mission.blocks.values():
-        params = {p.name for p in block.params}
-        for stmt, loops in scoped_statements(block.statements):
-            if (
-                isinstance(stmt, ActionCall)
-                and stmt.drone is not None
-                and stmt.pick is None
-                and stmt.drone not in types
-                and stmt.drone not in params
-                and stmt.drone not in loops
-                and stmt.drone not in mission.groups
-            ):
-                types[stmt.drone] = default
+    for call in named_drone_calls(mission):
+        if call.drone is not None and call.drone not in types and call.drone not in mission.groups:
+            types[call.drone] = default
     if expansion_needed(mission):
         for name, _ in drone_arguments(mission):
             types.setdefault(name.name, default)

@@ -25,7 +25,7 @@ from .syntax import (
     Control,
     Mission,
     flat_statements,
-    scoped_statements,
+    named_drone_calls,
 )
 
 #: Largest mission file, in UTF-8 bytes.
@@ -244,17 +244,8 @@ def fleet_limit_error(mission: Mission) -> Diagnostic | None:
             )
     seen: dict[str, SourceLocation] = {d.name: d.loc for d in mission.drones.values()}
     if len(seen) + members <= MAX_DRONES:
-        for block in mission.blocks.values():
-            params = {p.name for p in block.params}
-            for stmt, loops in scoped_statements(block.statements):
-                if (
-                    isinstance(stmt, ActionCall)
-                    and stmt.drone is not None
-                    and stmt.pick is None
-                    and stmt.drone not in params
-                    and stmt.drone not in loops
-                ):
-                    seen.setdefault(stmt.drone, stmt.loc)
+        for call in named_drone_calls(mission):
+            seen.setdefault(call.drone or "", call.loc)
     if len(seen) + members <= MAX_DRONES:
         return None
     name, loc = list(seen.items())[MAX_DRONES - members]

@@ -398,19 +398,25 @@ def expansion_needed(mission: Mission) -> bool:
     )
 
 
-def props_in(expr: Expr | None) -> Iterator[Prop]:
-    """Every property read in an expression, in source order (group conditions included)."""
+def sub_expressions(expr: Expr | None) -> Iterator[Expr]:
+    """``expr`` and every expression inside it, in source order (group conditions too)."""
     stack: list[Expr | None] = [expr]
     while stack:  # a loop: conditions may nest deep
         node = stack.pop()
-        if isinstance(node, Prop):
-            yield node
-        elif isinstance(node, Unary):
+        if node is None:
+            continue
+        yield node
+        if isinstance(node, Unary):
             stack.append(node.operand)
         elif isinstance(node, Binary):
             stack.extend((node.right, node.left))
         elif isinstance(node, Quantifier):
             stack.append(node.cond)
+
+
+def props_in(expr: Expr | None) -> Iterator[Prop]:
+    """Every property read in an expression, in source order (group conditions included)."""
+    return (node for node in sub_expressions(expr) if isinstance(node, Prop))
 
 
 # Go's precedence, as eamos.program.conditions prints conditions.
@@ -458,3 +464,19 @@ def expr_text(expr: Expr | None) -> str:
     if isinstance(expr.right, Binary) and _PRECEDENCE.get(expr.right.op, 6) <= mine:
         right = f"({right})"
     return f"{left} {expr.op} {right}"
+
+
+def named_drone_calls(mission: Mission) -> Iterator[ActionCall]:
+    """Every action called on a drone by its own name, in reading order: not on a block's
+    drone parameter, a loop variable or a group member picked by an index."""
+    for block in mission.blocks.values():
+        params = {p.name for p in block.params}
+        for stmt, loops in scoped_statements(block.statements):
+            if (
+                isinstance(stmt, ActionCall)
+                and stmt.drone is not None
+                and stmt.pick is None
+                and stmt.drone not in params
+                and stmt.drone not in loops
+            ):
+                yield stmt
