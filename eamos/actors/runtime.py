@@ -52,6 +52,7 @@ from .logic.telemetry import stale_values as stale_values
 from .logic.telemetry import telemetry_values as telemetry_values
 from .messages import AbortMission, Fire
 from .node import MissionNode
+from .operator import Operate
 from .outbox import Outbox
 from .readiness import announce_ready
 from .reporting import gather_report
@@ -188,7 +189,9 @@ class DroneRuntime:
         build.start_nodes(self.dispatcher, self.nodes)
         self.executive = build.start_executive(self.dispatcher, self.nodes, outbox, self._to_ground)
         build.wire_nodes(self.nodes, self.hal, board, outbox, self.executive, space)
-        self.router = build.router(self.nodes, self.executive, board, self.abort, self.completed)
+        self.router = build.router(
+            self.nodes, self.executive, board, self.abort, self.completed, self.operate
+        )
         self.inb = build.connect(link, self.router)
 
     # -- readiness ---------------------------------------------------------------------
@@ -232,6 +235,23 @@ class DroneRuntime:
                 ref.tell(AbortMission(reason))
             except pykka.ActorDeadError:
                 continue
+
+    def operate(self, msg: wire.Operator) -> None:
+        """The operator's command (:mod:`.operator`): logged with its origin, carried out by
+        the uniform API (on its thread: a MAVLink adapter is called from there only), and
+        shown at the ground station."""
+        self.log.warning(
+            "mission.operator", command=msg.command, target=msg.target, origin=msg.origin
+        )
+        try:
+            if self.hal is not None and self.hal.is_alive():
+                self.hal.tell(Operate(msg.command))
+            elif self.uniform is not None:
+                self.uniform.operate(msg.command)
+        except pykka.ActorDeadError:
+            if self.uniform is not None:
+                self.uniform.operate(msg.command)
+        self._to_ground(operator_progress(self.program, msg))
 
     def _notice(self, notice: AdapterNotice) -> None:
         """What the adapter has for the operator (a pilot took the vehicle, telemetry
@@ -291,7 +311,7 @@ class DroneRuntime:
         """
         if self.board is None:
             return True
-        if taken_over(self.adapter) is not None:
+        if taken_over(self.adapter) is not None or (self.uniform and self.uniform.released):
             self.log.warning("mission.abort.taken_over", note="the pilot has it: not landed")
             return False
         event = threading.Event()
@@ -386,6 +406,35 @@ def notice_progress(program: DroneProgram, notice: AdapterNotice) -> wire.Progre
         node="",
         action=NOTICE_ACTIONS.get(notice.kind, notice.kind),
         detail={"detail": notice.text, "at": time.time()},
+    )
+
+
+#: The state a drone shows after each operator command.
+OPERATOR_STATES = {
+    "pause": "paused",
+    "hold": "held",
+    "resume": "resumed",
+    "land": "landing (operator)",
+    "return-home": "returning home (operator)",
+    "release": "released to a pilot",
+}
+
+
+def operator_progress(program: DroneProgram, msg: wire.Operator) -> wire.Progress:
+    """The progress line the ground station shows when this drone obeys an operator command."""
+    state = OPERATOR_STATES.get(msg.command, msg.command)
+    return wire.Progress(
+        mission=program.mission_id,
+        sender=program.drone,
+        state=state,
+        node="",
+        action=f"operator: {msg.command}",
+        detail={
+            "detail": f"{state}: {msg.command} from {msg.origin or msg.sender}",
+            "command": msg.command,
+            "origin": msg.origin,
+            "at": time.time(),
+        },
     )
 
 

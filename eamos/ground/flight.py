@@ -28,6 +28,8 @@ from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
 
 from .display import Display
+from .operator import OperatorDesk
+from .operator import command as operator_command
 from .station import GroundStation
 
 #: How long the drones have to send their final report after the mission ends.
@@ -71,6 +73,7 @@ def fly(
     on_ready: Callable[[float], None] | None = None,
     clock: Callable[[], float] = time.monotonic,
     wall: Callable[[], float] = time.time,
+    control: Path | None = None,
 ) -> Flight:
     """Run the ground station's phases on ``station`` (already attached to its runtime).
 
@@ -78,8 +81,32 @@ def fly(
     the others are not waited for.  ``on_ready`` is told how long the drones
     took to become ready, before the start trigger.  Lost drones (dead, or
     given up after a long silence) are waited for neither to resolve nor to
-    report.
+    report.  ``control``: the run folder whose operator's socket takes the operator's
+    commands (:mod:`.operator`: pause, resume, a drone's hold, land ...) while it runs.
     """
+    desk = None
+    if control is not None:
+        desk = OperatorDesk(control, lambda *request: operator_command(station, *request))
+        why = desk.open()
+        if why:
+            display.say(f"no operator commands for this run: {why}")
+    try:
+        return _fly(station, display, stop, limits, alive, on_ready, clock, wall)
+    finally:
+        if desk is not None:
+            desk.close()
+
+
+def _fly(
+    station: GroundStation,
+    display: Display,
+    stop: threading.Event,
+    limits: Limits,
+    alive: Callable[[], list[str]] | None,
+    on_ready: Callable[[float], None] | None,
+    clock: Callable[[], float],
+    wall: Callable[[], float],
+) -> Flight:
     outcome = "ok"
     started = wall()
     t0 = clock()

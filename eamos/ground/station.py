@@ -81,6 +81,24 @@ class DroneView:
         return LastSeen(x, y, z, bool(self.armed), self.landed, self.seen_at)
 
 
+#: The operator's commands for the whole mission; every other one is for one drone.
+MISSION_COMMANDS = ("pause", "resume")
+DRONE_COMMANDS = ("hold", "resume", "land", "return-home", "release")
+
+
+def command_refusal(command: str, drone: str, drones: list[str]) -> str:
+    """Why the operator's ``command`` for ``drone`` ("": the mission) cannot be sent ("": sent)."""
+    if not drone:
+        if command not in MISSION_COMMANDS:
+            return f"{command!r} is not a mission command (one of: {', '.join(MISSION_COMMANDS)})"
+        return ""
+    if drone not in drones:
+        return f"no drone {drone!r} in this mission (its drones: {', '.join(drones)})"
+    if command not in DRONE_COMMANDS:
+        return f"{command!r} is not a drone command (one of: {', '.join(DRONE_COMMANDS)})"
+    return ""
+
+
 class GroundStation:
     """Coordinates one mission run from the ground; thread-safe, waits on a Condition."""
 
@@ -112,6 +130,8 @@ class GroundStation:
         self.dead: list[str] = []
         # Complete or Abort sent: from now on a drone's report and exit are its normal end.
         self.over = False
+        self.started = False  # the Start was sent: the operator's commands may come
+        self.paused = False  # the operator paused the mission (until a resume)
 
     # -- wiring -------------------------------------------------------------------------
 
@@ -322,6 +342,8 @@ class GroundStation:
         """Send the start trigger (naming the deployment): the ground station's initial
         node fires."""
         assert self.runtime is not None
+        with self._cond:
+            self.started = True
         self.runtime.send(
             wire.Start(mission=self.mission_id, sender=GROUND_STATION, deployment=self.deployment)
         )
@@ -385,6 +407,17 @@ class GroundStation:
                 wire.Abort(mission=self.mission_id, sender=GROUND_STATION, reason=reason)
             )
             self.runtime.abort(reason)
+
+    def take_command(self, command: str, drone: str, origin: str) -> str:
+        """Record the operator's ``command`` for ``drone`` ("": the mission), for the summary;
+        why it is refused ("": taken).  :func:`.operator.command` sends it."""
+        with self._cond:
+            why = "the mission is over" if self.over else "" if self.started else "not started"
+            if not why:
+                entry = {"t": time.time(), "operator": command, "drone": drone, "origin": origin}
+                self.views[GROUND_STATION].events.append(entry)
+                self.paused = {"pause": True, "resume": False}.get(command, self.paused)
+        return why
 
     def wait_reports(
         self, names: Iterable[str], timeout_s: float, stop: threading.Event | None = None
