@@ -15,6 +15,7 @@ microseconds) and schedule a wake-up of the loop.  Routes:
                        "patches", "seq", "patches"}`` as things change; in a replay
                        the page sends ``{"type": "seek", "t"}`` and gets a snapshot
 ``POST /api/abort``    ``{"token"}``: abort the run (403 without the run's token)
+``POST /api/command``  ``{"token", "command", "drone"}``: the operator's (:mod:`.commands`)
 =====================  =================================================================
 
 What it lets in (docs/monitor.md, "What the server refuses"): a ``Host`` naming this
@@ -41,9 +42,11 @@ import time
 import urllib.parse
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from importlib import resources
 from typing import TYPE_CHECKING, Any, Protocol
 
+from .commands import bounded_body, command_endpoint
 from .hub import Hub
 from .setup import MonitorError
 
@@ -153,6 +156,8 @@ class MonitorServer:
         self.port = port
         self.token = token or secrets.token_urlsafe(16)
         self.on_abort = on_abort
+        # The operator's commands: (command, drone, origin) -> why refused ("": sent).
+        self.on_command: Callable[[str, str, str], str] | None = None
         self.on_problem = on_problem
         self.clock = clock
         self.refusals = RefusalLimiter()
@@ -308,6 +313,7 @@ class MonitorServer:
                 Route("/api/graph/{name}", self._graph),
                 Route("/api/state", self._state),
                 Route("/api/abort", self._abort, methods=["POST"]),
+                Route("/api/command", partial(command_endpoint, self), methods=["POST"]),
                 WebSocketRoute("/ws", self._ws),
             ],
             lifespan=lifespan,
@@ -386,7 +392,7 @@ class MonitorServer:
         if kind != "application/json":
             self.refuse(origin, "the body is not application/json")
             return JSONResponse({"ok": False, "error": "send JSON"}, status_code=415)
-        body = await _bounded_body(request, MAX_BODY_BYTES)
+        body = await bounded_body(request, MAX_BODY_BYTES)
         if body is None:
             self.refuse(origin, f"a body over {MAX_BODY_BYTES} bytes")
             return JSONResponse({"ok": False, "error": "body too large"}, status_code=413)
@@ -480,20 +486,6 @@ class MonitorServer:
         finally:
             client.closed = True
             client.wake.set()
-
-
-async def _bounded_body(request: Request, limit: int) -> bytes | None:
-    """The request's body, read in pieces (Starlette's ``request.stream()``); None as soon
-    as it is over ``limit`` bytes (declared or sent), the rest never read."""
-    declared = request.headers.get("content-length")
-    if declared is not None and (not declared.isdigit() or int(declared) > limit):
-        return None
-    body = bytearray()
-    async for chunk in request.stream():
-        body += chunk
-        if len(body) > limit:
-            return None
-    return bytes(body)
 
 
 class _OriginGuard:
