@@ -28,8 +28,7 @@ from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
 
 from .display import Display
-from .operator import OperatorDesk
-from .operator import command as operator_command
+from .operator import OperatorDesk, desk_handler, snapshot
 from .station import GroundStation
 
 #: How long the drones have to send their final report after the mission ends.
@@ -86,7 +85,7 @@ def fly(
     """
     desk = None
     if control is not None:
-        desk = OperatorDesk(control, lambda *request: operator_command(station, *request))
+        desk = OperatorDesk(control, desk_handler(station, control))
         why = desk.open()
         if why:
             display.say(f"no operator commands for this run: {why}")
@@ -95,6 +94,8 @@ def fly(
     finally:
         if desk is not None:
             desk.close()
+        if control is not None:  # the mission's state at its end (snapshot.json)
+            snapshot(station, control, "end")
 
 
 def _fly(

@@ -32,7 +32,15 @@ from .station import command_refusal
 if TYPE_CHECKING:
     from .station import GroundStation
 
-__all__ = ["SOCKET_NAME", "OperatorDesk", "OperatorError", "command", "send_command"]
+__all__ = [
+    "SOCKET_NAME",
+    "OperatorDesk",
+    "OperatorError",
+    "command",
+    "desk_handler",
+    "send_command",
+    "snapshot",
+]
 
 #: The desk's socket, in the run folder.
 SOCKET_NAME = "operator.sock"
@@ -68,6 +76,26 @@ def command(station: GroundStation, command: str, drone: str, origin: str) -> st
     else:
         runtime.log.warning("mission.operator", command=command, target=drone, origin=origin)
     return ""
+
+
+def snapshot(station: GroundStation, run_dir: Path, why: str) -> None:
+    """Write the mission's state now into ``run_dir/snapshot.json`` (:mod:`.snapshot`)."""
+    from .snapshot import write_snapshot
+
+    write_snapshot(run_dir, station.snapshot(), why, station.mission_id, station.paused)
+
+
+def desk_handler(station: GroundStation, run_dir: Path) -> Handler:
+    """The desk's handler for ``station``: :func:`command`; a pause also writes the
+    mission's state (``snapshot.json``) once it is sent."""
+
+    def handle(what: str, drone: str, origin: str) -> str:
+        why = command(station, what, drone, origin)
+        if not why and what == "pause":
+            snapshot(station, run_dir, "pause")
+        return why
+
+    return handle
 
 
 class OperatorError(ConnectionError):

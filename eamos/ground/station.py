@@ -72,6 +72,7 @@ class DroneView:
     silent_since: float | None = None  # monotonic time the link was reported lost
     given_up: bool = False  # silent for longer than give_up_s: not waited for
     exited: str = ""  # how its node's process ended, once it did ("" while it runs)
+    samples: list[wire.TelemetrySample] = field(default_factory=list)  # the latest two
 
     def last_seen(self) -> LastSeen | None:
         """Where its latest telemetry placed it (None: no telemetry arrived)."""
@@ -203,6 +204,7 @@ class GroundStation:
                     }
                 )
             elif isinstance(msg, wire.TelemetrySample):
+                view.samples = [*view.samples[-1:], msg]  # the latest two: the snapshot's velocity
                 view.position = (msg.x_m, msg.y_m, msg.z_m)
                 view.armed = msg.armed
                 view.landed = msg.landed

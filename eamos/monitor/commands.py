@@ -1,4 +1,4 @@
-"""The monitor's operator commands: ``POST /api/command`` (pause, resume, a drone's hold ...).
+"""The monitor's commands: ``POST /api/abort`` and ``POST /api/command`` (pause, resume, ...).
 
 ``{"token", "command", "drone"}`` (``drone`` "" for the mission's pause and resume), with
 the run's token, as the abort: the same guards (JSON only, a bounded body, the page's own
@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from starlette.requests import Request
     from starlette.responses import Response
 
-__all__ = ["bounded_body", "command_endpoint"]
+__all__ = ["abort_endpoint", "bounded_body", "command_endpoint"]
 
 
 class CommandedServer(Protocol):
@@ -27,13 +27,47 @@ class CommandedServer(Protocol):
 
     token: str
     replay: Any
+    hub: Any
+    on_abort: Callable[[str, bool], None] | None
     on_command: Callable[[str, str, str], str] | None
 
     def refuse(self, origin: str, why: str, abort: bool = False) -> None: ...
 
 
-#: The largest command body read (some 120 bytes).
+#: The largest body read (an abort is ``{"token": "..."}``: some 40 bytes; a command 120).
 MAX_COMMAND_BYTES = 4096
+
+
+async def abort_endpoint(server: CommandedServer, request: Request) -> Response:
+    """``{"token"}``: abort the run (``server.on_abort``), 403 without the run's token."""
+    from starlette.responses import JSONResponse
+
+    peer = request.client
+    agent = request.headers.get("user-agent", "?")
+    origin = f"monitor page at {peer.host}:{peer.port} ({agent[:60]})" if peer else "monitor"
+    if server.replay is not None:
+        return JSONResponse({"ok": False, "error": "a replay cannot abort"}, status_code=409)
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "application/json":
+        server.refuse(origin, "the body is not application/json")
+        return JSONResponse({"ok": False, "error": "send JSON"}, status_code=415)
+    body = await bounded_body(request, MAX_COMMAND_BYTES)
+    if body is None:
+        server.refuse(origin, f"a body over {MAX_COMMAND_BYTES} bytes")
+        return JSONResponse({"ok": False, "error": "body too large"}, status_code=413)
+    try:
+        data = json.loads(body)
+    except (ValueError, RecursionError):
+        data = None
+    token = data.get("token") if isinstance(data, dict) else None
+    accepted = isinstance(token, str) and secrets.compare_digest(token, server.token)
+    if accepted:
+        server.hub.abort_request(origin, True)
+        if server.on_abort is not None:
+            server.on_abort(origin, True)
+        return JSONResponse({"ok": True})
+    server.refuse(origin, "not the run's token", abort=True)
+    return JSONResponse({"ok": False, "error": "not the run's token"}, status_code=403)
 
 
 async def command_endpoint(server: CommandedServer, request: Request) -> Response:

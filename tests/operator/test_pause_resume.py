@@ -39,6 +39,8 @@ def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path) -> None:
     try:
         run.wait_for("Drone3 running   FlyByX(5)")
         operator("pause", str(run.run_dir))
+        # The mission's state when paused (written before the command is answered).
+        paused = json.loads((run.run_dir / "snapshot.json").read_text())
         time.sleep(PAUSE_S)  # the operator's pause, in wall time
         operator("resume", str(run.run_dir))
         assert run.finish(240) == 0, run.text()
@@ -46,6 +48,15 @@ def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path) -> None:
         run.kill()
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["ok"], summary
+    assert paused["why"] == "pause" and paused["paused"]
+    three = paused["participants"]["Drone3"]
+    assert [r["action"] for r in three["running"]] == ["FlyByX(5)"], three
+    assert three["vehicle"]["armed"] and not three["vehicle"]["landed"]
+    assert three["nodes"] and all(n["state"] for n in three["nodes"].values())
+    end = json.loads((run.run_dir / "snapshot.json").read_text())
+    assert end["why"] == "end" and not end["paused"]
+    assert end["operator_commands"] == summary["operator_commands"]
+    assert all(p["vehicle"]["landed"] for n, p in end["participants"].items() if n != "GCS")
     commands = summary["operator_commands"]
     assert [(c["command"], c["drone"]) for c in commands] == [("pause", ""), ("resume", "")]
     assert all(c["origin"].startswith("cli user ") for c in commands)
