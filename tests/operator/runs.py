@@ -15,9 +15,15 @@ HERE = Path(__file__).resolve().parent
 GROUPED = ("--drones-per-process", "4")
 
 
-def start(tmp_path: Path, mission: Path, speedup: float, timeout_s: float = 300) -> LiveRun:
-    """``eamos run MISSION`` with plain output, read as it comes."""
-    return LiveRun.start(tmp_path, mission, *GROUPED, speedup=speedup, timeout_s=timeout_s)
+def start(
+    tmp_path: Path,
+    mission: Path,
+    speedup: float,
+    timeout_s: float = 300,
+    extra: tuple[str, ...] = (),
+) -> LiveRun:
+    """``eamos run MISSION`` with plain output, read as it comes (``extra``: more options)."""
+    return LiveRun.start(tmp_path, mission, *GROUPED, *extra, speedup=speedup, timeout_s=timeout_s)
 
 
 def operator(*args: str) -> str:

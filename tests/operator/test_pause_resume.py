@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from tests.operator.runs import distance, log_lines, operator, positions, start
-from tests.support.runs import MISSIONS
+from tests.support.runs import MISSIONS, REPO
 
 pytestmark = pytest.mark.e2e
 
@@ -34,8 +34,16 @@ ORDER = {
 }
 
 
-def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path) -> None:
-    run = start(tmp_path, MISSIONS / "experiment_c.go", speedup=1)
+@pytest.mark.parametrize(
+    "fleet",
+    [
+        pytest.param((), id="sim"),
+        # Drone1 and Drone2 over MAVLink to simulated PX4 and ArduCopter autopilots.
+        pytest.param(("--fleet", str(REPO / "configs" / "experiment_c_hybrid.toml")), id="mavlink"),
+    ],
+)
+def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path, fleet: tuple[str, ...]) -> None:
+    run = start(tmp_path, MISSIONS / "experiment_c.go", speedup=1, extra=fleet)
     try:
         run.wait_for("Drone3 running   FlyByX(5)")
         operator("pause", str(run.run_dir))
