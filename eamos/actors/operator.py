@@ -71,7 +71,7 @@ TAKEN_OUT: Final = {
 }
 
 #: The takeover a release stands for: the uniform space treats it as a pilot's.
-RELEASED: Final = TakenOver("released by the operator")
+RELEASED: Final = TakenOver("RELEASED by the operator")
 
 _MOVES = (Takeoff, FlyBy, FlyToXYZ, FlyToLLA, Land, ReturnHome, Orbit, Yaw)
 _TIMED = (PauseFor, Hold)

@@ -352,8 +352,17 @@ class DroneRuntime:
             aborted=self.aborted.is_set(),
             abort_reason=self.abort_reason,
             adapter_error=str(self.adapter_error) if self.adapter_error else "",
-            vehicle=vehicle_facts(self.adapter),
+            vehicle=self._vehicle_facts(),
         )
+
+    def _vehicle_facts(self) -> dict[str, Any]:
+        """The adapter's facts; a vehicle the operator released is the pilot's, as after a
+        takeover (the summary says where it was left)."""
+        facts = vehicle_facts(self.adapter)
+        released = self.uniform.released if self.uniform is not None else None
+        if released is not None and "taken_over" not in facts:
+            facts["taken_over"] = released.to_json()
+        return facts
 
     def report(self) -> dict[str, Any]:
         """:meth:`drone_report` as JSON (what goes to the ground station)."""

@@ -44,7 +44,7 @@ import itertools
 import threading
 import time
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import TracebackType
 
 import pykka
@@ -364,9 +364,9 @@ class UniformSpace:
     # -- the operator's commands (.operator) ------------------------------------------------
 
     @property
-    def released(self) -> bool:
-        """The operator released the vehicle to a pilot (until a ``resume``)."""
-        return self._released is not None
+    def released(self) -> TakenOver | None:
+        """The operator released the vehicle to a pilot, where (until a ``resume``)."""
+        return self._released
 
     def note_sample(self, sample: Telemetry) -> None:  # where an action asked for now starts
         self._here = (sample.x_m, sample.y_m, sample.z_m)
@@ -455,7 +455,8 @@ class UniformSpace:
             if entry.handle is not None and not entry.suspended:
                 self._adapter_cancel(entry.handle)  # it holds
         if how == "release":
-            self._released = RELEASED
+            x, y, z = self._here or (None, None, None)
+            self._released = replace(RELEASED, x_m=x, y_m=y, z_m=z)
             return
         self._going_home = True
 

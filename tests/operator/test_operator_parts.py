@@ -139,6 +139,6 @@ def test_a_release_stops_every_command_until_resume(space: UniformSpace) -> None
     assert space.released
     refused = space.run(RunAction("a", "Arm", (), replies))
     assert refused is not None and refused.result.status == "failed"
-    assert "released by the operator" in refused.result.reason
+    assert "RELEASED by the operator" in refused.result.reason
     space.operate("resume")
     assert not space.released

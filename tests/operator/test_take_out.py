@@ -73,3 +73,49 @@ def test_drones_waiting_for_a_landed_drone_apply_their_policy(tmp_path: Path) ->
     landed_at = log_lines(run_dir, "Drone2", "mission", "mission.operator")[0]["ts"]
     # At once, not after peer_wait_limit_s: the failed leg reached it as a trigger.
     assert stranded[0]["ts"] - landed_at < 10
+
+
+def test_a_drone_sent_home_lands_at_home(tmp_path: Path) -> None:
+    run = start(tmp_path, HERE / "wait_land.go", speedup=4)
+    try:
+        run.wait_for("Drone2 running   FlyByY(30)")
+        operator("drone", str(run.run_dir), "Drone2", "return-home")
+        run.finish(180)
+    finally:
+        run.kill()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    two = results(summary, "Drone2")
+    assert two[2][:2] == ("FlyByY", "failed") and "sent home by the operator" in two[2][2], two
+    final = summary["drones"]["Drone2"]["final"]
+    # Home (where it took off), not where the command found it; landed and disarmed.
+    assert abs(final["x"]) < 0.5 and abs(final["y"]) < 0.5, final
+    assert final["landed"] and not final["armed"], final
+    left = [e for e in log_lines(run.run_dir, "Drone2", "uniform", "uniform.taken_out")]
+    assert [e["how"] for e in left] == ["return-home"]
+
+
+def test_a_released_drone_is_never_commanded_again(tmp_path: Path) -> None:
+    run = start(tmp_path, HERE / "wait_land.go", speedup=4)
+    try:
+        run.wait_for("Drone2 running   FlyByY(30)")
+        operator("drone", str(run.run_dir), "Drone2", "release")
+        run.finish(180)
+    finally:
+        run.kill()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    two = results(summary, "Drone2")
+    assert two[2] == ("FlyByY", "failed", "released to a pilot by the operator"), two
+    # The pilot has it: EAMOS neither landed it nor commanded it after the release ...
+    released_at = log_lines(run.run_dir, "Drone2", "uniform", "uniform.taken_out")[0]["ts"]
+    later = [
+        e
+        for e in log_lines(run.run_dir, "Drone2", "adapter", "adapter.abort")
+        + log_lines(run.run_dir, "Drone2", "adapter", "adapter.action.start")
+        if e["ts"] > released_at
+    ]
+    assert later == [], later
+    # ... and the summary says where it was left, with the pilot.
+    drone = summary["drones"]["Drone2"]
+    assert not drone["ok"] and drone["vehicle"]["taken_over"]["mode"] == "RELEASED by the operator"
+    # Drone1, waiting for it, applied its policy and landed.
+    assert summary["drones"]["Drone1"]["final"]["landed"]
