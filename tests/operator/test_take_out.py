@@ -38,6 +38,8 @@ def land_drone2_during_its_leg(tmp_path: Path, mission: str) -> tuple[dict[str, 
     for name, drone in summary["drones"].items():
         final = drone["final"]
         assert final["landed"] and not final["armed"], (name, final)
+    # The operator's terminal says who obeyed what, from whom.
+    assert "Drone2 OPERATOR: landing (operator): land from cli user " in run.text()
     heard = log_lines(run.run_dir, "Drone2", "mission", "mission.operator")
     assert [(e["command"], e["target"]) for e in heard] == [("land", "Drone2")]
     assert heard[0]["origin"].startswith("cli user ")
