@@ -119,5 +119,6 @@ def test_a_released_drone_is_never_commanded_again(tmp_path: Path) -> None:
     # ... and the summary says where it was left, with the pilot.
     drone = summary["drones"]["Drone2"]
     assert not drone["ok"] and drone["vehicle"]["taken_over"]["mode"] == "RELEASED by the operator"
+    assert "Drone2: taken over by the pilot in RELEASED by the operator at (" in run.text()
     # Drone1, waiting for it, applied its policy and landed.
     assert summary["drones"]["Drone1"]["final"]["landed"]
