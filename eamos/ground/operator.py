@@ -20,6 +20,7 @@ import json
 import os
 import socket
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -36,6 +37,7 @@ __all__ = [
     "SOCKET_NAME",
     "OperatorDesk",
     "OperatorError",
+    "PauseClock",
     "command",
     "desk_handler",
     "send_command",
@@ -85,14 +87,44 @@ def snapshot(station: GroundStation, run_dir: Path, why: str) -> None:
     write_snapshot(run_dir, station.snapshot(), why, station.mission_id, station.paused)
 
 
-def desk_handler(station: GroundStation, run_dir: Path) -> Handler:
+class PauseClock:
+    """How long the operator has kept the mission paused (pure: times are given)."""
+
+    def __init__(self) -> None:
+        self.total_s = 0.0
+        self.since: float | None = None
+
+    def pause(self, now: float) -> None:
+        if self.since is None:
+            self.since = now
+
+    def resume(self, now: float) -> None:
+        if self.since is not None:
+            self.total_s += now - self.since
+            self.since = None
+
+    def paused_s(self, now: float) -> float:
+        """Seconds paused so far (the running pause included)."""
+        return self.total_s + (now - self.since if self.since is not None else 0.0)
+
+
+def desk_handler(
+    station: GroundStation,
+    run_dir: Path,
+    pauses: PauseClock | None = None,
+    clock: Callable[[], float] = time.monotonic,
+) -> Handler:
     """The desk's handler for ``station``: :func:`command`; a pause also writes the
-    mission's state (``snapshot.json``) once it is sent."""
+    mission's state (``snapshot.json``) once it is sent, and ``pauses`` counts it."""
 
     def handle(what: str, drone: str, origin: str) -> str:
         why = command(station, what, drone, origin)
         if not why and what == "pause":
             snapshot(station, run_dir, "pause")
+            if pauses is not None:
+                pauses.pause(clock())
+        elif not why and what == "resume" and not drone and pauses is not None:
+            pauses.resume(clock())
         return why
 
     return handle

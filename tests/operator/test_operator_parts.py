@@ -15,7 +15,13 @@ import pytest
 
 from eamos.actors.operator import remaining_command
 from eamos.actors.uniform_api import ActionFinished, RunAction, UniformSpace
-from eamos.ground.operator import OperatorDesk, OperatorError, parse_request, send_command
+from eamos.ground.operator import (
+    OperatorDesk,
+    OperatorError,
+    PauseClock,
+    parse_request,
+    send_command,
+)
 from eamos.ground.station import command_refusal
 from eamos.hal.sim import SimAdapter, SimSettings
 from eamos.logs import make_logger
@@ -142,3 +148,14 @@ def test_a_release_stops_every_command_until_resume(space: UniformSpace) -> None
     assert "RELEASED by the operator" in refused.result.reason
     space.operate("resume")
     assert not space.released
+
+
+def test_the_pause_clock_counts_only_paused_time() -> None:
+    pauses = PauseClock()
+    assert pauses.paused_s(5.0) == 0.0
+    pauses.pause(10.0)
+    pauses.pause(11.0)  # again: the first one counts
+    assert pauses.paused_s(14.0) == 4.0
+    pauses.resume(15.0)
+    pauses.resume(16.0)
+    assert pauses.paused_s(30.0) == 5.0
