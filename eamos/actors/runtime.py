@@ -182,6 +182,7 @@ class DroneRuntime:
         self.board = board = build.start_board(self.services, outbox)
         self.uniform = space = build.uniform_space()
         space.on_notice = self._notice  # a pilot's takeover, slow telemetry: to the ground
+        space.on_status = self._autopilot_status  # its mode, its STATUSTEXTs: to the ground
         self.hal, self.adapter_error = build.start_uniform_api(space, board)
         if self.adapter_error is not None:  # an unusable adapter stops the start
             raise DroneRuntimeError(f"{self.drone}: {self.adapter_error}")
@@ -252,6 +253,20 @@ class DroneRuntime:
             if self.uniform is not None:
                 self.uniform.operate(msg.command)
         self._to_ground(operator_progress(self.program, msg))
+
+    def _autopilot_status(self, mode: str, texts: list[tuple[int, str]]) -> None:
+        """The autopilot's own mode and new STATUSTEXTs (severity, text): to the ground
+        station, for the operator's page (progress state ``autopilot``)."""
+        self._to_ground(
+            wire.Progress(
+                mission=self.program.mission_id,
+                sender=self.drone,
+                state="autopilot",
+                node="",
+                action=f"autopilot: {mode}",
+                detail={"mode": mode, "statustext": [list(t) for t in texts], "at": time.time()},
+            )
+        )
 
     def _notice(self, notice: AdapterNotice) -> None:
         """What the adapter has for the operator (a pilot took the vehicle, telemetry

@@ -185,6 +185,8 @@ class UniformSpace:
         #: Told each notice the adapter has for the operator (the runtime: to the ground).
         self.on_notice: Callable[[AdapterNotice], None] | None = None
         self._has_notices = callable(getattr(adapter, "notices", None))
+        #: Told the autopilot's own mode and new (severity, STATUSTEXT)s as they change.
+        self.on_status: Callable[[str, list[tuple[int, str]]], None] | None = None
         # The operator's (.operator); _retired: adapter runs a suspension ended.
         self._paused = False
         self._out = ""
@@ -529,6 +531,12 @@ class UniformAPI(pykka.ThreadingActor):
         self._on_start_error = on_start_error
         self.space = space if space is not None else UniformSpace(adapter, uniform_log)
         self._log = self.space.log  # one log object: held result lines keep their place
+        # The autopilot's mode and STATUSTEXTs (an adapter with ``autopilot_status``).
+        status = getattr(adapter, "autopilot_status", None)
+        self._read_status: Callable[[], tuple[str, int, list[tuple[int, str]]]] | None = (
+            status if callable(status) else None
+        )
+        self._status_seen: tuple[str, int] = ("", 0)
 
     # -- lifecycle -----------------------------------------------------------
 
@@ -552,7 +560,23 @@ class UniformAPI(pykka.ThreadingActor):
         """A telemetry sample (adapter thread): to the board, with the adapter's notices."""
         self.space.note_sample(sample)
         self.space.forward_notices()
+        self._forward_status()
         self._on_telemetry(sample)
+
+    def _forward_status(self) -> None:
+        """The autopilot's mode and new STATUSTEXTs, when they changed, to ``on_status``."""
+        tell = self.space.on_status
+        if self._read_status is None or tell is None:
+            return
+        mode, serial, texts = self._read_status()
+        seen_mode, seen = self._status_seen
+        if (mode, serial) == (seen_mode, seen):
+            return
+        self._status_seen = (mode, serial)
+        try:
+            tell(mode, texts[len(texts) - min(len(texts), serial - seen) :])
+        except Exception as exc:  # the operator's page must not cost the drone
+            self._log.exception("uniform.callback_error", error=repr(exc))
 
     def _start_failed(self, exc: AdapterError) -> None:
         self._log.error("uniform.start_failed", error=str(exc))

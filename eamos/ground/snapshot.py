@@ -72,6 +72,7 @@ def drone_snapshot(view: DroneView) -> dict[str, Any]:
         }
     return {
         "state": view.state,
+        "mode": view.mode,  # its autopilot's own flight mode ("": not a MAVLink drone)
         "link": view.link,
         "resolved": view.resolved,
         "action": view.action,

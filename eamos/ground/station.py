@@ -72,6 +72,7 @@ class DroneView:
     silent_since: float | None = None  # monotonic time the link was reported lost
     given_up: bool = False  # silent for longer than give_up_s: not waited for
     exited: str = ""  # how its node's process ended, once it did ("" while it runs)
+    mode: str = ""  # its autopilot's own flight mode (MAVLink drones)
     samples: list[wire.TelemetrySample] = field(default_factory=list)  # the latest two
 
     def last_seen(self) -> LastSeen | None:
@@ -186,6 +187,8 @@ class GroundStation:
                     self.failures.append(f"{view.name}: unreadable report ({exc})")
                 else:
                     stopped_early = self._stopped_early(view)
+            elif isinstance(msg, wire.Progress) and msg.state == "autopilot":
+                view.mode = str(msg.detail.get("mode", ""))  # not a node's: no state change
             elif isinstance(msg, wire.Progress):
                 view.node = msg.node
                 view.action, view.state = msg.action, msg.state
@@ -341,8 +344,7 @@ class GroundStation:
             return [d for d in self.drones() if not self.views[d].ready]
 
     def start(self) -> None:
-        """Send the start trigger (naming the deployment): the ground station's initial
-        node fires."""
+        """Send the start trigger (naming the deployment); the initial node fires."""
         assert self.runtime is not None
         with self._cond:
             self.started = True
@@ -411,8 +413,7 @@ class GroundStation:
             self.runtime.abort(reason)
 
     def take_command(self, command: str, drone: str, origin: str) -> str:
-        """Record the operator's ``command`` for ``drone`` ("": the mission), for the summary;
-        why it is refused ("": taken).  :func:`.operator.command` sends it."""
+        """Record the operator's command for the summary (:func:`.operator.command`)."""
         with self._cond:
             why = "the mission is over" if self.over else "" if self.started else "not started"
             if not why:

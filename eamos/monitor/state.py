@@ -25,6 +25,10 @@ Patch kinds (``k``):
   (the operator's pause, until a resume), ``aborting``, then the outcome word:
   ``finished``, ``failed``, ``aborted``, ``timed out``), its start and end times.
 
+A MAVLink drone's autopilot says its own flight mode and STATUSTEXTs (``Progress``
+``autopilot``): ``autopilot`` and ``statustext`` (the latest :data:`STATUSTEXTS`
+``[severity, text]``, MAVLink severities: 0 emergency ... 7 debug).
+
 A MAVLink drone a pilot took over (``Progress`` ``taken_over``, or its report's
 ``vehicle.taken_over`` at the end) shows the mode ``taken over (LOITER)`` from then
 on, whatever its telemetry says, and ``taken_over`` holds the words.
@@ -53,6 +57,8 @@ from eamos.program.uniform import GROUND_STATION
 from .links import LinkCount, LinkCounts
 from .setup import MissionSetup
 
+#: The autopilot messages (STATUSTEXT) a drone's panel keeps, latest last.
+STATUSTEXTS = 5
 #: Minimum time between two ``drone`` patches of one drone (10 updates per second).
 MIN_INTERVAL_S = 0.1
 _EPS = 1e-9  # 10.1 - 10.0 < 0.1 in floating point
@@ -137,6 +143,8 @@ class DroneLive:
     operator: str = ""  # the operator's last command's state ("held", "released ..."; "": none)
     failure: str = ""  # why its latest failed or blocked node failed
     lat: float | None = None  # where the fleet has a geographic home (0, 0 is none)
+    autopilot: str = ""  # the autopilot's own flight mode (GUIDED, OFFBOARD ...; MAVLink)
+    statustext: list[list[Any]] = field(default_factory=list)  # its latest [severity, text]
     lon: float | None = None
     trail: list[list[float]] = field(default_factory=list)  # [t, x, y, z]
     sent_trail: int = 0  # trail points already in a drone patch
@@ -163,6 +171,8 @@ class DroneLive:
             "taken_over": self.taken_over,
             "operator": self.operator,
             "failure": self.failure,
+            "autopilot": self.autopilot,
+            "statustext": self.statustext,
             "lat": self.lat,
             "lon": self.lon,
         }
@@ -279,6 +289,17 @@ class MonitorState:
             if drone is not None and msg.state == "taken_over":
                 words = str(detail.get("detail") or msg.action)
                 drone.take(_taken_mode(words), words)
+            return out
+        if msg.state == "autopilot":  # the autopilot's own voice, not a node
+            if drone is not None:
+                drone.autopilot = str(detail.get("mode", ""))
+                texts = detail.get("statustext")
+                new = (
+                    [list(t)[:2] for t in texts if isinstance(t, list)]
+                    if isinstance(texts, list)
+                    else []
+                )
+                drone.statustext = (drone.statustext + new)[-STATUSTEXTS:]
             return out
         command = detail.get("command")
         if msg.action.startswith("operator: ") and isinstance(command, str):

@@ -1,13 +1,17 @@
 """The operator's buttons on the monitor page, in a real browser (Debian's chromium).
 
-Experiment C flies with ``--monitor``.  With the run's token: Pause, confirm -- the page
-shows the mission ``paused`` and every drone ``paused``; then Drone2's Hold, confirm --
-its row says ``held``; the screenshot is ``docs/monitor-paused.png``.  Resume, confirm:
-the mission ends ok, and the summary lists the three commands with the page as origin.
+Experiment C flies with ``--monitor`` on the hybrid fleet (Drone1 and Drone2 over MAVLink
+to simulated PX4 and ArduCopter autopilots): their rows show the autopilot's own flight
+mode and its STATUSTEXTs with their severity.  With the run's token: Pause, confirm -- the
+page shows the mission ``paused`` and every drone ``paused``; then Drone2's Hold,
+confirm -- its row says ``held``; the screenshot is ``docs/monitor-paused.png``.  Resume,
+confirm: the mission ends ok, and the summary lists the three commands with the page as
+origin.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +27,7 @@ from tests.monitor.test_browser import (
     positions,
     wait_until,
 )
+from tests.support.runs import REPO
 
 pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("monitor-browser")]
 
@@ -54,7 +59,8 @@ def confirm(driver: Any, button: Any) -> None:
 
 
 def test_pause_and_a_drone_command_from_the_page(tmp_path: Path, browser: Any) -> None:
-    run = start_live_run(tmp_path, "experiment_c", speedup=1, timeout_s=300)
+    hybrid = str(REPO / "configs" / "experiment_c_hybrid.toml")
+    run = start_live_run(tmp_path, "experiment_c", "--fleet", hybrid, speedup=1, timeout_s=300)
     try:
         url = run.wait_for(URL).group(1)
         browser.get(url)
@@ -73,6 +79,15 @@ def test_pause_and_a_drone_command_from_the_page(tmp_path: Path, browser: Any) -
         confirm(browser, hold)
         wait_until(browser, lambda d: operator_state(d, "Drone2") == "held", 60)
         assert "hold sent to Drone2" in browser.find_element(By.ID, "cmd-result").text
+        # The autopilots' own voice: their flight mode, their messages with severity.
+        for drone in ("Drone1", "Drone2"):
+            mode = browser.find_element(By.CSS_SELECTOR, f'tr[data-drone="{drone}"] td.mode')
+            assert mode.get_attribute("data-autopilot"), drone
+        said = browser.find_element(By.CSS_SELECTOR, 'tr[data-line="Drone2"] td')
+        wait_until(browser, lambda d: said.get_attribute("data-statustext"), 60)
+        assert re.search(
+            r"(INFO|NOTICE|WARNING|CRITICAL|ERROR): ", said.get_attribute("data-statustext")
+        )
         browser.execute_script("window.scrollTo(0, 0)")
         assert browser.save_screenshot(str(PAUSED))
         confirm(browser, browser.find_element(By.ID, "resume"))

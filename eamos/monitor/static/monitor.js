@@ -163,7 +163,9 @@ function drawDrones() {
       body.appendChild(line);
     }
     const cell = (c) => row.querySelector(`.${c}`);
-    cell("mode").textContent = (d.mode || "") + (d.operator ? ` · ${d.operator}` : "");
+    cell("mode").textContent = (d.mode || "") + (d.autopilot ? ` (${d.autopilot})` : "") +
+      (d.operator ? ` · ${d.operator}` : "");
+    cell("mode").dataset.autopilot = d.autopilot || "";
     cell("mode").dataset.operator = d.operator || "";
     for (const b of row.querySelectorAll("button.cmd")) b.disabled = !commandsOn();
     cell("armed").textContent = d.armed === null || d.armed === undefined ? "" : d.armed ? "armed" : "disarmed";
@@ -180,8 +182,11 @@ function drawDrones() {
     const sent = d.triggers_sent === null || d.triggers_sent === undefined ? live[0] : d.triggers_sent;
     const recv = d.triggers_received === null || d.triggers_received === undefined ? live[1] : d.triggers_received;
     cell("trig").textContent = `${sent} / ${recv} of ${part.external_out} / ${part.external_in}`;
-    body.querySelector(`tr[data-line="${name}"] td`).textContent =
-      (d.line || "") + (d.failure ? `   [failed: ${d.failure}]` : "");
+    const said = (d.statustext || []).map(([sev, text]) => `${SEVERITIES[sev] || sev}: ${text}`);
+    const lineCell = body.querySelector(`tr[data-line="${name}"] td`);
+    lineCell.textContent = (d.line || "") + (d.failure ? `   [failed: ${d.failure}]` : "") +
+      (said.length ? `   [autopilot: ${said.join(" | ")}]` : "");
+    lineCell.dataset.statustext = said.join("\n");
   }
 }
 
@@ -401,6 +406,8 @@ function colourGraphs() {
 
 // -- the operator's commands --------------------------------------------------------------
 
+// MAVLink's MAV_SEVERITY, 0 to 7.
+const SEVERITIES = ["EMERGENCY", "ALERT", "CRITICAL", "ERROR", "WARNING", "NOTICE", "INFO", "DEBUG"];
 const DRONE_COMMANDS = [["hold", "Hold"], ["resume", "Resume"], ["land", "Land"],
   ["return-home", "Home"], ["release", "Release"]];
 const QUESTIONS = {
