@@ -276,7 +276,7 @@ class UniformSpace:
         if running.inline is not None:
             return self._finished(req, start_s, running.inline, later)
         if running.suspended:  # a pause came while the adapter took it
-            self._adapter_cancel(handle)
+            _cancel_quietly(self.adapter, self._log, handle)
         return None
 
     def write_results(self) -> None:
@@ -312,7 +312,12 @@ class UniformSpace:
         """Cancel the action started with ``token`` (unknown or finished: nothing happens)."""
         with self._lock:
             running = self._running.get(token)
+            if running is not None and running.suspended:  # paused: it ends here, now
+                del self._running[token]
         self._log.info("uniform.cancel", token=jsonable(token), running=running is not None)
+        if running is not None and running.suspended:
+            self._send(running.request, running.start_s, ActionResult("cancelled", "cancelled"))
+            return
         if running is None or running.handle is None:
             return  # unknown or finished: nothing to cancel
         taken = self.pilot_has_it("cancel")
@@ -401,7 +406,7 @@ class UniformSpace:
                     handles.append(entry.handle)
         self._log.info("uniform.suspend", why=why, actions=len(handles))
         for handle in handles:
-            self._adapter_cancel(handle)
+            _cancel_quietly(self.adapter, self._log, handle)
 
     def resume(self) -> None:
         """Hand a released vehicle back; issue every suspended action for what is left."""
@@ -455,7 +460,7 @@ class UniformSpace:
             return
         for entry in entries:
             if entry.handle is not None and not entry.suspended:
-                self._adapter_cancel(entry.handle)  # it holds
+                _cancel_quietly(self.adapter, self._log, entry.handle)  # it holds
         if how == "release":
             x, y, z = self._here or (None, None, None)
             self._released = replace(RELEASED, x_m=x, y_m=y, z_m=z)
@@ -471,12 +476,6 @@ class UniformSpace:
             self._going_home = False
             self._internal_error("ReturnHome", exc)
             self.abort_vehicle()
-
-    def _adapter_cancel(self, handle: ActionHandle) -> None:
-        try:
-            self.adapter.cancel(handle)
-        except Exception as exc:
-            self._log.exception("uniform.adapter_error", action="cancel", error=repr(exc))
 
     def close_adapter(self) -> None:
         """Close the adapter; an exception is logged, never raised."""
@@ -663,6 +662,14 @@ def start_uniform_api(
     if start_error or not ref.is_alive():
         return ref, start_error[0] if start_error else AdapterError("the adapter did not start")
     return ref, None
+
+
+def _cancel_quietly(adapter: Adapter, log: EventLog, handle: ActionHandle) -> None:
+    """The adapter's cancel (a suspension: the vehicle holds); an exception is logged."""
+    try:
+        adapter.cancel(handle)
+    except Exception as exc:
+        log.exception("uniform.adapter_error", action="cancel", error=repr(exc))
 
 
 def _tell_reply(reply_to: Mailbox[ActionFinished], finished: ActionFinished, log: EventLog) -> None:

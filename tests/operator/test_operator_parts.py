@@ -159,3 +159,18 @@ def test_the_pause_clock_counts_only_paused_time() -> None:
     pauses.resume(15.0)
     pauses.resume(16.0)
     assert pauses.paused_s(30.0) == 5.0
+
+
+def test_a_suspended_action_cancelled_while_paused_ends_at_once(space: UniformSpace) -> None:
+    """A Whenever, a Try or a Do may cancel an action the operator's pause suspended (or
+    one that waits for the resume): its node gets its answer then, not never."""
+    replies = Replies()
+    assert space.run(RunAction("running", "PauseFor", (30.0,), replies)) is None
+    space.operate("pause")
+    assert space.run(RunAction("queued", "PauseFor", (30.0,), replies)) is None
+    space.cancel("running")
+    space.cancel("queued")
+    got = {r.token: r.result.status for r in (replies.q.get(timeout=5), replies.q.get(timeout=5))}
+    assert got == {"running": "cancelled", "queued": "cancelled"}
+    space.operate("resume")  # nothing left to issue
+    assert replies.q.empty()
