@@ -68,6 +68,8 @@ def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path, fleet: tuple
     commands = summary["operator_commands"]
     assert [(c["command"], c["drone"]) for c in commands] == [("pause", ""), ("resume", "")]
     assert all(c["origin"].startswith("cli user ") for c in commands)
+    sent = log_lines(run.run_dir, "GCS", "mission", "mission.operator")
+    assert [e["command"] for e in sent] == ["pause", "resume"]
     for drone, order in ORDER.items():
         actions = summary["drones"][drone]["actions"]
         assert [a["action"] for a in actions] == order, drone
@@ -78,6 +80,8 @@ def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path, fleet: tuple
         assert heard[0]["origin"] == commands[0]["origin"]
         paused_at, resumed_at = heard[0]["ts"], heard[1]["ts"]
         assert resumed_at - paused_at >= PAUSE_S - 1
+        # Every drone obeyed within 0.5 s of the ground station sending it.
+        assert paused_at - sent[0]["ts"] < 0.5 and resumed_at - sent[1]["ts"] < 0.5, drone
         # Where the pause found it, and every sample of the hold after braking.
         track = positions(run.run_dir, drone)
         before = [p for p in track if p[0] <= paused_at]
@@ -94,3 +98,26 @@ def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path, fleet: tuple
     assert suspended and suspended[0]["actions"] == 1
     final = summary["drones"]["Drone3"]["final"]
     assert final["landed"] and abs(final["x"]) < 0.3 and abs(final["y"]) < 0.3, final
+
+
+def test_one_drone_held_and_resumed_holds_up_only_what_waits_for_it(tmp_path: Path) -> None:
+    run = start(tmp_path, MISSIONS / "experiment_c.go", speedup=2)
+    try:
+        run.wait_for("Drone3 running   FlyByX(5)")
+        operator("drone", str(run.run_dir), "Drone3", "hold")
+        time.sleep(4.0)
+        operator("drone", str(run.run_dir), "Drone3", "resume")
+        assert run.finish(240) == 0, run.text()
+    finally:
+        run.kill()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["ok"], summary
+    assert [(c["command"], c["drone"]) for c in summary["operator_commands"]] == [
+        ("hold", "Drone3"),
+        ("resume", "Drone3"),
+    ]
+    held = log_lines(run.run_dir, "Drone3", "uniform", "uniform.suspend")
+    assert [(e["why"], e["actions"]) for e in held] == [("hold", 1)]
+    for drone in ("Drone1", "Drone2"):  # not for them: they never heard it
+        assert log_lines(run.run_dir, drone, "mission", "mission.operator") == []
+        assert [a["action"] for a in summary["drones"][drone]["actions"]] == ORDER[drone]
