@@ -14,7 +14,7 @@ import socket
 from pathlib import Path
 from typing import Any
 
-from .errors import command
+from .errors import BadInput, command
 from .exits import EXIT_OK
 
 _PAUSE_HELP = """\
@@ -84,9 +84,12 @@ def origin() -> str:
 
 
 def cmd_operator(args: argparse.Namespace) -> int:
-    """``eamos pause|resume|drone``: 0 once the ground station sent the command."""
+    """``eamos pause|resume|drone``: 0 once the ground station sent the command; 2 for a
+    folder that is not a run folder; 3 when no ground station runs it or it refused."""
     from eamos.ground.operator import send_command
 
+    if not args.run_dir.is_dir():
+        raise BadInput(f"{args.run_dir}: not a run folder")
     drone = getattr(args, "drone", "") or ""
     what = getattr(args, "action", None) or args.command
     send_command(args.run_dir, what, drone, origin())
