@@ -38,7 +38,7 @@ def incoming_arcs(program: DroneProgram) -> dict[tuple[str, str], str]:
     }
 
 
-_CONTROL = (wire.Start, wire.Abort, wire.Complete)
+_CONTROL = (wire.Start, wire.Abort, wire.Complete, wire.Operator)
 
 
 class StartGate:
@@ -199,6 +199,9 @@ class InRouter:
     gate: StartGate | None = None
     """A drone's node: nothing acts before the Start of its own deployment
     (:class:`StartGate`).  None (the ground station, tests): no gate."""
+    operator: Callable[[wire.Operator], None] | None = None
+    """The runtime's handler of the operator's commands (:mod:`.operator`), obeyed like
+    an Abort: from the ground station only, before or after the Start."""
 
     def __call__(self, msg: Delivered) -> None:
         try:
@@ -246,6 +249,9 @@ class InRouter:
             )
         elif isinstance(msg, wire.Abort):
             self.abort(msg.reason or f"abort from {msg.sender}")
+        elif isinstance(msg, wire.Operator):
+            if self.operator is not None and msg.target in ("", self.drone):
+                self.operator(msg)
         elif isinstance(msg, wire.Complete):
             if self.gate is not None and not self.gate.takes_complete(msg):
                 # Before this node's Start, or from another ground station's session.

@@ -52,6 +52,7 @@ from .logic.telemetry import stale_values as stale_values
 from .logic.telemetry import telemetry_values as telemetry_values
 from .messages import AbortMission, Fire
 from .node import MissionNode
+from .operator import Operate
 from .outbox import Outbox
 from .readiness import announce_ready
 from .reporting import gather_report
@@ -181,6 +182,7 @@ class DroneRuntime:
         self.board = board = build.start_board(self.services, outbox)
         self.uniform = space = build.uniform_space()
         space.on_notice = self._notice  # a pilot's takeover, slow telemetry: to the ground
+        space.on_status = self._autopilot_status  # its mode, its STATUSTEXTs: to the ground
         self.hal, self.adapter_error = build.start_uniform_api(space, board)
         if self.adapter_error is not None:  # an unusable adapter stops the start
             raise DroneRuntimeError(f"{self.drone}: {self.adapter_error}")
@@ -188,7 +190,9 @@ class DroneRuntime:
         build.start_nodes(self.dispatcher, self.nodes)
         self.executive = build.start_executive(self.dispatcher, self.nodes, outbox, self._to_ground)
         build.wire_nodes(self.nodes, self.hal, board, outbox, self.executive, space)
-        self.router = build.router(self.nodes, self.executive, board, self.abort, self.completed)
+        self.router = build.router(
+            self.nodes, self.executive, board, self.abort, self.completed, self.operate
+        )
         self.inb = build.connect(link, self.router)
 
     # -- readiness ---------------------------------------------------------------------
@@ -232,6 +236,37 @@ class DroneRuntime:
                 ref.tell(AbortMission(reason))
             except pykka.ActorDeadError:
                 continue
+
+    def operate(self, msg: wire.Operator) -> None:
+        """The operator's command (:mod:`.operator`): logged with its origin, carried out by
+        the uniform API (on its thread: a MAVLink adapter is called from there only), and
+        shown at the ground station."""
+        self.log.warning(
+            "mission.operator", command=msg.command, target=msg.target, origin=msg.origin
+        )
+        try:
+            if self.hal is not None and self.hal.is_alive():
+                self.hal.tell(Operate(msg.command))
+            elif self.uniform is not None:
+                self.uniform.operate(msg.command)
+        except pykka.ActorDeadError:
+            if self.uniform is not None:
+                self.uniform.operate(msg.command)
+        self._to_ground(operator_progress(self.program, msg))
+
+    def _autopilot_status(self, mode: str, texts: list[tuple[int, str]]) -> None:
+        """The autopilot's own mode and new STATUSTEXTs (severity, text): to the ground
+        station, for the operator's page (progress state ``autopilot``)."""
+        self._to_ground(
+            wire.Progress(
+                mission=self.program.mission_id,
+                sender=self.drone,
+                state="autopilot",
+                node="",
+                action=f"autopilot: {mode}",
+                detail={"mode": mode, "statustext": [list(t) for t in texts], "at": time.time()},
+            )
+        )
 
     def _notice(self, notice: AdapterNotice) -> None:
         """What the adapter has for the operator (a pilot took the vehicle, telemetry
@@ -291,7 +326,7 @@ class DroneRuntime:
         """
         if self.board is None:
             return True
-        if taken_over(self.adapter) is not None:
+        if taken_over(self.adapter) is not None or (self.uniform and self.uniform.released):
             self.log.warning("mission.abort.taken_over", note="the pilot has it: not landed")
             return False
         event = threading.Event()
@@ -332,8 +367,17 @@ class DroneRuntime:
             aborted=self.aborted.is_set(),
             abort_reason=self.abort_reason,
             adapter_error=str(self.adapter_error) if self.adapter_error else "",
-            vehicle=vehicle_facts(self.adapter),
+            vehicle=self._vehicle_facts(),
         )
+
+    def _vehicle_facts(self) -> dict[str, Any]:
+        """The adapter's facts; a vehicle the operator released is the pilot's, as after a
+        takeover (the summary says where it was left)."""
+        facts = vehicle_facts(self.adapter)
+        released = self.uniform.released if self.uniform is not None else None
+        if released is not None and "taken_over" not in facts:
+            facts["taken_over"] = released.to_json()
+        return facts
 
     def report(self) -> dict[str, Any]:
         """:meth:`drone_report` as JSON (what goes to the ground station)."""
@@ -386,6 +430,35 @@ def notice_progress(program: DroneProgram, notice: AdapterNotice) -> wire.Progre
         node="",
         action=NOTICE_ACTIONS.get(notice.kind, notice.kind),
         detail={"detail": notice.text, "at": time.time()},
+    )
+
+
+#: The state a drone shows after each operator command.
+OPERATOR_STATES = {
+    "pause": "paused",
+    "hold": "held",
+    "resume": "resumed",
+    "land": "landing (operator)",
+    "return-home": "returning home (operator)",
+    "release": "released to a pilot",
+}
+
+
+def operator_progress(program: DroneProgram, msg: wire.Operator) -> wire.Progress:
+    """The progress line the ground station shows when this drone obeys an operator command."""
+    state = OPERATOR_STATES.get(msg.command, msg.command)
+    return wire.Progress(
+        mission=program.mission_id,
+        sender=program.drone,
+        state=state,
+        node="",
+        action=f"operator: {msg.command}",
+        detail={
+            "detail": f"{state}: {msg.command} from {msg.origin or msg.sender}",
+            "command": msg.command,
+            "origin": msg.origin,
+            "at": time.time(),
+        },
     )
 
 

@@ -222,6 +222,7 @@ class RuntimeStartup:
         board: pykka.ActorRef[TelemetryBoard],
         abort: Callable[[str], None],
         completed: threading.Event,
+        operator: Callable[[wire.Operator], None] | None = None,
     ) -> InRouter:
         """The In-Bridge's routing: each message to the actor it is for."""
         return InRouter(
@@ -236,6 +237,7 @@ class RuntimeStartup:
             self.ground_handler,
             arc_hosts=incoming_arcs(self.program),
             gate=self._gate(),
+            operator=operator,
         )
 
     def _gate(self) -> StartGate | None:

@@ -44,9 +44,8 @@ import itertools
 import threading
 import time
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import TracebackType
-from typing import Any
 
 import pykka
 
@@ -61,12 +60,21 @@ from eamos.hal.api import (
     adapter_notices,
     taken_over,
 )
-from eamos.logs import EventLog, log_line
+from eamos.logs import EventLog
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry
-from eamos.program.uniform import ACTIONS, CommandError, decode_command
+from eamos.program.uniform import ACTIONS, Command, CommandError, ReturnHome, decode_command
 
 from .failure import tell_operator
 from .messages import Mailbox
+from .operator import (
+    RELEASED,
+    TAKEN_OUT,
+    Operate,
+    adapter_time_s,
+    remaining_command,
+    suspendable,
+)
+from .uniform_log import UniformLog, jsonable, result_fields
 
 
 @dataclass(frozen=True)
@@ -119,6 +127,13 @@ class _Running:
     # and run() returns the reply instead of sending it (no message to itself).
     caller: int = 0
     inline: ActionResult | None = None
+    # The operator's pause (.operator): the command, when it was last issued (adapter
+    # clock), how long it ran before, where the vehicle was when it was asked for.
+    command: Command | None = None
+    issued_s: float = 0.0
+    ran_s: float = 0.0
+    start_xyz: tuple[float, float, float] | None = None
+    suspended: bool = False
 
 
 #: Adapter families whose calls never block: ``run`` queues the action under a
@@ -137,64 +152,6 @@ def answers_at_once(adapter: Adapter) -> bool:
     if isinstance(declared, bool):
         return declared
     return getattr(adapter, "family", "") in NON_BLOCKING_FAMILIES
-
-
-class UniformLog:
-    """A drone's uniform log whose ``uniform.result`` lines may be held back a little.
-
-    :meth:`hold` keeps the result line of an action answered inline; :meth:`write_held`
-    writes the held lines.  Every other line written through this object writes the
-    held ones first, under one lock, so the file's order is the order in which the
-    lines were logged or held: a line an action's end caused (the next action's
-    ``uniform.call``) never comes before that end's ``uniform.result``.
-    """
-
-    def __init__(self, log: EventLog) -> None:
-        self.log = log
-        self._lock = threading.Lock()
-        self._held: list[ActionFinished] = []
-
-    def hold(self, finished: ActionFinished) -> None:
-        """Keep ``finished``'s ``uniform.result`` line until :meth:`write_held` or another line."""
-        with self._lock:
-            self._held.append(finished)
-
-    def write_held(self) -> None:
-        """Write the held result lines, oldest first."""
-        with self._lock:
-            self._write_held()
-
-    def _write_held(self) -> None:
-        held, self._held = self._held, []
-        for finished in held:
-            # Stamped when the action ended, as if written then.
-            log_line(self.log, "info", "uniform.result", _result_fields(finished), finished.end_s)
-
-    def _line(self, method: str, event: str, fields: dict[str, Any]) -> None:
-        with self._lock:
-            if self._held:
-                self._write_held()
-            getattr(self.log, method)(event, **fields)
-
-    def debug(self, event: str, **fields: Any) -> None:
-        """Log at debug level (held result lines first)."""
-        self._line("debug", event, fields)
-
-    def info(self, event: str, **fields: Any) -> None:
-        """Log at info level (held result lines first)."""
-        self._line("info", event, fields)
-
-    def warning(self, event: str, **fields: Any) -> None:
-        """Log at warning level (held result lines first)."""
-        self._line("warning", event, fields)
-
-    def error(self, event: str, **fields: Any) -> None:
-        """Log at error level (held result lines first)."""
-        self._line("error", event, fields)
-
-    def exception(self, event: str, **fields: Any) -> None:
-        """Log at error level with the exception being handled (held result lines first)."""
-        self._line("exception", event, fields)
 
 
 class UniformSpace:
@@ -228,13 +185,22 @@ class UniformSpace:
         #: Told each notice the adapter has for the operator (the runtime: to the ground).
         self.on_notice: Callable[[AdapterNotice], None] | None = None
         self._has_notices = callable(getattr(adapter, "notices", None))
+        #: Told the autopilot's own mode and new (severity, STATUSTEXT)s as they change.
+        self.on_status: Callable[[str, list[tuple[int, str]]], None] | None = None
+        # The operator's (.operator); _retired: adapter runs a suspension ended.
+        self._paused = False
+        self._out = ""
+        self._released: TakenOver | None = None
+        self._going_home = False
+        self._retired: set[int] = set()
+        self._here: tuple[float, float, float] | None = None
 
     # -- the pilot's hand ----------------------------------------------------------------
 
     def pilot_has_it(self, call: str) -> TakenOver | None:
         """The adapter's takeover, if a pilot has the vehicle: then ``call`` (an action,
         a cancel, an abort) is not passed on, and that is logged."""
-        taken = taken_over(self.adapter)
+        taken = taken_over(self.adapter) or self._released
         if taken is not None:
             self.forward_notices()
             self._log.warning("uniform.taken_over", call=call, reason=taken.reason())
@@ -261,7 +227,7 @@ class UniformSpace:
         """
         start_s = time.time()
         self._log.info(
-            "uniform.call", token=_jsonable(req.token), action=req.action, args=list(req.args)
+            "uniform.call", token=jsonable(req.token), action=req.action, args=list(req.args)
         )
         with self._lock:
             refusal = (
@@ -283,9 +249,21 @@ class UniformSpace:
         taken = self.pilot_has_it(req.action)
         if taken is not None:  # never command a vehicle a pilot has
             return self._finished(req, start_s, ActionResult("failed", taken.reason()))
-        running = _Running(req, start_s, next(self._serials), caller=threading.get_ident())
+        running = _Running(
+            req, start_s, next(self._serials), caller=threading.get_ident(), command=command
+        )
+        running.issued_s = adapter_time_s(self.adapter)
         with self._lock:  # tokens are unique per asker: nobody took it since the check
-            self._running[req.token] = running
+            out = self._out
+            if not out:
+                self._running[req.token] = running
+                running.start_xyz = self._here
+                running.suspended = self._paused and suspendable(command)
+        if out:  # taken out of the mission by the operator
+            return self._finished(req, start_s, ActionResult("failed", out))
+        if running.suspended:  # paused: it starts on resume
+            self._log.info("uniform.suspended", token=jsonable(req.token), queued=True)
+            return None
         try:
             handle = self.adapter.run(command, self._done_callback(req.token, running.serial))
         except Exception as exc:  # an adapter bug must not kill the drone's actor
@@ -297,6 +275,8 @@ class UniformSpace:
         running.handle = handle
         if running.inline is not None:
             return self._finished(req, start_s, running.inline, later)
+        if running.suspended:  # a pause came while the adapter took it
+            _cancel_quietly(self.adapter, self._log, handle)
         return None
 
     def write_results(self) -> None:
@@ -307,6 +287,9 @@ class UniformSpace:
         def done(result: ActionResult) -> None:
             # Runs on an adapter thread, or inside adapter.run() itself.
             with self._lock:
+                if serial in self._retired:  # ended by a suspension or a take-out
+                    self._retired.discard(serial)
+                    return
                 running = self._running.get(token)
                 if running is None or running.serial != serial:
                     stray = not self._closed
@@ -315,7 +298,7 @@ class UniformSpace:
                     del self._running[token]
             if running is None:
                 if stray:  # a second done for one run (an adapter bug)
-                    self._log.warning("uniform.stray_result", token=_jsonable(token))
+                    self._log.warning("uniform.stray_result", token=jsonable(token))
                 return  # else: late, after stop; finish_all already answered the caller
             if running.caller == threading.get_ident():
                 running.inline = result  # run() returns it
@@ -329,7 +312,12 @@ class UniformSpace:
         """Cancel the action started with ``token`` (unknown or finished: nothing happens)."""
         with self._lock:
             running = self._running.get(token)
-        self._log.info("uniform.cancel", token=_jsonable(token), running=running is not None)
+            if running is not None and running.suspended:  # paused: it ends here, now
+                del self._running[token]
+        self._log.info("uniform.cancel", token=jsonable(token), running=running is not None)
+        if running is not None and running.suspended:
+            self._send(running.request, running.start_s, ActionResult("cancelled", "cancelled"))
+            return
         if running is None or running.handle is None:
             return  # unknown or finished: nothing to cancel
         taken = self.pilot_has_it("cancel")
@@ -360,6 +348,9 @@ class UniformSpace:
         if taken is not None:  # no landing, no disarm: the running actions just end
             self.finish_all(ActionResult("failed", taken.reason()), close=False)
             return
+        if self._going_home:  # the operator sent it home: it lands there
+            self._log.info("uniform.abort.going_home")
+            return
         try:
             self.adapter.abort()
         except Exception as exc:
@@ -376,6 +367,115 @@ class UniformSpace:
             running, self._running = list(self._running.values()), {}
         for entry in running:
             self._send(entry.request, entry.start_s, result)
+
+    # -- the operator's commands (.operator) ------------------------------------------------
+
+    @property
+    def released(self) -> TakenOver | None:
+        """The operator released the vehicle to a pilot, where (until a ``resume``)."""
+        return self._released
+
+    def note_sample(self, sample: Telemetry) -> None:  # where an action asked for now starts
+        self._here = (sample.x_m, sample.y_m, sample.z_m)
+
+    def operate(self, command: str) -> None:
+        """Carry out the operator's ``command`` (:data:`~.operator.COMMANDS`) on this vehicle."""
+        if command in ("pause", "hold"):
+            self.suspend(command)
+        elif command == "resume":
+            self.resume()
+        elif command in TAKEN_OUT:
+            self.take_out(command)
+
+    def suspend(self, why: str = "pause") -> None:
+        """Suspend every running move and timed wait: the vehicle holds (the adapter's
+        cancel), the nodes keep waiting; what is asked for meanwhile waits too."""
+        if self.pilot_has_it(why) is not None:
+            return
+        now = adapter_time_s(self.adapter)
+        handles: list[ActionHandle] = []
+        with self._lock:
+            self._paused = True
+            for entry in self._running.values():
+                if entry.suspended or entry.command is None or not suspendable(entry.command):
+                    continue
+                entry.suspended = True
+                self._retired.add(entry.serial)
+                entry.ran_s += max(0.0, now - entry.issued_s)
+                if entry.handle is not None:
+                    handles.append(entry.handle)
+        self._log.info("uniform.suspend", why=why, actions=len(handles))
+        for handle in handles:
+            _cancel_quietly(self.adapter, self._log, handle)
+
+    def resume(self) -> None:
+        """Hand a released vehicle back; issue every suspended action for what is left."""
+        if self._released is not None:
+            self._released = None
+            self._log.warning("uniform.handed_back")
+        with self._lock:
+            self._paused = False
+            entries = [e for e in self._running.values() if e.suspended]
+            for entry in entries:
+                entry.suspended = False
+                entry.serial = next(self._serials)
+        for entry in entries:
+            assert entry.command is not None
+            command = remaining_command(entry.command, entry.ran_s, entry.start_xyz)
+            token = entry.request.token
+            self._log.info(
+                "uniform.resume",
+                token=jsonable(token),
+                action=entry.request.action,
+                issued=command.action,
+                args=list(command.args),
+            )
+            entry.issued_s = adapter_time_s(self.adapter)
+            try:
+                entry.handle = self.adapter.run(command, self._done_callback(token, entry.serial))
+            except Exception as exc:
+                with self._lock:
+                    mine = self._running.pop(token, None) is entry
+                if mine:
+                    self._send(entry.request, entry.start_s, self._internal_error("resume", exc))
+
+    def take_out(self, how: str) -> None:
+        """Take the vehicle out of the mission (``land``, ``return-home``, ``release``):
+        every action, running or later, fails with :data:`~.operator.TAKEN_OUT`."""
+        reason = TAKEN_OUT[how]
+        taken = self.pilot_has_it(how)
+        with self._lock:
+            if self._out:
+                return
+            self._out, self._paused = reason, False
+            entries, self._running = list(self._running.values()), {}
+            self._retired.update(e.serial for e in entries)
+        self._log.warning("uniform.taken_out", how=how, actions=len(entries))
+        for entry in entries:
+            self._send(entry.request, entry.start_s, ActionResult("failed", reason))
+        if taken is not None:
+            return  # a pilot has it: nothing is commanded
+        if how == "land":
+            self.abort_vehicle()
+            return
+        for entry in entries:
+            if entry.handle is not None and not entry.suspended:
+                _cancel_quietly(self.adapter, self._log, entry.handle)  # it holds
+        if how == "release":
+            x, y, z = self._here or (None, None, None)
+            self._released = replace(RELEASED, x_m=x, y_m=y, z_m=z)
+            return
+        self._going_home = True
+
+        def home(result: ActionResult) -> None:  # then an abort may land it
+            self._going_home = False
+
+        try:
+            self.adapter.run(ReturnHome(), home)
+        except Exception as exc:
+            self._going_home = False
+            self._internal_error("ReturnHome", exc)
+            self.abort_vehicle()
 
     def close_adapter(self) -> None:
         """Close the adapter; an exception is logged, never raised."""
@@ -397,7 +497,7 @@ class UniformSpace:
         if later:
             self._log.hold(finished)
         else:
-            self._log.info("uniform.result", **_result_fields(finished))
+            self._log.info("uniform.result", **result_fields(finished))
         return finished
 
     def _send(self, req: RunAction, start_s: float, result: ActionResult) -> None:
@@ -430,6 +530,12 @@ class UniformAPI(pykka.ThreadingActor):
         self._on_start_error = on_start_error
         self.space = space if space is not None else UniformSpace(adapter, uniform_log)
         self._log = self.space.log  # one log object: held result lines keep their place
+        # The autopilot's mode and STATUSTEXTs (an adapter with ``autopilot_status``).
+        status = getattr(adapter, "autopilot_status", None)
+        self._read_status: Callable[[], tuple[str, int, list[tuple[int, str]]]] | None = (
+            status if callable(status) else None
+        )
+        self._status_seen: tuple[str, int] = ("", 0)
 
     # -- lifecycle -----------------------------------------------------------
 
@@ -451,8 +557,25 @@ class UniformAPI(pykka.ThreadingActor):
 
     def _sample(self, sample: Telemetry) -> None:
         """A telemetry sample (adapter thread): to the board, with the adapter's notices."""
+        self.space.note_sample(sample)
         self.space.forward_notices()
+        self._forward_status()
         self._on_telemetry(sample)
+
+    def _forward_status(self) -> None:
+        """The autopilot's mode and new STATUSTEXTs, when they changed, to ``on_status``."""
+        tell = self.space.on_status
+        if self._read_status is None or tell is None:
+            return
+        mode, serial, texts = self._read_status()
+        seen_mode, seen = self._status_seen
+        if (mode, serial) == (seen_mode, seen):
+            return
+        self._status_seen = (mode, serial)
+        try:
+            tell(mode, texts[len(texts) - min(len(texts), serial - seen) :])
+        except Exception as exc:  # the operator's page must not cost the drone
+            self._log.exception("uniform.callback_error", error=repr(exc))
 
     def _start_failed(self, exc: AdapterError) -> None:
         self._log.error("uniform.start_failed", error=str(exc))
@@ -515,6 +638,8 @@ class UniformAPI(pykka.ThreadingActor):
                 self.space.cancel(token)
             case Abort():
                 self.space.abort()
+            case Operate(command=command):
+                self.space.operate(command)
             case _:
                 self._log.warning("uniform.unknown_message", message=repr(message))
 
@@ -539,28 +664,16 @@ def start_uniform_api(
     return ref, None
 
 
+def _cancel_quietly(adapter: Adapter, log: EventLog, handle: ActionHandle) -> None:
+    """The adapter's cancel (a suspension: the vehicle holds); an exception is logged."""
+    try:
+        adapter.cancel(handle)
+    except Exception as exc:
+        log.exception("uniform.adapter_error", action="cancel", error=repr(exc))
+
+
 def _tell_reply(reply_to: Mailbox[ActionFinished], finished: ActionFinished, log: EventLog) -> None:
     try:
         reply_to.tell(finished)
     except pykka.ActorDeadError:
-        log.warning("uniform.reply_to_dead", token=_jsonable(finished.token))
-
-
-def _result_fields(finished: ActionFinished) -> dict[str, Any]:
-    """The fields of an action's ``uniform.result`` line (docs/logs.md)."""
-    start_s, end_s, result = finished.start_s, finished.end_s, finished.result
-    return {
-        "token": _jsonable(finished.token),
-        "action": finished.action,
-        "args": list(finished.args),
-        "status": result.status,
-        "reason": result.reason,
-        "start_s": round(start_s, 6),
-        "end_s": round(end_s, 6),
-        "duration_s": round(end_s - start_s, 6),
-    }
-
-
-def _jsonable(token: Hashable) -> str | int | float:
-    """Tokens go into JSON logs; keep simple ones as they are, stringify the rest."""
-    return token if isinstance(token, str | int | float) else repr(token)
+        log.warning("uniform.reply_to_dead", token=jsonable(finished.token))

@@ -4,6 +4,7 @@
     eamos graph MISSION.go [--which meg] ...         draw one graph
     eamos run MISSION.go [--fleet F] [--speedup K]   fly it on simulated drones, one process each
     eamos rollout / start / status / abort / logs fetch   real drones over SSH
+    eamos pause / resume RUN_DIR, eamos drone RUN_DIR NAME hold|resume|land|...   the operator
     eamos report RUN_DIR                             an HTML page about a run folder
     eamos monitor RUN_DIR                            replay a run in the browser monitor
     eamos keys OUT [--fleet NAMES...]                the fleet's network keys (CURVE)
@@ -29,6 +30,7 @@ from .fleet import add_fleet_commands
 from .keys import add_keys_parser
 from .lsp import add_lsp_parser
 from .monitor import add_monitor_parser
+from .operator import add_operator_parsers
 from .report import add_report_parser
 from .run import add_run_parser
 
@@ -48,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_graph_parser(sub)
     add_run_parser(sub)
     add_fleet_commands(sub)
+    add_operator_parsers(sub)
     add_report_parser(sub)
     add_keys_parser(sub)
     add_check_parser(sub)

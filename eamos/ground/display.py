@@ -77,6 +77,9 @@ def format_event(name: str, msg: Any, at: float) -> str | None:
     if isinstance(msg, wire.Progress) and msg.state == "taken_over":
         reason = msg.detail.get("detail") if isinstance(msg.detail, dict) else ""
         return f"{head} TAKEN OVER: {reason or msg.action}"
+    if isinstance(msg, wire.Progress) and msg.action.startswith("operator: "):
+        reason = msg.detail.get("detail") if isinstance(msg.detail, dict) else ""
+        return f"{head} OPERATOR: {reason or msg.state}"
     if isinstance(msg, wire.Progress) and msg.state in SHOWN_STATES:
         line = f"{head} {msg.state:<9} {msg.action}"
         reason = msg.detail.get("detail") if isinstance(msg.detail, dict) else ""

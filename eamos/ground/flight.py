@@ -28,6 +28,7 @@ from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
 
 from .display import Display
+from .operator import OperatorDesk, PauseClock, desk_handler, snapshot
 from .station import GroundStation
 
 #: How long the drones have to send their final report after the mission ends.
@@ -71,6 +72,7 @@ def fly(
     on_ready: Callable[[float], None] | None = None,
     clock: Callable[[], float] = time.monotonic,
     wall: Callable[[], float] = time.time,
+    control: Path | None = None,
 ) -> Flight:
     """Run the ground station's phases on ``station`` (already attached to its runtime).
 
@@ -78,8 +80,36 @@ def fly(
     the others are not waited for.  ``on_ready`` is told how long the drones
     took to become ready, before the start trigger.  Lost drones (dead, or
     given up after a long silence) are waited for neither to resolve nor to
-    report.
+    report.  ``control``: the run folder whose operator's socket takes the operator's
+    commands (:mod:`.operator`: pause, resume, a drone's hold, land ...) while it runs.
     """
+    desk = None
+    pauses = PauseClock()  # the operator's pauses do not count against the timeout
+    if control is not None:
+        desk = OperatorDesk(control, desk_handler(station, control, pauses, clock))
+        why = desk.open()
+        if why:
+            display.say(f"no operator commands for this run: {why}")
+    try:
+        return _fly(station, display, stop, limits, alive, on_ready, clock, wall, pauses)
+    finally:
+        if desk is not None:
+            desk.close()
+        if control is not None:  # the mission's state at its end (snapshot.json)
+            snapshot(station, control, "end")
+
+
+def _fly(
+    station: GroundStation,
+    display: Display,
+    stop: threading.Event,
+    limits: Limits,
+    alive: Callable[[], list[str]] | None,
+    on_ready: Callable[[float], None] | None,
+    clock: Callable[[], float],
+    wall: Callable[[], float],
+    pauses: PauseClock,
+) -> Flight:
     outcome = "ok"
     started = wall()
     t0 = clock()
@@ -94,7 +124,7 @@ def fly(
         display.say("all drones ready: start")
         started = wall()
         station.start()
-        outcome = _watch(station, display, stop, limits.timeout_s, clock)
+        outcome = _watch(station, display, stop, limits.timeout_s, clock, pauses)
         if outcome == "ok":
             # Everyone still there resolved; a participant that died makes it a failure
             # (one only silent may still report: the summary's ok decides for it).
@@ -144,14 +174,17 @@ def _watch(
     stop: threading.Event,
     timeout_s: float,
     clock: Callable[[], float],
+    pauses: PauseClock | None = None,
 ) -> str:
-    """Wait until every participant resolved; the outcome ("ok" or why not)."""
+    """Wait until every participant resolved; the outcome ("ok" or why not).  The
+    operator's pauses (``pauses``) do not count against ``timeout_s``."""
     deadline = clock() + timeout_s
     while not station.wait_resolved(display.refresh_s, stop):
         display.refresh()
         if stop.is_set():
             return "aborted by the operator"
-        if clock() > deadline:
+        now = clock()
+        if now - (pauses.paused_s(now) if pauses is not None else 0.0) > deadline:
             return (
                 f"timed out after {timeout_s:g} s (unresolved: {', '.join(station.unresolved())})"
             )

@@ -581,7 +581,14 @@ def _fly_local(
                 )
         with shown:
             shown.say(f"mission {mission.name}: {len(drones)} drone(s), run folder {run_dir}")
-            flight = fly(station, shown, stop, limits, alive=lambda: running(station, drones))
+            flight = fly(
+                station,
+                shown,
+                stop,
+                limits,
+                alive=lambda: running(station, drones),
+                control=run_dir,
+            )
             outcome, started = flight.outcome, flight.started
     finally:
         # After a second Ctrl-C nobody waits for a graceful end: SIGTERM now (each

@@ -72,6 +72,8 @@ class DroneView:
     silent_since: float | None = None  # monotonic time the link was reported lost
     given_up: bool = False  # silent for longer than give_up_s: not waited for
     exited: str = ""  # how its node's process ended, once it did ("" while it runs)
+    mode: str = ""  # its autopilot's own flight mode (MAVLink drones)
+    samples: list[wire.TelemetrySample] = field(default_factory=list)  # the latest two
 
     def last_seen(self) -> LastSeen | None:
         """Where its latest telemetry placed it (None: no telemetry arrived)."""
@@ -79,6 +81,24 @@ class DroneView:
             return None
         x, y, z = self.position
         return LastSeen(x, y, z, bool(self.armed), self.landed, self.seen_at)
+
+
+#: The operator's commands for the whole mission; every other one is for one drone.
+MISSION_COMMANDS = ("pause", "resume")
+DRONE_COMMANDS = ("hold", "resume", "land", "return-home", "release")
+
+
+def command_refusal(command: str, drone: str, drones: list[str]) -> str:
+    """Why the operator's ``command`` for ``drone`` ("": the mission) cannot be sent ("": sent)."""
+    if not drone:
+        if command not in MISSION_COMMANDS:
+            return f"{command!r} is not a mission command (one of: {', '.join(MISSION_COMMANDS)})"
+        return ""
+    if drone not in drones:
+        return f"no drone {drone!r} in this mission (its drones: {', '.join(drones)})"
+    if command not in DRONE_COMMANDS:
+        return f"{command!r} is not a drone command (one of: {', '.join(DRONE_COMMANDS)})"
+    return ""
 
 
 class GroundStation:
@@ -112,6 +132,8 @@ class GroundStation:
         self.dead: list[str] = []
         # Complete or Abort sent: from now on a drone's report and exit are its normal end.
         self.over = False
+        self.started = False  # the Start was sent: the operator's commands may come
+        self.paused = False  # the operator paused the mission (until a resume)
 
     # -- wiring -------------------------------------------------------------------------
 
@@ -165,6 +187,8 @@ class GroundStation:
                     self.failures.append(f"{view.name}: unreadable report ({exc})")
                 else:
                     stopped_early = self._stopped_early(view)
+            elif isinstance(msg, wire.Progress) and msg.state == "autopilot":
+                view.mode = str(msg.detail.get("mode", ""))  # not a node's: no state change
             elif isinstance(msg, wire.Progress):
                 view.node = msg.node
                 view.action, view.state = msg.action, msg.state
@@ -183,6 +207,7 @@ class GroundStation:
                     }
                 )
             elif isinstance(msg, wire.TelemetrySample):
+                view.samples = [*view.samples[-1:], msg]  # the latest two: the snapshot's velocity
                 view.position = (msg.x_m, msg.y_m, msg.z_m)
                 view.armed = msg.armed
                 view.landed = msg.landed
@@ -319,9 +344,10 @@ class GroundStation:
             return [d for d in self.drones() if not self.views[d].ready]
 
     def start(self) -> None:
-        """Send the start trigger (naming the deployment): the ground station's initial
-        node fires."""
+        """Send the start trigger (naming the deployment); the initial node fires."""
         assert self.runtime is not None
+        with self._cond:
+            self.started = True
         self.runtime.send(
             wire.Start(mission=self.mission_id, sender=GROUND_STATION, deployment=self.deployment)
         )
@@ -385,6 +411,16 @@ class GroundStation:
                 wire.Abort(mission=self.mission_id, sender=GROUND_STATION, reason=reason)
             )
             self.runtime.abort(reason)
+
+    def take_command(self, command: str, drone: str, origin: str) -> str:
+        """Record the operator's command for the summary (:func:`.operator.command`)."""
+        with self._cond:
+            why = "the mission is over" if self.over else "" if self.started else "not started"
+            if not why:
+                entry = {"t": time.time(), "operator": command, "drone": drone, "origin": origin}
+                self.views[GROUND_STATION].events.append(entry)
+                self.paused = {"pause": True, "resume": False}.get(command, self.paused)
+        return why
 
     def wait_reports(
         self, names: Iterable[str], timeout_s: float, stop: threading.Event | None = None

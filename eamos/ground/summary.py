@@ -149,6 +149,8 @@ class RunSummary:
     failures: tuple[str, ...] = ()  # participants that died, never became ready, went silent
     links: Mapping[str, str] = field(default_factory=dict)  # each drone's last link state
     rollout: Mapping[str, Any] | None = None  # roll-out durations (eamos start)
+    # The operator's commands, in order: {"t", "command", "drone" ("": all), "origin"}.
+    operator_commands: tuple[Mapping[str, Any], ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -213,6 +215,7 @@ class RunSummary:
         }
         if self.rollout is not None:
             out["rollout"] = dict(self.rollout)
+        out["operator_commands"] = [dict(c) for c in self.operator_commands]
         return out
 
     @classmethod
@@ -232,6 +235,9 @@ class RunSummary:
             failures=tuple(data.get("failures", ())),
             links=dict(data.get("links", {})),
             rollout=data.get("rollout"),
+            operator_commands=tuple(
+                c for c in data.get("operator_commands", ()) if isinstance(c, dict)
+            ),
         )
 
     def write(self, path: Path) -> bool:
@@ -296,4 +302,16 @@ def summarize(
         ground_station=ground_report,
         failures=tuple(failures),
         links={n: views[n].link for n in drones},
+        operator_commands=operator_commands(views),
+    )
+
+
+def operator_commands(views: Mapping[str, DroneView]) -> tuple[dict[str, Any], ...]:
+    """The operator's commands the ground station sent (kept in its own view's events)."""
+    gcs = views.get(GROUND_STATION)
+    events = gcs.events if gcs is not None else []
+    return tuple(
+        {"t": e["t"], "command": e["operator"], "drone": e["drone"], "origin": e["origin"]}
+        for e in events
+        if "operator" in e
     )

@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from eamos.ground.operator import OperatorError, send_command
 from eamos.logs import make_logger
 
 from .hub import Hub
@@ -92,9 +93,19 @@ def start_live_monitor(
         log.warning("monitor.refused", detail=text)
         say(f"monitor: {text}")
 
-    server = MonitorServer(
-        hub, host=host, port=port, on_abort=on_abort, on_problem=on_problem
-    ).start()
+    def on_command(command: str, drone: str, origin: str) -> str:
+        """A page's command, sent as ``eamos pause`` sends it: through the run's socket."""
+        log.warning("monitor.command", command=command, drone=drone, origin=origin)
+        try:
+            send_command(run_dir, command, drone, origin)
+        except OperatorError as exc:
+            return str(exc)
+        say(f"{command} {drone or 'the mission'}: requested from the {origin}")
+        return ""
+
+    server = MonitorServer(hub, host=host, port=port, on_abort=on_abort, on_problem=on_problem)
+    server.on_command = on_command
+    server.start()
     log.info("monitor.start", url=f"http://{host}:{server.port}/")
     say(f"monitor: {server.url}")
     if open_browser:

@@ -15,6 +15,7 @@ microseconds) and schedule a wake-up of the loop.  Routes:
                        "patches", "seq", "patches"}`` as things change; in a replay
                        the page sends ``{"type": "seek", "t"}`` and gets a snapshot
 ``POST /api/abort``    ``{"token"}``: abort the run (403 without the run's token)
+``POST /api/command``  ``{"token", "command", "drone"}``: the operator's (:mod:`.commands`)
 =====================  =================================================================
 
 What it lets in (docs/monitor.md, "What the server refuses"): a ``Host`` naming this
@@ -41,9 +42,11 @@ import time
 import urllib.parse
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from importlib import resources
 from typing import TYPE_CHECKING, Any, Protocol
 
+from .commands import MAX_COMMAND_BYTES, abort_endpoint, command_endpoint
 from .hub import Hub
 from .setup import MonitorError
 
@@ -57,8 +60,8 @@ if TYPE_CHECKING:
 TICK_S = 0.1
 #: The page's files (package data).
 STATIC_FILES = {"monitor.js": "text/javascript", "monitor.css": "text/css"}
-#: The largest request body read (an abort is ``{"token": "..."}``: some 40 bytes).
-MAX_BODY_BYTES = 4096
+#: The largest request body read (an abort or a command: :mod:`.commands`).
+MAX_BODY_BYTES = MAX_COMMAND_BYTES
 #: The largest message a page may send over the websocket (a replay's seek).
 MAX_WS_MESSAGE_BYTES = 65_536
 #: Connections served at once (one operator's pages); more are answered 503.
@@ -153,6 +156,8 @@ class MonitorServer:
         self.port = port
         self.token = token or secrets.token_urlsafe(16)
         self.on_abort = on_abort
+        # The operator's commands: (command, drone, origin) -> why refused ("": sent).
+        self.on_command: Callable[[str, str, str], str] | None = None
         self.on_problem = on_problem
         self.clock = clock
         self.refusals = RefusalLimiter()
@@ -307,7 +312,8 @@ class MonitorServer:
                 Route("/api/setup", self._setup),
                 Route("/api/graph/{name}", self._graph),
                 Route("/api/state", self._state),
-                Route("/api/abort", self._abort, methods=["POST"]),
+                Route("/api/abort", partial(abort_endpoint, self), methods=["POST"]),
+                Route("/api/command", partial(command_endpoint, self), methods=["POST"]),
                 WebSocketRoute("/ws", self._ws),
             ],
             lifespan=lifespan,
@@ -373,36 +379,6 @@ class MonitorServer:
 
         seq, snap = self.hub.resync()
         return JSONResponse({"seq": seq, "state": snap, "stats": self.stats()})
-
-    async def _abort(self, request: Request) -> Response:
-        from starlette.responses import JSONResponse
-
-        peer = request.client
-        agent = request.headers.get("user-agent", "?")
-        origin = f"monitor page at {peer.host}:{peer.port} ({agent[:60]})" if peer else "monitor"
-        if self.replay is not None:
-            return JSONResponse({"ok": False, "error": "a replay cannot abort"}, status_code=409)
-        kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
-        if kind != "application/json":
-            self.refuse(origin, "the body is not application/json")
-            return JSONResponse({"ok": False, "error": "send JSON"}, status_code=415)
-        body = await _bounded_body(request, MAX_BODY_BYTES)
-        if body is None:
-            self.refuse(origin, f"a body over {MAX_BODY_BYTES} bytes")
-            return JSONResponse({"ok": False, "error": "body too large"}, status_code=413)
-        try:
-            data = json.loads(body)
-        except (ValueError, RecursionError):
-            data = None
-        token = data.get("token") if isinstance(data, dict) else None
-        accepted = isinstance(token, str) and secrets.compare_digest(token, self.token)
-        if accepted:
-            self.hub.abort_request(origin, True)
-            if self.on_abort is not None:
-                self.on_abort(origin, True)
-            return JSONResponse({"ok": True})
-        self.refuse(origin, "not the run's token", abort=True)
-        return JSONResponse({"ok": False, "error": "not the run's token"}, status_code=403)
 
     # -- refusals and problems, told at a bounded rate -----------------------------------
 
@@ -480,20 +456,6 @@ class MonitorServer:
         finally:
             client.closed = True
             client.wake.set()
-
-
-async def _bounded_body(request: Request, limit: int) -> bytes | None:
-    """The request's body, read in pieces (Starlette's ``request.stream()``); None as soon
-    as it is over ``limit`` bytes (declared or sent), the rest never read."""
-    declared = request.headers.get("content-length")
-    if declared is not None and (not declared.isdigit() or int(declared) > limit):
-        return None
-    body = bytearray()
-    async for chunk in request.stream():
-        body += chunk
-        if len(body) > limit:
-            return None
-    return bytes(body)
 
 
 class _OriginGuard:

@@ -21,9 +21,13 @@ Patch kinds (``k``):
 * ``link``: one link's (drone A -> drone B) external arcs in the MDG and the
   triggers sent and received on it so far, derived live from node states
   (:mod:`.links`); sent whenever a count changes.
-* ``mission``: the mission's state (``waiting for drones``, ``running``,
-  ``aborting``, then the outcome word: ``finished``, ``failed``, ``aborted``,
-  ``timed out``), its start and end times.
+* ``mission``: the mission's state (``waiting for drones``, ``running``, ``paused``
+  (the operator's pause, until a resume), ``aborting``, then the outcome word:
+  ``finished``, ``failed``, ``aborted``, ``timed out``), its start and end times.
+
+A MAVLink drone's autopilot says its own flight mode and STATUSTEXTs (``Progress``
+``autopilot``): ``autopilot`` and ``statustext`` (the latest :data:`STATUSTEXTS`
+``[severity, text]``, MAVLink severities: 0 emergency ... 7 debug).
 
 A MAVLink drone a pilot took over (``Progress`` ``taken_over``, or its report's
 ``vehicle.taken_over`` at the end) shows the mode ``taken over (LOITER)`` from then
@@ -53,6 +57,8 @@ from eamos.program.uniform import GROUND_STATION
 from .links import LinkCount, LinkCounts
 from .setup import MissionSetup
 
+#: The autopilot messages (STATUSTEXT) a drone's panel keeps, latest last.
+STATUSTEXTS = 5
 #: Minimum time between two ``drone`` patches of one drone (10 updates per second).
 MIN_INTERVAL_S = 0.1
 _EPS = 1e-9  # 10.1 - 10.0 < 0.1 in floating point
@@ -134,6 +140,12 @@ class DroneLive:
     triggers_sent: int | None = None
     triggers_received: int | None = None
     taken_over: str = ""  # "taken over by the pilot in LOITER at (...)" once a pilot has it
+    operator: str = ""  # the operator's last command's state ("held", "released ..."; "": none)
+    failure: str = ""  # why its latest failed or blocked node failed
+    lat: float | None = None  # where the fleet has a geographic home (0, 0 is none)
+    autopilot: str = ""  # the autopilot's own flight mode (GUIDED, OFFBOARD ...; MAVLink)
+    statustext: list[list[Any]] = field(default_factory=list)  # its latest [severity, text]
+    lon: float | None = None
     trail: list[list[float]] = field(default_factory=list)  # [t, x, y, z]
     sent_trail: int = 0  # trail points already in a drone patch
 
@@ -157,6 +169,12 @@ class DroneLive:
             "triggers_sent": self.triggers_sent,
             "triggers_received": self.triggers_received,
             "taken_over": self.taken_over,
+            "operator": self.operator,
+            "failure": self.failure,
+            "autopilot": self.autopilot,
+            "statustext": self.statustext,
+            "lat": self.lat,
+            "lon": self.lon,
         }
 
     def take(self, mode: str, words: str) -> None:
@@ -245,6 +263,8 @@ class MonitorState:
                 drone.heading_deg = round(math.degrees(math.atan2(dy, dx)), 1)
         drone.x, drone.y, drone.z = x, y, z
         drone.battery, drone.armed, drone.landed = msg.battery_pct, msg.armed, msg.landed
+        if msg.lat_deg or msg.lon_deg:
+            drone.lat, drone.lon = round(msg.lat_deg, 7), round(msg.lon_deg, 7)
         if drone.mode not in ("resolved", "reported") and not drone.taken_over:
             drone.mode = "disarmed" if not msg.armed else ("landed" if msg.landed else "flying")
         last = drone.trail[-1] if drone.trail else None
@@ -270,8 +290,24 @@ class MonitorState:
                 words = str(detail.get("detail") or msg.action)
                 drone.take(_taken_mode(words), words)
             return out
+        if msg.state == "autopilot":  # the autopilot's own voice, not a node
+            if drone is not None:
+                drone.autopilot = str(detail.get("mode", ""))
+                texts = detail.get("statustext")
+                new = (
+                    [list(t)[:2] for t in texts if isinstance(t, list)]
+                    if isinstance(texts, list)
+                    else []
+                )
+                drone.statustext = (drone.statustext + new)[-STATUSTEXTS:]
+            return out
+        command = detail.get("command")
+        if msg.action.startswith("operator: ") and isinstance(command, str):
+            return self._operator(name, drone, command, msg.state)
         if drone is not None:
             drone.action, drone.node = msg.action, msg.node
+            if msg.state in ("failed", "blocked"):
+                drone.failure = f"{msg.action or msg.node}: {detail.get('detail') or msg.state}"
         iteration = detail.get("iteration") or []
         state = PROGRESS_TO_NODE.get(msg.state)
         if state is None:
@@ -304,6 +340,19 @@ class MonitorState:
                 self.bars[index].update(end=now, result=msg.state)
             out.append({"k": "bar", "i": index, **self.bars[index]})
         return out
+
+    def _operator(
+        self, name: str, drone: DroneLive | None, command: str, state: str
+    ) -> list[dict[str, Any]]:
+        """An operator's command obeyed by ``name``: its panel (or the mission) says so."""
+        if drone is not None:
+            drone.operator = "" if command == "resume" else state
+            return []
+        if name == GROUND_STATION and command in ("pause", "resume"):
+            paused = command == "pause"
+            if self.mission["state"] in ("running", "paused"):
+                return self._mission(state="paused" if paused else "running")
+        return []
 
     def _node(self, key: str, state: str, iteration: list[int], now: float) -> list[dict[str, Any]]:
         node = self.nodes.get(key)

@@ -13,7 +13,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   ``tm/<drone>``            telemetry published by ``<drone>`` (the ``sender``)
   ``hb/<participant>``      heartbeats of ``<participant>`` (the ``sender``),
                             for the peers watching it
-  ``all``                   broadcasts to everyone: Start, Abort, Complete
+  ``all``                   broadcasts to everyone: Start, Abort, Complete, Operator
   ========================  =====================================================
 
   ZeroMQ subscriptions match topic *prefixes* (``to/D1`` also matches
@@ -27,7 +27,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   =====  ======  ========================================================
   key    type    meaning
   =====  ======  ========================================================
-  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 5)
+  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 6)
   ``t``  str     message type code (table below)
   ``m``  str     mission id; receivers drop messages of other missions
   ``s``  str     sender: name of the participant that sent the message
@@ -72,6 +72,11 @@ ZeroMQ multipart message ``[topic, payload]``:
                              seq                     ``q``     int >= 0, broadcast sequence
   ``cmp``    Complete        seq                     ``q``     int >= 0, broadcast sequence;
                                                                the whole mission is over
+  ``opc``    Operator        command                 ``c``     "pause"|"resume"|"hold"|"land"|
+                                                               "return-home"|"release"
+                             target                  ``tg``    str, the drone ("": every one)
+                             origin                  ``o``     str, who asked (for the logs)
+                             seq                     ``q``     int >= 0, broadcast sequence
   ``prg``    Progress        dest                    ``d``     str (default ``"GCS"``)
                              state                   ``st``    str, e.g. "started", "done"
                              node                    ``nd``    str
@@ -112,8 +117,8 @@ ZeroMQ multipart message ``[topic, payload]``:
   =========  ==============  ======================  ========  ================================
 
   ``seq`` (key ``q``) numbers the reliable messages: Trigger, Interrupt, Ready,
-  Resolved, Report and ReportPart per link (sender, dest), Start, Abort and Complete per
-  sender (broadcast sequence); 1, 2, 3 ... as the reliability layer
+  Resolved, Report and ReportPart per link (sender, dest), Start, Abort, Complete and
+  Operator per sender (broadcast sequence); 1, 2, 3 ... as the reliability layer
   (:mod:`eamos.net.session`) sends them, 0 for a message sent outside it (not
   acknowledged, not deduplicated).  Progress, TelemetrySample, Ack and
   Heartbeat are never acknowledged: progress and telemetry are latest-value
@@ -135,14 +140,11 @@ encoding of the report map cut into ``parts`` slices of at most
 once each, in order); the receiver joins them and decodes the whole as a
 Report's ``rp`` (:mod:`eamos.net.reports`).
 
-Inside a process a message is built by its constructor, plainly (the program,
-the node logic and the session made the values); the session stamps ``seq`` and
-``incarnation`` with :func:`msgspec.structs.replace`.  What a peer sends is
-validated once, by :func:`decode`, at the trust boundary: the field types say
-what each field accepts (``Annotated`` with :class:`msgspec.Meta` for bounds,
-``Literal`` for choices) and :func:`msgspec.convert` checks them, after msgpack
-(whose unpacker keeps its own stack) unpacked the payload with every length
-bounded and :func:`plain_map` bounded the nesting of plain data without recursing.
+Inside a process a message is built by its constructor, plainly; the session stamps
+``seq`` and ``incarnation`` (:func:`msgspec.structs.replace`).  What a peer sends is
+validated once, by :func:`decode`, at the trust boundary: msgpack unpacks with every
+length bounded, :func:`plain_map` bounds the nesting of plain data without recursing,
+and :func:`msgspec.convert` checks each field against its type (bounds, choices).
 
 :func:`decode` raises :class:`WireError`, and nothing else, for any malformed
 input: wrong frame count, oversize frames, payload that is not msgpack or nests
@@ -154,11 +156,9 @@ otherwise.  Its texts name the field at fault and show no value longer than a
 few dozen characters.  Changing anything in this table means bumping
 :data:`WIRE_VERSION`; ``docs/wire-format.md`` holds the same table.
 
-Version history: 1 (first format); 2 adds ``q`` (sequence numbers), Ack and
-Heartbeat for reliable delivery and peer liveness; 3 adds the incarnation
-(``n`` in every message, ``di`` in Ack, ``ki`` in Heartbeat) so that peers
-resynchronise with a restarted participant; 4 adds ReportPart (reports of any
-size, in parts); 5 adds Start's deployment (``dp``).
+Version history: 1 (first format); 2 adds ``q``, Ack and Heartbeat (reliable
+delivery, liveness); 3 the incarnation (``n``, Ack's ``di``, Heartbeat's ``ki``: a
+restarted peer); 4 ReportPart; 5 Start's ``dp``; 6 Operator (``opc``).
 """
 
 from __future__ import annotations
@@ -190,6 +190,8 @@ __all__ = [
     "Interrupt",
     "InterruptMode",
     "Message",
+    "Operator",
+    "OperatorCommand",
     "Progress",
     "Ready",
     "Report",
@@ -209,14 +211,14 @@ __all__ = [
     "unpack_bounded",
 ]
 
-WIRE_VERSION: Final = 5
+WIRE_VERSION: Final = 6
 """Version of this format, carried in every payload under key ``v``."""
 
 GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground station
 """Default participant name of the ground station (``dest`` of status messages)."""
 
 TOPIC_ALL: Final = b"all"
-"""Topic of broadcasts (Start, Abort, Complete)."""
+"""Topic of broadcasts (Start, Abort, Complete, Operator)."""
 
 # Limits applied before and during unpacking so a hostile or broken peer cannot
 # make a receiver allocate or recurse without bound.  Reports are the largest
@@ -264,8 +266,7 @@ def topic_telemetry(drone: str) -> bytes:
 # Field types: what decode accepts, said once, in the types.
 
 Name: TypeAlias = Annotated[str, msgspec.Meta(pattern="^[^/]+$")]
-"""A participant name: it ends up in topics, so non-empty and without ``/``
-(``to/<name>`` would be ambiguous)."""
+"""A participant name: in topics (``to/<name>``), so non-empty and without ``/``."""
 Seq: TypeAlias = Annotated[int, msgspec.Meta(ge=0, le=(1 << 63) - 1)]
 """Sequence numbers, acknowledgements and incarnations: ints in [0, 2**63)."""
 Iteration: TypeAlias = tuple[int, ...]
@@ -279,6 +280,7 @@ PartCount: TypeAlias = Annotated[int, msgspec.Meta(ge=1, le=MAX_REPORT_PARTS)]
 PartData: TypeAlias = Annotated[bytes, msgspec.Meta(max_length=REPORT_PART_BYTES)]
 TriggerStatus: TypeAlias = Literal["done", "skipped", "failed"]
 InterruptMode: TypeAlias = Literal["all", "waits", "suspend", "resume"]
+OperatorCommand: TypeAlias = Literal["pause", "resume", "hold", "land", "return-home", "release"]
 
 
 # ---------------------------------------------------------------------------
@@ -300,7 +302,7 @@ class _Base(_Fields, frozen=True, kw_only=True):
     KIND: ClassVar[str] = ""
 
     # In every payload; decode reads it before anything else (a WireError "version").
-    version: Literal[5] = msgspec.field(default=WIRE_VERSION, name="v")
+    version: Literal[6] = msgspec.field(default=WIRE_VERSION, name="v")
     # The session stamps it on sending.
     incarnation: Seq = msgspec.field(default=0, name="n")
 
@@ -394,6 +396,17 @@ class Complete(_Base, frozen=True, tag="cmp"):
     seq: Seq = msgspec.field(default=0, name="q")
 
 
+class Operator(_Base, frozen=True, tag="opc"):
+    """Broadcast by the ground station: an operator's ``command`` for ``target`` ("": all)."""
+
+    KIND: ClassVar[str] = "all"
+
+    command: OperatorCommand = msgspec.field(name="c")
+    target: str = msgspec.field(default="", name="tg")
+    origin: str = msgspec.field(default="", name="o")
+    seq: Seq = msgspec.field(default=0, name="q")
+
+
 class Progress(_Base, frozen=True, tag="prg"):
     """A node/action event on the sender, for live display at the ground station."""
 
@@ -426,11 +439,8 @@ class Report(_Base, frozen=True, tag="rep"):
 
 
 class ReportPart(_Base, frozen=True, tag="rpp"):
-    """Part ``part`` of ``parts`` of a final report too large for one message.
-
-    ``data`` is a slice of the report map's MessagePack encoding; the parts of
-    one report follow each other on the link, ``part`` 0 first.
-    """
+    """Part ``part`` of ``parts`` of a report too large for one message: ``data`` is a
+    slice of the report map's MessagePack encoding; parts follow in order, 0 first."""
 
     KIND: ClassVar[str] = "to"
 
@@ -441,8 +451,7 @@ class ReportPart(_Base, frozen=True, tag="rpp"):
     seq: Seq = msgspec.field(default=0, name="q")
 
     def __post_init__(self) -> None:
-        # The one check across fields (no type can say it); msgspec runs it when
-        # decoding too, and reports it as a validation error.
+        # The one check across fields; msgspec runs it when decoding too.
         if self.part >= self.parts:
             raise WireError(f"ReportPart.part: {self.part} of {self.parts} parts")
 
@@ -450,12 +459,9 @@ class ReportPart(_Base, frozen=True, tag="rpp"):
 class Ack(_Base, frozen=True, tag="ack"):
     """Cumulative acknowledgement from ``sender`` to ``dest`` (the reliability layer).
 
-    Every message of the link ``dest -> sender`` with ``seq <= upto`` and every
-    broadcast of ``dest`` with ``seq <= bupto`` arrived.  ``nack`` says the
-    sender of the Ack knows of a gap (it received a later message, or a
-    heartbeat announcing one): ``dest`` should resend what follows at once.
-    ``dest_incarnation`` is the incarnation of ``dest`` acknowledged (0: unknown).
-    """
+    Every message of the link ``dest -> sender`` with ``seq <= upto`` and every broadcast
+    of ``dest`` with ``seq <= bupto`` arrived; ``nack``: a gap is known, resend at once;
+    ``dest_incarnation``: the incarnation of ``dest`` acknowledged (0: unknown)."""
 
     KIND: ClassVar[str] = "to"
 
@@ -469,16 +475,11 @@ class Ack(_Base, frozen=True, tag="ack"):
 class Heartbeat(_Base, frozen=True, tag="hb"):
     """Periodic sign of life on ``hb/<sender>``, carrying the sender's acknowledgements.
 
-    ``sent`` maps each participant to the highest seq sent to it, ``bsent`` is
-    the highest broadcast seq; a receiver that has less asks for the rest with
-    a nack.  ``acks`` maps each participant P to the cumulative seq of the link
-    P -> sender delivered so far, ``backs`` the same for P's broadcasts: the
-    acknowledgements of steady traffic ride here, once per period, instead of
-    costing a message per trigger.  ``leaving`` is set once, when the sender
-    shuts down: peers then record it as gone rather than lost.  ``known`` maps
-    each participant in ``acks`` or ``backs`` to its incarnation those refer to:
-    a restarted participant ignores acknowledgements meant for its predecessor.
-    """
+    ``sent``/``bsent``: highest seq sent per link / broadcast (a receiver with less
+    nacks); ``acks``/``backs``: cumulative seq delivered from each P's link / broadcasts
+    (steady traffic's acks ride here); ``leaving``: the sender shuts down (gone, not
+    lost); ``known``: the incarnation each ack refers to (a restarted peer ignores its
+    predecessor's)."""
 
     KIND: ClassVar[str] = "hb"
 
@@ -498,6 +499,7 @@ Message = (
     | Start
     | Abort
     | Complete
+    | Operator
     | Progress
     | Resolved
     | Report
@@ -514,7 +516,7 @@ RELIABLE_TO: Final[frozenset[type[_Base]]] = frozenset(
 )
 """Addressed messages the reliability layer numbers per link (sender, dest) and acknowledges."""
 
-RELIABLE_BROADCAST: Final[frozenset[type[_Base]]] = frozenset({Start, Abort, Complete})
+RELIABLE_BROADCAST: Final[frozenset[type[_Base]]] = frozenset({Start, Abort, Complete, Operator})
 """Broadcasts the reliability layer numbers per sender and has every peer acknowledge."""
 
 _BY_CODE: Final[dict[str, type[_Base]]] = {
@@ -539,8 +541,7 @@ _BYTES: Final = (bytes, bytearray, memoryview)
 
 
 # ---------------------------------------------------------------------------
-# Encode / decode.  Sequence numbers and acks are ordinary fields (above);
-# authentication and encryption happen below, in ZeroMQ's CURVE mechanism.
+# Encode / decode (authentication and encryption happen below, in ZeroMQ's CURVE).
 
 # One encoder for all: it keeps its working state per call (thread-safe).
 _ENCODER: Final = msgspec.msgpack.Encoder()
@@ -586,9 +587,8 @@ def unpack_bounded(
             max_map_len=max_items,
             max_ext_len=0,
         )
-    # msgpack signals bad input with ValueError subclasses (incl. UnicodeDecodeError
-    # and StackError, too deep), its own UnpackException family, TypeError (e.g.
-    # unhashable keys) and OverflowError; all mean "not valid msgpack".
+    # ValueError (incl. UnicodeDecodeError, StackError), UnpackException, TypeError
+    # (unhashable keys), OverflowError: all mean "not valid msgpack".
     except (ValueError, TypeError, OverflowError, msgpack.UnpackException) as exc:
         raise WireError(f"{refusal}: {_cut(str(exc)) or type(exc).__name__}") from exc
 

@@ -277,6 +277,7 @@ def fly_rollout(
                 Limits(ready_timeout, opts.timeout_s),
                 alive=lambda: [n for n in drones if n not in exited],
                 on_ready=lambda s: _flying(run_dir, speak, s),
+                control=run_dir,
             )
         outcome, started, ready_s = flight.outcome, flight.started, flight.ready_s
     finally:

@@ -85,7 +85,9 @@ def test_every_key_users_rely_on_is_written() -> None:
         "links",
         "drones",
         "ground_station",
+        "operator_commands",  # the operator's pause, hold, land ... in order
     }
+    assert data["operator_commands"] == []
     assert "rollout" in summary(rollout={}).to_json()
     assert data["drones"]["Drone1"] == {**REPORT, "exit_code": 0}
     assert data["drones"]["Drone2"] == {

@@ -33,6 +33,7 @@ from eamos.net import (
     encode,
     topic_telemetry,
     topic_to,
+    wire,
 )
 from eamos.net.wire import MAX_PAYLOAD_BYTES, MESSAGE_TYPES
 
@@ -61,6 +62,7 @@ SAMPLES: list[Message] = [
     Heartbeat(M, "D1", {"D2": 17, "GCS": 4}, 0),
     Heartbeat(M, "GCS", {}, 3, leaving=True),
     ReportPart(M, "D2", 1, 3, b"\x81\xa1a", seq=5),
+    wire.Operator(M, "GCS", "pause", origin="monitor page"),
 ]
 
 
@@ -204,7 +206,8 @@ MALFORMED: list[tuple[str, Any, str]] = [
     ("version 2", [TO, body(v=2)], "version"),
     ("version 3", [TO, body(v=3)], "version"),
     ("version 4", [TO, body(v=4)], "version"),
-    ("version 6", [TO, body(v=6)], "version"),
+    ("version 5", [TO, body(v=5)], "version"),
+    ("version 7", [TO, body(v=7)], "version"),
     ("version true", [TO, body(v=True)], "version"),
     ("version float", [TO, body(v=3.0)], "version"),
     ("version str", [TO, body(v="2")], "version"),

@@ -53,6 +53,11 @@ KINDS: list[tuple[wire.Message, bytes, dict[str, Any]]] = [
     (wire.Abort(M, "GCS", "operator", seq=2), b"all", {"r": "operator", "q": 2, "n": 0}),
     (wire.Complete(M, "GCS", seq=3, incarnation=5), b"all", {"q": 3, "n": 5}),
     (
+        wire.Operator(M, "GCS", "hold", "D2", "cli user ann", seq=4),
+        b"all",
+        {"c": "hold", "tg": "D2", "o": "cli user ann", "q": 4, "n": 0},
+    ),
+    (
         wire.Progress(M, "D2", "started", "n4", "goto", {"lat": 1.5, "path": [1, "a", None]}),
         b"to/GCS",
         {
@@ -103,6 +108,7 @@ CODES = {
     wire.Start: "sta",
     wire.Abort: "abt",
     wire.Complete: "cmp",
+    wire.Operator: "opc",
     wire.Progress: "prg",
     wire.Resolved: "res",
     wire.Report: "rep",
@@ -113,7 +119,7 @@ CODES = {
 
 
 def expected(msg: wire.Message, own: dict[str, Any]) -> dict[str, Any]:
-    return {"v": 5, "t": CODES[type(msg)], "m": M, "s": msg.sender, **own}
+    return {"v": 6, "t": CODES[type(msg)], "m": M, "s": msg.sender, **own}
 
 
 def test_every_kind_is_here() -> None:

@@ -345,6 +345,15 @@ class MavlinkAdapter:
             out["taken_over"] = taken.to_json()
         return out
 
+    def autopilot_status(self) -> tuple[str, int, list[tuple[int, str]]]:
+        """The vehicle's own flight mode, how many STATUSTEXTs it sent, and the latest
+        (severity, text) pairs: the operator's page shows them (the Adapter protocol's
+        optional part, read by the uniform API at each telemetry sample)."""
+        with self._cond:
+            st = self.vehicle.state
+            texts = list(zip(st.severities, st.statustexts, strict=False))
+            return self.vehicle.mode_name(), st.statustext_serial, texts
+
     # -- observation (tests, tools) ------------------------------------------
 
     @property

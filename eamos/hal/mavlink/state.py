@@ -117,6 +117,7 @@ class LinkState:
     ack_serial: int = 0
     statustexts: deque[str] = field(default_factory=lambda: deque(maxlen=20))
     statustext_serial: int = 0
+    severities: deque[int] = field(default_factory=lambda: deque(maxlen=20))  # of each text
     #: Vehicle HEARTBEATs the link refused for their signature (signing.refused_frame):
     #: how many, whether the latest was signed (with another key) and by which autopilot.
     refused_heartbeats: int = 0
@@ -406,6 +407,7 @@ class StateTracker:
             text = "".join(self._chunks.pop(chunk_id))
         st = self.state
         st.statustexts.append(text)
+        st.severities.append(int(msg.severity))
         st.statustext_serial += 1
         if "failsafe" in text.lower():
             st.failsafe_at = now

@@ -122,6 +122,8 @@ function draw() {
   const st = state.stats;
   if (st) $("stats").textContent = `updates coalesced ${st.coalesced}, frames dropped ${st.dropped}`;
   $("abort").disabled = !token || !!replay || FINAL.has(m.state) || ws.readyState !== 1;
+  $("pause").disabled = !commandsOn() || m.state !== "running";
+  $("resume").disabled = !commandsOn() || m.state !== "paused";
   drawDrones();
   drawLinks();
   drawMap();
@@ -144,15 +146,28 @@ function drawDrones() {
       row.dataset.home = part.home.join(",");
       row.innerHTML = `<td><span class="swatch" style="background:${part.colour}"></span>${name}</td>` +
         "<td class='mode'></td><td class='armed'></td><td class='battery'></td><td class='link'></td>" +
-        "<td class='action'></td><td class='pos'></td><td class='trig'></td>";
+        "<td class='action'></td><td class='pos'></td><td class='trig'></td><td class='cmds'></td>";
+      for (const [command, label] of DRONE_COMMANDS) {
+        const b = document.createElement("button");
+        b.type = "button";
+        b.className = "cmd";
+        b.dataset.command = command;
+        b.textContent = label;
+        b.addEventListener("click", () => askCommand(command, name));
+        row.querySelector(".cmds").appendChild(b);
+      }
       const line = document.createElement("tr");
       line.dataset.line = name;
-      line.innerHTML = "<td class='line' colspan='8'></td>";
+      line.innerHTML = "<td class='line' colspan='9'></td>";
       body.appendChild(row);
       body.appendChild(line);
     }
     const cell = (c) => row.querySelector(`.${c}`);
-    cell("mode").textContent = d.mode || "";
+    cell("mode").textContent = (d.mode || "") + (d.autopilot ? ` (${d.autopilot})` : "") +
+      (d.operator ? ` · ${d.operator}` : "");
+    cell("mode").dataset.autopilot = d.autopilot || "";
+    cell("mode").dataset.operator = d.operator || "";
+    for (const b of row.querySelectorAll("button.cmd")) b.disabled = !commandsOn();
     cell("armed").textContent = d.armed === null || d.armed === undefined ? "" : d.armed ? "armed" : "disarmed";
     cell("battery").textContent = d.battery === null || d.battery === undefined ? "" : `${fmt(d.battery, 0)} %`;
     cell("link").textContent = d.link || "";
@@ -160,13 +175,18 @@ function drawDrones() {
     cell("action").textContent = d.action || "";
     const pos = cell("pos");
     pos.textContent = d.x === null || d.x === undefined ? "" : `${fmt(d.x, 2)}, ${fmt(d.y, 2)}, ${fmt(d.z, 2)}`;
+    if (d.lat !== null && d.lat !== undefined) pos.textContent += ` (${fmt(d.lat, 6)}°, ${fmt(d.lon, 6)}°)`;
     for (const a of ["x", "y", "z"]) pos.dataset[a] = d[a] === null || d[a] === undefined ? "" : d[a];
     // The report's counts once it arrived; until then the live counts of the links table.
     const live = liveTotals(name);
     const sent = d.triggers_sent === null || d.triggers_sent === undefined ? live[0] : d.triggers_sent;
     const recv = d.triggers_received === null || d.triggers_received === undefined ? live[1] : d.triggers_received;
     cell("trig").textContent = `${sent} / ${recv} of ${part.external_out} / ${part.external_in}`;
-    body.querySelector(`tr[data-line="${name}"] td`).textContent = d.line || "";
+    const said = (d.statustext || []).map(([sev, text]) => `${SEVERITIES[sev] || sev}: ${text}`);
+    const lineCell = body.querySelector(`tr[data-line="${name}"] td`);
+    lineCell.textContent = (d.line || "") + (d.failure ? `   [failed: ${d.failure}]` : "") +
+      (said.length ? `   [autopilot: ${said.join(" | ")}]` : "");
+    lineCell.dataset.statustext = said.join("\n");
   }
 }
 
@@ -384,6 +404,51 @@ function colourGraphs() {
   }
 }
 
+// -- the operator's commands --------------------------------------------------------------
+
+// MAVLink's MAV_SEVERITY, 0 to 7.
+const SEVERITIES = ["EMERGENCY", "ALERT", "CRITICAL", "ERROR", "WARNING", "NOTICE", "INFO", "DEBUG"];
+const DRONE_COMMANDS = [["hold", "Hold"], ["resume", "Resume"], ["land", "Land"],
+  ["return-home", "Home"], ["release", "Release"]];
+const QUESTIONS = {
+  pause: "Pause the mission? Every drone holds where it is until Resume.",
+  resume: "Resume the mission? Every suspended action goes on.",
+  hold: "holds where it is until Resume.",
+  resume1: "goes on (or, released, EAMOS takes it back).",
+  land: "lands now; its remaining actions fail.",
+  "return-home": "flies home and lands; its remaining actions fail.",
+  release: "is handed to a pilot: EAMOS stops commanding it until Resume.",
+};
+let pending = null;
+
+function commandsOn() {
+  return !!token && !replay && !!state && !FINAL.has(state.mission.state) && !!ws && ws.readyState === 1;
+}
+
+function askCommand(command, drone) {
+  pending = { command, drone };
+  const q = drone ? `${drone} ${QUESTIONS[command === "resume" ? "resume1" : command]}` : QUESTIONS[command];
+  $("cmd-question").textContent = q;
+  $("cmd-confirm").hidden = false;
+}
+
+async function doCommand() {
+  $("cmd-confirm").hidden = true;
+  if (!pending) return;
+  const { command, drone } = pending;
+  pending = null;
+  const res = await fetch("/api/command", {
+    method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify({ token, command, drone }),
+  });
+  const body = await res.json().catch(() => ({}));
+  const out = $("cmd-result");
+  out.hidden = false;
+  out.dataset.ok = res.ok ? "yes" : "no";
+  out.textContent = res.ok ? `${command} sent to ${drone || "every drone"}.` : `${command} refused: ${body.error || res.status}`;
+}
+
 // -- abort and replay ---------------------------------------------------------------------
 
 async function doAbort() {
@@ -436,6 +501,10 @@ async function main() {
   $("abort").addEventListener("click", () => { $("confirm").hidden = false; });
   $("abort-yes").addEventListener("click", doAbort);
   $("abort-no").addEventListener("click", () => { $("confirm").hidden = true; });
+  $("pause").addEventListener("click", () => askCommand("pause", ""));
+  $("resume").addEventListener("click", () => askCommand("resume", ""));
+  $("cmd-yes").addEventListener("click", doCommand);
+  $("cmd-no").addEventListener("click", () => { $("cmd-confirm").hidden = true; pending = null; });
   if (replay) setupReplay();
   await loadGraphs();
   connect();

@@ -1,0 +1,127 @@
+"""The mission's state now, for the operator: ``snapshot.json`` in the run folder.
+
+The ground station writes it when the operator pauses the mission and at the run's
+end, from what the drones already report (their progress and telemetry): per drone
+the state of each node it reported and the activation (loop counters) it was in, the
+running action, and the vehicle's latest position, velocity (from its last two
+samples), battery, armed, landed and lat/lon (``from``: ``telemetry``, or ``report`` once
+its final report gave where its last action left it); per run the operator's commands so far.
+docs/operations.md ("Operator in the loop") describes the fields.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from eamos.logs import report_write_error
+
+from .station import DroneView
+from .summary import operator_commands
+
+__all__ = ["SNAPSHOT_FILE", "mission_snapshot", "write_snapshot"]
+
+SNAPSHOT_FILE = "snapshot.json"
+
+
+def drone_snapshot(view: DroneView) -> dict[str, Any]:
+    """One participant's part of the snapshot (pure: from its view)."""
+    nodes: dict[str, dict[str, Any]] = {}
+    for event in view.events:
+        node, state = event.get("node"), event.get("state")
+        if isinstance(node, str) and node and isinstance(state, str):
+            nodes[node] = {"state": state, "iteration": list(event.get("iteration") or [])}
+    running = [
+        {"node": n, "action": next(
+            (e.get("action") for e in reversed(view.events) if e.get("node") == n), ""
+        ), "iteration": v["iteration"]}
+        for n, v in nodes.items()
+        if v["state"] == "running"
+    ]  # fmt: skip
+    vehicle: dict[str, Any] | None = None
+    if view.samples:
+        last = view.samples[-1]
+        vehicle = {
+            "t": last.time_s,
+            "x": last.x_m,
+            "y": last.y_m,
+            "z": last.z_m,
+            "lat": last.lat_deg,
+            "lon": last.lon_deg,
+            "battery": last.battery_pct,
+            "armed": last.armed,
+            "landed": last.landed,
+            "velocity": velocity(view.samples),
+            "from": "telemetry",
+        }
+    final = view.report.final if view.report is not None else None
+    if final is not None:  # its report came: where its last action left it, exactly
+        vehicle = {
+            **(vehicle or {}),
+            "x": final.x,
+            "y": final.y,
+            "z": final.z,
+            "battery": final.battery,
+            "armed": final.armed,
+            "landed": final.landed,
+            "velocity": [0.0, 0.0, 0.0],
+            "from": "report",
+        }
+    return {
+        "state": view.state,
+        "mode": view.mode,  # its autopilot's own flight mode ("": not a MAVLink drone)
+        "link": view.link,
+        "resolved": view.resolved,
+        "action": view.action,
+        "running": running,
+        "nodes": nodes,
+        "vehicle": vehicle,
+    }
+
+
+def velocity(samples: list[Any]) -> list[float] | None:
+    """(vx, vy, vz) m/s from the last two samples (None: fewer, or no time between them)."""
+    if len(samples) < 2:
+        return None
+    a, b = samples[-2], samples[-1]
+    dt = b.time_s - a.time_s
+    if dt <= 0:
+        return None
+    return [
+        round((b.x_m - a.x_m) / dt, 3),
+        round((b.y_m - a.y_m) / dt, 3),
+        round((b.z_m - a.z_m) / dt, 3),
+    ]
+
+
+def mission_snapshot(
+    views: Mapping[str, DroneView], why: str, mission_id: str, paused: bool
+) -> dict[str, Any]:
+    """The whole snapshot (pure but for the time it is taken)."""
+    return {
+        "why": why,
+        "t": time.time(),
+        "mission_id": mission_id,
+        "paused": paused,
+        "participants": {name: drone_snapshot(view) for name, view in views.items()},
+        "operator_commands": list(operator_commands(views)),
+    }
+
+
+def write_snapshot(
+    run_dir: Path, views: Mapping[str, DroneView], why: str, mission_id: str, paused: bool
+) -> Path | None:
+    """Write ``run_dir/snapshot.json`` (whole, replaced atomically); None if it could not."""
+    path = Path(run_dir) / SNAPSHOT_FILE
+    text = json.dumps(mission_snapshot(views, why, mission_id, paused), indent=1) + "\n"
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(text)
+        tmp.replace(path)
+    except OSError as exc:
+        report_write_error(path, exc, "the run goes on")
+        return None
+    return path
