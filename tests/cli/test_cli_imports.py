@@ -72,6 +72,9 @@ def imported(module: str, argv: list[str]) -> dict:
         ["keys", "--help"],
         ["rollout", "--help"],
         ["start", "--help"],
+        ["pause", "--help"],
+        ["resume", "--help"],
+        ["drone", "--help"],
     ],
     ids=" ".join,
 )
