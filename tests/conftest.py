@@ -8,7 +8,7 @@ skip fails the run, so CI always runs everything.
 Order: the tiers that start no process run first and the tests marked ``e2e``
 (they fly in real time: ``eamos`` processes, simulated vehicles, namespaces,
 SSH, a browser) last, so a broken compiler or node logic fails in seconds, not
-after the flights; the real autopilots (``tests/sitl``) first among those.
+after the flights; the real autopilots (``tests/sitl``) last of all.
 ``pytest -m "not e2e"`` runs only the first part (``.ci/run`` runs it, for the
 computing tiers, on the other interpreters).
 
@@ -68,11 +68,11 @@ TIERS = (
 HERE = Path(__file__).parent
 
 
-#: The tier that flies the real autopilots (tests/sitl).  Its vehicles lose their heartbeats
-#: when the machine is far beyond its cores, so its tests run one after the other on one
-#: worker (an ``xdist_group``), first of the real-time tests: once the tiers that only
-#: compute are done, beside the flights that mostly wait.  They fly in real time, so they
-#: are ``e2e`` too (``-m "not e2e"`` leaves them out).
+#: The tier that flies the real autopilots (tests/sitl).  Its vehicles miss heartbeats and
+#: mode changes when the machine is far beyond its cores, so its tests run one after the
+#: other on one worker (an ``xdist_group``), last: by then the other workers have little
+#: left to do.  They fly in real time, so they are ``e2e`` too (``-m "not e2e"`` leaves
+#: them out).
 SITL_TIER = "sitl"
 
 
@@ -86,7 +86,7 @@ def _top(item: pytest.Item) -> str:
 def _rank(item: pytest.Item) -> tuple[bool, bool, int]:
     top = _top(item)
     tier = TIERS.index(top) if top in TIERS else len(TIERS)
-    return item.get_closest_marker("e2e") is not None, top != SITL_TIER, tier
+    return item.get_closest_marker("e2e") is not None, top == SITL_TIER, tier
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
