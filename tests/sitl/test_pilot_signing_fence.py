@@ -324,9 +324,17 @@ def test_a_pilots_loiter_from_a_second_ground_station_ends_eamos_commanding(sitl
     )
     pilot = Pilot(serial1, AP + 1)
     try:
-        # The pilot's own channel streams positions only when asked.
-        pilot.mav.request_data_stream_send(AP + 1, 1, 0, 10, 1)
-        pilot.wait("LOCAL_POSITION_NED", lambda m: m.y > 3.0, timeout=400)
+        # The pilot's own channel streams positions only when asked, and a request sent
+        # while the vehicle still boots is lost: asked again until the move is seen.
+        deadline = time.monotonic() + 400
+        while True:
+            pilot.mav.request_data_stream_send(AP + 1, 1, 0, 10, 1)
+            try:
+                pilot.wait("LOCAL_POSITION_NED", lambda m: m.y > 3.0, timeout=5)
+                break
+            except AssertionError:
+                if time.monotonic() > deadline:
+                    raise
         assert pilot.take(LOITER) == 0
         out, _ = run.communicate(timeout=400)
         # Long after the run: still the pilot's (LOITER, armed, in the air).

@@ -177,8 +177,11 @@ class Waiter:
         return lambda st: f"timeout after {t:g} s: {what}"
 
     def confirm_s(self) -> float:
-        """How long a HEARTBEAT may take to confirm an acknowledged change."""
-        return max(2.5, self.s.command_timeout_s * self.s.command_retries)
+        """How long a HEARTBEAT may take to confirm an acknowledged change: as long as the
+        command's retries, and never less than a HEARTBEAT may be missing before the link
+        counts as lost (``heartbeat_timeout_s``)."""
+        s = self.s
+        return max(2.5, s.command_timeout_s * s.command_retries, s.heartbeat_timeout_s)
 
 
 __all__ = ["Check", "Ended", "Failed", "Guard", "Run", "RunKind", "TimedOut", "Waiter"]
