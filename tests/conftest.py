@@ -89,6 +89,9 @@ def _rank(item: pytest.Item) -> tuple[bool, bool, int]:
     return item.get_closest_marker("e2e") is not None, top == SITL_TIER, tier
 
 
+# First: pytest-xdist's own hook reads the xdist_group marks (it names each test's group in
+# its node id), so the SITL tier's group must be marked before it runs.
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         if _top(item) == SITL_TIER:
