@@ -1,7 +1,8 @@
 """The simulated autopilot disarms by itself after landing, as PX4 and ArduCopter do.
 
 PX4 "Disarmed by landing" COM_DISARM_LAND (2 s) after landing; ArduCopter about
-2 s after "Land complete" (../shared/notes).  Stepped by hand: exact simulated times.
+2 s after "Land complete" (both seen on the SITLs, docs/flying-real-drones.md).  Stepped
+by hand: exact simulated times.
 """
 
 from __future__ import annotations
