@@ -91,19 +91,24 @@ def test_a_killed_node_is_reported_where_it_was_last_seen(tmp_path: Path) -> Non
         run.kill()
     text = run.text()
     assert told_s < 15
-    # Its last telemetry at the ground station: on its first side of the square, at 1.5 m.
+    # Its last telemetry at the ground station: on the first side of the square, or, when
+    # the ground station's line trailed the node on a loaded machine, on the second (the
+    # kill follows the line, and Drone1 goes on to FlyByY(1) once Drone2 ends its side).
     seen_at = re.search(
         r"last seen in the air, armed, at \((.+), (.+), (.+)\) m from its home", line
     )
     assert seen_at, line
     x, y, z = (float(v) for v in seen_at.groups())
-    assert 0.0 <= x <= 1.2 and abs(y) < 0.2 and z == pytest.approx(1.5, abs=0.3), line
+    first_side = 0.0 <= x <= 1.2 and abs(y) < 0.2
+    second_side = abs(x - 1.0) < 0.2 and -0.2 <= y <= 1.2
+    assert (first_side or second_side) and z == pytest.approx(1.5, abs=0.3), line
     summary = read_json(tmp_path / "summary.json")
     d1 = summary["drones"]["Drone1"]
     assert d1["error"] == "no report" and d1["exit_code"] == -9
     seen = d1["last_seen"]
     assert seen["armed"] is True and seen["landed"] is False, seen
-    assert 0.0 <= seen["x"] <= 1.2 and seen["z"] == pytest.approx(1.5, abs=0.3), seen
+    # The summary says the point of the line (or a sample that was in flight at the kill).
+    assert (seen["x"], seen["y"], seen["z"]) == pytest.approx((x, y, z), abs=0.3), (seen, line)
     assert isinstance(seen["t"], float) and seen["t"] <= time.time()
     # The closing lines say it too, not only "no report".
     closing = [ln for ln in text.splitlines() if ln.startswith("  Drone1:")]

@@ -9,9 +9,11 @@ from collections import deque
 import pytest
 
 from eamos.hal.api import AdapterError
+from eamos.hal.mavlink.link import MAV_SYS_STATUS_PREARM_CHECK
 from eamos.hal.mavlink.params import from_wire, speed_plan, to_wire
 from eamos.hal.mavlink.settings import MavlinkSettings
 from eamos.hal.mavlink.state import LinkState
+from eamos.hal.mavlink.vehicle import SYS_STATUS_GRACE_S, armable
 
 
 def test_speed_plans_name_each_autopilots_parameters_and_units():
@@ -78,3 +80,24 @@ def test_settle_window_needs_the_whole_window_and_averages_it():
     assert st.window(10.0, 2.0) is None  # not heard for 2 s yet
     latest = st.window(10.0, 0.0)
     assert latest is not None and math.isclose(latest[1], 0.3)
+
+
+def test_armable_waits_for_sys_status_when_positions_come_first():
+    # ArduCopter streams LOCAL_POSITION_NED as soon as asked, before "ArduPilot Ready"
+    # (which overwrites a mode set earlier): a position alone is not armable.
+    st = LinkState()
+    st.local, st.local_since, st.last_rx = (0.0,) * 6, 100.0, 100.5
+    assert not armable(st)
+    st.sensors_present = st.sensors_health = 0
+    assert armable(st)  # SYS_STATUS without the pre-arm bit: try, and let it refuse
+    st.sensors_present = MAV_SYS_STATUS_PREARM_CHECK
+    assert not armable(st)
+    st.sensors_health = MAV_SYS_STATUS_PREARM_CHECK
+    assert armable(st)
+    # An autopilot that never sends SYS_STATUS is tried once positions came for the grace.
+    silent = LinkState()
+    silent.local, silent.local_since = (0.0,) * 6, 100.0
+    silent.last_rx = 100.0 + SYS_STATUS_GRACE_S - 0.1
+    assert not armable(silent)
+    silent.last_rx = 100.0 + SYS_STATUS_GRACE_S
+    assert armable(silent)

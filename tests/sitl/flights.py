@@ -206,16 +206,20 @@ def assert_vehicles_safe(flown: Flown, fleet: SitlFleet) -> None:
             assert not hits, f"{drone}: {hits}"
 
 
-def heights_during(flown: Flown, drone: str, action: str) -> list[float]:
-    """Heights (mission z) the adapter logged while ``action`` ran on ``drone``."""
-    events = flown.events(drone)
-    heights: list[float] = []
+def positions_during(flown: Flown, drone: str, action: str) -> list[dict[str, Any]]:
+    """The ``adapter.position`` events the adapter logged while ``action`` ran on ``drone``."""
+    positions: list[dict[str, Any]] = []
     running = False
-    for event in events:
+    for event in flown.events(drone):
         if event["event"] == "adapter.action.start" and event["action"] == action:
             running = True
         elif event["event"] == "adapter.action.end" and event["action"] == action:
             running = False
         elif running and event["event"] == "adapter.position":
-            heights.append(float(event["z_m"]))
-    return heights
+            positions.append(event)
+    return positions
+
+
+def heights_during(flown: Flown, drone: str, action: str) -> list[float]:
+    """Heights (mission z) the adapter logged while ``action`` ran on ``drone``."""
+    return [float(event["z_m"]) for event in positions_during(flown, drone, action)]

@@ -91,6 +91,7 @@ class LinkState:
     failsafe_at: float = -math.inf  # last STATUSTEXT mentioning a failsafe
     local: tuple[float, float, float, float, float, float] | None = None  # NED x y z vx vy vz
     local_count: int = 0
+    local_since: float | None = None  # when the first LOCAL_POSITION_NED came (monotonic)
     #: Recent LOCAL_POSITION_NED (receive time, NED x y z vx vy vz): the settle window.
     recent: deque[tuple[float, tuple[float, ...]]] = field(
         default_factory=lambda: deque(maxlen=RECENT_SAMPLES)
@@ -299,6 +300,8 @@ class StateTracker:
     def _on_local_position_ned(self, msg: Any, now: float, events: Events) -> None:
         self.state.local = (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
         self.state.local_count += 1
+        if self.state.local_since is None:
+            self.state.local_since = now
         self.state.recent.append((now, self.state.local))
 
     def _mission(self, msg: Any, now: float, events: Events) -> None:

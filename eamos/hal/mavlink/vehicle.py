@@ -65,6 +65,9 @@ MAV_LANDED_STATE_ON_GROUND = 1
 #: Below this height (m above the take-off ground) a vehicle without
 #: EXTENDED_SYS_STATE counts as on the ground.
 GROUND_Z_M = 0.1
+#: A vehicle that sends positions but no SYS_STATUS for this long (wall seconds) is
+#: tried for arming without a pre-arm bit (older firmware, other stacks).
+SYS_STATUS_GRACE_S = 3.0
 #: ArduPilot position targets are re-sent this often (they need not stream,
 #: but a lost UDP datagram must not strand the vehicle).
 TARGET_REFRESH_S = 1.0
@@ -98,6 +101,24 @@ def heartbeat_lost(st: LinkState, settings: MavlinkSettings) -> str:
         f"heartbeat lost: no HEARTBEAT from the vehicle for more than "
         f"{settings.heartbeat_timeout_s:g} s{why}"
     )
+
+
+def armable(st: LinkState) -> bool:
+    """A position estimate, and the pre-arm bit of SYS_STATUS when the vehicle reports it.
+
+    Without a SYS_STATUS yet, only once positions have come for
+    :data:`SYS_STATUS_GRACE_S`: ArduCopter streams positions as soon as asked, before
+    "ArduPilot Ready", and a mode set before that is overwritten.
+    """
+    if st.local is None:
+        return False
+    present = st.sensors_present
+    if present is None:
+        since = st.local_since
+        return since is not None and st.last_rx - since >= SYS_STATUS_GRACE_S
+    if not present & MAV_SYS_STATUS_PREARM_CHECK:
+        return True  # an autopilot that does not report the bit: try, and let it refuse
+    return bool((st.sensors_health or 0) & MAV_SYS_STATUS_PREARM_CHECK)
 
 
 class MavlinkVehicle:
@@ -249,14 +270,8 @@ class MavlinkVehicle:
         return self.autopilot.mode_name((st or self.state).custom_mode)
 
     def armable(self, st: LinkState) -> bool:
-        """A position estimate, and the pre-arm bit of SYS_STATUS when the vehicle reports it."""
-        if st.local is None:
-            return False
-        present = st.sensors_present
-        if present is None or not present & MAV_SYS_STATUS_PREARM_CHECK:
-            # An autopilot that does not report the bit: try, and let it refuse.
-            return present is not None or st.local_count > 0
-        return bool((st.sensors_health or 0) & MAV_SYS_STATUS_PREARM_CHECK)
+        """A position estimate, and the pre-arm bit of SYS_STATUS (:func:`armable`)."""
+        return armable(st)
 
     def mission_position(self, st: LinkState | None = None) -> Vector:
         """Where the vehicle is, in the mission frame (needs a LOCAL_POSITION_NED)."""
@@ -458,4 +473,5 @@ __all__ = [
     "TYPE_MASK_POSITION",
     "GuidedTarget",
     "MavlinkVehicle",
+    "armable",
 ]
