@@ -9,8 +9,9 @@ test's recorder.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol, TypeVar
+
+import msgspec
 
 from .state import Iteration, Status
 
@@ -32,8 +33,7 @@ class Mailbox(Protocol[M]):
         ...
 
 
-@dataclass(frozen=True)
-class Trigger:
+class Trigger(msgspec.Struct, frozen=True):
     """A precondition arc delivers: node ``src`` finished ``iteration`` with ``status``."""
 
     src: str
@@ -42,8 +42,7 @@ class Trigger:
     status: Status
 
 
-@dataclass(frozen=True)
-class RemoteTrigger(Trigger):
+class RemoteTrigger(Trigger, frozen=True):
     """A :class:`Trigger` the In-Bridge delivered from drone ``src_drone``.
 
     The node writes the ``mission.inbridge.received`` line after its own work, so
@@ -53,13 +52,11 @@ class RemoteTrigger(Trigger):
     src_drone: str = ""
 
 
-@dataclass(frozen=True)
-class Fire:
+class Fire(msgspec.Struct, frozen=True):
     """Start the initial node (the ground station's start trigger)."""
 
 
-@dataclass(frozen=True)
-class Interrupt:
+class Interrupt(msgspec.Struct, frozen=True):
     """The structure ``scope`` (a Do or Repeat begin node) interrupts its body."""
 
     scope: int
@@ -67,15 +64,13 @@ class Interrupt:
     mode: str  # "all", "waits", or a Whenever's "suspend"/"resume"
 
 
-@dataclass(frozen=True)
-class Release:
+class Release(msgspec.Struct, frozen=True):
     """A Do's end node tells its begin node that Body is over: stop watching."""
 
     iteration: Iteration
 
 
-@dataclass(frozen=True)
-class PeerLost:
+class PeerLost(msgspec.Struct, frozen=True):
     """The drone hosting the nodes ``sources`` (keys) is lost for good (its link is gone).
 
     Nodes inside a Try's Body then count its arcs as ``failed``: the Try catches it
@@ -85,62 +80,54 @@ class PeerLost:
     sources: frozenset[str]
 
 
-@dataclass(frozen=True)
-class TelemetryChanged:
+class TelemetryChanged(msgspec.Struct, frozen=True):
     """New property values of one drone, for the nodes watching it."""
 
     drone: str
-    values: PropertyValues = field(hash=False)
+    values: PropertyValues
 
 
-@dataclass(frozen=True)
-class Watch:
+class Watch(msgspec.Struct, frozen=True):
     """Ask the telemetry board for updates of these drones."""
 
     watcher: Mailbox[TelemetryChanged]
     drones: tuple[str, ...]
 
 
-@dataclass(frozen=True)
-class Unwatch:
+class Unwatch(msgspec.Struct, frozen=True):
     """Stop the telemetry board's updates to this watcher."""
 
     watcher: Mailbox[TelemetryChanged]
 
 
-@dataclass(frozen=True)
-class RemoteTelemetry:
+class RemoteTelemetry(msgspec.Struct, frozen=True):
     """A telemetry sample received from another drone."""
 
     drone: str
-    values: PropertyValues = field(hash=False)
+    values: PropertyValues
 
 
-@dataclass(frozen=True)
-class AbortMission:
+class AbortMission(msgspec.Struct, frozen=True):
     """Stop executing: no more actions, no more triggers."""
 
     reason: str = ""
 
 
-@dataclass(frozen=True)
-class SendTrigger:
+class SendTrigger(msgspec.Struct, frozen=True):
     """Ask the out-bridge to deliver a trigger to another drone."""
 
     dest: str
     trigger: Trigger
 
 
-@dataclass(frozen=True)
-class SendInterrupt:
+class SendInterrupt(msgspec.Struct, frozen=True):
     """Ask the out-bridge to deliver an interrupt to another drone."""
 
     dest: str
     interrupt: Interrupt
 
 
-@dataclass(frozen=True)
-class ActionRecord:
+class ActionRecord(msgspec.Struct, frozen=True):
     """One action a node ran, for the summary (times in epoch seconds)."""
 
     node: str
@@ -153,8 +140,7 @@ class ActionRecord:
     reason: str = ""
 
 
-@dataclass(frozen=True)
-class NodeEvent:
+class NodeEvent(msgspec.Struct, frozen=True):
     """A node started or finished something worth showing live."""
 
     node: str
@@ -164,8 +150,7 @@ class NodeEvent:
     detail: str = ""
 
 
-@dataclass(frozen=True)
-class NodeResolved:
+class NodeResolved(msgspec.Struct, frozen=True):
     """A top-level node (outside any loop) has finished for good."""
 
     node: str

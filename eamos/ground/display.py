@@ -15,6 +15,7 @@ picks one.  :class:`HeldLines` is the plain display's ordering, pure.
 from __future__ import annotations
 
 import heapq
+import importlib.util
 import sys
 import threading
 import time
@@ -352,11 +353,26 @@ class LiveDisplay:
             print(text, flush=True)
 
 
-def make_display(live: bool | None, names: list[str]) -> PlainDisplay | LiveDisplay:
-    """A live table if ``live`` (None: when stdout is a terminal), else plain lines.
+#: Said once when a terminal gets plain lines because rich is not installed.
+NO_LIVE_TABLE = "eamos: plain progress lines (for a live table: pip install 'eamos[live]')"
+
+
+def live_table_installed() -> bool:
+    """True when rich, the live table's library (the ``live`` extra), is installed."""
+    return importlib.util.find_spec("rich") is not None
+
+
+def make_display(
+    live: bool | None, names: list[str], installed: Callable[[], bool] = live_table_installed
+) -> PlainDisplay | LiveDisplay:
+    """A live table if ``live`` (None: when stdout is a terminal and rich is installed),
+    else plain lines (a terminal without rich is told so once).
 
     Call its ``watch(station)`` once the ground station is built.
     """
     if live is None:
         live = sys.stdout.isatty()
+        if live and not installed():
+            print(NO_LIVE_TABLE, flush=True)
+            live = False
     return LiveDisplay(names) if live else PlainDisplay()

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import io
+import sys
 import time
 
 from eamos.ground import DroneView, LiveDisplay, PlainDisplay, format_event
+from eamos.ground.display import NO_LIVE_TABLE, live_table_installed, make_display
 from eamos.net import wire
 from eamos.net.link import PeerStatus
 
@@ -168,3 +170,26 @@ def test_the_station_hands_on_every_change_of_a_batch() -> None:
     view = station.snapshot()["Drone1"]
     assert (view.state, view.action, view.done_actions) == ("running", "Takeoff(2)", 1)
     assert [e["state"] for e in view.events] == ["running", "ok", "running"]
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_terminal_without_rich_gets_plain_lines_and_is_told_once(monkeypatch) -> None:
+    # rich is the `live` extra: a drone's node need not load it (structlog imports rich
+    # whenever it is installed).  Without it, a terminal gets plain lines and one hint.
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stdout", terminal)
+    shown = make_display(None, ["Drone1"], installed=lambda: False)
+    assert isinstance(shown, PlainDisplay)
+    assert terminal.getvalue() == NO_LIVE_TABLE + "\n"
+    assert isinstance(make_display(None, ["Drone1"], installed=lambda: True), LiveDisplay)
+    # Not a terminal (a pipe, a log file): plain lines, no hint; --plain: the same.
+    pipe = io.StringIO()
+    monkeypatch.setattr(sys, "stdout", pipe)
+    assert isinstance(make_display(None, ["Drone1"], installed=lambda: False), PlainDisplay)
+    assert isinstance(make_display(False, ["Drone1"], installed=lambda: True), PlainDisplay)
+    assert pipe.getvalue() == ""
+    assert live_table_installed()  # the test extra installs it

@@ -9,15 +9,15 @@ virtual-time driver (:mod:`eamos.virtual`), which routes them in one thread.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
+
+import msgspec
 
 from ..messages import ActionRecord, Interrupt, NodeEvent
 from ..state import Iteration, Status
 
 
-@dataclass(frozen=True)
-class Route:
+class Route(msgspec.Struct, frozen=True):
     """One outgoing arc of a node."""
 
     dst: str
@@ -26,8 +26,7 @@ class Route:
     external: bool
 
 
-@dataclass(frozen=True)
-class Emit:
+class Emit(msgspec.Struct, frozen=True):
     """Trigger the node at the end of ``route`` for ``iteration`` with ``status``."""
 
     route: Route
@@ -35,8 +34,7 @@ class Emit:
     status: Status
 
 
-@dataclass(frozen=True)
-class StartAction:
+class StartAction(msgspec.Struct, frozen=True):
     """Run the node's uniform action for this activation (answer: ``action_finished``)."""
 
     iteration: Iteration
@@ -44,27 +42,23 @@ class StartAction:
     args: tuple[float, ...]
 
 
-@dataclass(frozen=True)
-class CancelAction:
+class CancelAction(msgspec.Struct, frozen=True):
     """Cancel the action the node runs for this activation (it answers ``cancelled``)."""
 
     iteration: Iteration
 
 
-@dataclass(frozen=True)
-class WatchTelemetry:
+class WatchTelemetry(msgspec.Struct, frozen=True):
     """Push this node the property values of ``drones`` now and whenever they change."""
 
     drones: tuple[str, ...]
 
 
-@dataclass(frozen=True)
-class UnwatchTelemetry:
+class UnwatchTelemetry(msgspec.Struct, frozen=True):
     """Stop pushing telemetry to this node."""
 
 
-@dataclass(frozen=True)
-class Resolve:
+class Resolve(msgspec.Struct, frozen=True):
     """The node finished one activation; ``top_level``: for good (outside every loop)."""
 
     iteration: Iteration
@@ -72,43 +66,38 @@ class Resolve:
     top_level: bool
 
 
-@dataclass(frozen=True)
-class Broadcast:
+class Broadcast(msgspec.Struct, frozen=True):
     """Interrupt a structure's body on these drones (through the executive)."""
 
     interrupt: Interrupt
     drones: tuple[str, ...]
 
 
-@dataclass(frozen=True)
-class Progress:
+class Progress(msgspec.Struct, frozen=True):
     """Something worth showing live (the executive coalesces it for the ground station)."""
 
     event: NodeEvent
 
 
-@dataclass(frozen=True)
-class Record:
+class Record(msgspec.Struct, frozen=True):
     """An action ended: its record for the summary (doubles as the "finished" progress)."""
 
     record: ActionRecord
 
 
-@dataclass(frozen=True)
-class ReleaseBegin:
+class ReleaseBegin(msgspec.Struct, frozen=True):
     """A Do's end node tells its begin node (if it runs on the same drone) to stop watching."""
 
     begin: str
     iteration: Iteration
 
 
-@dataclass(frozen=True)
-class Note:
+class Note(msgspec.Struct, frozen=True):
     """A mission-log line (``level`` is a logger method name; see docs/logs.md)."""
 
     level: str
     event: str
-    fields: dict[str, Any] = field(default_factory=dict, hash=False)
+    fields: dict[str, Any] = msgspec.field(default_factory=dict)
 
 
 Effect = (
