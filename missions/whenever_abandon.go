@@ -49,7 +49,7 @@ func SEQ_Legs1() {
 func SEQ_Legs2() {
 	Drone2.FlyByY(-20)
 	Drone2.FlyByX(20)
-	Drone2.FlyByY(20)
+	Drone2.FlyByY(30)
 }
 
 func SEQ_Home() {

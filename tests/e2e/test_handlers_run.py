@@ -69,8 +69,11 @@ def test_whenever_on_battery_fires_twice_through_real_processes(tmp_path: Path) 
 
 
 def test_abandon_through_real_processes(tmp_path: Path) -> None:
+    # Drone1's battery (in its process) and Drone2's legs (in another) run on two
+    # simulation clocks: at a speed-up of 5 the Abandon() comes about 1.6 s of wall time
+    # before Drone2's last leg would end (8.2 s of mission time in the virtual run).
     proc, summary = run_mission(
-        tmp_path, MISSIONS / "whenever_abandon.go", "--fleet", str(FAST_DRAIN)
+        tmp_path, MISSIONS / "whenever_abandon.go", "--fleet", str(FAST_DRAIN), speedup=5
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     d2 = summary["drones"]["Drone2"]["actions"]

@@ -30,10 +30,12 @@ from eamos.hal.mavlink.geofence import (
     fence_plan,
 )
 from eamos.hal.mavlink.home import check_home
+from eamos.hal.mavlink.pilot import FAILSAFE_GRACE_MIN_S, takeover_watch
 from eamos.hal.mavlink.rates import RateWatch
 from eamos.hal.mavlink.settings import MavlinkSettings
 from eamos.hal.mavlink.signing import refused_frame
 from eamos.hal.mavlink.takeover import (
+    FAILSAFE_GRACE_S,
     MAV_CMD_NAV_LAND,
     MAV_CMD_NAV_TAKEOFF,
     TakeoverWatch,
@@ -359,3 +361,14 @@ def test_the_display_prints_a_takeover_and_a_warning():
     )
     shown = format_event("D2", warning, 0.0)
     assert shown is not None and "warning" in shown and "1 Hz" in shown
+
+
+def test_the_failsafe_grace_is_never_shorter_than_its_wall_floor():
+    # At a speed-up of 10 the 1.5 vehicle seconds are 0.15 s of wall time: a loaded
+    # machine's SITL sent the fence breach's STATUSTEXT later than that.
+    fast = takeover_watch(
+        MavlinkSettings.from_mapping({"connection": "udpin:0.0.0.0:1", "speedup": 10})
+    )
+    assert fast.grace_s == FAILSAFE_GRACE_MIN_S
+    real = takeover_watch(MavlinkSettings.from_mapping({"connection": "udpin:0.0.0.0:1"}))
+    assert real.grace_s == FAILSAFE_GRACE_S

@@ -33,12 +33,19 @@ if TYPE_CHECKING:
     from eamos.logs import EventLog
 
 
+#: The least wall time a mode change nobody asked for waits for a failsafe's STATUSTEXT.
+FAILSAFE_GRACE_MIN_S = 1.0
+
+
 def takeover_watch(settings: MavlinkSettings) -> TakeoverWatch:
     """A vehicle's watch, its windows in vehicle seconds (``speedup``); PX4 until the
     HEARTBEAT names the autopilot (``set_autopilot``)."""
     return TakeoverWatch(
         "px4",
-        grace_s=settings.scaled(FAILSAFE_GRACE_S),
+        # At least FAILSAFE_GRACE_MIN_S of wall time: a SITL at a speed-up of 10 on a loaded
+        # machine sent the failsafe's STATUSTEXT later than 0.15 s after its HEARTBEAT (a
+        # fence breach then read as a pilot's HOLD).  Nothing is commanded meanwhile.
+        grace_s=max(settings.scaled(FAILSAFE_GRACE_S), FAILSAFE_GRACE_MIN_S),
         window_s=settings.scaled(FAILSAFE_WINDOW_S),
         link_grace_s=settings.heartbeat_timeout_s,
     )
