@@ -111,7 +111,9 @@ def test_small_moves_on_px4_are_flown(sitl_fleet, tmp_path: Path) -> None:
         assert arrival["action"] == action
         # The tolerance is smaller than the move, and the move was flown to within it.
         assert arrival["tolerance_m"] <= max(PX4_FLOOR_M, 0.4 * length) + 1e-9, arrival
-        assert math.dist(arrival["mean"], arrival["target"]) <= arrival["tolerance_m"], arrival
+        # (The log rounds each coordinate to 1 mm: up to 0.9 mm on the distance.)
+        error = math.dist(arrival["mean"], arrival["target"])
+        assert error <= arrival["tolerance_m"] + 0.001, arrival
         # Relative moves add up from where the drone took off.
         expected = (base[0] + target[0], base[1] + target[1], target[2])
         assert math.dist(arrival["target"], expected) < 0.01, (arrival, expected)
