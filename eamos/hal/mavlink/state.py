@@ -90,7 +90,6 @@ class LinkState:
     gap_ended_at: float = -math.inf  # first message after a silence of GAP_S or more
     failsafe_at: float = -math.inf  # last STATUSTEXT mentioning a failsafe
     local: tuple[float, float, float, float, float, float] | None = None  # NED x y z vx vy vz
-    local_count: int = 0
     local_since: float | None = None  # when the first LOCAL_POSITION_NED came (monotonic)
     #: Recent LOCAL_POSITION_NED (receive time, NED x y z vx vy vz): the settle window.
     recent: deque[tuple[float, tuple[float, ...]]] = field(
@@ -299,7 +298,6 @@ class StateTracker:
 
     def _on_local_position_ned(self, msg: Any, now: float, events: Events) -> None:
         self.state.local = (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
-        self.state.local_count += 1
         if self.state.local_since is None:
             self.state.local_since = now
         self.state.recent.append((now, self.state.local))
