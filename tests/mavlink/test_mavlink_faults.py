@@ -185,6 +185,39 @@ def test_pilot_switches_mode_mid_action(flight, autopilot, mode):
     assert f.vehicle.mode == mode and f.vehicle.armed
 
 
+@pytest.mark.parametrize(("autopilot", "hold"), [("px4", "HOLD"), ("ardupilot", "BRAKE")])
+def test_a_failsafe_that_holds_a_landing_vehicle_is_answered_with_land_again(
+    flight, autopilot, hold, tmp_path
+):
+    # PX4 SITL: a vehicle landing on its geofence's line (the estimate wandering across it)
+    # was held by "Failsafe activated" a metre above the ground; Land failed and the drone
+    # hovered.  A failsafe that only holds is not a pilot: Land sends LAND again.
+    f = flight(autopilot, vehicle={"speedup": 3.0})
+    f.airborne(3.0)
+    _, done = f.run("Land")
+    f.wait_vehicle(lambda v: v.position[2] < 2.0)
+    f.vehicle.failsafe(hold)
+    result = done.wait()
+    assert result.ok, result
+    assert f.vehicle.position[2] < 0.2
+    lines = [json.loads(x) for x in (tmp_path / "D1-adapter.log").read_text().splitlines()]
+    resumed = [e for e in lines if e["event"] == "adapter.land.resumed"]
+    assert len(resumed) == 1 and resumed[0]["level"] == "warning", resumed
+    assert "Failsafe activated" in resumed[0]["failsafe"]
+
+
+def test_a_pilot_who_holds_a_landing_vehicle_keeps_it(flight):
+    # The same hold by a pilot's switch is a takeover: no LAND again, ever.
+    f = flight("px4", vehicle={"speedup": 3.0})
+    f.airborne(3.0)
+    _, done = f.run("Land")
+    f.wait_vehicle(lambda v: v.position[2] < 2.0)
+    f.vehicle.set_mode("HOLD")
+    result = done.wait()
+    assert result.reason == "taken over by the pilot (HOLD)"
+    assert f.vehicle.mode == "HOLD" and f.vehicle.position[2] > 0.5
+
+
 # -- link drops ---------------------------------------------------------------------------------
 
 

@@ -4,7 +4,10 @@ the settle window.  No socket, no thread."""
 from __future__ import annotations
 
 import math
+import threading
+import time
 from collections import deque
+from typing import TYPE_CHECKING, cast
 
 import pytest
 
@@ -14,6 +17,10 @@ from eamos.hal.mavlink.params import from_wire, speed_plan, to_wire
 from eamos.hal.mavlink.settings import MavlinkSettings
 from eamos.hal.mavlink.state import LinkState
 from eamos.hal.mavlink.vehicle import SYS_STATUS_GRACE_S, armable
+from eamos.hal.mavlink.waits import Failed, Run, Waiter
+
+if TYPE_CHECKING:
+    from eamos.hal.mavlink.vehicle import MavlinkVehicle
 
 
 def test_speed_plans_name_each_autopilots_parameters_and_units():
@@ -101,3 +108,33 @@ def test_armable_waits_for_sys_status_when_positions_come_first():
     assert not armable(silent)
     silent.last_rx = 100.0 + SYS_STATUS_GRACE_S
     assert armable(silent)
+
+
+class _Vehicle:
+    """What a Waiter reads of its vehicle: a condition, a link state, no pilot."""
+
+    def __init__(self) -> None:
+        self.settings = MavlinkSettings.from_mapping({"connection": "tcp:h:1"})
+        self.cond = threading.Condition()
+        self.state = LinkState(link_ok=True)
+        self.taken_over = None
+
+
+def test_a_wait_answers_with_what_ended_it_not_with_a_second_look():
+    # A settle window reads the clock: it said "arrived" when the wait ended, and a look a
+    # moment later (the window slid on) said not.  That was reported as a timeout after
+    # 2.2 s of a 15 s deadline (CI, PX4 personality with a wandering estimate).
+    looks = iter((True, False, False))
+    waiter = Waiter(cast("MavlinkVehicle", _Vehicle()))
+    run = Run(None, None, "internal", time.monotonic())
+    waiter.wait(run, lambda st: next(looks), time.monotonic() + 60.0, lambda st: "timed out")
+    # And a guard's problem is the one it found, even if a second look finds none.
+    problems = iter(("vehicle disarmed", None))
+    with pytest.raises(Failed, match="vehicle disarmed"):
+        waiter.wait(
+            run,
+            lambda st: False,
+            time.monotonic() + 60.0,
+            lambda st: "timed out",
+            guard=lambda st: next(problems),
+        )

@@ -267,7 +267,26 @@ def _recv(conn: Any, kind: str, vehicle: SitlVehicle, timeout: float) -> Any:
         msg = conn.recv_match(type=kind, blocking=True, timeout=0.5)
         if msg is not None and msg.get_srcSystem() == vehicle.system_id:
             return msg
-    raise TimeoutError(f"{vehicle.autopilot} {vehicle.instance.n}: no {kind} in {timeout:g} s")
+    raise TimeoutError(
+        f"{vehicle.autopilot} {vehicle.instance.n}: no {kind} in {timeout:g} s; "
+        + process_report(vehicle.pid, vehicle.folder)
+    )
+
+
+def process_report(pid: int, folder: Path, lines: int = 15) -> str:
+    """Whether the vehicle's process still runs, and the end of its ``console.log``: what a
+    silent vehicle's failure message should show (2 of 5 CI runs heard no HEARTBEAT from a
+    PX4 after its adapter let go, and left nothing to tell why)."""
+    try:
+        os.kill(pid, 0)
+        state = f"process {pid} running"
+    except ProcessLookupError:
+        state = f"process {pid} gone"
+    try:
+        tail = (folder / "console.log").read_text(errors="replace").splitlines()[-lines:]
+    except OSError as exc:
+        tail = [f"(no console.log: {exc})"]
+    return state + "; console.log ends:\n" + "\n".join(tail)
 
 
 def _param_value(msg: Any, bytewise: bool) -> float:

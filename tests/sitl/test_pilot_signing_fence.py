@@ -34,6 +34,7 @@ from eamos.hal.mavlink.signing import create_signing_key
 from eamos.logs import close_logger, make_logger
 from eamos.program.uniform import decode_command
 from tests.mavlink.mavlink_helpers import Done, RawClient
+from tests.sitl.sitl_vehicles import process_report
 
 #: SET_POSITION_TARGET_LOCAL_NED's type_mask for a velocity only (the rogue command).
 TYPE_MASK_VELOCITY = 0x0DC7
@@ -647,7 +648,10 @@ def test_the_fleet_fence_is_on_the_vehicle_stops_a_rogue_move_and_goes_away(
     try:
         check.heartbeat()
         system = (AP if autopilot == "arducopter" else PX4) + 1
-        check.wait("HEARTBEAT", lambda m: m.get_srcSystem() == system, 30)
+        try:
+            check.wait("HEARTBEAT", lambda m: m.get_srcSystem() == system, 30)
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}; {process_report(vehicle.pid, vehicle.folder)}") from exc
         seen = check.count("MISSION_COUNT")
         check.mav.mission_request_list_send(system, 1, MAV_MISSION_TYPE_FENCE)
         count = check.wait("MISSION_COUNT", timeout=30, after=seen)

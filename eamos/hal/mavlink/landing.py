@@ -16,7 +16,15 @@ from eamos.hal.mavlink.arming import DISARM, MAV_CMD_COMPONENT_ARM_DISARM, Armin
 from eamos.hal.mavlink.autopilots import CommandRejected
 from eamos.hal.mavlink.braking import Brakes
 from eamos.hal.mavlink.control import RunControl
-from eamos.hal.mavlink.waits import Ended, Failed, Run, Waiter
+from eamos.hal.mavlink.waits import Ended, Failed, Run, TimedOut, Waiter
+
+#: How many times Land sends LAND again after a failsafe held the vehicle where it was
+#: (a vehicle touching down on a geofence's line, its estimate wandering across it, is
+#: held again each time the estimate is outside).
+LAND_RESUMES = 3
+#: Modes in which the vehicle lands or returns by itself (either autopilot's names): a
+#: failsafe that chose one of them is left alone.
+LANDING_MODES = frozenset({"LAND", "RTL", "SMART_RTL", "AUTO.LAND", "AUTO.RTL", "AUTO.PRECLAND"})
 
 
 class Landing:
@@ -45,14 +53,48 @@ class Landing:
             v.guided_target = None
         modes = frozenset({v.autopilot.land_mode})
         self.waiter.confirm_modes(run, modes, done=v.landed)
-        self.waiter.wait(
-            run,
-            v.landed,
-            run.started + self.s.scaled(self.s.action_timeout_s),
-            self.waiter.timeout_reason("not landed"),
-            guard=self.waiter.guard(modes, need_armed=False, unless=v.landed),
-        )
-        return ActionResult("ok")
+        resumes = 0
+        while True:
+            try:
+                self.waiter.wait(
+                    run,
+                    v.landed,
+                    run.started + self.s.scaled(self.s.action_timeout_s),
+                    self.waiter.timeout_reason("not landed"),
+                    guard=self.waiter.guard(modes, need_armed=False, unless=v.landed),
+                )
+                return ActionResult("ok")
+            except TimedOut:
+                raise
+            except Failed as exc:
+                held = self._held_by_failsafe()
+                if held is None or resumes == LAND_RESUMES:
+                    raise
+                resumes += 1
+                v.log.warning("adapter.land.resumed", failsafe=held, after=str(exc))
+                with v.cond:
+                    here = v.here_ned()
+                v.autopilot.land(ctl, here)
+                self.waiter.confirm_modes(run, modes, done=v.landed)
+
+    def _held_by_failsafe(self) -> str | None:
+        """The failsafe that stopped a landing where it was (HOLD, BRAKE, LOITER: PX4's
+        geofence holds a vehicle that touches down on the fence's line), or None when
+        a pilot has it, the vehicle disarmed, or the failsafe lands or returns it."""
+        v = self.v
+        with v.cond:
+            failsafe = v.takeover.failsafe
+            mode = v.mode_name(v.state)
+            if (
+                v.taken_over is not None
+                or failsafe is None
+                or failsafe.mode != mode
+                or mode in LANDING_MODES
+                or not v.state.armed
+                or not v.state.link_ok
+            ):
+                return None
+            return failsafe.why or mode
 
     def land_and_disarm(self, why: str = "abort") -> bool:
         """Brake, land (if flying), then disarm and see it in a HEARTBEAT; logs how it

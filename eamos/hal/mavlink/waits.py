@@ -83,22 +83,25 @@ class Waiter:
         or returns quietly with ``quiet_timeout`` (a plain timer).
         """
         v, st = self.v, self.v.state
+        # ``until`` and ``guard`` may read the clock (a settle window ends "now"): what
+        # they said when the wait ended is the answer, not a second look a moment later
+        # (a window that had arrived could slide off its target and read as a timeout).
+        met = False
+        problem: str | None = None
 
         def ready() -> bool:
-            return (
-                run.finished
-                or st.closed
-                or (watch_link and not st.link_ok)
-                or until(st)
-                or (guard is not None and guard(st) is not None)
-            )
+            nonlocal met, problem
+            if run.finished or st.closed or (watch_link and not st.link_ok):
+                return True
+            met = until(st)
+            problem = None if met or guard is None else guard(st)
+            return met or problem is not None
 
         with v.cond:
             v.cond.wait_for(ready, timeout=max(0.0, deadline - time.monotonic()))
             self.raise_if_over(run, watch_link=watch_link)
-            if until(st):
+            if met:
                 return
-            problem = guard(st) if guard is not None else None
             if problem is not None:
                 raise Failed(problem)
             if quiet_timeout:

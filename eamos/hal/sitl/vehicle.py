@@ -74,7 +74,7 @@ from eamos.hal.mavlink.link import load_mavutil
 from eamos.hal.mavlink.signing import radio_status_only, refresh_timestamp
 from eamos.hal.sim.adapter import paced_ticks
 from eamos.hal.sitl.ardupilot import ArduPilotPersonality
-from eamos.hal.sitl.core import Params, Personality, VehicleCore
+from eamos.hal.sitl.core import LAND_MODES, RTL_MODES, Params, Personality, VehicleCore
 from eamos.hal.sitl.fence import Geofence
 from eamos.hal.sitl.inbox import Inbox
 from eamos.hal.sitl.missions import MISSION, MissionItem
@@ -85,6 +85,7 @@ from eamos.hal.sitl.wire import (
     DENIED,
     FAILED,
     RESULTS,
+    SEV_CRITICAL,
     TEMPORARILY_REJECTED,
     UNSUPPORTED,
     AutopilotName,
@@ -198,6 +199,20 @@ class SimVehicle:
             if mode not in self._core.p.modes:
                 raise ValueError(f"unknown {self.autopilot} mode {mode!r}")
             self._core.enter_mode(mode, "pilot")
+
+    def failsafe(self, mode: str, text: str = "Failsafe activated") -> None:
+        """The autopilot's own failsafe: say ``text`` (critical), then switch to ``mode``,
+        holding where the vehicle is unless the mode lands or returns (PX4's geofence
+        held a vehicle touching down on the fence's line: its SITL)."""
+        with self._lock:
+            core = self._core
+            if mode not in core.p.modes:
+                raise ValueError(f"unknown {self.autopilot} mode {mode!r}")
+            core.text(text, SEV_CRITICAL)
+            here = core.model.position
+            core.enter_mode(mode, "failsafe")
+            if mode not in LAND_MODES | RTL_MODES:
+                core.steer(*here)
 
     # -- observation -----------------------------------------------------------------
 
