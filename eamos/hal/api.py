@@ -53,8 +53,10 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal, Protocol
+
+import msgspec
 
 from eamos.program.plugins import PluginRegistry
 from eamos.program.uniform import Command
@@ -104,9 +106,12 @@ class Telemetry:
         return getattr(self, field_name)  # type: ignore[no-any-return]
 
 
-@dataclass(frozen=True)
-class ActionResult:
-    """How an action ended; ``reason`` says why when it did not end ``"ok"``."""
+class ActionResult(msgspec.Struct, frozen=True):
+    """How an action ended; ``reason`` says why when it did not end ``"ok"``.
+
+    A frozen msgspec Struct, as the runtime's messages are: one is made per action on
+    the trigger path, and a frozen dataclass builds itself field by field through
+    ``object.__setattr__`` (``docs/performance.md``)."""
 
     status: ActionStatus
     reason: str = ""
@@ -201,13 +206,12 @@ def vehicle_facts(adapter: object) -> dict[str, Any]:
 _handle_ids = itertools.count(1)
 
 
-@dataclass(frozen=True)
-class ActionHandle:
-    """Identifies one running action of one adapter."""
+class ActionHandle(msgspec.Struct, frozen=True):
+    """Identifies one running action of one adapter (a frozen Struct: see ActionResult)."""
 
     action: str
     args: tuple[float, ...]
-    id: int = field(default_factory=lambda: next(_handle_ids))
+    id: int = msgspec.field(default_factory=lambda: next(_handle_ids))
 
     @classmethod
     def of(cls, command: Command) -> ActionHandle:

@@ -38,9 +38,13 @@ if TYPE_CHECKING:
     from eamos.logs import EventLog
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class Call:
-    """One recorded call: ``method`` is start/run/cancel/abort/close/finish."""
+    """One recorded call: ``method`` is start/run/cancel/abort/close/finish.
+
+    Not frozen: one is made per action on the trigger path of a fake-driven run (the
+    benchmarks'), and a frozen dataclass builds itself field by field through
+    ``object.__setattr__``; nothing changes a call once recorded."""
 
     method: str
     action: str = ""
