@@ -41,7 +41,12 @@ INSTANCE = {"ardupilot": 6, "px4": 7}
 #: 0.6 m completion tolerance one leg of the same square took 1.3 to 4.2 s on the SITL
 #: from run to run, so PX4's are wider.
 STEP_S = {"ardupilot": 1.0, "px4": 4.0}
-TOTAL = {"ardupilot": 0.1, "px4": 0.35}
+#: A landing's duration ends when the autopilot's land detector says "landed".  PX4 SIH's
+#: height estimate may drift after touchdown: in CI run 13 (its ULog) it moved down by
+#: 0.1-0.4 m/s for 8 s on the ground, and the detector said "landed" 8.3 s after ground
+#: contact (Land 13.9 s, against 3.4 s simulated); the whole flight's fraction likewise.
+LAND_STEP_S = {"ardupilot": 1.0, "px4": 10.0}
+TOTAL = {"ardupilot": 0.1, "px4": 0.45}
 MEAN_M = {"ardupilot": 0.3, "px4": 1.0}
 MAX_M = {"ardupilot": 1.0, "px4": 2.5}
 
@@ -91,7 +96,9 @@ def test_the_simulated_vehicle_flies_experiment_a_as_the_sitl_does(autopilot: st
         f"{[round(v, 2) for v in sim.top_speeds]}; load {load:.1f}"
     )
     steps = [a - b for a, b in zip(durations(sim), durations(real), strict=True)]
-    assert all(abs(d) <= STEP_S[autopilot] for d in steps), steps
+    names = [a for a, _ in real.ends][1:]
+    limits = [(LAND_STEP_S if a == "Land" else STEP_S)[autopilot] for a in names]
+    assert all(abs(d) <= limit for d, limit in zip(steps, limits, strict=True)), steps
     total_sim, total_real = sim.end_of("Disarm"), real.end_of("Disarm")
     assert abs(total_sim / total_real - 1.0) <= TOTAL[autopilot], (total_sim, total_real)
     assert mean <= MEAN_M[autopilot], mean
