@@ -29,7 +29,7 @@ from eamos.hal.api import ActionResult
 from eamos.hal.sim.adapter import SimAdapter
 from eamos.hal.sim.settings import SimSettings
 from eamos.logs import make_logger, write_errors
-from eamos.program.uniform import GROUND_STATION, Takeoff
+from eamos.program.uniform import GROUND_STATION, PauseFor
 from tests.ground.test_fly import DRONES, ready, station_and_fleet
 
 LIMIT = 10.0
@@ -185,7 +185,9 @@ def test_an_exception_in_the_simulator_thread_fails_the_running_action() -> None
         def step() -> Any:
             raise broken
 
-        adapter.run(Takeoff(2.0), done)  # not armed: it would fail too, but later
+        # A pause of 60 simulated seconds (6 s here) ends by itself only long after the
+        # fault; a Takeoff without Arm failed "not armed" first on a loaded machine.
+        adapter.run(PauseFor(60.0), done)
         adapter._core.step = step  # type: ignore[method-assign]  # the fault, injected
         assert finished.wait(30), "the running action was lost"
     finally:
