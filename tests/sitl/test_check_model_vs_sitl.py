@@ -13,6 +13,7 @@ wait included, with the flight's, within 20 % (before: the whole flight took
 
 from __future__ import annotations
 
+import statistics
 from pathlib import Path
 
 import pytest
@@ -87,8 +88,8 @@ def test_an_autopilot_left_to_auto_is_said_to_be_approximate(tmp_path):
 SITL, WHY = sitl_dir()
 
 
-#: PX4 SIH varies much from flight to flight (experiment A: 22-34 s): its flights are
-#: averaged over this many; ArduCopter's repeat within a few tenths of a second.
+#: PX4 SIH varies much from flight to flight (experiment A: 22-34 s, once 44 s): the
+#: median of this many is compared; ArduCopter's repeat within a few tenths of a second.
 FLIGHTS = {"ardupilot": 1, "px4": 3}
 #: An action's end may also be off by this much (s) when 20 % of it is less.
 SLACK_S = 2.0
@@ -109,10 +110,14 @@ def test_the_check_predicts_each_autopilots_durations_within_20_percent(autopilo
         runs.append([(a, t + real.armable_wait_s) for a, t in real.ends])
     names = [a for a, _ in runs[0]]
     assert names == [a for a, _ in predicted]
-    flown = [sum(run[i][1] for run in runs) / len(runs) for i in range(len(names))]
+    # The median flight, not the mean: PX4 SIH's wandering estimate now and then drags one
+    # flight out by many seconds (CI run 15: flights of 25.8, 28.0 and 44.0 s, one leg
+    # about 15 s longer; run 13: a land detector 8 s late), which says nothing about the
+    # check's model.
+    flown = [statistics.median(run[i][1] for run in runs) for i in range(len(names))]
     ratio = flown[-1] / predicted[-1][1]
     print(
-        f"\n{autopilot}: flight/check duration ratio {ratio:.2f} (mean of {len(runs)}); "
+        f"\n{autopilot}: flight/check duration ratio {ratio:.2f} (median of {len(runs)}); "
         + ", ".join(
             f"{a} {p:.1f}/{f:.1f}" for a, (_, p), f in zip(names, predicted, flown, strict=True)
         )
