@@ -266,9 +266,33 @@ class Pilot(RawClient):
                 return
 
     def take(self, *mode: float) -> int:
-        """Sticks centred, then MAV_CMD_DO_SET_MODE ``mode``: the COMMAND_ACK's result."""
+        """Sticks centred, then MAV_CMD_DO_SET_MODE ``mode``: the COMMAND_ACK's result.
+
+        A transmitter's sticks do not lapse, RC overrides do: ArduCopter drops them after
+        RC_OVERRIDE_TIME (3 s of vehicle time, 0.6 s of wall time at speed-up 5) and falls
+        back to SITL's own RC input, whose throttle is low, so one late override on a
+        loaded machine made LOITER descend (CI: 0.53 m left of 2 m). -1 keeps them."""
         self._rc = True
+        self.set_param("RC_OVERRIDE_TIME", -1.0)
         return self.command(DO_SET_MODE, 1, *mode, target=self.target)
+
+    def set_param(self, name: str, value: float) -> None:
+        """PARAM_SET, until the vehicle's PARAM_VALUE says ``value``."""
+        deadline = time.monotonic() + 30
+        while True:
+            seen = self.count("PARAM_VALUE")
+            self.mav.param_set_send(self.target, 1, name.encode(), value, 9)
+            try:
+                self.wait(
+                    "PARAM_VALUE",
+                    lambda m: m.param_id == name and m.param_value == value,
+                    5,
+                    after=seen,
+                )
+                return
+            except AssertionError:
+                if time.monotonic() > deadline:
+                    raise
 
     def close(self) -> None:
         self._stop.set()
