@@ -20,7 +20,15 @@ from ..config.types import mavlink_model
 from ..hal.api import AdapterError
 from ..hal.sim import SimCore, SimSettings
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry
-from ..virtual import Decide, QuietLog, Vehicle, VirtualMission, VirtualRun
+from ..virtual import (
+    Continuation,
+    Decide,
+    QuietLog,
+    SnapshotError,
+    Vehicle,
+    VirtualMission,
+    VirtualRun,
+)
 from ..virtual.decisions import FailHook
 from ..virtual.vehicles import Clock
 from .branches import Oracle
@@ -78,19 +86,26 @@ def run_once(
     fail: FailHook | None = None,
     plugins: PluginRegistry = EMPTY_PLUGINS,
     battery_floor_pct: float | None = None,
+    continuation: Continuation | None = None,
 ) -> tuple[VirtualRun, dict[str, Track]]:
     """One virtual run with every drone's track recorded (fleet frame).
 
     ``plugins``: the action plugins the simulated drones run (their "sim"
     implementations); a check passes the installed ones, found once.
     ``battery_floor_pct``: the fleet's battery reserve, below which a Try's Body
-    action fails (as on the drones).
+    action fails (as on the drones).  ``continuation``: the rest of the mission from
+    a run's snapshot, each vehicle starting where it saw it.
     """
     recorders: dict[str, TrackRecorder] = {}
 
     def make(drone: str, clock: Clock) -> Vehicle:
         core = SimCore(
-            drone, settings.get(drone, SimSettings()), QuietLog(), clock, plugins=plugins
+            drone,
+            settings.get(drone, SimSettings()),
+            QuietLog(),
+            clock,
+            plugins=plugins,
+            start=None if continuation is None else continuation.vehicle(drone),
         )
         rec = TrackRecorder(drone, core, clock, homes.get(drone, (0.0, 0.0)))
         recorders[drone] = rec
@@ -103,6 +118,7 @@ def run_once(
         decide=decide,
         fail=fail,
         battery_floor_pct=battery_floor_pct,
+        continuation=continuation,
     ).run()
     return run, {d: r.track() for d, r in recorders.items()}
 
@@ -151,12 +167,23 @@ def check_mission(
     time_limit_s: float = CHECK_TIME_LIMIT_S,
     max_runs: int = MAX_RUNS,
     min_separation_m: float | None = None,
+    continuation: Continuation | None = None,
 ) -> CheckReport:
     """Simulate ``compiled`` in virtual time with the fleet's models and check every run.
 
-    Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use.
+    ``continuation``: check the rest of the mission from a run's snapshot (each
+    drone starts where the snapshot saw it; what had ended is not flown again).
+    Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use,
+    :class:`~eamos.virtual.SnapshotError` for a snapshot of another mission.
     """
-    return _check_mission(compiled, fleet, time_limit_s, max_runs, min_separation_m)
+    if continuation is not None:
+        mission_id = next(iter(compiled.programs.values())).mission_id
+        if continuation.mission_id != mission_id:
+            raise SnapshotError(
+                f"the snapshot is of mission {continuation.mission_id}, "
+                f"this file compiles to mission {mission_id}: not the mission that flew"
+            )
+    return _check_mission(compiled, fleet, time_limit_s, max_runs, min_separation_m, continuation)
 
 
 def _check_mission(
@@ -165,6 +192,7 @@ def _check_mission(
     time_limit_s: float,
     max_runs: int,
     min_separation_m: float | None,
+    continuation: Continuation | None = None,
 ) -> CheckReport:
     # Bound to the mission, each drone's type selects its [types.NAME.hal] settings.
     fleet = (fleet or FleetConfig.empty()).for_mission(compiled.programs, compiled.mission.types)
@@ -215,6 +243,7 @@ def _check_mission(
             oracle.fail,
             plugins=plugins,
             battery_floor_pct=safety.battery_reserve_pct,
+            continuation=continuation,
         )
         choices = oracle.choices()
         # Every choice point met beyond the prefix is another run: its other way.
@@ -244,6 +273,8 @@ def _check_mission(
         "time_limit_s": time_limit_s,
         "homes_m": {d: list(h) for d, h in homes.items()},
     }
+    if continuation is not None:
+        used["continued_from"] = {"why": continuation.why, "taken_at": continuation.taken_at}
     return CheckReport(
         mission=compiled.mission.name,
         source_file=compiled.source_file,

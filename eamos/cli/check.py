@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +38,8 @@ Exit code: 0 no error finding, 1 error findings (the mission would fail), 2 bad 
 _EPILOG = """\
 examples:
   eamos check missions/experiment_b.go
-  eamos check missions/experiment_d_lands.go --fleet configs/experiment_d_pilot.toml --json"""
+  eamos check missions/experiment_d_lands.go --fleet configs/experiment_d_pilot.toml --json
+  eamos check missions/experiment_c.go --from runs/latest   # the rest, from its snapshot"""
 
 
 def add_check_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -81,6 +83,15 @@ def add_check_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="draw the tracks from above and the altitudes over time, findings marked, "
         "one panel per run with a finding",
     )
+    p.add_argument(
+        "--from",
+        dest="snapshot",
+        type=Path,
+        metavar="RUN_DIR",
+        default=None,
+        help="check the rest of the mission from a run's snapshot.json (RUN_DIR or the "
+        "file): each drone starts where it was, nothing that had ended flies again",
+    )
     add_verbose(p)
     command(p, run_check)
     return p
@@ -100,13 +111,22 @@ def run_check(args: argparse.Namespace) -> int:
     fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
     compiled = compile_file(Path(args.mission))
     refuse_adapter_gaps(compiled, fleet)  # an action a drone's adapter lacks: exit 2
+    past = None
+    if args.snapshot is not None:
+        from eamos.virtual import continuation, load_snapshot
+
+        past = continuation(load_snapshot(args.snapshot), str(args.snapshot))
     report = check_mission(
         compiled,
         fleet,
         time_limit_s=args.time_limit or CHECK_TIME_LIMIT_S,
         max_runs=args.max_runs or MAX_RUNS,
         min_separation_m=args.min_separation,
+        continuation=past,
     )
+    if past is not None and not args.json:
+        when = time.strftime("%H:%M:%S", time.localtime(past.taken_at))
+        print(f"{args.mission}: the rest of the mission from {args.snapshot} ({past.why}, {when})")
     if args.svg is not None:
         from eamos.check.pictures import svg
 

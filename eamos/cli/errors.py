@@ -8,7 +8,7 @@ that did not answer); everything else it raises, and :data:`EXIT_CODE_OF`
 
 * bad input -- a mission with errors (:class:`~eamos.compiler.MissionError`,
   printed with every diagnostic's line and caret), a config or fleet file, a
-  program, keys, a run folder, an argument the parser could not check
+  program, keys, a run folder, a snapshot, an argument the parser could not check
   (:class:`BadInput`): ``prog: what and where``, :data:`EXIT_BAD_INPUT`;
 * could not connect -- a vehicle the adapter cannot use, a runtime whose
   sockets cannot start, a ground station that cannot bind its port, a
@@ -70,6 +70,7 @@ EXIT_CODE_OF: Mapping[str, int] = MappingProxyType(
         "eamos.net.keys.KeysError": EXIT_BAD_INPUT,
         "eamos.net.wire.WireError": EXIT_BAD_INPUT,
         "eamos.report.ReportError": EXIT_BAD_INPUT,
+        "eamos.virtual.continuation.SnapshotError": EXIT_BAD_INPUT,
         "eamos.ops.ssh.RunFolderError": EXIT_BAD_INPUT,
         # could not connect
         "eamos.hal.api.AdapterError": EXIT_CONNECT,

@@ -101,6 +101,26 @@ def command_refusal(command: str, drone: str, drones: list[str]) -> str:
     return ""
 
 
+def progress_entry(
+    msg: wire.Progress, position: tuple[float, float, float] | None
+) -> dict[str, Any]:
+    """A node's progress as a drone view keeps it (pure but for a missing time stamp).
+
+    A ``running`` action also keeps where the ground station last saw the vehicle
+    (``position``): a snapshot's continuation flies a relative move to its own end.
+    """
+    entry = {
+        "t": msg.detail.get("at", time.time()),
+        "state": msg.state,
+        "node": msg.node,
+        "action": msg.action,
+        **msg.detail,
+    }
+    if msg.state == "running" and position is not None:
+        entry["position"] = list(position)
+    return entry
+
+
 class GroundStation:
     """Coordinates one mission run from the ground; thread-safe, waits on a Condition."""
 
@@ -197,15 +217,7 @@ class GroundStation:
                     view.done_actions = finished
                 if msg.state == "failed":
                     view.failed_actions += 1
-                view.events.append(
-                    {
-                        "t": msg.detail.get("at", time.time()),
-                        "state": msg.state,
-                        "node": msg.node,
-                        "action": msg.action,
-                        **msg.detail,
-                    }
-                )
+                view.events.append(progress_entry(msg, view.position))
             elif isinstance(msg, wire.TelemetrySample):
                 view.samples = [*view.samples[-1:], msg]  # the latest two: the snapshot's velocity
                 view.position = (msg.x_m, msg.y_m, msg.z_m)

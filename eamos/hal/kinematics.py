@@ -149,6 +149,20 @@ class Quadcopter:
         self._battery = min(100.0, max(0.0, float(battery_pct)))
         self._target: tuple[float, float, float] | None = None
 
+    @classmethod
+    def at(cls, state: VehicleState, limits: Limits | None = None) -> Quadcopter:
+        """A model that goes on from ``state`` (a vehicle's position, velocity, armed,
+        landed, battery as a mission snapshot recorded them); in the air it brakes to
+        hold where it is, as a vehicle told nothing new."""
+        model = cls(limits, x_m=state.x_m, y_m=state.y_m, battery_pct=state.battery_pct)
+        model._z = max(0.0, float(state.z_m))
+        model._armed = bool(state.armed)
+        model._landed = bool(state.landed) or model._z <= 0.0
+        if not model._landed:
+            model._vx, model._vy, model._vz = state.vx_mps, state.vy_mps, state.vz_mps
+        model.hold()
+        return model
+
     # -- reading -----------------------------------------------------------
 
     @property

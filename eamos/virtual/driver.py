@@ -46,6 +46,7 @@ from ..actors.state import Iteration
 from ..hal.api import ActionHandle, ActionResult, Telemetry
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION, CommandError, decode_command
+from .continuation import Continuation, install_continuation
 from .decisions import FAILED_ON_PURPOSE, Decide, FailHook, install_decide
 from .result import DroneOutcome, VirtualRun, Waiting
 from .vehicles import (
@@ -148,6 +149,7 @@ class VirtualMission:
         decide: Decide | None = None,
         fail: FailHook | None = None,
         battery_floor_pct: float | None = None,
+        continuation: Continuation | None = None,
     ) -> None:
         """``programs``: every participant's program (the ground station's included).
 
@@ -158,7 +160,9 @@ class VirtualMission:
         Try's Body fails (see :mod:`eamos.virtual.decisions`);
         ``battery_floor_pct``: below it a Try's Body action fails, as on the drones
         (the fleet's ``[safety] battery_reserve_pct``; see
-        :mod:`eamos.actors.logic.actions`).
+        :mod:`eamos.actors.logic.actions`).  ``continuation``: go on from a mission's
+        snapshot (:mod:`eamos.virtual.continuation`); the default vehicles then start
+        where it saw them (a given factory places its own).
         """
         progs = list(programs.values()) if isinstance(programs, Mapping) else list(programs)
         if not progs:
@@ -172,7 +176,12 @@ class VirtualMission:
         self._board = _Board()
         self._ground = GroundPauses()
         self._wakes = WakeQueue()
-        factory = vehicles or sim_vehicles()
+        self._continuation = continuation
+        self.replaying = False  # True while the snapshot's past is replayed (at the start)
+        self.replayed: list[tuple[str, str, Iteration]] = []
+        factory = vehicles or sim_vehicles(
+            start=None if continuation is None else continuation.vehicle
+        )
 
         def make(drone: str) -> Vehicle:
             vehicle = factory(drone, self.clock)
@@ -213,6 +222,9 @@ class VirtualMission:
                 for logic in part.logic.values():
                     if isinstance(logic, ConditionLogic):
                         install_decide(drone, logic, decide)
+        if continuation is not None:
+            nodes = {drone: part.logic for drone, part in self.participants.items()}
+            install_continuation(continuation, nodes, lambda: self.replaying)
         self._vehicles = [(d, p.vehicle) for d, p in sorted(self.participants.items()) if p.vehicle]
         # Jumping over steps, and stepping only the vehicles due, need them all lazy.
         lazy = [v for _, v in self._vehicles if isinstance(v, LazyVehicle)]
@@ -255,7 +267,10 @@ class VirtualMission:
             for key, logic in part.logic.items():
                 if logic.spec.kind == "init":
                     self._post((drone, key), logic.fire)
+        # A continuation's past is replayed here, in no virtual time (its actions end at once).
+        self.replaying = self._continuation is not None
         self._drain()
+        self.replaying = False
         timed_out = False
         while not all(p.all_resolved for p in self.participants.values()):
             if self.t >= self.time_limit_s - 1e-9:
@@ -266,7 +281,15 @@ class VirtualMission:
         ended = self.t
         if not timed_out:
             self._settle()
-        return self._result(timed_out, ended)
+        return VirtualRun(
+            mission=self.mission,
+            drones={drone: _outcome(drone, part) for drone, part in self.participants.items()},
+            duration_s=ended,
+            timed_out=timed_out,
+            waiting=_waiting(self.participants) if timed_out else (),
+            steps=self.steps,
+            replayed=tuple(self.replayed),
+        )
 
     def _settle(self) -> None:
         """After the mission: step on while a vehicle still changes by itself (within the limit).
@@ -380,11 +403,20 @@ class VirtualMission:
                 self.t,
             )
 
+        args = fx.args
+        cont = self._continuation
+        if cont is not None:
+            ended = cont.ended(drone, key, fx.iteration)
+            if ended is not None:  # it ran before the snapshot: not again
+                self.replayed.append((drone, key, fx.iteration))
+                done(ended)
+                return
+            args = cont.rest(drone, key, fx.iteration, fx.action, args)
         try:
             # Plugin actions decode with the parameter list of the vehicle's plugins.
             plugins = getattr(part.vehicle, "plugins", None)
             command = decode_command(
-                fx.action, fx.args, plugins.specs() if plugins is not None else None
+                fx.action, args, plugins.specs() if plugins is not None else None
             )
         except CommandError as exc:
             done(ActionResult("failed", str(exc)))
@@ -454,38 +486,31 @@ class VirtualMission:
 
     # -- the result -------------------------------------------------------------------
 
-    def _result(self, timed_out: bool, ended: float) -> VirtualRun:
-        drones = {
-            drone: DroneOutcome(
-                drone=drone,
-                actions=tuple(sorted(part.records, key=lambda r: (r.start, r.node))),
-                resolved=dict(part.resolved),
-                all_resolved=part.all_resolved,
-                triggers_sent=part.triggers_sent,
-                triggers_received=part.triggers_received,
-                final=part.vehicle.state() if part.vehicle is not None else None,
-            )
-            for drone, part in self.participants.items()
-        }
-        return VirtualRun(
-            mission=self.mission,
-            drones=drones,
-            duration_s=ended,
-            timed_out=timed_out,
-            waiting=self._waiting() if timed_out else (),
-            steps=self.steps,
-        )
 
-    def _waiting(self) -> tuple[Waiting, ...]:
-        out: list[Waiting] = []
-        for drone, part in sorted(self.participants.items()):
-            for key, logic in part.logic.items():
-                why = _why_waiting(logic)
-                if why is None and key in part.top_level and key not in part.resolved:
-                    why = "never triggered"
-                if why is not None:
-                    out.append(Waiting(drone, key, logic.spec.label, why))
-        return tuple(out)
+def _outcome(drone: str, part: _Participant) -> DroneOutcome:
+    """One participant's outcome: its records in time order, resolutions, final state."""
+    return DroneOutcome(
+        drone=drone,
+        actions=tuple(sorted(part.records, key=lambda r: (r.start, r.node))),
+        resolved=dict(part.resolved),
+        all_resolved=part.all_resolved,
+        triggers_sent=part.triggers_sent,
+        triggers_received=part.triggers_received,
+        final=part.vehicle.state() if part.vehicle is not None else None,
+    )
+
+
+def _waiting(participants: Mapping[str, _Participant]) -> tuple[Waiting, ...]:
+    """What each participant still waits for (a run that reached its time limit)."""
+    out: list[Waiting] = []
+    for drone, part in sorted(participants.items()):
+        for key, logic in part.logic.items():
+            why = _why_waiting(logic)
+            if why is None and key in part.top_level and key not in part.resolved:
+                why = "never triggered"
+            if why is not None:
+                out.append(Waiting(drone, key, logic.spec.label, why))
+    return tuple(out)
 
 
 def _why_waiting(logic: NodeLogic) -> str | None:

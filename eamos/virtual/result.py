@@ -72,6 +72,9 @@ class VirtualRun:
     timed_out: bool
     waiting: tuple[Waiting, ...] = ()
     steps: int = 0
+    #: The actions a continuation ended at once, as its snapshot shows they had (drone, node,
+    #: activation): in ``drones[...].actions`` too, with no duration.
+    replayed: tuple[tuple[str, str, tuple[int, ...]], ...] = ()
 
     @property
     def ok(self) -> bool:

@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from ..hal.api import ActionHandle, ActionResult, DoneCallback, Telemetry
+from ..hal.kinematics import VehicleState
 from ..hal.sim import SIM_DT_S, SimCore, SimSettings
 from ..program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from ..program.uniform import Command
@@ -281,11 +282,14 @@ def sim_vehicles(
     settings: SimSettings | Mapping[str, SimSettings] | None = None,
     log: EventLog | None = None,
     plugins: PluginRegistry | None = None,
+    start: Callable[[str], VehicleState | None] | None = None,
 ) -> VehicleFactory:
     """A factory of simulator cores: one ``settings`` for all, or one per drone.
 
     Drones without settings get ``SimSettings()``.  The cores run ``plugins``'
     actions (default: the plugins installed through entry points, found once here).
+    ``start(drone)``: where a drone's vehicle is at the start (None: at home, on the
+    ground; a continuation gives where its snapshot saw it).
     """
     registry = discover_plugins() if plugins is None else plugins
 
@@ -295,7 +299,12 @@ def sim_vehicles(
         else:
             chosen = settings or SimSettings()
         return SimCore(
-            drone, chosen, log if log is not None else QuietLog(), clock, plugins=registry
+            drone,
+            chosen,
+            log if log is not None else QuietLog(),
+            clock,
+            plugins=registry,
+            start=None if start is None else start(drone),
         )
 
     return make

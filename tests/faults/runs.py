@@ -73,14 +73,14 @@ class LiveRun:
             self.lines.append("")  # end of output
             self.cond.notify_all()
 
-    def wait_for(self, text: str, within_s: float = 180) -> str:
-        """The first line containing ``text`` (AssertionError after ``within_s``)."""
+    def wait_for(self, text: str, within_s: float = 180, count: int = 1) -> str:
+        """The ``count``-th line containing ``text`` (AssertionError after ``within_s``)."""
         deadline = time.monotonic() + within_s
         with self.cond:
             while True:
-                for line in self.lines:
-                    if text in line:
-                        return line
+                found = [line for line in self.lines if text in line]
+                if len(found) >= count:
+                    return found[count - 1]
                 remaining = deadline - time.monotonic()
                 assert remaining > 0, f"no line with {text!r} in {within_s} s:\n" + self.text()
                 self.cond.wait(remaining)

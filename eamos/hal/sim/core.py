@@ -76,8 +76,13 @@ class SimCore(ActionRules):
         clock: Callable[[], float] = time.time,
         plugins: PluginRegistry = EMPTY_PLUGINS,
         wait_for_plugins: bool = True,
+        start: VehicleState | None = None,
     ) -> None:
         """A core for ``drone``; ``clock`` gives the epoch time stamped on telemetry.
+
+        ``start``: where the vehicle is when the core starts (default: standing at home,
+        disarmed, at ``settings.battery_pct``); a run continuing a mission's snapshot
+        gives where the real vehicle was (:meth:`Quadcopter.at`).
 
         ``plugins``: the plugin actions it may run (their "sim" implementations, each
         on a thread of its own under ``settings.plugin_deadline_s``).
@@ -90,7 +95,11 @@ class SimCore(ActionRules):
         self.settings = settings
         self._log = log
         self._frame = settings.frame
-        self._model = Quadcopter(settings.limits, battery_pct=settings.battery_pct)
+        self._model = (
+            Quadcopter(settings.limits, battery_pct=settings.battery_pct)
+            if start is None
+            else Quadcopter.at(start, settings.limits)
+        )
         self._telemetry = TelemetrySampler(drone, settings, log, clock)
         self._requests: deque[SimRequest] = deque()
         self._actions: dict[int, SimAction] = {}
