@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -48,3 +49,12 @@ def positions(run_dir: Path, drone: str) -> list[tuple[float, float, float, floa
 
 def distance(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     return math.dist(a[1:], b[1:])
+
+
+def resume_to_the_end(run: LiveRun, tmp_path: Path) -> dict[str, Any]:
+    """``eamos resume`` a paused run, wait for its end: its summary (the run must end ok)."""
+    operator("resume", str(run.run_dir))
+    assert run.finish(240) == 0, run.text()
+    summary: dict[str, Any] = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["ok"], summary
+    return summary

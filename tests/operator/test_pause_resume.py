@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.operator.runs import distance, log_lines, operator, positions, start
+from tests.operator.runs import distance, log_lines, operator, positions, resume_to_the_end, start
 from tests.support.runs import MISSIONS, REPO
 
 pytestmark = pytest.mark.e2e
@@ -50,12 +50,9 @@ def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path, fleet: tuple
         # The mission's state when paused (written before the command is answered).
         paused = json.loads((run.run_dir / "snapshot.json").read_text())
         time.sleep(PAUSE_S)  # the operator's pause, in wall time
-        operator("resume", str(run.run_dir))
-        assert run.finish(240) == 0, run.text()
+        summary = resume_to_the_end(run, tmp_path)
     finally:
         run.kill()
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["ok"], summary
     assert paused["why"] == "pause" and paused["paused"]
     three = paused["participants"]["Drone3"]
     assert [r["action"] for r in three["running"]] == ["FlyByX(5)"], three
