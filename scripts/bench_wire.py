@@ -90,7 +90,7 @@ def samples() -> dict[str, Callable[[], Any]]:
             incarnation=INC,
         ),
         "Ready": lambda: wire.Ready(M, "Drone1", "sha256:" + "ab" * 32, seq=1, incarnation=INC),
-        "Start": lambda: wire.Start(M, "GCS", 1, incarnation=INC),
+        "Start": lambda: wire.Start(M, "GCS", "d1", 1, incarnation=INC),
         "Abort": lambda: wire.Abort(M, "GCS", "operator pressed abort", 2, incarnation=INC),
         "Complete": lambda: wire.Complete(M, "GCS", 3, incarnation=INC),
         "Progress": lambda: wire.Progress(

@@ -143,6 +143,29 @@ class _FinalDeadline:
     request: FinalSample
 
 
+class LatestSample:
+    """The drone's own latest sample, as the adapter hands it over (set on its thread).
+
+    A value read from other threads, not an actor: where the vehicle is when an action
+    begins, for the node's journal and a restarted node's rest of an action, without a
+    message round trip on the action's path.
+    """
+
+    def __init__(self) -> None:
+        self._sample: Telemetry | None = None
+        self._lock = threading.Lock()
+
+    def put(self, sample: Telemetry) -> None:
+        with self._lock:
+            self._sample = sample
+
+    def position(self) -> tuple[float, float, float] | None:
+        """(x, y, z) of the latest sample (None: none yet)."""
+        with self._lock:
+            s = self._sample
+        return None if s is None else (s.x_m, s.y_m, s.z_m)
+
+
 class TelemetryBoard(RuntimePart):
     """Latest property values per drone; pushes changes to the nodes watching them."""
 

@@ -13,7 +13,8 @@ import enum
 import json
 import threading
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
@@ -25,6 +26,7 @@ from eamos.program.format import DroneProgram, load_program
 from eamos.program.uniform import GROUND_STATION
 
 from .board import WhenSettled, ask_final_sample
+from .continuation import Continuation, Replay, activations, continuation
 from .executive import ask_activity, ask_snapshot
 from .failure import tell_operator
 from .messages import PeerLost
@@ -106,7 +108,7 @@ def run_drone(
     journal = NodeJournal(
         config.log_dir, config.drone, program.mission_id, program.checksum, config.deployment
     )
-    decision = journal.decide()
+    decision = journal.decide(cannot_resume=resume_refusal(config.hal))
     if not decision.join:
         # Before the vehicle or the network is touched: nothing is commanded.
         say(
@@ -119,7 +121,14 @@ def run_drone(
     if decision.restarted:
         say(config.drone, f"{config.drone} restarted: {decision.reason}")
     config.log_dir.mkdir(parents=True, exist_ok=True)
-    journal.mark("ready")
+    replay = None
+    if decision.resume:
+        # What the node before reported, replayed: its record stays "running".
+        replay = Replay(past_of(journal.past(), program), config.drone)
+        say(config.drone, f"{config.drone} replays {len(replay.pending)} action(s) that had ended")
+    else:
+        journal.mark("ready")
+    journal.begin(resume=decision.resume)
     writer = log_writer if log_writer is not None else LogWriter()
     adapter_log = make_logger(config.log_dir / "adapter.log", writer=writer, drone=config.drone)
     adapter = make_adapter(config.drone, config.hal, adapter_log, sim_clock)
@@ -133,6 +142,8 @@ def run_drone(
         # Nothing acts before this deployment's Start; the first trigger to reach a
         # node is recorded first (a restart then knows something ran).
         start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),
+        replay=replay,
+        journal=journal.reported,
     )
     policy = end_policy(config)
     try:
@@ -192,9 +203,38 @@ def run_drone(
         return DroneEnd.DONE if report.ok else DroneEnd.FAILED
     finally:
         runtime.stop()
+        journal.close()
         close_logger(adapter_log)
         if log_writer is None:
             writer.close()
+
+
+def resume_refusal(hal: Mapping[str, Any]) -> str:
+    """Why a node with these adapter settings cannot resume mid-mission ("": it can).
+
+    Only a vehicle that outlives the node (a MAVLink autopilot, or its simulated
+    stand-in in a process of its own) is still where the node before left it.
+    """
+    adapter = hal.get("adapter", "sim")
+    if adapter == "mavlink":
+        return ""
+    return (
+        f"its vehicle (adapter {adapter!r}) ran inside the node that stopped: a new one "
+        "would start on the ground at home"
+    )
+
+
+def past_of(events: list[dict[str, Any]], program: DroneProgram) -> Continuation:
+    """A restarted node's past: what the node before reported (its progress journal)."""
+    return continuation(
+        {
+            "mission_id": program.mission_id,
+            "t": time.time(),
+            "why": "restart",
+            "participants": {program.drone: {"activations": activations(events)}},
+        },
+        "the node's progress journal",
+    )
 
 
 def wait_landing(runtime: DroneRuntime, timeout_s: float) -> str:

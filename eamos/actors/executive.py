@@ -6,7 +6,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import pykka
 
@@ -112,6 +112,31 @@ class _FlushProgress:
     """Send the progress events held since the last flush (the executive to itself)."""
 
 
+def journal_entry(
+    state: str,
+    node: str,
+    action: str,
+    iteration: Iteration,
+    detail: str,
+    finished: int,
+    at: float,
+    where: tuple[float, float, float] | None,
+) -> dict[str, Any]:
+    """One reported progress event as the node's journal keeps it (as the ground station
+    does: :func:`~.continuation.activations` reads both)."""
+    entry: dict[str, Any] = {
+        "t": at,
+        "state": state,
+        "node": node,
+        "action": action,
+        "iteration": list(iteration),
+        "detail": detail,
+    }
+    if where is not None:
+        entry["position"] = list(where)
+    return entry
+
+
 class DroneExecutive(RuntimePart):
     """Keeps the drone's records and tells the ground station how it is doing."""
 
@@ -126,9 +151,16 @@ class DroneExecutive(RuntimePart):
         to_ground: Callable[[wire.Message], None],
         log: EventLog,
         failure: FailureSink | None = None,
+        journal: Callable[[list[dict[str, Any]]], None] | None = None,
+        position: Callable[[], tuple[float, float, float] | None] | None = None,
     ) -> None:
+        """``journal``: also hand each batch of progress sent to the ground station to it
+        (the node's own record, :class:`~.rejoin.NodeJournal`), a running action with
+        where its vehicle was when it began (``position()``, its latest sample)."""
         super().__init__(dispatcher)
         self.program = program
+        self.journal = journal
+        self.position = position if journal is not None else None
         self.drone = program.drone
         self.nodes = nodes
         self.out_bridge = out_bridge
@@ -149,8 +181,10 @@ class DroneExecutive(RuntimePart):
         self.finished_actions = 0
         self.running: set[tuple[str, tuple[int, ...]]] = set()  # (node, iteration) running now
         self.idle_since: float | None = time.monotonic()
-        # (state, node, action, iteration, detail, finished, at), oldest first
-        self._pending_progress: list[tuple[str, str, str, Iteration, str, int, float]] = []
+        # (state, node, action, iteration, detail, finished, at, position), oldest first
+        self._pending_progress: list[
+            tuple[str, str, str, Iteration, str, int, float, tuple[float, float, float] | None]
+        ] = []
         self._last_progress = float("-inf")
         # One thread for the executive's life, started in on_start (not a Timer, a
         # new thread, per interval); it tells the executive to flush.
@@ -286,8 +320,9 @@ class DroneExecutive(RuntimePart):
         if state in ("ok", "failed", "cancelled"):
             self.finished_actions += 1
         # Kept raw: the wire form is built once per batch, at flush time.
+        where = self.position() if self.position is not None and state == "running" else None
         self._pending_progress.append(
-            (state, node, action, iteration, detail, self.finished_actions, time.time())
+            (state, node, action, iteration, detail, self.finished_actions, time.time(), where)
         )
         now = time.monotonic()
         if (
@@ -310,10 +345,12 @@ class DroneExecutive(RuntimePart):
                     # "at": when it changed, to show events of all drones in order
                     {"iteration": list(it), "detail": detail, "finished": done, "at": at},
                 )
-                for state, node, action, it, detail, done, at in self._pending_progress
+                for state, node, action, it, detail, done, at, _ in self._pending_progress
             ]
             batch = progress_batch(self.program.mission_id, self.drone, events)
             self.to_ground(batch)
+            if self.journal is not None:  # what was reported, as the ground station keeps it
+                self.journal([journal_entry(*pending) for pending in self._pending_progress])
             self._pending_progress = []
             self._last_progress = time.monotonic()
         if self._flush_due:  # sent before the alarm: it need not fire

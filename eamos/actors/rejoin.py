@@ -1,20 +1,19 @@
-"""A node restarted mid-mission: rejoin only when nothing had run (issue 28).
+"""A node restarted mid-mission: it resumes from what it reported, or refuses to rejoin.
 
-A drone's node killed and started again with the same config remembers
-nothing: its nodes would run its program from the start while its peers (and
-the ground station) resend every trigger and the Start at once
-(:mod:`eamos.net.incarnation`), so a ``Takeoff`` could fire before the
-``Arm`` it follows.  Until a restarted node can resume from what it did
-(the operator-in-the-loop work: its own state restored, the predecessors
-already done not run again), it rejoins only when it can prove nothing ran,
-and otherwise refuses with a clear line.
+A drone's node killed and started again with the same config would otherwise run
+its program from the start while its peers (and the ground station) resend every
+trigger and the Start at once (:mod:`eamos.net.incarnation`), so a ``Takeoff`` could
+fire before the ``Arm`` it follows.
 
-The proof is the node's record, ``node-state.json`` in its log folder
-(:class:`NodeJournal`): the deployment and program it runs and how far it got,
-``ready`` (started, no trigger has reached a node yet), ``running`` (written
-before the first trigger reaches a node: something may have run) or ``ended``
-(its report was sent).  :func:`rejoin_decision` is the one decision point, pure;
-resuming will replace its refusal.
+The node's record, in its log folder (:class:`NodeJournal`): ``node-state.json``, the
+deployment and program it runs and how far it got (``ready``: started, no trigger
+has reached a node yet; ``running``: written before the first trigger reaches a
+node; ``ended``: its report was sent), and ``node-progress.jsonl``, every progress
+event it reported to the ground station, as it sent them (a running action with
+where its vehicle was when it began).  :func:`rejoin_decision` is the one decision
+point, pure: a node restarted from ``ready`` rejoins; from ``running`` it resumes
+from its progress (:class:`~.continuation.Replay`: what had ended is not done again)
+when it can, and otherwise refuses with a clear line.
 """
 
 from __future__ import annotations
@@ -26,19 +25,23 @@ import threading
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 __all__ = [
+    "PROGRESS_FILE",
     "RECORD_FILE",
     "NodeJournal",
     "NodeRecord",
     "RejoinDecision",
+    "read_progress",
     "read_record",
     "rejoin_decision",
 ]
 
 #: The node's record, in its log folder.
 RECORD_FILE = "node-state.json"
+#: What the node reported, one JSON line per progress event, in its log folder.
+PROGRESS_FILE = "node-progress.jsonl"
 #: How far a node got: started (nothing ran), a trigger reached a node, the report was sent.
 PHASES = ("ready", "running", "ended")
 
@@ -82,6 +85,7 @@ class RejoinDecision:
     join: bool
     restarted: bool  # an earlier node of the same deployment ran here
     reason: str
+    resume: bool = False  # it had run: it replays what it reported, then goes on
 
 
 def read_record(path: Path) -> NodeRecord | None:
@@ -94,16 +98,22 @@ def read_record(path: Path) -> NodeRecord | None:
 
 
 def rejoin_decision(
-    previous: NodeRecord | None, drone: str, mission_id: str, program: str, deployment: str
+    previous: NodeRecord | None,
+    drone: str,
+    mission_id: str,
+    program: str,
+    deployment: str,
+    cannot_resume: str = "nothing records what it did",
 ) -> RejoinDecision:
     """Whether a node starting now runs its mission, given the record an earlier one left.
 
     A record of another deployment, mission or program is another run's: a
     fresh start.  Of the same one: ``ready`` (no trigger had reached a node)
-    may rejoin; ``running`` may not (refused; the operator-in-the-loop work will
-    resume here instead), nor ``ended`` (a deployment runs once).  Without a
-    deployment (a config written by hand) a new run cannot be told from a
-    restart: an ``ended`` record is taken for the run before, a fresh start.
+    may rejoin; ``running`` resumes from what it reported, unless
+    ``cannot_resume`` says why it cannot ("": it can), then it is refused;
+    ``ended`` is refused (a deployment runs once).  Without a deployment (a
+    config written by hand) a new run cannot be told from a restart: an
+    ``ended`` record is taken for the run before, a fresh start.
     """
     same = previous is not None and (
         previous.drone,
@@ -121,14 +131,21 @@ def rejoin_decision(
             f"its node before (pid {previous.pid}) had started at {when}, and no trigger had "
             "reached its nodes: nothing had run; it rejoins the mission",
         )
+    which = f"deployment {deployment}" if deployment else "this mission"
+    if previous.phase == "running" and not cannot_resume:
+        return RejoinDecision(
+            True,
+            True,
+            f"its node before (pid {previous.pid}) was running {which} since {when}; it "
+            f"resumes from what it reported ({PROGRESS_FILE}): what had ended is not done again",
+            resume=True,
+        )
     if previous.phase == "ended":
         why = f"deployment {deployment} already ended on this drone (at {when}): roll out again"
     else:
-        which = f"deployment {deployment}" if deployment else "this mission"
         why = (
-            f"its node before (pid {previous.pid}) was running {which} since {when}; what it "
-            "did is lost, and its peers would resend their triggers at once (an action before "
-            "the one it follows)"
+            f"its node before (pid {previous.pid}) was running {which} since {when} and it "
+            f"cannot resume: {cannot_resume}"
         )
         if not deployment:
             why += f"; to start this config afresh, remove {RECORD_FILE} from its log folder"
@@ -152,14 +169,68 @@ class NodeJournal:
         self.program = program
         self.deployment = deployment
         self.previous = read_record(self.path)
+        self.progress_path = log_dir / PROGRESS_FILE
+        self._progress: TextIO | None = None
         self._lock = threading.Lock()
         self._told = False
 
-    def decide(self) -> RejoinDecision:
-        """:func:`rejoin_decision` for this node and the record an earlier one left."""
+    def decide(self, cannot_resume: str = "") -> RejoinDecision:
+        """:func:`rejoin_decision` for this node and the record an earlier one left
+        (``cannot_resume``: why this node could not resume, "" if it could)."""
+        if not cannot_resume and not read_progress(self.progress_path):
+            cannot_resume = f"nothing records what it did ({PROGRESS_FILE} is missing or empty)"
         return rejoin_decision(
-            self.previous, self.drone, self.mission_id, self.program, self.deployment
+            self.previous,
+            self.drone,
+            self.mission_id,
+            self.program,
+            self.deployment,
+            cannot_resume,
         )
+
+    def past(self) -> list[dict[str, Any]]:
+        """What the node before reported (:data:`PROGRESS_FILE`'s events, oldest first)."""
+        return read_progress(self.progress_path)
+
+    def begin(self, resume: bool) -> None:
+        """Open the progress journal: appended to when resuming, emptied otherwise."""
+        with self._lock:
+            try:
+                self.progress_path.parent.mkdir(parents=True, exist_ok=True)
+                self._progress = self.progress_path.open("a" if resume else "w", encoding="utf-8")
+            except OSError as exc:
+                self._cannot_write(self.progress_path, exc)
+
+    def reported(self, events: list[dict[str, Any]]) -> None:
+        """Append what the node just reported (one write; on disk before a kill -9)."""
+        text = "".join(json.dumps(e, separators=(",", ":")) + "\n" for e in events)
+        with self._lock:
+            if self._progress is None:
+                return
+            try:
+                self._progress.write(text)
+                self._progress.flush()
+            except (OSError, ValueError) as exc:
+                self._cannot_write(self.progress_path, exc)
+
+    def close(self) -> None:
+        """Close the progress journal (what was reported stays)."""
+        with self._lock:
+            if self._progress is not None:
+                try:
+                    self._progress.close()
+                except OSError:
+                    pass
+                self._progress = None
+
+    def _cannot_write(self, path: Path, exc: Exception) -> None:
+        if not self._told:
+            self._told = True
+            say(
+                self.drone,
+                f"cannot write {path} ({getattr(exc, 'strerror', None) or exc}): a restart "
+                "of this node could not tell what it did",
+            )
 
     def mark(self, phase: str) -> None:
         """Record that this node reached ``phase`` (one of :data:`PHASES`)."""
@@ -179,13 +250,24 @@ class NodeJournal:
                 tmp.write_text(json.dumps(asdict(record)) + "\n", encoding="utf-8")
                 os.replace(tmp, self.path)
             except OSError as exc:
-                if not self._told:
-                    self._told = True
-                    say(
-                        self.drone,
-                        f"cannot write {self.path} ({exc.strerror}): a restart of this node "
-                        "could not tell whether anything ran",
-                    )
+                self._cannot_write(self.path, exc)
+
+
+def read_progress(path: Path) -> list[dict[str, Any]]:
+    """The events in a progress journal (empty: none); a line cut short by a kill is left out."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return []
+    events = []
+    for line in text.splitlines():
+        try:
+            event = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(event, dict):
+            events.append(event)
+    return events
 
 
 def say(drone: str, text: str) -> None:

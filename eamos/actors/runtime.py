@@ -42,6 +42,7 @@ from ..net.bridges import InBridge, OutBridge
 from ..net.link import Delivered, Link
 from ..program.format import DroneProgram
 from .board import TelemetryBoard, WhenLanded
+from .continuation import Replay
 from .dispatch import Dispatcher
 from .errors import DroneRuntimeError
 from .executive import PROGRESS_INTERVAL_S as PROGRESS_INTERVAL_S
@@ -101,10 +102,14 @@ class DroneRuntime:
         battery_reserve_pct: float | None = None,
         log_writer: LogWriter | None = None,
         start_gate: StartGateSettings | None = None,
+        replay: Replay | None = None,
+        journal: Callable[[list[dict[str, Any]]], None] | None = None,
     ) -> None:
         """``log_writer``: the process's log writer when several runtimes share a process;
         ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
-        nothing before it (:class:`~.inbound.StartGate`; None: no gate)."""
+        nothing before it (:class:`~.inbound.StartGate`; None: no gate); ``replay``: a
+        node restarted mid-mission replays what it reported (:mod:`.continuation`);
+        ``journal``: receives each batch of progress reported (:mod:`.rejoin`)."""
         self.program = program
         self.battery_reserve_pct = battery_reserve_pct  # a Try's Body fails below it
         self.drone = program.drone
@@ -129,6 +134,8 @@ class DroneRuntime:
             extra_topics=extra_topics,
             battery_reserve_pct=battery_reserve_pct,
             start_gate=start_gate,
+            replay=replay,
+            journal=journal,
         )
         # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None

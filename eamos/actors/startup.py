@@ -19,14 +19,15 @@ from typing import Any
 import pykka
 import zmq
 
-from ..hal.api import Adapter, AdapterError
+from ..hal.api import Adapter, AdapterError, Telemetry
 from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import Delivered, Link, LinkSettings
 from ..program.format import DroneProgram
-from .board import LocalSample, TelemetryBoard
+from .board import LatestSample, LocalSample, TelemetryBoard
+from .continuation import Replay
 from .dispatch import Dispatcher
 from .errors import DroneRuntimeError
 from .executive import DroneExecutive
@@ -98,9 +99,14 @@ class RuntimeStartup:
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
         start_gate: StartGateSettings | None = None,
+        replay: Replay | None = None,
+        journal: Callable[[list[dict[str, Any]]], None] | None = None,
     ) -> None:
         self.program = program
         self.start_gate = start_gate
+        self.replay = replay  # a restarted node's past (see DroneRuntime)
+        self.journal = journal
+        self.latest = LatestSample()
         self.drone = program.drone
         self.adapter = adapter
         self.net = net
@@ -157,7 +163,13 @@ class RuntimeStartup:
     ) -> tuple[pykka.ActorRef[UniformAPI], AdapterError | None]:
         """Start the adapter behind the uniform-API actor (its samples go to ``board``);
         the actor, and the adapter's error when it could not start."""
-        return start_uniform_api(space, lambda sample: board.tell(LocalSample(sample)))
+        latest = self.latest
+
+        def on_sample(sample: Telemetry) -> None:
+            latest.put(sample)
+            board.tell(LocalSample(sample))
+
+        return start_uniform_api(space, on_sample)
 
     def node_dispatcher(self) -> Dispatcher:
         """The node actors' dispatcher (the executive runs on it too)."""
@@ -178,6 +190,8 @@ class RuntimeStartup:
                 self.logs.mission,
                 w.begin_kind,
                 battery_floor_pct=self.battery_reserve_pct,
+                replay=self.replay,
+                position=self.latest.position,
             )
 
     def start_executive(
@@ -197,6 +211,8 @@ class RuntimeStartup:
             to_ground,
             self.logs.mission,
             self.failures,
+            journal=self.journal,
+            position=self.latest.position,
         )
 
     def wire_nodes(

@@ -70,7 +70,7 @@ EXIT_CODE_OF: Mapping[str, int] = MappingProxyType(
         "eamos.net.keys.KeysError": EXIT_BAD_INPUT,
         "eamos.net.wire.WireError": EXIT_BAD_INPUT,
         "eamos.report.ReportError": EXIT_BAD_INPUT,
-        "eamos.virtual.continuation.SnapshotError": EXIT_BAD_INPUT,
+        "eamos.actors.continuation.SnapshotError": EXIT_BAD_INPUT,
         "eamos.ops.ssh.RunFolderError": EXIT_BAD_INPUT,
         # could not connect
         "eamos.hal.api.AdapterError": EXIT_CONNECT,

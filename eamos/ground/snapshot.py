@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from eamos.actors.continuation import activations
 from eamos.logs import report_write_error
 
 from .station import DroneView
@@ -25,36 +26,18 @@ from .summary import operator_commands
 __all__ = ["SNAPSHOT_FILE", "mission_snapshot", "write_snapshot"]
 
 SNAPSHOT_FILE = "snapshot.json"
-#: What an activation's entry keeps from its first "running" event.
-STARTED = ("action", "at", "from")
 
 
 def drone_snapshot(view: DroneView) -> dict[str, Any]:
     """One participant's part of the snapshot (pure: from its view)."""
     nodes: dict[str, dict[str, Any]] = {}
-    # The last state of every activation (node, loop counters), in the order first seen.
-    activations: dict[tuple[str, tuple[int, ...]], dict[str, Any]] = {}
     for event in view.events:
         node, state = event.get("node"), event.get("state")
         if isinstance(node, str) and node and isinstance(state, str):
-            iteration = list(event.get("iteration") or [])
-            if not all(isinstance(i, int) for i in iteration):
-                continue
-            nodes[node] = {"state": state, "iteration": iteration}
-            entry: dict[str, Any] = {"node": node, "iteration": iteration, "state": state}
-            if event.get("detail"):
-                entry["detail"] = str(event["detail"])
-            if state == "running":  # when and where it began
-                entry["action"], entry["at"] = event.get("action", ""), event.get("t")
-                if event.get("position") is not None:
-                    entry["from"] = event["position"]
-            key = (node, tuple(iteration))
-            began = {k: v for k, v in activations.get(key, {}).items() if k in STARTED}
-            activations[key] = {**entry, **began}  # a resumed action began where it first did
+            nodes[node] = {"state": state, "iteration": list(event.get("iteration") or [])}
+    entries = activations(view.events)
     running = [
-        {k: v for k, v in a.items() if k != "state"}
-        for a in activations.values()
-        if a["state"] == "running"
+        {k: v for k, v in a.items() if k != "state"} for a in entries if a["state"] == "running"
     ]
     vehicle: dict[str, Any] | None = None
     if view.samples:
@@ -93,7 +76,7 @@ def drone_snapshot(view: DroneView) -> dict[str, Any]:
         "action": view.action,
         "running": running,
         "nodes": nodes,
-        "activations": list(activations.values()),
+        "activations": entries,
         "vehicle": vehicle,
     }
 

@@ -10,7 +10,7 @@ on from a mission's snapshot.  Tests of control structures
 and the pre-flight checker build on it.
 """
 
-from .continuation import Continuation, SnapshotError, continuation, load_snapshot
+from ..actors.continuation import Continuation, SnapshotError, continuation, load_snapshot
 from .decisions import Decide, install_decide
 from .driver import TIME_LIMIT_S, VirtualMission, run_virtual, telemetry_values
 from .result import DroneOutcome, VirtualRun, Waiting

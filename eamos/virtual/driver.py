@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..actors.continuation import Continuation, install_continuation
 from ..actors.logic import (
     ActionLogic,
     Broadcast,
@@ -46,7 +47,6 @@ from ..actors.state import Iteration
 from ..hal.api import ActionHandle, ActionResult, Telemetry
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION, CommandError, decode_command
-from .continuation import Continuation, install_continuation
 from .decisions import FAILED_ON_PURPOSE, Decide, FailHook, install_decide
 from .result import DroneOutcome, VirtualRun, Waiting
 from .vehicles import (
@@ -161,7 +161,7 @@ class VirtualMission:
         ``battery_floor_pct``: below it a Try's Body action fails, as on the drones
         (the fleet's ``[safety] battery_reserve_pct``; see
         :mod:`eamos.actors.logic.actions`).  ``continuation``: go on from a mission's
-        snapshot (:mod:`eamos.virtual.continuation`); the default vehicles then start
+        snapshot (:mod:`eamos.actors.continuation`); the default vehicles then start
         where it saw them (a given factory places its own).
         """
         progs = list(programs.values()) if isinstance(programs, Mapping) else list(programs)

@@ -21,7 +21,14 @@ from typing import Any
 
 import pytest
 
-from eamos.actors.rejoin import RECORD_FILE, NodeRecord, rejoin_decision
+from eamos.actors.rejoin import (
+    PROGRESS_FILE,
+    RECORD_FILE,
+    NodeRecord,
+    read_progress,
+    rejoin_decision,
+)
+from eamos.logs import read_log
 from tests.faults.runs import LiveRun, node_pid, read_json, wait_gone
 from tests.support.runs import MISSIONS, REPO, RUN_TIMEOUT_S
 
@@ -82,7 +89,7 @@ def record(phase: str, deployment: str = "d1") -> NodeRecord:
         (None, True, False, "a fresh start"),
         (record("running", deployment="other"), True, False, "a fresh start"),
         (record("ready"), True, True, "nothing had run"),
-        (record("running"), False, True, "its peers would resend their triggers"),
+        (record("running"), False, True, "cannot resume: nothing records what it did"),
         (record("ended"), False, True, "already ended on this drone"),
     ],
 )
@@ -91,6 +98,14 @@ def test_rejoin_decision(
 ) -> None:
     got = rejoin_decision(previous, "Drone1", "m", "sha256:p", "d1")
     assert (got.join, got.restarted) == (join, restarted) and words in got.reason, got
+
+
+def test_a_node_that_ran_resumes_when_nothing_stops_it() -> None:
+    got = rejoin_decision(record("running"), "Drone1", "m", "sha256:p", "d1", cannot_resume="")
+    assert got.join and got.restarted and got.resume, got
+    assert "it resumes from what it reported (node-progress.jsonl)" in got.reason, got
+    got = rejoin_decision(record("running"), "Drone1", "m", "sha256:p", "d1", "its vehicle died")
+    assert not got.join and not got.resume and "cannot resume: its vehicle died" in got.reason
 
 
 def test_without_a_deployment_an_ended_record_is_the_run_before() -> None:
@@ -178,3 +193,111 @@ def test_a_node_restarted_before_anything_ran_rejoins_and_the_mission_finishes(
     ]
     for name, report in summary["drones"].items():
         assert landed_disarmed(report), (name, report["final"])
+
+
+#: Drone1 (a MAVLink vehicle in a process of its own: it outlives the node) flies five
+#: 2 m legs in a loop; Drone2 waits for the loop, then both land.
+LOOP_LEGS = """
+func SEQ_M() {
+    PAR_Up()
+    RepeatFor(5, SEQ_Leg)
+    Drone2.FlyByY(2)
+    PAR_Down()
+}
+func PAR_Up() {
+    SEQ_Up1()
+    SEQ_Up2()
+}
+func SEQ_Up1() {
+    Drone1.Arm()
+    Drone1.Takeoff(2)
+}
+func SEQ_Up2() {
+    Drone2.Arm()
+    Drone2.Takeoff(3)
+}
+func SEQ_Leg() {
+    Drone1.FlyByX(2)
+    Drone1.PauseFor(1)
+}
+func PAR_Down() {
+    SEQ_Down1()
+    SEQ_Down2()
+}
+func SEQ_Down1() {
+    Drone1.Land()
+    Drone1.Disarm()
+}
+func SEQ_Down2() {
+    Drone2.Land()
+    Drone2.Disarm()
+}
+"""
+LOOP_FLEET = """
+[drones.Drone1.hal]
+adapter = "mavlink"
+sim_vehicle = { autopilot = "ardupilot", prearm_delay_s = 2 }
+connect_timeout_s = 20
+armable_timeout_s = 90
+"""
+
+
+@pytest.mark.e2e
+def test_a_node_killed_in_a_loops_third_iteration_resumes_and_runs_no_action_again(
+    tmp_path: Path,
+) -> None:
+    """kill -9 of Drone1's node during its third leg, restarted: it replays what it had
+    reported (no action again), flies the rest of the third leg and the fourth and fifth,
+    the mission finishes ok, and Drone1 ends 10 m out (a leg flown twice: 12 m)."""
+    mission = tmp_path / "legs.go"
+    mission.write_text(LOOP_LEGS)
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text(LOOP_FLEET)
+    run = LiveRun.start(tmp_path, mission, "--fleet", str(fleet), speedup=1, timeout_s=300)
+    again = None
+    try:
+        run.wait_for("Drone1 running   FlyByX(2)", within_s=180, count=3)
+        pid = node_pid(run.run_dir, "Drone1")
+        os.kill(pid, signal.SIGKILL)
+        assert wait_gone(pid, 15)
+        logs = run.run_dir / "logs" / "Drone1"
+        assert read_json(logs / RECORD_FILE)["phase"] == "running"
+        reported = read_progress(logs / PROGRESS_FILE)
+        ended = {
+            (e["node"], tuple(e["iteration"]))
+            for e in reported
+            if e["state"] in ("ok", "failed", "cancelled")
+        }
+        again = restart(run.run_dir, "Drone1", tmp_path / "again.out")
+        code = run.finish(RUN_TIMEOUT_S)
+        again_code = again.wait(60)
+    finally:
+        run.kill()
+        if again is not None and again.poll() is None:
+            again.kill()
+    text = run.text()
+    out = (tmp_path / "again.out").read_text()
+    assert "Drone1 restarted: its node before (pid" in out and "it resumes from" in out, out
+    assert again_code == 0, out
+    summary = read_json(tmp_path / "summary.json")
+    assert summary["ok"], (summary["outcome"], text)
+    assert code == 0, text
+    d1 = summary["drones"]["Drone1"]
+    done = [(a["action"], tuple(a["iteration"]), a["result"]) for a in d1["actions"]]
+    legs = [(a, it) for a, it, _ in done if a in ("FlyByX", "PauseFor")]
+    # Each action once, in order, every leg of the loop: none again, none lost.
+    assert legs == [(a, (i,)) for i in range(5) for a in ("FlyByX", "PauseFor")], done
+    assert [a for a, it, _ in done if not it] == ["Arm", "Takeoff", "Land", "Disarm"], done
+    assert all(r == "ok" for _, _, r in done), done
+    assert abs(d1["final"]["x"] - 10.0) < 0.5 and landed_disarmed(d1), d1["final"]
+    # The restarted node commanded nothing that had ended (its uniform log: the calls
+    # after its start).
+    calls = [
+        e for e in read_log(logs / "uniform.log") if e["event"] in ("uniform.start", "uniform.call")
+    ]
+    starts = [i for i, e in enumerate(calls) if e["event"] == "uniform.start"]
+    assert len(starts) == 2, calls
+    again_calls = {e["token"] for e in calls[starts[1] :] if e["event"] == "uniform.call"}
+    assert again_calls, calls
+    assert not again_calls & {str((node, it)) for node, it in ended}, (again_calls, ended)
+    assert len(ended) >= 6  # Arm, Takeoff, two legs (FlyByX, PauseFor each) had ended

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -28,10 +29,14 @@ from eamos.virtual import (
     continuation,
     load_snapshot,
 )
-from tests.support.runs import MISSIONS, eamos
+from tests.support.runs import MISSIONS, REPO, eamos
+
+sys.path.insert(0, str(REPO / "scripts"))
+# The snapshot of a virtual run, as the ground station makes it: one copy, shared with
+# the benchmark of continuations.
+from bench_continuation import snapshot_at
 
 SURVEY = MISSIONS / "survey_repeat.go"
-EPOCH = 1_800_000_000.0  # the wall-clock time the uninterrupted run "started"
 
 
 def full_run() -> tuple[Any, VirtualRun, dict[str, Any]]:
@@ -40,37 +45,6 @@ def full_run() -> tuple[Any, VirtualRun, dict[str, Any]]:
     run, tracks = run_once(compiled, settings, {}, 1800.0)
     assert run.ok, run
     return compiled, run, tracks
-
-
-def snapshot_at(compiled: Any, run: VirtualRun, tracks: dict[str, Any], t: float) -> dict[str, Any]:
-    """The snapshot the ground station would write at virtual time ``t`` of ``run``."""
-    participants = {}
-    for drone, outcome in run.drones.items():
-        view = DroneView(drone)
-        for r in outcome.actions:
-            if r.start > t:
-                continue
-            began: dict[str, Any] = {"node": r.node, "action": r.action, "iteration": r.iteration}
-            if drone in tracks:
-                began["position"] = list(tracks[drone].at(r.start))
-            view.events.append({"t": EPOCH + r.start, "state": "running", **began})
-            if r.end <= t:
-                view.events.append(
-                    {"t": EPOCH + r.end, "state": r.result, "node": r.node,
-                     "action": r.action, "iteration": r.iteration, "detail": r.reason}
-                )  # fmt: skip
-        part = drone_snapshot(view)
-        if drone in tracks:
-            x, y, z = tracks[drone].at(t)
-            x2, y2, z2 = tracks[drone].at(t + 0.1)
-            part["vehicle"] = {
-                "x": x, "y": y, "z": z, "armed": True, "landed": z <= 0.0, "battery": 99.0,
-                "velocity": [(x2 - x) / 0.1, (y2 - y) / 0.1, (z2 - z) / 0.1],
-            }  # fmt: skip
-        participants[drone] = part
-    mission_id = next(iter(compiled.programs.values())).mission_id
-    return {"why": "pause", "t": EPOCH + t, "mission_id": mission_id, "paused": True,
-            "participants": participants}  # fmt: skip
 
 
 def third_lane_start(run: VirtualRun) -> float:
@@ -221,9 +195,10 @@ def test_the_snapshot_keeps_each_activations_last_state_and_where_it_first_began
     ]  # fmt: skip
     part = drone_snapshot(view)
     assert part["activations"] == [
-        {"node": "n5", "iteration": [2], "state": "running", "action": "FlyByX(4)",
+        {"node": "n5", "iteration": [2], "state": "running", "t": 15.0, "action": "FlyByX(4)",
          "at": 10.0, "from": [0.0, 2.0, 3.0]},
-        {"node": "n6", "iteration": [], "state": "decided", "detail": "then: X > 1 is true"},
+        {"node": "n6", "iteration": [], "state": "decided", "t": 16.0,
+         "detail": "then: X > 1 is true"},
     ]  # fmt: skip
     assert [r["node"] for r in part["running"]] == ["n5"]
     past = continuation(

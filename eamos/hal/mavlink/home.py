@@ -106,6 +106,22 @@ def capture_home(self: HomeOwner, ground: bool = False) -> None:
     st = self.state
     if st.local is None:
         return
+    if self.origin is None and st.armed:
+        # Found armed (a node restarted mid-flight, or a vehicle armed before EAMOS
+        # connected): where it stands is not home, the autopilot's home is (set where it
+        # armed).  Until HOME_POSITION arrives there is no mission frame, no sample.
+        if st.home_ned is None:
+            return
+        self.origin = NedOrigin(*st.home_ned)
+        self.origin_provisional = False
+        self.flown = True  # its ground height is home's, not taken again
+        self.log.info(
+            "adapter.home",
+            north_m=round(st.home_ned[0], 3),
+            east_m=round(st.home_ned[1], 3),
+            down_m=round(st.home_ned[2], 3),
+            estimator="found armed: the vehicle's HOME_POSITION",
+        )
     settled = verdict(st.estimator_flags, self.autopilot.name, landed=not st.armed)
     again = (
         ground

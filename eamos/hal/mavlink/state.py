@@ -100,6 +100,7 @@ class LinkState:
     param_serial: int = 0
     global_pos: GlobalPosition | None = None
     home: tuple[float, float, float] | None = None  # HOME_POSITION lat, lon, alt AMSL
+    home_ned: tuple[float, float, float] | None = None  # HOME_POSITION x, y, z (local NED)
     sensors_present: int | None = None
     sensors_health: int | None = None
     battery_pct: float | None = None
@@ -332,6 +333,7 @@ class StateTracker:
 
     def _on_home_position(self, msg: Any, now: float, events: Events) -> None:
         self.state.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
+        self.state.home_ned = (float(msg.x), float(msg.y), float(msg.z))
 
     def _on_sys_status(self, msg: Any, now: float, events: Events) -> None:
         st = self.state

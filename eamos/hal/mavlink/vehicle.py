@@ -325,6 +325,8 @@ class MavlinkVehicle:
         if st.local is None:
             return None
         self.capture_origin()
+        if self.origin is None:  # found armed, its home not heard yet
+            return None
         x, y, z = self.mission_position(st)
         if st.global_pos is not None:
             lat, lon, alt = st.global_pos.lat_deg, st.global_pos.lon_deg, st.global_pos.rel_alt_m

@@ -1,48 +1,56 @@
-"""A virtual run that goes on from a mission's snapshot (``RUN_DIR/snapshot.json``).
+"""Going on from what a mission did: a virtual run from a snapshot, a restarted node.
 
-The ground station's snapshot (:mod:`eamos.ground.snapshot`) holds, per drone, the
-last state of every activation (node and loop counters) it reported, and where its
-vehicle was.  :func:`continuation` reads it into a :class:`Continuation`;
-:class:`~eamos.virtual.VirtualMission` (``continuation=``) then runs the mission's
-programs from their start with three differences, so that what happened is not
-flown again and what did not happen yet is simulated from where the drones are:
+What a drone reported (its progress events: :func:`activations` keeps the last state
+of every activation, node and loop counters, and when and where each action began)
+is read into a :class:`Continuation`, from two sources:
 
-* every vehicle starts where the snapshot saw it (position, velocity, armed,
-  landed, battery: :meth:`~eamos.hal.kinematics.Quadcopter.at`);
-* an action the snapshot records as ended (``ok``, ``failed``, ``cancelled``) ends at
-  once with that result, without moving its vehicle; one it records as running
-  starts again for what it had left: a ``FlyByX/Y/Z`` to the end it was going to
-  (where it began, as the ground station saw it, plus its offset), a ``PauseFor``
-  for the time it had left, any other action as it was;
-* a condition decision the snapshot shows is taken as it was (an ``If``'s branch, a
+* the ground station's ``RUN_DIR/snapshot.json`` (:mod:`eamos.ground.snapshot`), every
+  drone's part and where its vehicle was (:func:`load_snapshot`, :func:`continuation`):
+  :class:`~eamos.virtual.VirtualMission` (``continuation=``) runs the rest of the
+  mission in virtual time, each vehicle starting where the snapshot saw it
+  (:meth:`~eamos.hal.kinematics.Quadcopter.at`);
+* a drone node's own journal of what it reported (:mod:`.rejoin`): a node restarted
+  mid-mission replays its program up to where it was (:class:`Replay`).
+
+Either way the programs run from their start, with these differences, so that what
+happened is not done again and what did not happen yet happens from where the drones
+are:
+
+* an action recorded as ended (``ok``, ``failed``, ``cancelled``) ends at once with that
+  result (and, for a node, its times), without commanding its vehicle; one recorded as
+  running starts again for what it had left: a ``FlyByX/Y/Z`` to the end it was going
+  to (where it began plus its offset), a ``PauseFor`` for the time it had left, any
+  other action as it was;
+* a condition decision the record shows is taken as it was (an ``If``'s branch, a
   wait that handed on, a ``Do`` whose Body ran or was skipped, a loop's iterations, a
   ``Whenever`` that fired); a watch (a ``Do``'s or loop's stop condition, a
   ``Whenever``) is not interrupted while the past is replayed unless it was; every
-  other decision is simulated, from the vehicles' state.
+  other decision is taken from the vehicles' state, as always.
 
-The past is replayed in no virtual time (its actions end at once), so the run's
-clock and durations count from the snapshot on.  All of this is pure: no clock, no
-file (:func:`load_snapshot` reads the file).
+All of this is pure but for :func:`load_snapshot` (a file) and :class:`Replay`'s
+bookkeeping (one drone's nodes on its dispatcher's threads).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeGuard
 
-from ..actors.logic import ConditionLogic, DoLogic, IfLogic, LoopLogic, WaitLogic, WheneverLogic
-from ..actors.state import Iteration, holds
 from ..hal.api import ActionResult
 from ..hal.kinematics import VehicleState
+from .logic import ConditionLogic, DoLogic, IfLogic, LoopLogic, WaitLogic, WheneverLogic
+from .state import Iteration, holds
 
 __all__ = [
     "ENDED",
     "Continuation",
     "DronePast",
+    "Replay",
     "SnapshotError",
+    "activations",
     "continuation",
     "install_continuation",
     "load_snapshot",
@@ -78,6 +86,7 @@ class DronePast:
     details: Mapping[Activation, str] = field(default_factory=dict)
     began: Mapping[Activation, Began] = field(default_factory=dict)
     vehicle: VehicleState | None = None
+    changed_at: Mapping[Activation, float] = field(default_factory=dict)  # its last state's time
 
 
 @dataclass(frozen=True)
@@ -112,19 +121,32 @@ class Continuation:
         return None
 
     def rest(
-        self, drone: str, key: str, act: Iteration, action: str, args: tuple[Any, ...]
+        self,
+        drone: str,
+        key: str,
+        act: Iteration,
+        action: str,
+        args: tuple[Any, ...],
+        now: tuple[tuple[float, float, float] | None, float] | None = None,
     ) -> tuple[Any, ...]:
-        """The arguments of what is left of an action (``args`` if it had not begun)."""
+        """The arguments of what is left of an action (``args`` if it had not begun).
+
+        ``now``: where the vehicle is and the time (default: the snapshot's vehicle
+        and time).
+        """
         past = self.drones.get(drone)
         began = past.began.get((key, act)) if past is not None else None
         if began is None or past is None:
             return args
+        if now is None:
+            v = past.vehicle
+            now = (None if v is None else (v.x_m, v.y_m, v.z_m), self.taken_at)
+        here, t = now
         axis = _AXIS.get(action)
-        if axis is not None and began.position is not None and past.vehicle is not None:
-            now = (past.vehicle.x_m, past.vehicle.y_m, past.vehicle.z_m)[axis]
-            return (began.position[axis] + float(args[0]) - now, *args[1:])
+        if axis is not None and began.position is not None and here is not None:
+            return (began.position[axis] + float(args[0]) - here[axis], *args[1:])
         if action == "PauseFor" and began.at is not None:
-            return (max(0.0, float(args[0]) - (self.taken_at - began.at)), *args[1:])
+            return (max(0.0, float(args[0]) - (t - began.at)), *args[1:])
         return args
 
     def decision(
@@ -169,6 +191,77 @@ class Continuation:
         return out
 
 
+#: What an activation's entry keeps from its first "running" event.
+STARTED = ("action", "at", "from")
+
+
+def activations(events: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The last state of every activation in progress ``events``, in the order first seen.
+
+    Each event: ``state``, ``node``, ``iteration`` (loop counters), ``t`` (when),
+    ``action``, ``detail``, and for ``running`` where the vehicle was (``position``).
+    An entry is ``{"node", "iteration", "state", "t"}``, with ``detail`` where the last
+    event gave one and, for an action that began, ``action``, ``at`` and ``from`` of its
+    first ``running`` event (a suspended and resumed action began where it first did).
+    Events of no node (a link's) and with junk loop counters are left out.
+    """
+    out: dict[Activation, dict[str, Any]] = {}
+    for event in events:
+        node, state = event.get("node"), event.get("state")
+        if not (isinstance(node, str) and node and isinstance(state, str)):
+            continue
+        iteration = list(event.get("iteration") or [])
+        if not all(isinstance(i, int) and not isinstance(i, bool) for i in iteration):
+            continue
+        entry: dict[str, Any] = {"node": node, "iteration": iteration, "state": state}
+        if _number(event.get("t")):
+            entry["t"] = event["t"]
+        if event.get("detail"):
+            entry["detail"] = str(event["detail"])
+        if state == "running":  # when and where it began
+            entry["action"], entry["at"] = event.get("action", ""), event.get("t")
+            if event.get("position") is not None:
+                entry["from"] = event["position"]
+        key = (node, tuple(iteration))
+        began = {k: v for k, v in out.get(key, {}).items() if k in STARTED}
+        out[key] = {**entry, **began}
+    return list(out.values())
+
+
+class Replay:
+    """A restarted node's past, replayed once: what its nodes ask while they catch up.
+
+    ``pending``: the actions that had ended, not replayed yet; while there are any the
+    node is still replaying (:meth:`replaying`), and a watch it does not record
+    interrupting does not interrupt.  Shared by the drone's node actors (on its
+    dispatcher's threads): each activation is one node's, so each is taken once.
+    """
+
+    def __init__(self, cont: Continuation, drone: str) -> None:
+        self.continuation = cont
+        self.drone = drone
+        past = cont.drones.get(drone, DronePast())
+        self.pending = {k for k, state in past.states.items() if state in ENDED}
+        self.replayed = 0
+
+    def replaying(self) -> bool:
+        """True while an action that had ended was not replayed yet."""
+        return bool(self.pending)
+
+    def ended(self, key: str, act: Iteration) -> tuple[ActionResult, float, float] | None:
+        """An action that had ended: its result, start and end time (None: it had not)."""
+        result = self.continuation.ended(self.drone, key, act)
+        if result is None:
+            return None
+        self.pending.discard((key, act))
+        self.replayed += 1
+        past = self.continuation.drones[self.drone]
+        began = past.began.get((key, act))
+        end = past.changed_at.get((key, act), self.continuation.taken_at)
+        start = began.at if began is not None and began.at is not None else end
+        return result, start, end
+
+
 def _value(kind: str, go: bool) -> bool:
     """The condition value with which a While/Until structure of ``kind`` goes on (or not)."""
     return go == holds(kind, True)
@@ -211,15 +304,16 @@ def continuation(doc: Any, where: str = "snapshot") -> Continuation:
 def _drone_past(part: Any, where: str) -> DronePast:
     if not isinstance(part, dict):
         raise SnapshotError(f"{where}: not a table")
-    activations = part.get("activations")
-    if not isinstance(activations, list):
+    entries = part.get("activations")
+    if not isinstance(entries, list):
         raise SnapshotError(
             f"{where}: no 'activations' list (a snapshot written before EAMOS could continue one)"
         )
     states: dict[Activation, str] = {}
     details: dict[Activation, str] = {}
     began: dict[Activation, Began] = {}
-    for i, entry in enumerate(activations):
+    changed_at: dict[Activation, float] = {}
+    for i, entry in enumerate(entries):
         here = f"{where}.activations[{i}]"
         if not isinstance(entry, dict):
             raise SnapshotError(f"{here}: not a table")
@@ -235,9 +329,13 @@ def _drone_past(part: Any, where: str) -> DronePast:
         states[key] = state
         if isinstance(entry.get("detail"), str):
             details[key] = entry["detail"]
+        changed = _time(entry.get("t"))
+        if changed is not None:
+            changed_at[key] = changed
         if "at" in entry or "from" in entry:
             began[key] = Began(_time(entry.get("at")), _point(entry.get("from"), f"{here}.from"))
-    return DronePast(states, details, began, _vehicle(part.get("vehicle"), f"{where}.vehicle"))
+    vehicle = _vehicle(part.get("vehicle"), f"{where}.vehicle")
+    return DronePast(states, details, began, vehicle, changed_at)
 
 
 def _vehicle(data: Any, where: str) -> VehicleState | None:
