@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +75,47 @@ def restart(run_dir: Path, drone: str, out: Path) -> subprocess.Popen[bytes]:
             cwd=REPO,
             start_new_session=True,
         )
+
+
+@dataclass(frozen=True)
+class Restarted:
+    """How a run with Drone1's node killed and started again ended."""
+
+    code: int  # the run's exit code
+    again_code: int  # the restarted node's
+    out: str  # the restarted node's output
+    text: str  # the run's output
+    summary: dict[str, Any]
+    reported: list[dict[str, Any]]  # what the killed node had reported (its journal)
+
+
+def kill_and_restart(
+    run: LiveRun, tmp_path: Path, line: str, phase: str, count: int = 1
+) -> Restarted:
+    """kill -9 Drone1's node at the ``count``-th output line with ``line`` (its record
+    then says ``phase``), start it again with its config, wait for the run's end."""
+    again = None
+    try:
+        run.wait_for(line, within_s=180, count=count)
+        pid = node_pid(run.run_dir, "Drone1")
+        os.kill(pid, signal.SIGKILL)
+        assert wait_gone(pid, 15)
+        run.wait_for("Drone1 FAILED: process exited with code -9", within_s=15)
+        logs = run.run_dir / "logs" / "Drone1"
+        record = read_json(logs / RECORD_FILE)
+        assert record["phase"] == phase, record
+        reported = read_progress(logs / PROGRESS_FILE)
+        again = restart(run.run_dir, "Drone1", tmp_path / "again.out")
+        code = run.finish(RUN_TIMEOUT_S)
+        again_code = again.wait(60)
+    finally:
+        run.kill()
+        if again is not None and again.poll() is None:
+            again.kill()
+    out = (tmp_path / "again.out").read_text()
+    return Restarted(
+        code, again_code, out, run.text(), read_json(tmp_path / "summary.json"), reported
+    )
 
 
 # -- the decision, pure ---------------------------------------------------------------------
@@ -160,30 +202,14 @@ def test_a_node_restarted_before_anything_ran_rejoins_and_the_mission_finishes(
     mission = tmp_path / "waits.go"
     mission.write_text(DRONE1_WAITS)
     run = LiveRun.start(tmp_path, mission, speedup=1, timeout_s=300)
-    again = None
-    try:
-        run.wait_for("Drone2 running   FlyByX(6)", within_s=120)
-        pid = node_pid(run.run_dir, "Drone1")
-        os.kill(pid, signal.SIGKILL)
-        assert wait_gone(pid, 15)
-        run.wait_for("Drone1 FAILED: process exited with code -9", within_s=15)
-        record = read_json(run.run_dir / "logs" / "Drone1" / RECORD_FILE)
-        assert record["phase"] == "ready", record  # no trigger had reached Drone1
-        again = restart(run.run_dir, "Drone1", tmp_path / "again.out")
-        code = run.finish(RUN_TIMEOUT_S)
-        again_code = again.wait(60)
-    finally:
-        run.kill()
-        if again is not None and again.poll() is None:
-            again.kill()
-    text = run.text()
-    out = (tmp_path / "again.out").read_text()
+    # "ready": no trigger had reached Drone1.
+    ended = kill_and_restart(run, tmp_path, "Drone2 running   FlyByX(6)", "ready")
+    out, summary = ended.out, ended.summary
     assert "Drone1 restarted: its node before (pid" in out and "it rejoins the mission" in out, out
-    assert again_code == 0, out
-    summary = read_json(tmp_path / "summary.json")
-    assert summary["outcome"] == "ok" and summary["ok"], (summary["outcome"], text)
+    assert ended.again_code == 0, out
+    assert summary["outcome"] == "ok" and summary["ok"], (summary["outcome"], ended.text)
     assert summary["result"] == "finished" and summary["failures"] == []
-    assert code == 0, text
+    assert ended.code == 0, ended.text
     d1 = summary["drones"]["Drone1"]
     assert [(a["action"], a["result"]) for a in d1["actions"]] == [
         ("Arm", "ok"),
@@ -254,34 +280,18 @@ def test_a_node_killed_in_a_loops_third_iteration_resumes_and_runs_no_action_aga
     fleet = tmp_path / "fleet.toml"
     fleet.write_text(LOOP_FLEET)
     run = LiveRun.start(tmp_path, mission, "--fleet", str(fleet), speedup=1, timeout_s=300)
-    again = None
-    try:
-        run.wait_for("Drone1 running   FlyByX(2)", within_s=180, count=3)
-        pid = node_pid(run.run_dir, "Drone1")
-        os.kill(pid, signal.SIGKILL)
-        assert wait_gone(pid, 15)
-        logs = run.run_dir / "logs" / "Drone1"
-        assert read_json(logs / RECORD_FILE)["phase"] == "running"
-        reported = read_progress(logs / PROGRESS_FILE)
-        ended = {
-            (e["node"], tuple(e["iteration"]))
-            for e in reported
-            if e["state"] in ("ok", "failed", "cancelled")
-        }
-        again = restart(run.run_dir, "Drone1", tmp_path / "again.out")
-        code = run.finish(RUN_TIMEOUT_S)
-        again_code = again.wait(60)
-    finally:
-        run.kill()
-        if again is not None and again.poll() is None:
-            again.kill()
-    text = run.text()
-    out = (tmp_path / "again.out").read_text()
+    restarted = kill_and_restart(run, tmp_path, "Drone1 running   FlyByX(2)", "running", count=3)
+    out, summary = restarted.out, restarted.summary
     assert "Drone1 restarted: its node before (pid" in out and "it resumes from" in out, out
-    assert again_code == 0, out
-    summary = read_json(tmp_path / "summary.json")
-    assert summary["ok"], (summary["outcome"], text)
-    assert code == 0, text
+    assert restarted.again_code == 0, out
+    assert summary["ok"], (summary["outcome"], restarted.text)
+    assert restarted.code == 0, restarted.text
+    ended = {
+        (e["node"], tuple(e["iteration"]))
+        for e in restarted.reported
+        if e["state"] in ("ok", "failed", "cancelled")
+    }
+    logs = run.run_dir / "logs" / "Drone1"
     d1 = summary["drones"]["Drone1"]
     done = [(a["action"], tuple(a["iteration"]), a["result"]) for a in d1["actions"]]
     legs = [(a, it) for a, it, _ in done if a in ("FlyByX", "PauseFor")]
