@@ -259,21 +259,29 @@ class Pilot(RawClient):
             try:
                 self.heartbeat()
                 if self._rc:
-                    self.mav.rc_channels_override_send(
-                        self.target, 0, 1500, 1500, 1500, 1500, 0, 0, 0, 0
-                    )
+                    self.centre_sticks()
             except OSError:
                 return
+
+    def centre_sticks(self) -> None:
+        """One RC_CHANNELS_OVERRIDE: roll, pitch, throttle and yaw centred."""
+        self.mav.rc_channels_override_send(self.target, 0, 1500, 1500, 1500, 1500, 0, 0, 0, 0)
 
     def take(self, *mode: float) -> int:
         """Sticks centred, then MAV_CMD_DO_SET_MODE ``mode``: the COMMAND_ACK's result.
 
-        A transmitter's sticks do not lapse, RC overrides do: ArduCopter drops them after
-        RC_OVERRIDE_TIME (3 s of vehicle time, 0.6 s of wall time at speed-up 5) and falls
-        back to SITL's own RC input, whose throttle is low, so one late override on a
-        loaded machine made LOITER descend (CI: 0.53 m left of 2 m). -1 keeps them."""
-        self._rc = True
+        LOITER takes its climb rate from the throttle the moment it starts, and SITL's
+        own RC input has the throttle low: the mode is asked for only once the vehicle
+        says (RC_CHANNELS) that it reads the centred sticks.  Otherwise it descends
+        until the next override (CI: LOITER entered 30 ms of vehicle time after the
+        first override was due, 1.4 m lost in the ArduCopter dataflash log).  A
+        transmitter's sticks do not lapse either, RC overrides do (RC_OVERRIDE_TIME,
+        3 s of vehicle time, 0.6 s of wall time at speed-up 5): -1 keeps them."""
         self.set_param("RC_OVERRIDE_TIME", -1.0)
+        seen = self.count("RC_CHANNELS")
+        self._rc = True
+        self.centre_sticks()
+        self.wait("RC_CHANNELS", lambda m: m.chan3_raw == 1500, 30, after=seen)
         return self.command(DO_SET_MODE, 1, *mode, target=self.target)
 
     def set_param(self, name: str, value: float) -> None:
