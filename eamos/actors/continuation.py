@@ -18,9 +18,9 @@ are:
 
 * an action recorded as ended (``ok``, ``failed``, ``cancelled``) ends at once with that
   result (and, for a node, its times), without commanding its vehicle; one recorded as
-  running starts again for what it had left: a ``FlyByX/Y/Z`` to the end it was going
-  to (where it began plus its offset), a ``PauseFor`` for the time it had left, any
-  other action as it was;
+  running starts again for what it had left: a ``FlyByX/Y/Z`` as a ``FlyToXYZ`` to the
+  end it was going to (where it began plus its offset), a ``PauseFor`` for the time it
+  had left, any other action as it was;
 * a condition decision the record shows is taken as it was (an ``If``'s branch, a
   wait that handed on, a ``Do`` whose Body ran or was skipped, a loop's iterations, a
   ``Whenever`` that fired); a watch (a ``Do``'s or loop's stop condition, a
@@ -127,27 +127,29 @@ class Continuation:
         act: Iteration,
         action: str,
         args: tuple[Any, ...],
-        now: tuple[tuple[float, float, float] | None, float] | None = None,
-    ) -> tuple[Any, ...]:
-        """The arguments of what is left of an action (``args`` if it had not begun).
+        now_s: float | None = None,
+    ) -> tuple[str, tuple[Any, ...]]:
+        """What is left of an action: the action and arguments to run (as given if it had
+        not begun).
 
-        ``now``: where the vehicle is and the time (default: the snapshot's vehicle
-        and time).
+        A ``FlyByX/Y/Z`` that began becomes a ``FlyToXYZ`` to the end it was flying to
+        (where it began plus its offset): it needs no position now, which a vehicle
+        found in flight may not have given yet.  A ``PauseFor`` keeps the time it had
+        left at ``now_s`` (default: when the snapshot was taken).
         """
         past = self.drones.get(drone)
         began = past.began.get((key, act)) if past is not None else None
-        if began is None or past is None:
-            return args
-        if now is None:
-            v = past.vehicle
-            now = (None if v is None else (v.x_m, v.y_m, v.z_m), self.taken_at)
-        here, t = now
+        if began is None:
+            return action, args
         axis = _AXIS.get(action)
-        if axis is not None and began.position is not None and here is not None:
-            return (began.position[axis] + float(args[0]) - here[axis], *args[1:])
+        if axis is not None and began.position is not None:
+            end = list(began.position)
+            end[axis] += float(args[0])
+            return "FlyToXYZ", tuple(end)
         if action == "PauseFor" and began.at is not None:
-            return (max(0.0, float(args[0]) - (t - began.at)), *args[1:])
-        return args
+            t = self.taken_at if now_s is None else now_s
+            return action, (max(0.0, float(args[0]) - (t - began.at)), *args[1:])
+        return action, args
 
     def decision(
         self, drone: str, logic: ConditionLogic, act: Iteration, purpose: str, turn: int

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
@@ -184,12 +184,10 @@ class MissionNode(PooledActor):
         logic: NodeLogic | None = None,
         battery_floor_pct: float | None = None,
         replay: Replay | None = None,
-        position: Callable[[], tuple[float, float, float] | None] | None = None,
     ) -> None:
         """``logic`` replaces the one built from ``spec`` (tests inject faults this way);
         ``battery_floor_pct``: below it an action of a Try's Body fails; ``replay``: a
-        restarted node's past (:class:`~.continuation.Replay`), with where its vehicle is
-        now (``position()``) for the rest of an action that was running."""
+        restarted node's past (:class:`~.continuation.Replay`)."""
         super().__init__(dispatcher)
         self.spec = spec
         self.key = spec.key
@@ -201,7 +199,6 @@ class MissionNode(PooledActor):
         if isinstance(self.logic, ActionLogic):
             self.logic.battery_floor_pct = battery_floor_pct
         self._replay = replay
-        self._position = position
         if replay is not None:
             install_continuation(
                 replay.continuation, {drone: {self.key: self.logic}}, replay.replaying
@@ -356,20 +353,17 @@ class MissionNode(PooledActor):
 
     def _start_action(self, fx: StartAction) -> None:
         assert self.links is not None
-        args = fx.args
+        action, args = fx.action, fx.args
         if self._replay is not None:
             ended = self._replay.ended(self.key, fx.iteration)
             if ended is not None:  # it ended before the restart: as it did, not again
                 result, start_s, end_s = ended
                 token = (self.key, fx.iteration)
-                self._inline.append(ActionFinished(token, fx.action, args, result, start_s, end_s))
+                self._inline.append(ActionFinished(token, action, args, result, start_s, end_s))
                 return
-            here = self._position() if self._position is not None else None
             cont = self._replay.continuation
-            args = cont.rest(
-                self.drone, self.key, fx.iteration, fx.action, args, (here, time.time())
-            )
-        request = HalRun((self.key, fx.iteration), fx.action, args, self.actor_ref)
+            action, args = cont.rest(self.drone, self.key, fx.iteration, action, args, time.time())
+        request = HalRun((self.key, fx.iteration), action, args, self.actor_ref)
         if self.links.uniform is None:
             self._tell(self.links.hal, request)
             return

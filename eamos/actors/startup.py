@@ -191,7 +191,6 @@ class RuntimeStartup:
                 w.begin_kind,
                 battery_floor_pct=self.battery_reserve_pct,
                 replay=self.replay,
-                position=self.latest.position,
             )
 
     def start_executive(

@@ -403,7 +403,7 @@ class VirtualMission:
                 self.t,
             )
 
-        args = fx.args
+        action, args = fx.action, fx.args
         cont = self._continuation
         if cont is not None:
             ended = cont.ended(drone, key, fx.iteration)
@@ -411,13 +411,11 @@ class VirtualMission:
                 self.replayed.append((drone, key, fx.iteration))
                 done(ended)
                 return
-            args = cont.rest(drone, key, fx.iteration, fx.action, args)
+            action, args = cont.rest(drone, key, fx.iteration, action, args)
         try:
             # Plugin actions decode with the parameter list of the vehicle's plugins.
             plugins = getattr(part.vehicle, "plugins", None)
-            command = decode_command(
-                fx.action, args, plugins.specs() if plugins is not None else None
-            )
+            command = decode_command(action, args, plugins.specs() if plugins is not None else None)
         except CommandError as exc:
             done(ActionResult("failed", str(exc)))
             return

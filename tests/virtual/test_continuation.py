@@ -205,7 +205,10 @@ def test_the_snapshot_keeps_each_activations_last_state_and_where_it_first_began
         {"mission_id": "m", "t": 20.0, "participants": {"D1": {**part, "vehicle": {
             "x": 3.0, "y": 2.0, "z": 3.0}}}}
     )  # fmt: skip
-    assert past.rest("D1", "n5", (2,), "FlyByX", (4.0,)) == (1.0,)  # 0 + 4 - 3
-    assert past.rest("D1", "n5", (1,), "FlyByX", (4.0,)) == (4.0,)  # not begun: all of it
+    # Begun at (0, 2, 3): its end, 4 m north of there (wherever the vehicle is now).
+    assert past.rest("D1", "n5", (2,), "FlyByX", (4.0,)) == ("FlyToXYZ", (4.0, 2.0, 3.0))
+    assert past.rest("D1", "n5", (1,), "FlyByX", (4.0,)) == ("FlyByX", (4.0,))  # not begun
     assert past.ended("D1", "n5", (2,)) is None
-    assert past.rest("D1", "n5", (2,), "PauseFor", (30.0,)) == (20.0,)  # began at 10, now 20
+    # Began at 10, the snapshot at 20: 20 s of 30 left (at 25: 15 s).
+    assert past.rest("D1", "n5", (2,), "PauseFor", (30.0,)) == ("PauseFor", (20.0,))
+    assert past.rest("D1", "n5", (2,), "PauseFor", (30.0,), 25.0) == ("PauseFor", (15.0,))

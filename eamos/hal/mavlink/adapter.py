@@ -389,6 +389,8 @@ class MavlinkAdapter:
     def _execute(self, run: Run) -> None:
         assert run.handle is not None
         try:
+            if run.kind == "motion":
+                self._await_frame(run)
             if isinstance(run.command, PluginAction):
                 result = self._plugin(run, run.command)
             elif isinstance(run.command, MANOEUVRES):
@@ -408,6 +410,27 @@ class MavlinkAdapter:
             self._log.exception("adapter.error", action=run.handle.action, error=repr(exc))
             result = ActionResult("failed", f"adapter error: {exc!r}")
         self._actions.finish(run, result)
+
+    def _await_frame(self, run: Run) -> None:
+        """A move waits until the adapter knows where home is (the mission frame).
+
+        At the first position it does at once; a vehicle found armed (its node
+        restarted mid-flight) has none until its HOME_POSITION arrives, and a move
+        sent before that would read "on the ground" at (0, 0, 0).
+        """
+        v = self.vehicle
+        with v.cond:
+            if v.origin is not None:
+                return
+        self._flight.waiter.wait(
+            run,
+            lambda st: v.origin is not None,
+            run.started + self.settings.connect_timeout_s,
+            lambda st: (
+                "no mission frame: the vehicle's position (found armed: its HOME_POSITION) "
+                f"did not arrive within {self.settings.connect_timeout_s:g} s"
+            ),
+        )
 
     def _plugin(self, run: Run, command: PluginAction) -> ActionResult:
         """A plugin action's "mavlink" implementation, on this action's thread."""
