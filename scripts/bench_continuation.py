@@ -74,8 +74,7 @@ def snapshot_at(compiled: Any, run: VirtualRun, tracks: dict[str, Any], t: float
                 "velocity": [(x2 - x) / 0.1, (y2 - y) / 0.1, (z2 - z) / 0.1],
             }  # fmt: skip
         participants[drone] = part
-    mission_id = next(iter(compiled.programs.values())).mission_id
-    return {"why": "pause", "t": EPOCH + t, "mission_id": mission_id, "paused": True,
+    return {"why": "pause", "t": EPOCH + t, "mission_id": compiled.mission_id, "paused": True,
             "participants": participants}  # fmt: skip
 
 

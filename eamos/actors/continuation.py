@@ -111,14 +111,12 @@ class Continuation:
     def ended(self, drone: str, key: str, act: Iteration) -> ActionResult | None:
         """The result of an action that had ended (None: it had not)."""
         state = self.state(drone, key, act)
+        if state not in ENDED:  # also a participant the snapshot does not hold
+            return None
         if state == "ok":
             return ActionResult("ok")
         reason = self.drones[drone].details.get((key, act)) or f"{state} before the snapshot"
-        if state == "failed":
-            return ActionResult("failed", reason)
-        if state == "cancelled":
-            return ActionResult("cancelled", reason)
-        return None
+        return ActionResult("failed" if state == "failed" else "cancelled", reason)
 
     def rest(
         self,
@@ -244,7 +242,6 @@ class Replay:
         self.drone = drone
         past = cont.drones.get(drone, DronePast())
         self.pending = {k for k, state in past.states.items() if state in ENDED}
-        self.replayed = 0
 
     def replaying(self) -> bool:
         """True while an action that had ended was not replayed yet."""
@@ -256,7 +253,6 @@ class Replay:
         if result is None:
             return None
         self.pending.discard((key, act))
-        self.replayed += 1
         past = self.continuation.drones[self.drone]
         began = past.began.get((key, act))
         end = past.changed_at.get((key, act), self.continuation.taken_at)

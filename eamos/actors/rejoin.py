@@ -171,13 +171,16 @@ class NodeJournal:
         self.previous = read_record(self.path)
         self.progress_path = log_dir / PROGRESS_FILE
         self._progress: TextIO | None = None
+        self._past: list[dict[str, Any]] = []  # read by decide()
         self._lock = threading.Lock()
         self._told = False
 
     def decide(self, cannot_resume: str = "") -> RejoinDecision:
         """:func:`rejoin_decision` for this node and the record an earlier one left
         (``cannot_resume``: why this node could not resume, "" if it could)."""
-        if not cannot_resume and not read_progress(self.progress_path):
+        running = self.previous is not None and self.previous.phase == "running"
+        self._past = read_progress(self.progress_path) if running else []
+        if not cannot_resume and not self._past:
             cannot_resume = f"nothing records what it did ({PROGRESS_FILE} is missing or empty)"
         return rejoin_decision(
             self.previous,
@@ -189,8 +192,9 @@ class NodeJournal:
         )
 
     def past(self) -> list[dict[str, Any]]:
-        """What the node before reported (:data:`PROGRESS_FILE`'s events, oldest first)."""
-        return read_progress(self.progress_path)
+        """What the node before reported (:data:`PROGRESS_FILE`'s events, oldest first),
+        as :meth:`decide` read it (empty unless its record said ``running``)."""
+        return self._past
 
     def begin(self, resume: bool) -> None:
         """Open the progress journal: appended to when resuming, emptied otherwise."""

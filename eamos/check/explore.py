@@ -176,13 +176,11 @@ def check_mission(
     Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use,
     :class:`~eamos.virtual.SnapshotError` for a snapshot of another mission.
     """
-    if continuation is not None:
-        mission_id = next(iter(compiled.programs.values())).mission_id
-        if continuation.mission_id != mission_id:
-            raise SnapshotError(
-                f"the snapshot is of mission {continuation.mission_id}, "
-                f"this file compiles to mission {mission_id}: not the mission that flew"
-            )
+    if continuation is not None and continuation.mission_id != compiled.mission_id:
+        raise SnapshotError(
+            f"the snapshot is of mission {continuation.mission_id}, "
+            f"this file compiles to mission {compiled.mission_id}: not the mission that flew"
+        )
     return _check_mission(compiled, fleet, time_limit_s, max_runs, min_separation_m, continuation)
 
 

@@ -209,6 +209,7 @@ def test_the_snapshot_keeps_each_activations_last_state_and_where_it_first_began
     assert past.rest("D1", "n5", (2,), "FlyByX", (4.0,)) == ("FlyToXYZ", (4.0, 2.0, 3.0))
     assert past.rest("D1", "n5", (1,), "FlyByX", (4.0,)) == ("FlyByX", (4.0,))  # not begun
     assert past.ended("D1", "n5", (2,)) is None
+    assert past.ended("D9", "n5", (2,)) is None  # a participant the snapshot does not hold
     # Began at 10, the snapshot at 20: 20 s of 30 left (at 25: 15 s).
     assert past.rest("D1", "n5", (2,), "PauseFor", (30.0,)) == ("PauseFor", (20.0,))
     assert past.rest("D1", "n5", (2,), "PauseFor", (30.0,), 25.0) == ("PauseFor", (15.0,))

@@ -419,9 +419,6 @@ class MavlinkAdapter:
         sent before that would read "on the ground" at (0, 0, 0).
         """
         v = self.vehicle
-        with v.cond:
-            if v.origin is not None:
-                return
         self._flight.waiter.wait(
             run,
             lambda st: v.origin is not None,
