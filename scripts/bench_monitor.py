@@ -39,8 +39,8 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from eamos.ground.links import LinkArc, LinkGraph  # noqa: E402
 from eamos.monitor.hub import Hub  # noqa: E402
-from eamos.monitor.links import LinkArc, LinkGraph  # noqa: E402
 from eamos.monitor.server import MonitorServer  # noqa: E402
 from eamos.monitor.setup import MissionSetup, NodeInfo, ParticipantSetup  # noqa: E402
 from eamos.net import wire  # noqa: E402

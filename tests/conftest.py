@@ -49,6 +49,7 @@ TIERS = (
     "config",
     "check",
     "virtual",
+    "lookahead",
     "actors",
     "startup",
     "lsp",

@@ -237,9 +237,16 @@ class Replay:
     dispatcher's threads): each activation is one node's, so each is taken once.
     """
 
-    def __init__(self, cont: Continuation, drone: str) -> None:
+    def __init__(
+        self,
+        cont: Continuation,
+        drone: str,
+        acknowledged: frozenset[tuple[str, str, tuple[int, ...]]] = frozenset(),
+    ) -> None:
         self.continuation = cont
         self.drone = drone
+        # Triggers the node before sent and its peers acknowledged: not sent again.
+        self.acknowledged = acknowledged
         past = cont.drones.get(drone, DronePast())
         self.pending = {k for k, state in past.states.items() if state in ENDED}
 

@@ -124,7 +124,7 @@ def run_drone(
     replay = None
     if decision.resume:
         # What the node before reported, replayed: its record stays "running".
-        replay = Replay(past_of(journal.past(), program), config.drone)
+        replay = Replay(past_of(journal.past(), program), config.drone, journal.acknowledged())
         say(config.drone, f"{config.drone} replays {len(replay.pending)} action(s) that had ended")
     else:
         journal.mark("ready")

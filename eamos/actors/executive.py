@@ -154,9 +154,11 @@ class DroneExecutive(RuntimePart):
         journal: Callable[[list[dict[str, Any]]], None] | None = None,
         position: Callable[[], tuple[float, float, float] | None] | None = None,
     ) -> None:
-        """``journal``: also hand each batch of progress sent to the ground station to it
-        (the node's own record, :class:`~.rejoin.NodeJournal`), a running action with
-        where its vehicle was when it began (``position()``, its latest sample)."""
+        """``journal``: also hand each progress event to it as it happens, before the
+        batch that carries it to the ground station (the node's own record,
+        :class:`~.rejoin.NodeJournal`: an action that ended is on disk before a kill
+        can lose it), a running action with where its vehicle was when it began
+        (``position()``, its latest sample)."""
         super().__init__(dispatcher)
         self.program = program
         self.journal = journal
@@ -321,9 +323,19 @@ class DroneExecutive(RuntimePart):
             self.finished_actions += 1
         # Kept raw: the wire form is built once per batch, at flush time.
         where = self.position() if self.position is not None and state == "running" else None
-        self._pending_progress.append(
-            (state, node, action, iteration, detail, self.finished_actions, time.time(), where)
+        pending = (
+            state,
+            node,
+            action,
+            iteration,
+            detail,
+            self.finished_actions,
+            time.time(),
+            where,
         )
+        self._pending_progress.append(pending)
+        if self.journal is not None:
+            self.journal([journal_entry(*pending)])
         now = time.monotonic()
         if (
             urgent
@@ -349,8 +361,6 @@ class DroneExecutive(RuntimePart):
             ]
             batch = progress_batch(self.program.mission_id, self.drone, events)
             self.to_ground(batch)
-            if self.journal is not None:  # what was reported, as the ground station keeps it
-                self.journal([journal_entry(*pending) for pending in self._pending_progress])
             self._pending_progress = []
             self._last_progress = time.monotonic()
         if self._flush_due:  # sent before the alarm: it need not fire

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import pykka
 
 from ..net import wire
-from ..net.effects import PeerStatus, TelemetryStale
+from ..net.effects import PeerStatus, TelemetryStale, TriggersAcknowledged
 from ..net.link import Delivered
 from ..program.format import DroneProgram
 from .dispatch import tell_here
@@ -202,6 +202,9 @@ class InRouter:
     operator: Callable[[wire.Operator], None] | None = None
     """The runtime's handler of the operator's commands (:mod:`.operator`), obeyed like
     an Abort: from the ground station only, before or after the Start."""
+    acknowledged: Callable[[TriggersAcknowledged], None] | None = None
+    """Where the triggers a peer acknowledged go: the node's journal, so that a
+    restarted node never sends them again (:mod:`.rejoin`).  None: nowhere."""
 
     def __call__(self, msg: Delivered) -> None:
         try:
@@ -235,6 +238,9 @@ class InRouter:
         elif isinstance(msg, PeerStatus):
             # The link logged mission.peer.<state>; the ground station shows it.
             return True
+        elif isinstance(msg, TriggersAcknowledged):
+            if self.acknowledged is not None:
+                self.acknowledged(msg)
         elif isinstance(msg, wire.Interrupt):
             if self.gate is None or not self.gate.hold(msg):
                 self._interrupt(msg)

@@ -29,9 +29,20 @@ class Outbox:
     trigger once, however often the link had to retransmit it (the Table 7
     check).  After :meth:`seal` (the drone aborted on an internal failure) node
     triggers are dropped: only :meth:`release` speaks for this drone's nodes.
+
+    ``acknowledged``: a resumed node's triggers that the node before it sent and its
+    peers acknowledged (:mod:`.rejoin`).  Replaying its past sends them again; they are
+    counted as sent but not put on the wire (``mission.outbridge.acknowledged``).
     """
 
-    def __init__(self, bridge: Link, drone: str, mission_id: str, log: EventLog) -> None:
+    def __init__(
+        self,
+        bridge: Link,
+        drone: str,
+        mission_id: str,
+        log: EventLog,
+        acknowledged: frozenset[tuple[str, str, tuple[int, ...]]] = frozenset(),
+    ) -> None:
         self.bridge = bridge
         self.drone = drone
         self.mission_id = mission_id
@@ -41,6 +52,7 @@ class Outbox:
         self.sent_by_dest: dict[str, int] = {}
         self._sent: set[tuple[str, str, tuple[int, ...]]] = set()  # (src, dst, iteration)
         self._sealed = False
+        self._acknowledged = acknowledged
 
     def tell(self, message: SendTrigger | SendInterrupt | wire.Message) -> None:
         """Send ``message`` (a :class:`SendTrigger`, :class:`SendInterrupt` or wire message)."""
@@ -92,6 +104,15 @@ class Outbox:
             self._sent.add(key)
             self.triggers_sent += 1
             self.sent_by_dest[dest] = self.sent_by_dest.get(dest, 0) + 1
+        fields = {
+            "dest": dest,
+            "src": t.src,
+            "dst": t.dst,
+            "iteration": list(t.iteration),
+            "status": t.status,
+        }
+        if key in self._acknowledged:  # the node before sent it, and it arrived
+            return (self.log, "info", "mission.outbridge.acknowledged", fields, time.time())
         msg = wire.Trigger(
             mission=self.mission_id,
             sender=self.drone,
@@ -102,13 +123,6 @@ class Outbox:
             status=t.status,
         )
         self.bridge.send(msg)
-        fields = {
-            "dest": dest,
-            "src": t.src,
-            "dst": t.dst,
-            "iteration": list(t.iteration),
-            "status": t.status,
-        }
         return (self.log, "info", "mission.outbridge.sent", fields, time.time())
 
     def seal(self) -> None:

@@ -9,11 +9,13 @@ The node's record, in its log folder (:class:`NodeJournal`): ``node-state.json``
 deployment and program it runs and how far it got (``ready``: started, no trigger
 has reached a node yet; ``running``: written before the first trigger reaches a
 node; ``ended``: its report was sent), and ``node-progress.jsonl``, every progress
-event it reported to the ground station, as it sent them (a running action with
-where its vehicle was when it began).  :func:`rejoin_decision` is the one decision
-point, pure: a node restarted from ``ready`` rejoins; from ``running`` it resumes
-from its progress (:class:`~.continuation.Replay`: what had ended is not done again)
-when it can, and otherwise refuses with a clear line.
+event it reported to the ground station, each as it happened (a running action with
+where its vehicle was when it began), and the triggers its peers acknowledged
+(``{"acknowledged": [[src, dst, iteration], ...]}`` lines: a resumed node does not
+send them again).  :func:`rejoin_decision` is the one decision point, pure: a node
+restarted from ``ready`` rejoins; from ``running`` it resumes from its progress
+(:class:`~.continuation.Replay`: what had ended is not done again, what its peers
+acknowledged is not sent again) when it can, and otherwise refuses with a clear line.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -33,6 +36,9 @@ __all__ = [
     "NodeJournal",
     "NodeRecord",
     "RejoinDecision",
+    "TriggerKey",
+    "acknowledged_entry",
+    "acknowledged_in",
     "read_progress",
     "read_record",
     "rejoin_decision",
@@ -44,6 +50,28 @@ RECORD_FILE = "node-state.json"
 PROGRESS_FILE = "node-progress.jsonl"
 #: How far a node got: started (nothing ran), a trigger reached a node, the report was sent.
 PHASES = ("ready", "running", "ended")
+#: One trigger: (source node, destination node, iteration).
+TriggerKey = tuple[str, str, tuple[int, ...]]
+
+
+def acknowledged_entry(triggers: Iterable[TriggerKey]) -> dict[str, Any]:
+    """The journal line of triggers a peer acknowledged."""
+    return {"acknowledged": [[src, dst, list(iteration)] for src, dst, iteration in triggers]}
+
+
+def acknowledged_in(lines: Iterable[dict[str, Any]]) -> frozenset[TriggerKey]:
+    """Every trigger the journal's lines say was acknowledged (malformed entries skipped)."""
+    out: set[TriggerKey] = set()
+    for line in lines:
+        entries = line.get("acknowledged")
+        for entry in entries if isinstance(entries, list) else ():
+            try:
+                src, dst, iteration = entry
+                key = (str(src), str(dst), tuple(int(i) for i in iteration))
+            except (TypeError, ValueError):
+                continue
+            out.add(key)
+    return frozenset(out)
 
 
 @dataclass(frozen=True)
@@ -171,7 +199,8 @@ class NodeJournal:
         self.previous = read_record(self.path)
         self.progress_path = log_dir / PROGRESS_FILE
         self._progress: TextIO | None = None
-        self._past: list[dict[str, Any]] = []  # read by decide()
+        self._past: list[dict[str, Any]] = []  # read by decide(): progress events
+        self._acknowledged: frozenset[TriggerKey] = frozenset()  # read by decide()
         self._lock = threading.Lock()
         self._told = False
 
@@ -179,7 +208,9 @@ class NodeJournal:
         """:func:`rejoin_decision` for this node and the record an earlier one left
         (``cannot_resume``: why this node could not resume, "" if it could)."""
         running = self.previous is not None and self.previous.phase == "running"
-        self._past = read_progress(self.progress_path) if running else []
+        lines = read_progress(self.progress_path) if running else []
+        self._past = [line for line in lines if "node" in line]
+        self._acknowledged = acknowledged_in(lines)
         if not cannot_resume and not self._past:
             cannot_resume = f"nothing records what it did ({PROGRESS_FILE} is missing or empty)"
         return rejoin_decision(
@@ -195,6 +226,11 @@ class NodeJournal:
         """What the node before reported (:data:`PROGRESS_FILE`'s events, oldest first),
         as :meth:`decide` read it (empty unless its record said ``running``)."""
         return self._past
+
+    def acknowledged(self) -> frozenset[TriggerKey]:
+        """The triggers the node before had sent and its peers acknowledged (as
+        :meth:`decide` read them)."""
+        return self._acknowledged
 
     def begin(self, resume: bool) -> None:
         """Open the progress journal: appended to when resuming, emptied otherwise."""

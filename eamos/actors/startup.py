@@ -23,6 +23,7 @@ from ..hal.api import Adapter, AdapterError, Telemetry
 from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge
+from ..net.effects import TriggersAcknowledged
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import Delivered, Link, LinkSettings
 from ..program.format import DroneProgram
@@ -36,6 +37,7 @@ from .inbound import InRouter, StartGate, incoming_arcs
 from .logic import program_wiring
 from .node import Links, MissionNode, Wire
 from .outbox import Outbox
+from .rejoin import acknowledged_entry
 from .uniform_api import UniformAPI, UniformSpace, answers_at_once, start_uniform_api
 from .wiring import subscriptions, watched_peers
 
@@ -142,7 +144,13 @@ class RuntimeStartup:
 
     def outbox(self, link: Link) -> Outbox:
         """The Out-Bridge as the actors see it."""
-        return Outbox(link, self.drone, self.program.mission_id, self.logs.mission)
+        return Outbox(
+            link,
+            self.drone,
+            self.program.mission_id,
+            self.logs.mission,
+            acknowledged=self.replay.acknowledged if self.replay is not None else frozenset(),
+        )
 
     def services(self) -> Dispatcher:
         """The telemetry board's dispatcher (one actor: one worker)."""
@@ -253,7 +261,13 @@ class RuntimeStartup:
             arc_hosts=incoming_arcs(self.program),
             gate=self._gate(),
             operator=operator,
+            acknowledged=self._journal_acknowledged if self.journal is not None else None,
         )
+
+    def _journal_acknowledged(self, msg: TriggersAcknowledged) -> None:
+        """Journal the triggers a peer acknowledged (on the link's thread: one write)."""
+        assert self.journal is not None
+        self.journal([acknowledged_entry(msg.triggers)])
 
     def _gate(self) -> StartGate | None:
         """A drone node's gate: nothing acts before its own deployment's Start."""

@@ -61,9 +61,11 @@ def sim_settings(fleet: FleetConfig, drone: str) -> tuple[SimSettings, str | Non
     where = f"{fleet.path}: drones.{drone}.hal" if fleet.path else f"drones.{drone}.hal"
     if adapter == "sim":
         try:
-            return SimSettings.from_mapping(hal), None
+            settings = SimSettings.from_mapping(hal)
         except AdapterError as exc:
             raise ConfigError(f"{where}: {exc}") from exc
+        # A disturbance is what the check cannot know: the drone is checked without it.
+        return dataclasses.replace(settings, disturbance_speed_factor=1.0), None
     if adapter == "mavlink":
         model, note = mavlink_model(hal)
         if model is None:
@@ -168,11 +170,14 @@ def check_mission(
     max_runs: int = MAX_RUNS,
     min_separation_m: float | None = None,
     continuation: Continuation | None = None,
+    speeds: Mapping[str, float] | None = None,
 ) -> CheckReport:
     """Simulate ``compiled`` in virtual time with the fleet's models and check every run.
 
     ``continuation``: check the rest of the mission from a run's snapshot (each
     drone starts where the snapshot saw it; what had ended is not flown again).
+    ``speeds``: horizontal speeds (m/s) measured on drones in flight, used instead of
+    their models' (the live look-ahead, :mod:`.lookahead`).
     Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use,
     :class:`~eamos.virtual.SnapshotError` for a snapshot of another mission.
     """
@@ -181,7 +186,9 @@ def check_mission(
             f"the snapshot is of mission {continuation.mission_id}, "
             f"this file compiles to mission {compiled.mission_id}: not the mission that flew"
         )
-    return _check_mission(compiled, fleet, time_limit_s, max_runs, min_separation_m, continuation)
+    return _check_mission(
+        compiled, fleet, time_limit_s, max_runs, min_separation_m, continuation, speeds or {}
+    )
 
 
 def _check_mission(
@@ -190,7 +197,8 @@ def _check_mission(
     time_limit_s: float,
     max_runs: int,
     min_separation_m: float | None,
-    continuation: Continuation | None = None,
+    continuation: Continuation | None,
+    speeds: Mapping[str, float],
 ) -> CheckReport:
     # Bound to the mission, each drone's type selects its [types.NAME.hal] settings.
     fleet = (fleet or FleetConfig.empty()).for_mission(compiled.programs, compiled.mission.types)
@@ -215,6 +223,9 @@ def _check_mission(
     # Each simulated drone stands at its home (so FlyToLLA targets, given in
     # latitude and longitude, are where they are for every drone).
     settings = {d: dataclasses.replace(st, home_m=homes[d]) for d, st in settings.items()}
+    for drone, speed in speeds.items():
+        if drone in settings:
+            settings[drone] = dataclasses.replace(settings[drone], horizontal_speed_mps=speed)
     safety = fleet.safety
     if min_separation_m is not None:
         safety = dataclasses.replace(safety, min_separation_m=min_separation_m)
@@ -273,6 +284,8 @@ def _check_mission(
     }
     if continuation is not None:
         used["continued_from"] = {"why": continuation.why, "taken_at": continuation.taken_at}
+    if speeds:
+        used["measured_speeds_mps"] = dict(speeds)
     return CheckReport(
         mission=compiled.mission.name,
         source_file=compiled.source_file,

@@ -24,8 +24,10 @@ from eamos.cli.options import (
 )
 
 if TYPE_CHECKING:  # the runtime is imported only when a mission runs (not for `--help`)
+    from eamos.compiler import CompiledMission
     from eamos.config import FleetConfig
     from eamos.ground import Display, RunSummary
+    from eamos.ground.lookahead import Forecast
 
 _RUN_HELP = """\
 Fly a mission on this machine: compile it, start the drones (simulated quadcopters
@@ -186,11 +188,19 @@ def run_mission(
             speedup=opts.speedup,
             display=monitored.display,
             drones_per_process=opts.drones_per_process,
+            forecast=forecast(compiled, fleet),
         )
         monitored.finish(summary)
     if opts.summary is not None:
         summary.write(opts.summary)
     return summary
+
+
+def forecast(compiled: CompiledMission, fleet: FleetConfig) -> Forecast:
+    """The live look-ahead's forecast of ``compiled`` (``[look_ahead]``, docs/operations.md)."""
+    from eamos.check.lookahead import look_ahead
+
+    return lambda doc: look_ahead(compiled, fleet, doc).to_json()
 
 
 def summary_lines(summary: RunSummary) -> list[str]:

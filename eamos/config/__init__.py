@@ -35,13 +35,14 @@ from .validation import (
 )
 
 if TYPE_CHECKING:
-    from .fleet import HOME_SPACING_M, FleetConfig, SafetySettings, fleet_order
+    from .fleet import HOME_SPACING_M, FleetConfig, LookAheadSettings, SafetySettings, fleet_order
     from .types import merge_hal, type_lineage
 
 #: The names loaded on first use -> their module.
 _LAZY = {
     "HOME_SPACING_M": "fleet",
     "FleetConfig": "fleet",
+    "LookAheadSettings": "fleet",
     "SafetySettings": "fleet",
     "fleet_order": "fleet",
     "merge_hal": "types",
@@ -57,6 +58,7 @@ __all__ = [
     "RANGES",
     "ConfigError",
     "FleetConfig",
+    "LookAheadSettings",
     "NodeConfig",
     "Range",
     "SafetySettings",

@@ -99,6 +99,40 @@ class SafetySettings:
     battery_reserve_pct: float | None = None
 
 
+@dataclass(frozen=True)
+class LookAheadSettings:
+    """The fleet's ``[look_ahead]`` section: the ground station's live look-ahead
+    (docs/operations.md, "The live look-ahead").
+
+    ``period_s``: how often it re-simulates the rest of the mission (0: never);
+    ``hold_before_s``: it holds the drones of a separation conflict predicted within
+    this many seconds (0: it only says so).
+    """
+
+    period_s: float = 0.0
+    hold_before_s: float = 0.0
+
+
+#: The look-ahead's longest period and hold horizon (seconds).
+MAX_LOOK_AHEAD_S = 3600.0
+
+
+def _look_ahead(w: str, table: Any) -> LookAheadSettings:
+    """Validate the ``[look_ahead]`` table (every error names the field)."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{w}look_ahead: must be a table")
+    check_keys(f"{w}look_ahead.", table, {"period_s", "hold_before_s"})
+    values = {
+        key: number(f"{w}look_ahead.{key}", table[key], low=0.0, high=MAX_LOOK_AHEAD_S)
+        for key in ("period_s", "hold_before_s")
+        if key in table
+    }
+    out = LookAheadSettings(**values)
+    if out.hold_before_s and not out.period_s:
+        raise ConfigError(f"{w}look_ahead.hold_before_s: needs look_ahead.period_s above 0")
+    return out
+
+
 def _safety(w: str, table: Any) -> SafetySettings:
     """Validate the ``[safety]`` table (every error names the field)."""
     if not isinstance(table, dict):
@@ -178,6 +212,7 @@ class FleetConfig:
     lineages: dict[str, tuple[str, ...]] = field(default_factory=dict)
     # [net] ground_telemetry_hz: how often a drone's telemetry leaves for the ground station.
     ground_telemetry_hz: float = DEFAULT_GROUND_TELEMETRY_HZ
+    look_ahead: LookAheadSettings = field(default_factory=LookAheadSettings)
 
     def telemetry_hz(self, read_by_peers: bool) -> float:
         """A drone's outgoing telemetry rate (its node config's ``net.telemetry_max_hz``).
@@ -272,8 +307,9 @@ class FleetConfig:
         """Read and validate a fleet config file."""
         doc = read_toml(path)
         w = f"{path}: "
-        check_keys(w, doc, {"defaults", "types", "drones", "ground", "safety", "net"})
+        check_keys(w, doc, {"defaults", "types", "drones", "ground", "safety", "net", "look_ahead"})
         safety = _safety(w, doc.get("safety", {}))
+        look_ahead = _look_ahead(w, doc.get("look_ahead", {}))
         ground_telemetry_hz = _ground_telemetry_hz(w, doc.get("net", {}))
         homes_m: dict[str, tuple[float, float]] = {}
         homes_lla: dict[str, tuple[float, ...]] = {}
@@ -343,4 +379,5 @@ class FleetConfig:
             homes_lla,
             types,
             ground_telemetry_hz=ground_telemetry_hz,
+            look_ahead=look_ahead,
         )

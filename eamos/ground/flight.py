@@ -21,6 +21,7 @@ from types import FrameType
 from typing import Any
 
 from eamos.actors.runtime import DroneRuntime, NetSettings
+from eamos.config import LookAheadSettings
 from eamos.hal import make_adapter
 from eamos.logs import make_logger
 from eamos.net import wire
@@ -28,6 +29,7 @@ from eamos.program.format import DroneProgram
 from eamos.program.uniform import GROUND_STATION
 
 from .display import Display
+from .lookahead import Forecast, LookAheadLoop
 from .operator import OperatorDesk, PauseClock, desk_handler, snapshot
 from .station import GroundStation
 
@@ -73,6 +75,8 @@ def fly(
     clock: Callable[[], float] = time.monotonic,
     wall: Callable[[], float] = time.time,
     control: Path | None = None,
+    forecast: Forecast | None = None,
+    look_ahead: LookAheadSettings | None = None,
 ) -> Flight:
     """Run the ground station's phases on ``station`` (already attached to its runtime).
 
@@ -82,6 +86,8 @@ def fly(
     given up after a long silence) are waited for neither to resolve nor to
     report.  ``control``: the run folder whose operator's socket takes the operator's
     commands (:mod:`.operator`: pause, resume, a drone's hold, land ...) while it runs.
+    ``forecast`` with ``look_ahead.period_s`` above 0 (and ``control``): the live
+    look-ahead re-simulates the rest of the mission that often (:mod:`.lookahead`).
     """
     desk = None
     pauses = PauseClock()  # the operator's pauses do not count against the timeout
@@ -90,9 +96,15 @@ def fly(
         why = desk.open()
         if why:
             display.say(f"no operator commands for this run: {why}")
+    ahead = None
+    if forecast is not None and look_ahead is not None and look_ahead.period_s > 0 and control:
+        ahead = LookAheadLoop(station, control, forecast, look_ahead, display.say)
+        ahead.start()
     try:
         return _fly(station, display, stop, limits, alive, on_ready, clock, wall, pauses)
     finally:
+        if ahead is not None:
+            ahead.stop()
         if desk is not None:
             desk.close()
         if control is not None:  # the mission's state at its end (snapshot.json)

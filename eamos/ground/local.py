@@ -44,6 +44,7 @@ from eamos.program.uniform import GROUND_STATION
 
 from .display import Display, make_display
 from .flight import Limits, fly, ground_runtime, hurried
+from .lookahead import Forecast
 from .station import GroundStation
 from .summary import RunSummary, summarize
 from .vehicles import fleet_lla_homes, mavlink_fleet_settings, start_sim_vehicles
@@ -445,12 +446,14 @@ def fly_local(
     speedup: float | None = None,
     display: Display | None = None,
     drones_per_process: int | None = None,
+    forecast: Forecast | None = None,
 ) -> RunSummary:
     """Fly ``mission`` with drones as local processes; return the summary (also written).
 
     ``display`` defaults to a live table on a terminal, plain lines otherwise.
     ``drones_per_process`` drones share one process (None, the default: about
-    one process per core; 1: one process per drone).
+    one process per core; 1: one process per drone).  ``forecast``: the live look-ahead's,
+    used when the fleet's ``[look_ahead] period_s`` is above 0 (:mod:`.lookahead`).
     Before anything starts, a fleet table for a drone not in the mission and a
     ready timeout a drone's config cannot hold are refused (ConfigError).
     """
@@ -466,7 +469,7 @@ def fly_local(
     ports = PortReservation(len(names))
     try:
         return _fly_local(
-            mission, run_dir, fleet, limits, stop, ports.ports, speedup, display, groups
+            mission, run_dir, fleet, limits, stop, ports.ports, speedup, display, groups, forecast
         )
     finally:
         ports.release()
@@ -482,6 +485,7 @@ def _fly_local(
     speedup: float | None,
     display: Display | None,
     groups: list[list[str]],
+    forecast: Forecast | None = None,
 ) -> RunSummary:
     names = list(mission.programs)
     drones = [n for n in names if n != GROUND_STATION]
@@ -588,6 +592,8 @@ def _fly_local(
                 limits,
                 alive=lambda: running(station, drones),
                 control=run_dir,
+                forecast=forecast,
+                look_ahead=fleet.look_ahead,
             )
             outcome, started = flight.outcome, flight.started
     finally:

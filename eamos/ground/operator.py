@@ -84,7 +84,9 @@ def snapshot(station: GroundStation, run_dir: Path, why: str) -> None:
     """Write the mission's state now into ``run_dir/snapshot.json`` (:mod:`.snapshot`)."""
     from .snapshot import write_snapshot
 
-    write_snapshot(run_dir, station.snapshot(), why, station.mission_id, station.paused)
+    write_snapshot(
+        run_dir, station.snapshot(), why, station.mission_id, station.paused, station.started
+    )
 
 
 class PauseClock:

@@ -5,7 +5,9 @@ end, from what the drones already report (their progress and telemetry): per dro
 the state of each node it reported and the activation (loop counters) it was in, the
 running action, and the vehicle's latest position, velocity (from its last two
 samples), battery, armed, landed and lat/lon (``from``: ``telemetry``, or ``report`` once
-its final report gave where its last action left it); per run the operator's commands so far.
+its final report gave where its last action left it); per arc between drones the
+triggers sent and received so far (:mod:`.links`, from the same progress and the
+run folder's programs); per run the operator's commands so far.
 docs/operations.md ("Operator in the loop") describes the fields.
 """
 
@@ -19,7 +21,9 @@ from typing import Any
 
 from eamos.actors.continuation import activations
 from eamos.logs import report_write_error
+from eamos.program.format import DroneProgram, ProgramError, load_program
 
+from .links import LinkCounts, LinkGraph
 from .station import DroneView
 from .summary import operator_commands
 
@@ -78,6 +82,8 @@ def drone_snapshot(view: DroneView) -> dict[str, Any]:
         "nodes": nodes,
         "activations": entries,
         "vehicle": vehicle,
+        # The fastest horizontal speed it held so far (m/s; 0: none yet): the look-ahead's.
+        "cruise_mps": round(view.cruise_mps, 3),
     }
 
 
@@ -96,26 +102,70 @@ def velocity(samples: list[Any]) -> list[float] | None:
     ]
 
 
+def trigger_arcs(
+    programs: Mapping[str, DroneProgram], views: Mapping[str, DroneView], started: bool
+) -> list[dict[str, object]]:
+    """Per arc between drones: the triggers sent and received so far (pure).
+
+    Counted as the monitor counts them (:class:`~.links.LinkCounts`): from each node's
+    reported states, the start trigger and the participants that resolved.
+    """
+    counts = LinkCounts(LinkGraph.from_programs(programs.values()))
+    if started:
+        counts.started()
+    for view in views.values():
+        for event in view.events:
+            node, state = event.get("node"), event.get("state")
+            if isinstance(node, str) and isinstance(state, str):
+                counts.progress(node, state, tuple(event.get("iteration") or ()))
+        if view.resolved:
+            counts.resolved(view.name)
+    return counts.per_arc()
+
+
+def run_programs(run_dir: Path) -> dict[str, DroneProgram]:
+    """The run folder's compiled programs by participant (those it can read)."""
+    out: dict[str, DroneProgram] = {}
+    for path in sorted((Path(run_dir) / "programs").glob("*.program.json")):
+        try:
+            out[path.name.removesuffix(".program.json")] = load_program(path)
+        except ProgramError:
+            continue  # a snapshot without that program's arcs, not no snapshot
+    return out
+
+
 def mission_snapshot(
-    views: Mapping[str, DroneView], why: str, mission_id: str, paused: bool
+    views: Mapping[str, DroneView],
+    why: str,
+    mission_id: str,
+    paused: bool,
+    programs: Mapping[str, DroneProgram] | None = None,
+    started: bool = True,
 ) -> dict[str, Any]:
-    """The whole snapshot (pure but for the time it is taken)."""
+    """The whole snapshot (pure but for the time it is taken); ``arcs`` only with programs."""
     return {
         "why": why,
         "t": time.time(),
         "mission_id": mission_id,
         "paused": paused,
         "participants": {name: drone_snapshot(view) for name, view in views.items()},
+        "arcs": trigger_arcs(programs, views, started) if programs else [],
         "operator_commands": list(operator_commands(views)),
     }
 
 
 def write_snapshot(
-    run_dir: Path, views: Mapping[str, DroneView], why: str, mission_id: str, paused: bool
+    run_dir: Path,
+    views: Mapping[str, DroneView],
+    why: str,
+    mission_id: str,
+    paused: bool,
+    started: bool = True,
 ) -> Path | None:
     """Write ``run_dir/snapshot.json`` (whole, replaced atomically); None if it could not."""
     path = Path(run_dir) / SNAPSHOT_FILE
-    text = json.dumps(mission_snapshot(views, why, mission_id, paused), indent=1) + "\n"
+    doc = mission_snapshot(views, why, mission_id, paused, run_programs(run_dir), started)
+    text = json.dumps(doc, indent=1) + "\n"
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(text)

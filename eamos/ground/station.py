@@ -23,6 +23,7 @@ report arrives anyway, it is kept.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -73,7 +74,22 @@ class DroneView:
     given_up: bool = False  # silent for longer than give_up_s: not waited for
     exited: str = ""  # how its node's process ended, once it did ("" while it runs)
     mode: str = ""  # its autopilot's own flight mode (MAVLink drones)
-    samples: list[wire.TelemetrySample] = field(default_factory=list)  # the latest two
+    samples: list[wire.TelemetrySample] = field(default_factory=list)  # the latest three
+    # The fastest horizontal speed it held over two sample intervals in a row (m/s): what the
+    # live look-ahead flies it at (a drone slower than its type says is seen slower).
+    cruise_mps: float = 0.0
+
+    def take_sample(self, msg: wire.TelemetrySample) -> None:
+        """Its latest telemetry: where it is, and the speed it holds."""
+        self.samples = [*self.samples[-2:], msg]
+        self.position = (msg.x_m, msg.y_m, msg.z_m)
+        self.armed = msg.armed
+        self.landed = msg.landed
+        self.seen_at = time.time()
+        if len(self.samples) == 3:
+            a, b, c = self.samples
+            held = min(horizontal_speed(a, b), horizontal_speed(b, c))
+            self.cruise_mps = max(self.cruise_mps, held)
 
     def last_seen(self) -> LastSeen | None:
         """Where its latest telemetry placed it (None: no telemetry arrived)."""
@@ -81,6 +97,12 @@ class DroneView:
             return None
         x, y, z = self.position
         return LastSeen(x, y, z, bool(self.armed), self.landed, self.seen_at)
+
+
+def horizontal_speed(a: wire.TelemetrySample, b: wire.TelemetrySample) -> float:
+    """Horizontal speed between two samples (m/s; 0 when no time passed between them)."""
+    dt = b.time_s - a.time_s
+    return math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) / dt if dt > 0 else 0.0
 
 
 #: The operator's commands for the whole mission; every other one is for one drone.
@@ -219,11 +241,7 @@ class GroundStation:
                     view.failed_actions += 1
                 view.events.append(progress_entry(msg, view.position))
             elif isinstance(msg, wire.TelemetrySample):
-                view.samples = [*view.samples[-1:], msg]  # the latest two: the snapshot's velocity
-                view.position = (msg.x_m, msg.y_m, msg.z_m)
-                view.armed = msg.armed
-                view.landed = msg.landed
-                view.seen_at = time.time()
+                view.take_sample(msg)
             elif isinstance(msg, PeerStatus):
                 if msg.serial <= view.link_serial:
                     return  # an older event overtaken by a newer one (two threads report)

@@ -19,8 +19,9 @@ See docs/monitor.md.
 
 from __future__ import annotations
 
+from eamos.ground.links import LinkCount, LinkCounts, LinkGraph
+
 from .hub import Hub
-from .links import LinkCount, LinkCounts, LinkGraph
 from .setup import MissionSetup, MonitorError, load_setup
 from .state import MonitorState
 

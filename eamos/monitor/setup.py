@@ -16,10 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from eamos.ground.links import LinkGraph
 from eamos.program.format import DroneProgram, ProgramError, load_program
 from eamos.program.uniform import GROUND_STATION
-
-from .links import LinkGraph
 
 
 class MonitorError(ValueError):

@@ -48,13 +48,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from eamos.ground.display import format_event
+from eamos.ground.links import LinkCount, LinkCounts
 from eamos.ground.summary import DroneReport, RunSummary
 from eamos.hal.api import TAKEN_OVER_PREFIX, TakenOver
 from eamos.net import wire
 from eamos.net.effects import PeerStatus
 from eamos.program.uniform import GROUND_STATION
 
-from .links import LinkCount, LinkCounts
 from .setup import MissionSetup
 
 #: The autopilot messages (STATUSTEXT) a drone's panel keeps, latest last.

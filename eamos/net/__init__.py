@@ -25,7 +25,7 @@ delivery, security and the fault tests.
 """
 
 from eamos.net.bridges import InBridge, OutBridge
-from eamos.net.effects import PeerStatus, TelemetryStale
+from eamos.net.effects import PeerStatus, TelemetryStale, TriggersAcknowledged
 from eamos.net.link import Link
 from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
@@ -80,6 +80,7 @@ __all__ = [
     "TelemetrySample",
     "TelemetryStale",
     "Trigger",
+    "TriggersAcknowledged",
     "WireError",
     "decode",
     "encode",

@@ -6,8 +6,8 @@ effects (:data:`SessionEffect`), small frozen values the driver
 message, :class:`Deliver` an item to the application, report a
 :class:`PeerChanged`, :class:`Wake` the timer earlier.  (A drone's actions are
 something else: :mod:`eamos.program.uniform`.)  :class:`PeerStatus` and
-:class:`TelemetryStale` are local events: handed to the application with the
-messages, never on the wire.
+:class:`TelemetryStale` and :class:`TriggersAcknowledged` are local events: handed to the
+application with the messages, never on the wire.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ __all__ = [
     "Send",
     "SessionEffect",
     "TelemetryStale",
+    "TriggersAcknowledged",
     "Wake",
 ]
 
@@ -53,6 +54,16 @@ class TelemetryStale:
     age_s: float
 
 
+@dataclass(frozen=True)
+class TriggersAcknowledged:
+    """Local event: peer ``sender`` acknowledged these triggers of ours, each
+    ``(source node, destination node, iteration)``: they need never be sent again,
+    even by a restarted node (which journals them, :mod:`eamos.actors.rejoin`)."""
+
+    sender: str
+    triggers: tuple[tuple[str, str, tuple[int, ...]], ...]
+
+
 # -- effects (what the driver must do) -----------------------------------------------
 
 
@@ -67,7 +78,7 @@ class Send:
 class Deliver:
     """Hand ``item`` to the application (exactly once, in order per link)."""
 
-    item: wire.Message | TelemetryStale
+    item: wire.Message | TelemetryStale | TriggersAcknowledged
 
 
 @dataclass(frozen=True)

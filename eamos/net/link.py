@@ -18,7 +18,7 @@ the Out-Bridge under that lock, so a link's wire order is its seq order; the
 application callback runs outside it.
 
 Local events (never on the wire) are passed to ``on_message`` with the
-messages: :class:`PeerStatus` and :class:`TelemetryStale`.
+messages: :class:`PeerStatus`, :class:`TelemetryStale` and :class:`TriggersAcknowledged`.
 
 Neither thread stops for one message or one tick: an exception of the
 application's callback is logged and counted (:attr:`LinkDriver.delivery_errors`),
@@ -39,7 +39,15 @@ import zmq
 
 import eamos.net.wire as wire
 from eamos.logs import EventLog, make_logger
-from eamos.net.effects import PeerChanged, PeerStatus, Send, SessionEffect, TelemetryStale, Wake
+from eamos.net.effects import (
+    PeerChanged,
+    PeerStatus,
+    Send,
+    SessionEffect,
+    TelemetryStale,
+    TriggersAcknowledged,
+    Wake,
+)
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
@@ -49,7 +57,15 @@ from eamos.net.settings import LinkSettings
 from eamos.net.sockets import should_log
 from eamos.net.transport import InSide, OutSide, Transport, ZmqTransport
 
-__all__ = ["Delivered", "Link", "LinkDriver", "LinkSettings", "PeerStatus", "TelemetryStale"]
+__all__ = [
+    "Delivered",
+    "Link",
+    "LinkDriver",
+    "LinkSettings",
+    "PeerStatus",
+    "TelemetryStale",
+    "TriggersAcknowledged",
+]
 
 OutT = TypeVar("OutT", bound=OutSide)
 InT = TypeVar("InT", bound=InSide)
@@ -57,7 +73,7 @@ InT = TypeVar("InT", bound=InSide)
 Clock = Callable[[], float]
 
 #: What the link hands its participant: wire messages, and its local events.
-Delivered = wire.Message | PeerStatus | TelemetryStale
+Delivered = wire.Message | PeerStatus | TelemetryStale | TriggersAcknowledged
 
 
 class TimerOwner(Protocol):

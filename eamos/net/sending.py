@@ -57,16 +57,18 @@ class Sender:
             return [Send(numbered), Wake(tx.due)]
         return [Send(numbered)]
 
-    def acknowledged(self, peer: Peer, upto: int, now: float) -> None:
+    def acknowledged(self, peer: Peer, upto: int, now: float) -> list[wire.Message]:
         """``peer`` has everything up to ``upto`` on our link: a round-trip sample (Karn),
-        and the timer restarted from the RTO (stopped when nothing is left)."""
+        and the timer restarted from the RTO (stopped when nothing is left).  The
+        messages it acknowledged now."""
         tx = peer.tx
-        progressed, sample = tx.acknowledge(upto, now)
+        acked, sample = tx.acknowledge(upto, now)
         if sample is not None:
             peer.measure(sample, self.settings)
-        if progressed:
+        if acked:
             tx.backoff = peer.rto
             tx.due = now + peer.rto if tx.pending else None
+        return acked
 
     def nacked(
         self, peer: Peer, broadcasts: Broadcasts, now: float, actions: list[SessionEffect]

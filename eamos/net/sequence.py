@@ -112,23 +112,23 @@ class Sending:
         if self.pending:
             self.due = now
 
-    def acknowledge(self, upto: int, now: float | None) -> tuple[bool, float | None]:
-        """Forget every seq <= ``upto``: (any forgotten, a round-trip sample or None).
+    def acknowledge(self, upto: int, now: float | None) -> tuple[list[wire.Message], float | None]:
+        """Forget every seq <= ``upto``: (the messages forgotten, a round-trip sample or None).
 
         Karn: only a message sent once measures the round trip (``now`` None: no sample).
         """
         sample: float | None = None
-        progressed = False
+        acked: list[wire.Message] = []
         pending = self.pending
         while pending:
             seq = next(iter(pending))
             if seq > upto:
                 break
             out = pending.pop(seq)
-            progressed = True
+            acked.append(out.msg)
             if out.tries == 0 and now is not None:
                 sample = now - out.first_sent
-        return progressed, sample
+        return acked, sample
 
     def resend(
         self, now: float, window: int, *, recent: float = 0.0, after: int = 0

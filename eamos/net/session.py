@@ -87,6 +87,7 @@ from eamos.net.effects import (
     Send,
     SessionEffect,
     TelemetryStale,
+    TriggersAcknowledged,
     Wake,
 )
 from eamos.net.incarnation import admit, mine, new_incarnation
@@ -234,7 +235,12 @@ class ReliableSession:
         actions: list[SessionEffect],
     ) -> None:
         self.counters.acks_received += 1
-        self._sender.acknowledged(peer, upto, now)
+        acked = self._sender.acknowledged(peer, upto, now)
+        triggers = tuple(
+            (m.src_node, m.dst_node, m.iteration) for m in acked if isinstance(m, wire.Trigger)
+        )
+        if triggers:
+            actions.append(Deliver(TriggersAcknowledged(peer.name, triggers)))
         self._broadcasts.acknowledged(peer, bupto, self._peers.values())
         if nack:
             self._sender.nacked(peer, self._broadcasts, now, actions)

@@ -374,6 +374,29 @@ def test_repeat_for_rearms_its_body_with_a_new_counter_each_time():
     assert "mission.loop.exit" in notes(fx)
 
 
+def test_back_arcs_that_come_before_their_iteration_are_taken_when_it_begins():
+    """A restarted node's peers resend every back arc at once, before its replay began
+    the loop: each is kept until its iteration begins, then ends it, in order."""
+    logic = loop(count=3)
+    assert emits(logic.trigger("n4", (1,), "done")) == []  # iteration 1's end, early
+    assert emits(logic.trigger("n4", (0,), "done")) == []  # before the loop even began
+    fx = logic.trigger("n1", (), "done")  # the loop begins: iterations 0 and 1 end at once
+    assert emits(fx) == [("n4", (0,), "done"), ("n4", (1,), "done"), ("n4", (2,), "done")]
+    assert resolved(fx) == []  # iteration 2 runs: its back arc has not come
+    fx = logic.trigger("n4", (2,), "done")
+    assert emits(fx) == [("n9", (), "done")] and resolved(fx) == [((), "done", True)]
+
+
+def test_a_while_loops_early_back_arc_waits_for_the_conditions_go():
+    logic = loop("repeat_while", cond=GT)
+    logic.trigger("n1", (), "done")
+    assert emits(logic.trigger("n4", (0,), "done")) == []  # the condition has not said go
+    fx = logic.telemetry("D1", values(2.0))
+    assert emits(fx) == [("n4", (0,), "done")]  # iteration 0 began, and its end was here
+    assert any(isinstance(e, WatchTelemetry) for e in fx)  # asking for iteration 1
+    assert emits(logic.telemetry("D1", values(0.0))) == [("n9", (), "done")]
+
+
 def test_repeat_for_zero_goes_straight_to_exit():
     assert emits(loop(count=0).trigger("n1", (), "done")) == [("n9", (), "done")]
 

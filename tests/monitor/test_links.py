@@ -18,8 +18,8 @@ import pytest
 
 from eamos.actors.logic import Emit, Progress, Record, Resolve
 from eamos.compiler import compile_file
+from eamos.ground.links import LinkArc, LinkCounts, LinkGraph
 from eamos.hal.sim.settings import SimSettings
-from eamos.monitor.links import LinkArc, LinkCounts, LinkGraph
 from eamos.monitor.setup import build_setup
 from eamos.monitor.state import MonitorState, apply_patches
 from eamos.net import wire
@@ -123,6 +123,18 @@ def test_counts_from_node_states_equal_the_triggers_that_crossed_each_link(missi
     totals = counts.totals()
     for name, outcome in result.drones.items():
         assert totals.get(name, (0, 0)) == (outcome.triggers_sent, outcome.triggers_received)
+    # Per arc (the snapshot's "arcs"): each arc's triggers, every iteration once.
+    per_arc: dict[tuple[str, str], int] = {}
+    for keys in run.emitted.values():
+        for src, dst, _ in keys:
+            per_arc[(src, dst)] = per_arc.get((src, dst), 0) + 1
+    arcs = counts.per_arc()
+    for arc in arcs:
+        assert arc["sent"] == arc["received"] == per_arc.get((arc["src"], arc["dst"]), 0), arc
+    for name, outcome in result.drones.items():
+        sent = sum(a["sent"] for a in arcs if a["from"] == name)
+        received = sum(a["received"] for a in arcs if a["to"] == name)
+        assert (sent, received) == (outcome.triggers_sent, outcome.triggers_received), name
 
 
 def test_a_loop_mission_counts_more_triggers_than_arcs():

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from eamos.logs import close_logger, make_logger, read_log
 from eamos.net import wire
-from eamos.net.effects import Deliver, PeerStatus, Send, TelemetryStale, Wake
+from eamos.net.effects import Deliver, PeerStatus, Send, TelemetryStale, TriggersAcknowledged, Wake
 from eamos.net.link import LinkSettings
 from eamos.net.session import NACK_INTERVAL_S, ReliableSession
 
@@ -473,8 +473,12 @@ def test_any_loss_duplication_and_reordering_delivers_each_message_once_in_order
         assert triggers(fleet, d, sender=s) == list(range(count)), (s, d)
     for d in ("D1", "D2"):
         assert [m.reason for m in fleet.of(d, wire.Abort)] == [f"r{i}" for i in range(broadcasts)]
+    # Each sender is told of each of its triggers' acknowledgement exactly once.
+    for (s, d), count in zip(links, counts, strict=True):
+        told = [k for a in fleet.of(s, TriggersAcknowledged) if a.sender == d for k in a.triggers]
+        assert sorted(it[0] for _, _, it in told) == list(range(count)), (s, d)
     assert all(
-        isinstance(i, PeerStatus | TelemetryStale | wire.Message)
+        isinstance(i, PeerStatus | TelemetryStale | TriggersAcknowledged | wire.Message)
         for g in fleet.got.values()
         for i in g
     )

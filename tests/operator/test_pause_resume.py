@@ -58,8 +58,16 @@ def test_pause_holds_every_drone_and_resume_goes_on(tmp_path: Path, fleet: tuple
     assert [r["action"] for r in three["running"]] == ["FlyByX(5)"], three
     assert three["vehicle"]["armed"] and not three["vehicle"]["landed"]
     assert three["nodes"] and all(n["state"] for n in three["nodes"].values())
+    # Triggers per arc between drones: some crossed before the pause, none arrived unsent.
+    assert sum(a["sent"] for a in paused["arcs"]) > 0, paused["arcs"]
+    assert all(a["received"] <= a["sent"] for a in paused["arcs"]), paused["arcs"]
     end = json.loads((run.run_dir / "snapshot.json").read_text())
     assert end["why"] == "end" and not end["paused"]
+    # At the end, per arc summed per drone: what each drone's own report counted.
+    for name, entry in summary["drones"].items():
+        sent = sum(a["sent"] for a in end["arcs"] if a["from"] == name)
+        received = sum(a["received"] for a in end["arcs"] if a["to"] == name)
+        assert (sent, received) == (entry["triggers_sent"], entry["triggers_received"]), name
     assert end["operator_commands"] == summary["operator_commands"]
     assert all(p["vehicle"]["landed"] for n, p in end["participants"].items() if n != "GCS")
     commands = summary["operator_commands"]

@@ -6,6 +6,12 @@ Until decide before every iteration; while Body runs they watch the condition
 and, when it ends the loop, interrupt the Wait/Pause nodes of Body (mode
 ``"waits"``) so no drone waits forever for a loop that is over.  RepeatFor
 counts.  An enclosing Do's interrupt makes the loop leave with ``skipped``.
+
+A back arc may arrive before its iteration began: a node restarted mid-mission
+(:mod:`eamos.actors.rejoin`) hears its peers resend every trigger they sent it
+at once, the back arcs of iterations its own replay has not reached yet among
+them.  Such a back arc is kept, and taken as that iteration's end when the
+iteration begins (its body is then replayed: the back arc says it all ended).
 """
 
 from __future__ import annotations
@@ -41,6 +47,10 @@ class LoopLogic(ConditionLogic):
         super().__init__(spec, routes, entry, loop)
         self.loops: dict[Iteration, LoopState] = {}
         self.counted = spec.kind == "repeat_for"
+        # Back arcs that came before their iteration began, by (loop activation, counter).
+        self._early: dict[tuple[Iteration, int], Fired] = {}
+        self._due: list[Fired] = []  # early back arcs whose iteration began, to take in order
+        self._taking = False
 
     def _pass_on(self, act: Iteration, status: Status) -> None:
         self._emit(act, lambda r: status if r.kind == "exit" else None)
@@ -84,6 +94,9 @@ class LoopLogic(ConditionLogic):
             self._emit(act, lambda r: "done" if r.kind == "body" else None, (*act, state.counter))
             if self.spec.interrupt_drones and not self.counted:
                 self._await(act, "loop-watch")
+            early = self._early.pop((act, state.counter), None)
+            if early is not None:
+                self._take_early(early)
         else:
             final: Status = "skipped" if state.interrupted else "done"
             self._note(
@@ -97,10 +110,31 @@ class LoopLogic(ConditionLogic):
             self._emit(act, lambda r: final if r.kind == "exit" else None)
             self._resolved(act, final)
 
+    def _take_early(self, fired: Fired) -> None:
+        """An early back arc's iteration began: its body ended.  A work list, not
+        recursion (each taken back arc begins the next iteration, which may have one)."""
+        self._due.append(fired)
+        if self._taking:
+            return
+        self._taking = True
+        try:
+            while self._due:
+                self._body_done(self._due.pop(0))
+        finally:
+            self._taking = False
+
     def _body_done(self, fired: Fired) -> None:
         act = fired.activation[:-1]
+        counter = fired.activation[-1]
         state = self.loops.get(act)
-        if state is None or fired.activation[-1] != state.counter:
+        if (
+            state is None
+            or counter > state.counter
+            or (counter == state.counter and not state.in_body)
+        ):
+            self._early[(act, counter)] = fired  # before its iteration began (see above)
+            return
+        if counter != state.counter:
             return
         state.in_body = False
         self._drop_pending(act, "loop-watch")

@@ -176,6 +176,7 @@ class ActionRules:
             case PauseFor(duration_s=duration) | Hold(duration_s=duration):
                 act.until_s = self.t_s + duration
             case SetSpeed(speed_m_s=speed):
+                speed *= self.settings.disturbance_speed_factor  # the disturbance stays
                 model.limits = dataclasses.replace(model.limits, horizontal_speed_mps=speed)
                 return self._finish(act, ActionResult("ok"), finished)
             case Arm():

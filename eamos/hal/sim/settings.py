@@ -110,6 +110,10 @@ class SimSettings:
     # of a MAVLink drone sets the measured ones (eamos.config.types.MAVLINK_MODELS).
     liftoff_delay_s: float = 0.0
     land_detect_s: float = 0.0
+    # A disturbance the pre-flight check cannot know (wind against it, a weak motor): the
+    # vehicle flies horizontally at this fraction of its speeds.  The check models the drone
+    # without it (eamos.check.explore.sim_settings); the live look-ahead measures it.
+    disturbance_speed_factor: float = 1.0
     # Disarm by itself this long after a touchdown ending a flight, as PX4 (COM_DISARM_LAND)
     # and ArduCopter do; 0: never (eamos.hal.sim.landing).
     disarm_after_landing_s: float = DISARM_AFTER_LANDING_S
@@ -173,6 +177,7 @@ class SimSettings:
             arm_delay_s=num("arm_delay_s", ge=0, le=600),
             liftoff_delay_s=num("liftoff_delay_s", ge=0, le=600),
             land_detect_s=num("land_detect_s", ge=0, le=600),
+            disturbance_speed_factor=num("disturbance_speed_factor", ge=0.05, le=1),
             disarm_after_landing_s=num("disarm_after_landing_s", ge=0, le=3600),
             telemetry_hz=num("telemetry_hz", ge=0.1, le=1 / SIM_STEP_S),
             home_lat_deg=num("home_lat_deg", ge=-90, le=90),
@@ -196,7 +201,7 @@ class SimSettings:
     def limits(self) -> Limits:
         """The kinematic limits these settings describe."""
         return Limits(
-            horizontal_speed_mps=self.horizontal_speed_mps,
+            horizontal_speed_mps=self.horizontal_speed_mps * self.disturbance_speed_factor,
             climb_speed_mps=self.climb_speed_mps,
             descent_speed_mps=self.descent_speed_mps,
             accel_mps2=self.accel_mps2,

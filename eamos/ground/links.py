@@ -1,8 +1,9 @@
-"""Live trigger counts per link (drone A -> drone B), derived from node states (pure).
+"""Trigger counts per link (drone A -> drone B) and per arc, derived from node states (pure).
 
 The drones count the triggers their Out-Bridge sends and their In-Bridge
-receives, but say so only in their final report.  The monitor counts them
-live from what the ground station already hears -- each node's state changes
+receives, but say so only in their final report.  The monitor (live) and the
+mission snapshot (``snapshot.json``, per arc) count them from what the ground
+station already hears -- each node's state changes
 (``Progress``), ``Resolved`` -- and the compiled programs' arcs, using the
 rules the node logic (:mod:`eamos.actors.logic`) follows:
 
@@ -182,6 +183,32 @@ class LinkCounts:
     def counts(self) -> list[LinkCount]:
         """Every link with external arcs, in order."""
         return [self._count(link) for link in self.arcs]
+
+    def per_arc(self) -> list[dict[str, object]]:
+        """Every arc between drones: its nodes and drones, and the triggers sent and
+        received on it so far (each iteration once), in the graph's order."""
+        sent: dict[tuple[str, str], int] = {}
+        received: dict[tuple[str, str], int] = {}
+        for found, into in ((self.sent, sent), (self.received, received)):
+            for keys in found.values():
+                for src, dst, _ in keys:
+                    into[(src, dst)] = into.get((src, dst), 0) + 1
+        out: list[dict[str, object]] = []
+        for arc in self.graph.arcs:
+            if arc.external and arc.src in self.graph.owner and arc.dst in self.graph.owner:
+                key = (arc.src, arc.dst)
+                out.append(
+                    {
+                        "from": self.graph.owner[arc.src],
+                        "to": self.graph.owner[arc.dst],
+                        "src": arc.src,
+                        "dst": arc.dst,
+                        "kind": arc.kind,
+                        "sent": sent.get(key, 0),
+                        "received": received.get(key, 0),
+                    }
+                )
+        return out
 
     def totals(self) -> dict[str, tuple[int, int]]:
         """Per participant: (triggers sent, triggers received) so far."""
