@@ -12,7 +12,6 @@ it predicts nothing.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 from typing import Any
@@ -20,16 +19,15 @@ from typing import Any
 import pytest
 
 from eamos.check import check_mission
-from eamos.check.explore import run_once
 from eamos.check.lookahead import look_ahead
 from eamos.compiler import compile_file
 from eamos.config import ConfigError, FleetConfig
 from eamos.ground.lookahead import news, to_hold
-from eamos.hal.sim import SimSettings
 from tests.support.runs import MISSIONS, REPO
 
 sys.path.insert(0, str(REPO / "scripts"))
 from bench_continuation import snapshot_at
+from bench_lookahead import flown
 
 CROSSING = MISSIONS / "crossing.go"
 SLOW = REPO / "configs" / "crossing_slow.toml"
@@ -37,29 +35,20 @@ SLOW = REPO / "configs" / "crossing_slow.toml"
 INTO_LEG_S = 4.0
 
 
-class Local:
-    """A fleet-frame track seen from its drone's home (what the drone's telemetry says)."""
-
-    def __init__(self, track: Any, home: tuple[float, float]) -> None:
-        self.track, self.home = track, home
-
-    def at(self, t: float) -> tuple[float, float, float]:
-        x, y, z = self.track.at(t)
-        return x - self.home[0], y - self.home[1], z
+def line_of(text: str) -> str:
+    """The line number of ``text`` in the mission."""
+    lines = CROSSING.read_text().splitlines()
+    return str(next(i for i, line in enumerate(lines, 1) if text in line))
 
 
 def slow_flight() -> tuple[Any, FleetConfig, Any, dict[str, Any]]:
-    """experiment: the crossing flown with Drone2's disturbance, in virtual time."""
+    """The crossing flown with Drone2's disturbance, in virtual time."""
     compiled = compile_file(CROSSING)
-    fleet = FleetConfig.load(SLOW).for_mission(compiled.programs, compiled.mission.types)
-    homes = fleet.homes(["Drone1", "Drone2"])
-    settings = {
-        d: dataclasses.replace(SimSettings.from_mapping(fleet.hal_for(d)), home_m=homes[d])
-        for d in ("Drone1", "Drone2")
-    }
-    assert settings["Drone2"].disturbance_speed_factor == 0.5
-    run, tracks = run_once(compiled, settings, homes, 600.0)
-    return compiled, fleet, run, {d: Local(tracks[d], homes[d]) for d in tracks}
+    fleet = FleetConfig.load(SLOW)
+    assert fleet.hal_for("Drone2")["disturbance_speed_factor"] == 0.5
+    slowed = {"Drone2": {"disturbance_speed_factor": 0.5}}
+    run, tracks = flown(compiled, fleet, slowed)
+    return compiled, fleet, run, tracks
 
 
 def leg_of(run: Any, drone: str, action: str) -> Any:
@@ -86,7 +75,8 @@ def test_the_look_ahead_predicts_the_conflict_from_the_speed_drone2_was_seen_to_
     assert conflicts, ahead
     first = conflicts[0]
     assert first.severity == "error" and set(first.drones) == {"Drone1", "Drone2"}
-    assert {line.rsplit(":", 1)[1] for line in first.lines} == {"35", "39"}, first.lines
+    lines = {line_of("Drone1.FlyByY(20)"), line_of("Drone2.FlyByX(40)")}
+    assert {line.rsplit(":", 1)[1] for line in first.lines} == lines, first.lines
     # Foreseen at least 10 s ahead, within 2 s of when the flight really gets there.
     assert first.in_s is not None and first.in_s >= 10.0, first
     assert cross.start - t < first.in_s < cross.end - t + 2.0, (first.in_s, cross, t)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.lookahead.test_lookahead import line_of
 from tests.operator.runs import log_lines, operator, positions, start
 from tests.support.runs import MISSIONS, REPO
 
@@ -62,7 +63,8 @@ def test_the_look_ahead_sees_the_slowed_drones_conflict_coming_and_holds_them(
         run.kill()
     ahead = int(re.search(r"look-ahead: error in (\d+) s", said).group(1))  # type: ignore[union-attr]
     assert ahead >= 10, said
-    assert "Drone1" in said and "Drone2" in said and "line 35" in said and "line 39" in said
+    for text in ("Drone1.FlyByY(20)", "Drone2.FlyByX(40)"):
+        assert f"{text} (line {line_of(text)})" in said, said
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["ok"], summary
     held = [(c["command"], c["drone"], c["origin"]) for c in summary["operator_commands"]]
