@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from ..compiler import CompiledMission
@@ -32,6 +32,8 @@ __all__ = ["LOOK_AHEAD_MAX_RUNS", "LookAhead", "Prediction", "look_ahead", "meas
 
 #: Branches simulated per cycle at most (each a whole rest of the mission).
 LOOK_AHEAD_MAX_RUNS = 16
+#: How far ahead each drone's predicted track is given (s), one point a second.
+TRACK_AHEAD_S = 60
 #: Below this a drone has not been seen cruising: its model's speed is kept (m/s).
 MIN_CRUISE_MPS = 0.3
 #: Seen holding less than this fraction of its type's speed, a drone is flown at what it
@@ -84,6 +86,9 @@ class LookAhead:
     runs: int  # branches simulated
     cpu_s: float  # CPU seconds this cycle took
     speeds: Mapping[str, float]  # measured horizontal speeds it flew drones at (m/s)
+    # Each drone's predicted track on the first branch, fleet frame: (t from the snapshot,
+    # north, east, up), one point a second for TRACK_AHEAD_S.
+    ahead: Mapping[str, tuple[tuple[float, float, float, float], ...]] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         """A JSON-ready dict."""
@@ -93,6 +98,7 @@ class LookAhead:
             "runs": self.runs,
             "cpu_s": round(self.cpu_s, 3),
             "speeds_mps": {d: round(v, 2) for d, v in self.speeds.items()},
+            "ahead": {d: [[round(v, 2) for v in p] for p in pts] for d, pts in self.ahead.items()},
         }
 
 
@@ -142,13 +148,26 @@ def look_ahead(
         prediction(f, compiled.source_file) for f in report.findings if f.check not in _NOT_AHEAD
     )
     ended = [r.duration_s for r in report.runs if not r.timed_out]
+    end = max(ended) if ended else None
     return LookAhead(
         predictions,
-        max(ended) if ended else None,
+        end,
         len(report.runs),
         time.process_time() - started,
         speeds,
+        tracks_ahead(report.tracks[0][1] if report.tracks else {}, end),
     )
+
+
+def tracks_ahead(
+    tracks: Mapping[str, Any], end_s: float | None
+) -> dict[str, tuple[tuple[float, float, float, float], ...]]:
+    """Each drone's track, one point a second, until the end or :data:`TRACK_AHEAD_S`."""
+    last = min(TRACK_AHEAD_S, int(end_s) + 1 if end_s is not None else TRACK_AHEAD_S)
+    return {
+        drone: tuple((float(t), *track.at(float(t))) for t in range(last + 1))
+        for drone, track in tracks.items()
+    }
 
 
 def prediction(finding: Finding, mission_file: str) -> Prediction:

@@ -179,6 +179,9 @@ class Display(Protocol):
     def say(self, text: str) -> None:
         """Tell the operator something."""
 
+    def forecast(self, record: dict[str, Any]) -> None:
+        """The live look-ahead's latest cycle (:mod:`.lookahead`); the monitor draws it."""
+
 
 class PlainDisplay:
     """One line per event worth seeing, on ``stream`` (stdout by default), in order.
@@ -273,6 +276,9 @@ class PlainDisplay:
         """Print ``text`` on its own line, in order with the events around it."""
         self._show(self.clock(), text)
 
+    def forecast(self, record: dict[str, Any]) -> None:
+        """Nothing: the look-ahead says each new prediction itself."""
+
     def _write_locked(self, text: str) -> None:
         # A stream that cannot be written loses the line only: ``eamos-node``'s
         # stdout is ``node.out`` in the run folder, and a full disk must not
@@ -351,6 +357,9 @@ class LiveDisplay:
             self._live.console.print(text, highlight=False, markup=False)
         else:
             print(text, flush=True)
+
+    def forecast(self, record: dict[str, Any]) -> None:
+        """Nothing: the look-ahead says each new prediction itself."""
 
 
 #: Said once when a terminal gets plain lines because rich is not installed.

@@ -98,7 +98,9 @@ def fly(
             display.say(f"no operator commands for this run: {why}")
     ahead = None
     if forecast is not None and look_ahead is not None and look_ahead.period_s > 0 and control:
-        ahead = LookAheadLoop(station, control, forecast, look_ahead, display.say)
+        ahead = LookAheadLoop(
+            station, control, forecast, look_ahead, display.say, shown=display.forecast
+        )
         ahead.start()
     try:
         return _fly(station, display, stop, limits, alive, on_ready, clock, wall, pauses)

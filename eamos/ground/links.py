@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from eamos.program.format import DroneProgram
 
@@ -184,7 +185,7 @@ class LinkCounts:
         """Every link with external arcs, in order."""
         return [self._count(link) for link in self.arcs]
 
-    def per_arc(self) -> list[dict[str, object]]:
+    def per_arc(self) -> list[dict[str, Any]]:
         """Every arc between drones: its nodes and drones, and the triggers sent and
         received on it so far (each iteration once), in the graph's order."""
         sent: dict[tuple[str, str], int] = {}
@@ -193,7 +194,7 @@ class LinkCounts:
             for keys in found.values():
                 for src, dst, _ in keys:
                     into[(src, dst)] = into.get((src, dst), 0) + 1
-        out: list[dict[str, object]] = []
+        out: list[dict[str, Any]] = []
         for arc in self.graph.arcs:
             if arc.external and arc.src in self.graph.owner and arc.dst in self.graph.owner:
                 key = (arc.src, arc.dst)

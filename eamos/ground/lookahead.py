@@ -105,13 +105,17 @@ class LookAheadLoop:
         settings: LookAheadSettings,
         say: Callable[[str], None],
         clock: Callable[[], float] = time.monotonic,
+        shown: Callable[[dict[str, Any]], None] | None = None,
     ) -> None:
+        """``say``: a line for the operator; ``shown``: each cycle's record, for a page
+        that draws it (the monitor)."""
         self.station = station
         self.run_dir = Path(run_dir)
         self.forecast = forecast
         self.settings = settings
         self.say = say
         self.clock = clock
+        self.shown = shown
         self.said: set[str] = set()
         self.held: set[str] = set()
         self.cycles = 0
@@ -162,6 +166,8 @@ class LookAheadLoop:
             )
         record = {**outcome, "t": doc["t"], "cycle_s": round(elapsed, 3), "cycle": self.cycles}
         self._write(record)
+        if self.shown is not None:
+            self.shown(record)
         return record
 
     def _log(self, level: str, event: str, **fields: Any) -> None:

@@ -104,7 +104,7 @@ def velocity(samples: list[Any]) -> list[float] | None:
 
 def trigger_arcs(
     programs: Mapping[str, DroneProgram], views: Mapping[str, DroneView], started: bool
-) -> list[dict[str, object]]:
+) -> list[dict[str, Any]]:
     """Per arc between drones: the triggers sent and received so far (pure).
 
     Counted as the monitor counts them (:class:`~.links.LinkCounts`): from each node's

@@ -59,6 +59,11 @@ class TeeDisplay:
         """Tell the operator (on the terminal)."""
         self.inner.say(text)
 
+    def forecast(self, record: dict[str, Any]) -> None:
+        """The look-ahead's latest cycle: to the page (predicted tracks, findings)."""
+        self.inner.forecast(record)
+        self.hub.forecast(record)
+
 
 def start_live_monitor(
     run_dir: Path,

@@ -73,6 +73,12 @@ class Hub:
             self._publish(self.state.finish(summary, self.clock()))
         self.wake()
 
+    def forecast(self, record: dict[str, Any]) -> None:
+        """The live look-ahead's latest cycle (any thread)."""
+        with self._lock:
+            self._publish(self.state.forecast(record))
+        self.wake()
+
     def abort_request(self, origin: str, accepted: bool) -> None:
         """Record an abort request (and show ``aborting`` when it was accepted)."""
         with self._lock:

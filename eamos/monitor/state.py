@@ -210,6 +210,7 @@ class MonitorState:
         self._last_emit: dict[str, float] = {}
         self._dirty: set[str] = set()
         self.coalesced = 0  # drone updates merged into a later patch
+        self.forecast_view: dict[str, Any] | None = None  # the look-ahead's latest cycle
 
     # -- events ---------------------------------------------------------------------------
 
@@ -505,6 +506,12 @@ class MonitorState:
         drone.sent_trail = len(drone.trail)
         return [{"k": "drone", **drone.fields(), "trail_add": new}]
 
+    def forecast(self, record: Mapping[str, Any]) -> list[dict[str, Any]]:
+        """The live look-ahead's latest cycle: predictions, expected end, tracks ahead."""
+        keep = ("predictions", "end_in_s", "ahead", "cycle", "t")
+        self.forecast_view = {k: record.get(k) for k in keep}
+        return [{"k": "forecast", **self.forecast_view}]
+
     def tick(self, now: float) -> list[dict[str, Any]]:
         """The held ``drone`` patches whose time has come (call about every 0.1 s)."""
         out: list[dict[str, Any]] = []
@@ -523,6 +530,7 @@ class MonitorState:
             "drones": {n: {**d.fields(), "trail": list(d.trail)} for n, d in self.drones.items()},
             "nodes": {k: dict(v) for k, v in self.nodes.items()},
             "bars": [dict(b) for b in self.bars],
+            "forecast": self.forecast_view,
             "links": {
                 link_key(c.src, c.dst): c.to_json()
                 for c in (self.links.counts() if self.links is not None else [])
@@ -569,3 +577,5 @@ def apply_patches(snapshot: dict[str, Any], patches: Iterable[dict[str, Any]]) -
             snapshot["mission"] = body
         elif kind == "link":
             snapshot.setdefault("links", {})[link_key(body["src"], body["dst"])] = body
+        elif kind == "forecast":
+            snapshot["forecast"] = body

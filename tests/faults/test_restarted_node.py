@@ -322,10 +322,10 @@ def test_a_node_killed_in_a_loops_third_iteration_resumes_and_runs_no_action_aga
     # from the killed node: the restarted one replayed them without sending them again.
     acknowledged = acknowledged_in(restarted.reported)
     assert any(src_dst_it[2] == (1,) for src_dst_it in acknowledged), acknowledged
-    mission = list(read_log(logs / "mission.log"))
+    logged = list(read_log(logs / "mission.log"))
 
     def keys(event: str) -> list[tuple[str, str, tuple[int, ...]]]:
-        return [(e["src"], e["dst"], tuple(e["iteration"])) for e in mission if e["event"] == event]
+        return [(e["src"], e["dst"], tuple(e["iteration"])) for e in logged if e["event"] == event]
 
     sent = keys("mission.outbridge.sent")
     assert all(sent.count(key) == 1 for key in acknowledged), (sent, acknowledged)

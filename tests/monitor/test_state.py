@@ -299,3 +299,26 @@ def test_a_drone_a_pilot_took_over_says_so_whatever_its_telemetry_or_report():
     late.apply("D2", wire.Report(mission=MID, sender="D2", report=report.to_json()), 5.0)
     assert late.drones["D2"].mode == "taken over (POSCTL)"
     assert "taken over by the pilot in POSCTL at (1.00, 2.00, 1.50)" in late.drones["D2"].taken_over
+
+
+def test_a_look_ahead_cycle_is_one_patch_and_the_snapshot_holds_the_latest():
+    state = MonitorState(setup(), 0.0)
+    start = state.snapshot()
+    assert start["forecast"] is None  # the look-ahead is off until a cycle comes
+    conflict = {"check": "separation", "severity": "error", "in_s": 16.0, "drones": ["D1", "D2"]}
+    cycles = [
+        {
+            "predictions": [],
+            "end_in_s": 40.0,
+            "ahead": {"D1": [[0, 0, 0, 1]]},
+            "cycle": 1,
+            "t": 5.0,
+        },
+        {"predictions": [conflict], "end_in_s": 38.0, "ahead": {}, "cycle": 2, "t": 7.0, "x": 1},
+    ]
+    patches = [p for c in cycles for p in state.forecast(c)]
+    assert [p["k"] for p in patches] == ["forecast", "forecast"]
+    apply_patches(start, patches)
+    latest = state.snapshot()["forecast"]
+    assert latest is not None and start["forecast"] == latest
+    assert latest["predictions"] == [conflict] and "x" not in latest

@@ -34,6 +34,14 @@ function el(tag, attrs, text) {
   return e;
 }
 
+function item(cls, text) {
+  // An HTML list item (el() makes SVG elements).
+  const li = document.createElement("li");
+  li.className = cls;
+  li.textContent = text;
+  return li;
+}
+
 function colourOf(name) {
   const p = setup && setup.participants.find((q) => q.name === name);
   return p ? p.colour : "#999";
@@ -60,6 +68,8 @@ function applyPatches(patches) {
       state.bars[i] = body;
     } else if (k === "mission") {
       state.mission = body;
+    } else if (k === "forecast") {
+      state.forecast = body;
     } else if (k === "link") {
       (state.links || (state.links = {}))[`${body.src}>${body.dst}`] = body;
     }
@@ -126,6 +136,7 @@ function draw() {
   $("resume").disabled = !commandsOn() || m.state !== "paused";
   drawDrones();
   drawLinks();
+  drawForecast();
   drawMap();
   drawAltitude();
   drawGantt();
@@ -261,6 +272,42 @@ function grid(svg, f, w, h, pad, xlabel, ylabel) {
   svg.appendChild(el("text", { x: 2, y: pad - 6, class: "tick" }, ylabel));
 }
 
+function drawForecast() {
+  // The look-ahead's latest cycle: each prediction, then when the mission should end.
+  const fc = state.forecast;
+  if (!fc) return;
+  const ul = $("forecast");
+  ul.replaceChildren();
+  for (const p of fc.predictions || []) {
+    const when = p.in_s === null || p.in_s === undefined ? "" : ` in ${Math.round(p.in_s)} s`;
+    const li = item(p.severity, `${p.check} ${p.severity}${when}: ${p.message}`);
+    li.dataset.check = p.check;
+    li.dataset.drones = (p.drones || []).join(" ");
+    ul.appendChild(li);
+  }
+  const end = fc.end_in_s === null || fc.end_in_s === undefined ? "not foreseen" : `in ${Math.round(fc.end_in_s)} s`;
+  ul.appendChild(item("end", `${(fc.predictions || []).length ? "" : "nothing ahead; "}mission end ${end} (cycle ${fc.cycle})`));
+}
+
+function drawAhead(svg, f) {
+  // Each drone's predicted track (dotted), and a ring where a conflict is predicted.
+  const fc = state.forecast;
+  if (!fc) return;
+  for (const [name, pts] of Object.entries(fc.ahead || {})) {
+    if (!setup.drones.includes(name)) continue;
+    const line = pts.map((p) => `${f.X(p[2]).toFixed(1)},${f.Y(p[1]).toFixed(1)}`).join(" ");
+    if (line) svg.appendChild(el("polyline", { points: line, class: "ahead", stroke: colourOf(name), "data-drone": name }));
+  }
+  for (const p of fc.predictions || []) {
+    if (!p.position) continue;
+    const g = el("g", { class: "predicted", "data-check": p.check, transform: `translate(${f.X(p.position[1]).toFixed(1)},${f.Y(p.position[0]).toFixed(1)})` });
+    g.appendChild(el("circle", { r: 10 }));
+    const when = p.in_s === null || p.in_s === undefined ? "" : ` in ${Math.round(p.in_s)} s`;
+    g.appendChild(el("text", { x: 13, y: 4, class: "dlabel" }, `${p.check}${when}: ${(p.drones || []).join(", ")}`));
+    svg.appendChild(g);
+  }
+}
+
 function drawMap() {
   const svg = $("map");
   const w = 640, h = 440, pad = 34;
@@ -272,9 +319,11 @@ function drawMap() {
     const d = state.drones[name] || {};
     for (const t of d.trail || []) { xs.push(t[2]); ys.push(t[1]); }
     if (d.x !== null && d.x !== undefined) { xs.push(d.y); ys.push(d.x); }
+    for (const p of ((state.forecast || {}).ahead || {})[name] || []) { xs.push(p[2]); ys.push(p[1]); }
   }
   const f = frame(svg, xs, ys, w, h, pad, true);
   grid(svg, f, w, h, pad, "y, east (m)", "x, north (m)");
+  drawAhead(svg, f);
   setup.drones.forEach((name, i) => {
     const part = setup.participants.find((p) => p.name === name);
     const d = state.drones[name] || {};
