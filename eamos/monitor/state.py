@@ -177,6 +177,34 @@ class DroneLive:
             "lon": self.lon,
         }
 
+    def sample(self, msg: wire.TelemetrySample, home: tuple[float, float], now: float) -> None:
+        """Its telemetry, in the fleet frame (``home``): position, heading, state, trail."""
+        hx, hy = home
+        x, y, z = hx + msg.x_m, hy + msg.y_m, msg.z_m
+        if self.x is not None and self.y is not None:
+            dx, dy = x - self.x, y - self.y
+            if math.hypot(dx, dy) >= TRAIL_STEP_M:
+                self.heading_deg = round(math.degrees(math.atan2(dy, dx)), 1)
+        self.x, self.y, self.z = x, y, z
+        self.battery, self.armed, self.landed = msg.battery_pct, msg.armed, msg.landed
+        if msg.lat_deg or msg.lon_deg:
+            self.lat, self.lon = round(msg.lat_deg, 7), round(msg.lon_deg, 7)
+        if self.mode not in ("resolved", "reported") and not self.taken_over:
+            self.mode = "disarmed" if not msg.armed else ("landed" if msg.landed else "flying")
+        last = self.trail[-1] if self.trail else None
+        if (
+            last is None
+            or math.dist(last[1:], (x, y, z)) >= TRAIL_STEP_M
+            or now - last[0] >= TRAIL_EVERY_S
+        ):
+            self.trail.append([round(now, 3), round(x, 3), round(y, 3), round(z, 3)])
+            if len(self.trail) > TRAIL_MAX:
+                # Halve the old part; keep what the page has not received yet.
+                keep = len(self.trail) - self.sent_trail
+                old = self.trail[: self.sent_trail][::2]
+                self.trail = old + self.trail[-keep:] if keep else old
+                self.sent_trail = len(old)
+
     def take(self, mode: str, words: str) -> None:
         """A pilot has the vehicle (in ``mode``): its panel says so from now on."""
         self.mode = f"taken over ({mode})" if mode else "taken over"
@@ -221,7 +249,8 @@ class MonitorState:
         if isinstance(msg, wire.TelemetrySample):
             # Most events are telemetry (20 Hz per drone), and a sample has no line.
             if drone is not None:
-                self._telemetry(drone, msg, now)
+                part = self.setup.participant(drone.name)
+                drone.sample(msg, part.home if part is not None else (0.0, 0.0), now)
                 return self._drone_patch(drone, now)
             return out
         line = format_event(name, msg, now)
@@ -253,34 +282,6 @@ class MonitorState:
         if drone is not None:
             out += self._drone_patch(drone, now)
         return out
-
-    def _telemetry(self, drone: DroneLive, msg: wire.TelemetrySample, now: float) -> None:
-        home = self.setup.participant(drone.name)
-        hx, hy = home.home if home is not None else (0.0, 0.0)
-        x, y, z = hx + msg.x_m, hy + msg.y_m, msg.z_m
-        if drone.x is not None and drone.y is not None:
-            dx, dy = x - drone.x, y - drone.y
-            if math.hypot(dx, dy) >= TRAIL_STEP_M:
-                drone.heading_deg = round(math.degrees(math.atan2(dy, dx)), 1)
-        drone.x, drone.y, drone.z = x, y, z
-        drone.battery, drone.armed, drone.landed = msg.battery_pct, msg.armed, msg.landed
-        if msg.lat_deg or msg.lon_deg:
-            drone.lat, drone.lon = round(msg.lat_deg, 7), round(msg.lon_deg, 7)
-        if drone.mode not in ("resolved", "reported") and not drone.taken_over:
-            drone.mode = "disarmed" if not msg.armed else ("landed" if msg.landed else "flying")
-        last = drone.trail[-1] if drone.trail else None
-        if (
-            last is None
-            or math.dist(last[1:], (x, y, z)) >= TRAIL_STEP_M
-            or now - last[0] >= TRAIL_EVERY_S
-        ):
-            drone.trail.append([round(now, 3), round(x, 3), round(y, 3), round(z, 3)])
-            if len(drone.trail) > TRAIL_MAX:
-                # Halve the old part; keep what the page has not received yet.
-                keep = len(drone.trail) - drone.sent_trail
-                old = drone.trail[: drone.sent_trail][::2]
-                drone.trail = old + drone.trail[-keep:] if keep else old
-                drone.sent_trail = len(old)
 
     def _progress(self, name: str, msg: wire.Progress, now: float) -> list[dict[str, Any]]:
         out: list[dict[str, Any]] = []
