@@ -20,7 +20,6 @@ decisions.
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -28,10 +27,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from eamos.config import LookAheadSettings
-from eamos.logs import report_write_error
 
 from .operator import command
-from .snapshot import mission_snapshot
+from .snapshot import mission_snapshot, write_run_file
 
 if TYPE_CHECKING:
     from .station import GroundStation
@@ -165,7 +163,7 @@ class LookAheadLoop:
                 + (f": refused: {why}" if why else "")
             )
         record = {**outcome, "t": doc["t"], "cycle_s": round(elapsed, 3), "cycle": self.cycles}
-        self._write(record)
+        write_run_file(self.run_dir / LOOK_AHEAD_FILE, record, "the look-ahead goes on")
         if self.shown is not None:
             self.shown(record)
         return record
@@ -174,12 +172,3 @@ class LookAheadLoop:
         runtime = self.station.runtime
         if runtime is not None:
             getattr(runtime.log, level)(event, **fields)
-
-    def _write(self, record: dict[str, Any]) -> None:
-        path = self.run_dir / LOOK_AHEAD_FILE
-        tmp = path.with_name(path.name + ".tmp")
-        try:
-            tmp.write_text(json.dumps(record, indent=1) + "\n")
-            tmp.replace(path)
-        except OSError as exc:
-            report_write_error(path, exc, "the look-ahead goes on")

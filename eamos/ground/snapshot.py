@@ -27,7 +27,7 @@ from .links import LinkCounts, LinkGraph
 from .station import DroneView
 from .summary import operator_commands
 
-__all__ = ["SNAPSHOT_FILE", "mission_snapshot", "write_snapshot"]
+__all__ = ["SNAPSHOT_FILE", "mission_snapshot", "write_run_file", "write_snapshot"]
 
 SNAPSHOT_FILE = "snapshot.json"
 
@@ -163,14 +163,18 @@ def write_snapshot(
     started: bool = True,
 ) -> Path | None:
     """Write ``run_dir/snapshot.json`` (whole, replaced atomically); None if it could not."""
-    path = Path(run_dir) / SNAPSHOT_FILE
     doc = mission_snapshot(views, why, mission_id, paused, run_programs(run_dir), started)
-    text = json.dumps(doc, indent=1) + "\n"
+    return write_run_file(Path(run_dir) / SNAPSHOT_FILE, doc, "the run goes on")
+
+
+def write_run_file(path: Path, doc: Mapping[str, Any], going_on: str) -> Path | None:
+    """Write ``doc`` as JSON to ``path`` (whole, replaced atomically); None if it could not
+    (said once, with ``going_on``: what carries on regardless)."""
     tmp = path.with_name(path.name + ".tmp")
     try:
-        tmp.write_text(text)
+        tmp.write_text(json.dumps(doc, indent=1) + "\n")
         tmp.replace(path)
     except OSError as exc:
-        report_write_error(path, exc, "the run goes on")
+        report_write_error(path, exc, going_on)
         return None
     return path
