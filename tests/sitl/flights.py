@@ -18,7 +18,13 @@ from typing import Any
 
 from tests.support.runs import run_mission
 
-from .sitl_vehicles import Autopilot, SitlVehicle, inspect_vehicle, start_vehicle
+from .sitl_vehicles import (
+    Autopilot,
+    SitlVehicle,
+    inspect_vehicle,
+    param_save_failures,
+    start_vehicle,
+)
 
 #: A camera and a mount on ArduCopter (issue 27): a servo camera (trigger on servo 11)
 #: and a servo mount (pitch on servo 9, yaw on servo 10).  They exist after a reboot.
@@ -201,6 +207,8 @@ def assert_vehicles_safe(flown: Flown, fleet: SitlFleet) -> None:
                 f"{drone}: {name} is {state.params[name]}, was {before} before the run"
             )
         assert not flown.events(drone, "adapter.stranded"), flown.events(drone, "adapter.stranded")
+        failures = param_save_failures(vehicle.autopilot, vehicle.folder)
+        assert not failures, (drone, failures)
         if vehicle.autopilot == "arducopter":
             hits = [line for line in vehicle.console.splitlines() if "Hit ground" in line]
             assert not hits, f"{drone}: {hits}"

@@ -308,6 +308,20 @@ def _read_param(conn: Any, vehicle: SitlVehicle, name: str) -> float:
     raise TimeoutError(f"{vehicle.autopilot}: no PARAM_VALUE for {name}")
 
 
+def param_save_failures(autopilot: str, folder: Path) -> list[str]:
+    """PX4's complaints about saving its parameters in ``folder/console.log`` (``verify:
+    ...``, ``parameter export ... failed``): a PARAM_SET that landed while PX4 wrote and read
+    back its parameter file.  PX4 SITL has been seen to stall for good after one."""
+    if autopilot != "px4":
+        return []
+    console = (folder / "console.log").read_text(errors="replace")
+    return [
+        line
+        for line in console.splitlines()
+        if "verify:" in line or "parameter export" in line or "param auto save failed" in line
+    ]
+
+
 @dataclass(frozen=True)
 class VehicleState:
     """What a vehicle says about itself after a run."""

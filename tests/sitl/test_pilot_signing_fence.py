@@ -34,7 +34,7 @@ from eamos.hal.mavlink.signing import create_signing_key
 from eamos.logs import close_logger, make_logger
 from eamos.program.uniform import decode_command
 from tests.mavlink.mavlink_helpers import Done, RawClient
-from tests.sitl.sitl_vehicles import process_report
+from tests.sitl.sitl_vehicles import param_save_failures, process_report
 
 #: SET_POSITION_TARGET_LOCAL_NED's type_mask for a velocity only (the rogue command).
 TYPE_MASK_VELOCITY = 0x0DC7
@@ -690,6 +690,10 @@ def test_the_fleet_fence_is_on_the_vehicle_stops_a_rogue_move_and_goes_away(
         assert count.count == 0
     finally:
         check.close()
+    # The restore came as one burst, before PX4's autosave wrote its file: no save of
+    # PX4's failed its read-back (the stall of CI run 23 began with one).
+    failures = param_save_failures(autopilot, vehicle.folder)
+    assert not failures, failures
 
 
 def test_the_fence_on_a_simulated_vehicle(tmp_path, adapters):

@@ -81,6 +81,7 @@ class ParamKeeper:
             self.log.info("adapter.param.speeds", applied=False, reason="hal.set_speeds = false")
             return
         plan = speed_plan(autopilot, s.horizontal_speed_mps, s.climb_speed_mps, s.descent_speed_mps)
+        found: list[ParamChange] = []
         for name, value in plan:
             before = self._exchange(name, None)
             if before is None:
@@ -90,12 +91,33 @@ class ParamKeeper:
                     note="no PARAM_VALUE: the vehicle keeps its own speed for this",
                 )
                 continue
-            after = self._exchange(name, value, before.param_type)
-            if after is None or not math.isclose(after.before, value, rel_tol=1e-3, abs_tol=1e-3):
-                self.log.warning("adapter.param.refused", name=name, value=value)
+            found.append(ParamChange(name, before.before, value, before.param_type))
+        if self.blocked() or not found:
+            return
+        # Written as one burst, as restore() writes them back (ParamProtocol.set_all).
+        answers = self.params.set_all(
+            [(c.name, to_wire(c.after, c.param_type, self._bytewise), c.param_type) for c in found],
+            timeout_s=s.command_timeout_s,
+            retries=s.command_retries,
+            abandon=lambda: not self.link.state.link_ok or self.blocked(),
+        )
+        for change in found:
+            answer = answers.get(change.name)
+            echoed = None if answer is None else from_wire(*answer, self._bytewise)
+            if echoed is None or not math.isclose(echoed, change.after, rel_tol=1e-3, abs_tol=1e-3):
+                self.log.warning(
+                    "adapter.param.refused", name=change.name, value=change.after, echoed=echoed
+                )
+                if echoed is not None and not math.isclose(echoed, change.before, abs_tol=1e-3):
+                    # The vehicle took another value (a clamp): it is still put back.
+                    self.changes.append(
+                        ParamChange(change.name, change.before, echoed, change.param_type)
+                    )
                 continue
-            self.changes.append(ParamChange(name, before.before, value, before.param_type))
-            self.log.info("adapter.param.set", name=name, before=before.before, value=value)
+            self.changes.append(change)
+            self.log.info(
+                "adapter.param.set", name=change.name, before=change.before, value=change.after
+            )
 
     def set_param(self, name: str, value: float) -> bool:
         """Set one parameter for an action (ReturnHome's return altitude, Orbit's circle,
@@ -118,25 +140,39 @@ class ParamKeeper:
         return True
 
     def restore(self) -> None:
-        """Write back what the adapter found, in the order it set them, each confirmed by
-        its echo; log each.
+        """Write back what the adapter found, as one burst in the order it set them (see
+        :meth:`ParamProtocol.set_all` for why a burst), each confirmed by its echo; log
+        each.
 
         In that order a limit comes back before what it limits: PX4 keeps MPC_XY_CRUISE
         at or below MPC_XY_VEL_MAX (it clamps the cruise speed by itself, after the
         echo), so putting the cruise speed back first left it clamped.  A value the
         vehicle echoes otherwise is written again after the others.
         """
+        if not self.changes or self.blocked():
+            return  # a pilot's vehicle keeps them; the adapter says which at close
         changes, self.changes = self.changes, []
+        s = self.settings
         pending = list(changes)
         for attempt in range(2):
+            answers = self.params.set_all(
+                [
+                    (c.name, to_wire(c.before, c.param_type, self._bytewise), c.param_type)
+                    for c in pending
+                ],
+                timeout_s=s.command_timeout_s,
+                retries=s.command_retries,
+                abandon=lambda: not self.link.state.link_ok or self.blocked(),
+            )
             again: list[ParamChange] = []
             for change in pending:
-                answer = self._exchange(change.name, change.before, change.param_type)
-                if answer is None:
+                answer = answers.get(change.name)
+                echoed = None if answer is None else from_wire(*answer, self._bytewise)
+                if echoed is None:
                     self.log.error(
                         "adapter.param.restore_failed", name=change.name, value=change.before
                     )
-                elif not math.isclose(answer.before, change.before, rel_tol=1e-3, abs_tol=1e-3):
+                elif not math.isclose(echoed, change.before, rel_tol=1e-3, abs_tol=1e-3):
                     if attempt == 0:
                         again.append(change)
                     else:
@@ -144,11 +180,13 @@ class ParamKeeper:
                             "adapter.param.restore_failed",
                             name=change.name,
                             value=change.before,
-                            echoed=answer.before,
+                            echoed=echoed,
                         )
                 else:
                     self.log.info("adapter.param.restore", name=change.name, value=change.before)
             pending = again
+            if not pending:
+                break
 
 
 __all__ = ["ParamKeeper"]
