@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections import deque
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from ..compiler import CompiledMission
@@ -65,7 +66,10 @@ def sim_settings(fleet: FleetConfig, drone: str) -> tuple[SimSettings, str | Non
         except AdapterError as exc:
             raise ConfigError(f"{where}: {exc}") from exc
         # A disturbance is what the check cannot know: the drone is checked without it.
-        return dataclasses.replace(settings, disturbance_speed_factor=1.0), None
+        calm = dataclasses.replace(
+            settings, disturbance_speed_factor=1.0, disturbance_drain_factor=1.0
+        )
+        return calm, None
     if adapter == "mavlink":
         model, note = mavlink_model(hal)
         if model is None:
@@ -162,6 +166,14 @@ def merge_findings(findings: list[Finding]) -> list[Finding]:
     ]
 
 
+@dataclass(frozen=True)
+class Measured:
+    """What the live look-ahead measured on drones in flight (see :func:`check_mission`)."""
+
+    speeds: Mapping[str, float]
+    drains: Mapping[str, float]
+
+
 def check_mission(
     compiled: CompiledMission,
     fleet: FleetConfig | None = None,
@@ -171,13 +183,15 @@ def check_mission(
     min_separation_m: float | None = None,
     continuation: Continuation | None = None,
     speeds: Mapping[str, float] | None = None,
+    drains: Mapping[str, float] | None = None,
 ) -> CheckReport:
     """Simulate ``compiled`` in virtual time with the fleet's models and check every run.
 
     ``continuation``: check the rest of the mission from a run's snapshot (each
     drone starts where the snapshot saw it; what had ended is not flown again).
     ``speeds``: horizontal speeds (m/s) measured on drones in flight, used instead of
-    their models' (the live look-ahead, :mod:`.lookahead`).
+    their models' (the live look-ahead, :mod:`.lookahead`); ``drains``: how many times
+    faster than its model each such drone's battery was seen to drain in the air.
     Raises :class:`~eamos.config.ConfigError` for fleet settings the model cannot use,
     :class:`~eamos.virtual.SnapshotError` for a snapshot of another mission.
     """
@@ -187,7 +201,13 @@ def check_mission(
             f"this file compiles to mission {compiled.mission_id}: not the mission that flew"
         )
     return _check_mission(
-        compiled, fleet, time_limit_s, max_runs, min_separation_m, continuation, speeds or {}
+        compiled,
+        fleet,
+        time_limit_s,
+        max_runs,
+        min_separation_m,
+        continuation,
+        Measured(speeds or {}, drains or {}),
     )
 
 
@@ -198,7 +218,7 @@ def _check_mission(
     max_runs: int,
     min_separation_m: float | None,
     continuation: Continuation | None,
-    speeds: Mapping[str, float],
+    measured: Measured,
 ) -> CheckReport:
     # Bound to the mission, each drone's type selects its [types.NAME.hal] settings.
     fleet = (fleet or FleetConfig.empty()).for_mission(compiled.programs, compiled.mission.types)
@@ -223,9 +243,13 @@ def _check_mission(
     # Each simulated drone stands at its home (so FlyToLLA targets, given in
     # latitude and longitude, are where they are for every drone).
     settings = {d: dataclasses.replace(st, home_m=homes[d]) for d, st in settings.items()}
+    speeds, drains = measured.speeds, measured.drains
     for drone, speed in speeds.items():
         if drone in settings:
             settings[drone] = dataclasses.replace(settings[drone], horizontal_speed_mps=speed)
+    for drone, factor in drains.items():
+        if drone in settings:
+            settings[drone] = dataclasses.replace(settings[drone], disturbance_drain_factor=factor)
     safety = fleet.safety
     if min_separation_m is not None:
         safety = dataclasses.replace(safety, min_separation_m=min_separation_m)
@@ -286,6 +310,8 @@ def _check_mission(
         used["continued_from"] = {"why": continuation.why, "taken_at": continuation.taken_at}
     if speeds:
         used["measured_speeds_mps"] = dict(speeds)
+    if drains:
+        used["measured_drain_factors"] = dict(drains)
     return CheckReport(
         mission=compiled.mission.name,
         source_file=compiled.source_file,

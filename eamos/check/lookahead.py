@@ -3,13 +3,16 @@
 While a mission flies, the ground station (:mod:`eamos.ground.lookahead`) takes the
 mission's state every few seconds (the snapshot it writes for the operator,
 :mod:`eamos.ground.snapshot`) and hands it to :func:`look_ahead`, which continues it
-in virtual time on every branch still open, as ``eamos check --from`` does, with one
-difference: a drone that has been seen flying slower than its type says
+in virtual time on every branch still open, as ``eamos check --from`` does, with two
+differences: a drone that has been seen flying slower than its type says
 (``cruise_mps`` in the snapshot: the fastest horizontal speed it held over two
-telemetry intervals) is simulated at that speed.  A disturbance the pre-flight check
-cannot know (wind, a weak motor) then shows as what it leads to: a separation conflict
-in 40 s, a battery below the reserve, a geofence exit, a deadlock, and the time the
-mission is now expected to end.
+telemetry intervals) is simulated at that speed, and a drone whose battery was seen
+draining faster in the air than its model says over the same flight (``flown`` in the
+snapshot: seconds, metres, climb and battery used, :mod:`eamos.ground.flown`) drains that
+many times faster.  A disturbance the pre-flight check cannot know (wind, a weak motor,
+a cold battery) then shows as what it leads to: a separation conflict in 40 s, a battery
+below the reserve, a geofence exit, a deadlock, and the time the mission is now
+expected to end.
 
 Pure but for the CPU time it measures: the snapshot and the compiled mission in, a
 :class:`LookAhead` out.
@@ -24,11 +27,19 @@ from typing import Any
 
 from ..compiler import CompiledMission
 from ..config import FleetConfig
+from ..hal.sim import MAX_DRAIN_FACTOR
 from ..virtual import continuation
 from .explore import check_mission, sim_settings
 from .findings import Finding
 
-__all__ = ["LOOK_AHEAD_MAX_RUNS", "LookAhead", "Prediction", "look_ahead", "measured_speeds"]
+__all__ = [
+    "LOOK_AHEAD_MAX_RUNS",
+    "LookAhead",
+    "Prediction",
+    "look_ahead",
+    "measured_drains",
+    "measured_speeds",
+]
 
 #: Branches simulated per cycle at most (each a whole rest of the mission).
 LOOK_AHEAD_MAX_RUNS = 16
@@ -39,6 +50,11 @@ MIN_CRUISE_MPS = 0.3
 #: Seen holding less than this fraction of its type's speed, a drone is flown at what it
 #: held; above, at its model's (a sample's timing moves the measure by a few per cent).
 SLOWER = 0.95
+#: Below this much battery its model would have used over the flight seen, a drone's drain
+#: is not measured (percent; the telemetry shows the battery to a tenth of a percent).
+MIN_MODELLED_USE_PCT = 1.0
+#: Seen draining more than this many times its model, a drone drains at what was seen.
+FASTER = 1.05
 #: Findings about the mission's text or the model, not about what lies ahead.
 _NOT_AHEAD = frozenset({"compile", "model"})
 
@@ -86,6 +102,8 @@ class LookAhead:
     runs: int  # branches simulated
     cpu_s: float  # CPU seconds this cycle took
     speeds: Mapping[str, float]  # measured horizontal speeds it flew drones at (m/s)
+    # How many times faster than its model each drone's battery was seen to drain.
+    drains: Mapping[str, float] = field(default_factory=dict)
     # Each drone's predicted track on the first branch, fleet frame: (t from the snapshot,
     # north, east, up), one point a second for TRACK_AHEAD_S.
     ahead: Mapping[str, tuple[tuple[float, float, float, float], ...]] = field(default_factory=dict)
@@ -98,24 +116,68 @@ class LookAhead:
             "runs": self.runs,
             "cpu_s": round(self.cpu_s, 3),
             "speeds_mps": {d: round(v, 2) for d, v in self.speeds.items()},
+            "drain_factors": {d: round(v, 2) for d, v in self.drains.items()},
             "ahead": {d: [[round(v, 2) for v in p] for p in pts] for d, pts in self.ahead.items()},
         }
 
 
 def measured_speeds(
-    doc: Mapping[str, Any], fleet: FleetConfig, drones: list[str]
+    doc: Mapping[str, Any],
+    fleet: FleetConfig,
+    drones: list[str],
+    speedups: Mapping[str, float] | None = None,
 ) -> dict[str, float]:
-    """The drones seen cruising slower than their model: drone -> the speed it held (m/s)."""
+    """The drones seen cruising slower than their model: drone -> the speed it held (m/s
+    of vehicle time: the wall-clock measure divided by the drone's speed-up)."""
     out: dict[str, float] = {}
     participants = doc.get("participants") or {}
     for drone in drones:
         part = participants.get(drone)
         cruise = part.get("cruise_mps") if isinstance(part, dict) else None
-        if not isinstance(cruise, int | float) or cruise < MIN_CRUISE_MPS:
+        if not isinstance(cruise, int | float):
+            continue
+        cruise = cruise / (speedups or {}).get(drone, 1.0)
+        if cruise < MIN_CRUISE_MPS:
             continue
         declared = sim_settings(fleet, drone)[0].horizontal_speed_mps
         if cruise < SLOWER * declared:
             out[drone] = float(cruise)
+    return out
+
+
+def measured_drains(
+    doc: Mapping[str, Any],
+    fleet: FleetConfig,
+    drones: list[str],
+    speedups: Mapping[str, float] | None = None,
+) -> dict[str, float]:
+    """The drones seen draining their battery faster in the air than their model says:
+    drone -> how many times faster (the battery used over the flight seen, against what
+    the model would have used over the same seconds of vehicle time, metres and climb)."""
+    out: dict[str, float] = {}
+    participants = doc.get("participants") or {}
+    for drone in drones:
+        part = participants.get(drone)
+        flown = part.get("flown") if isinstance(part, dict) else None
+        if not isinstance(flown, dict):
+            continue
+        try:
+            seconds = float(flown["s"]) * (speedups or {}).get(drone, 1.0)
+            metres = float(flown["m"])
+            climbed, used = float(flown["climbed_m"]), float(flown["battery_used_pct"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        model = sim_settings(fleet, drone)[0]
+        modelled = (
+            model.drain_airborne_pct_per_min * seconds
+            + model.drain_per_mps_pct_per_min * metres
+            + model.drain_climb_per_mps_pct_per_min * climbed
+        ) / 60.0
+        if modelled < MIN_MODELLED_USE_PCT:
+            continue
+        factor = used / modelled
+        if factor > FASTER:
+            out[drone] = min(factor, MAX_DRAIN_FACTOR)
     return out
 
 
@@ -126,8 +188,12 @@ def look_ahead(
     *,
     time_limit_s: float = 3600.0,
     max_runs: int = LOOK_AHEAD_MAX_RUNS,
+    speedups: Mapping[str, float] | None = None,
 ) -> LookAhead:
     """Continue the snapshot ``doc`` of ``compiled`` in virtual time on every branch.
+
+    ``speedups``: each drone's simulation speed-up (1 when absent), which turns the
+    snapshot's wall-clock measures of speed and drain into vehicle time.
 
     Raises :class:`~eamos.virtual.SnapshotError` for a snapshot of another mission and
     :class:`~eamos.config.ConfigError` for fleet settings the model cannot use.
@@ -135,7 +201,8 @@ def look_ahead(
     started = time.process_time()
     fleet = fleet.for_mission(compiled.programs, compiled.mission.types)
     drones = [d for d in compiled.programs if d in (doc.get("participants") or {})]
-    speeds = measured_speeds(doc, fleet, drones)
+    speeds = measured_speeds(doc, fleet, drones, speedups)
+    drains = measured_drains(doc, fleet, drones, speedups)
     report = check_mission(
         compiled,
         fleet,
@@ -143,6 +210,7 @@ def look_ahead(
         max_runs=max_runs,
         continuation=continuation(dict(doc), "look-ahead"),
         speeds=speeds,
+        drains=drains,
     )
     predictions = tuple(
         prediction(f, compiled.source_file) for f in report.findings if f.check not in _NOT_AHEAD
@@ -155,6 +223,7 @@ def look_ahead(
         len(report.runs),
         time.process_time() - started,
         speeds,
+        drains,
         tracks_ahead(report.tracks[0][1] if report.tracks else {}, end),
     )
 

@@ -23,6 +23,7 @@ import sys
 
 from eamos import __version__
 
+from .amend import add_amend_parser
 from .check import add_check_parser
 from .compile import add_compile_parser, add_graph_parser
 from .errors import dispatch
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_report_parser(sub)
     add_keys_parser(sub)
     add_check_parser(sub)
+    add_amend_parser(sub)
     add_lsp_parser(sub)
     add_monitor_parser(sub)
     return parser
@@ -61,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: Commands that build a mission's graphs (and, for ``check``, its virtual runs), print
 #: and exit.
-BATCH_COMMANDS = ("compile", "graph", "check")
+BATCH_COMMANDS = ("compile", "graph", "check", "amend")
 
 
 def main(argv: list[str] | None = None) -> int:

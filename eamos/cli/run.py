@@ -188,7 +188,7 @@ def run_mission(
             speedup=opts.speedup,
             display=monitored.display,
             drones_per_process=opts.drones_per_process,
-            forecast=forecast(compiled, fleet),
+            forecast=forecast(compiled, fleet, opts.speedup),
         )
         monitored.finish(summary)
     if opts.summary is not None:
@@ -196,11 +196,23 @@ def run_mission(
     return summary
 
 
-def forecast(compiled: CompiledMission, fleet: FleetConfig) -> Forecast:
-    """The live look-ahead's forecast of ``compiled`` (``[look_ahead]``, docs/operations.md)."""
+def forecast(
+    compiled: CompiledMission, fleet: FleetConfig, speedup: float | None = None
+) -> Forecast:
+    """The live look-ahead's forecast of ``compiled`` (``[look_ahead]``, docs/operations.md).
+
+    Telemetry is stamped with the wall clock; each drone's speed-up (``--speedup`` for a
+    simulated one, else its ``hal.speedup``) turns what was measured into vehicle time.
+    """
     from eamos.check.lookahead import look_ahead
 
-    return lambda doc: look_ahead(compiled, fleet, doc).to_json()
+    speedups: dict[str, float] = {}
+    for drone in compiled.programs:
+        hal = fleet.hal_for(drone)
+        simulated = hal.get("adapter", "sim") == "sim"
+        given = speedup if simulated and speedup is not None else hal.get("speedup", 1.0)
+        speedups[drone] = float(given)
+    return lambda doc: look_ahead(compiled, fleet, doc, speedups=speedups).to_json()
 
 
 def summary_lines(summary: RunSummary) -> list[str]:

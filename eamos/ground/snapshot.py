@@ -84,6 +84,8 @@ def drone_snapshot(view: DroneView) -> dict[str, Any]:
         "vehicle": vehicle,
         # The fastest horizontal speed it held so far (m/s; 0: none yet): the look-ahead's.
         "cruise_mps": round(view.cruise_mps, 3),
+        # Its airborne flight so far and the battery it used: the look-ahead's drain measure.
+        "flown": view.flown.to_json(),
     }
 
 

@@ -37,6 +37,7 @@ from eamos.net.effects import PeerStatus
 from eamos.net.progress import progress_events
 from eamos.program.uniform import GROUND_STATION
 
+from .flown import Flown
 from .last_seen import LastSeen
 
 Clock = Callable[[], float]
@@ -78,9 +79,14 @@ class DroneView:
     # The fastest horizontal speed it held over two sample intervals in a row (m/s): what the
     # live look-ahead flies it at (a drone slower than its type says is seen slower).
     cruise_mps: float = 0.0
+    # Its airborne flight so far (seconds, metres, climb, battery used): the look-ahead's
+    # measure of its battery's drain.
+    flown: Flown = field(default_factory=Flown)
 
     def take_sample(self, msg: wire.TelemetrySample) -> None:
-        """Its latest telemetry: where it is, and the speed it holds."""
+        """Its latest telemetry: where it is, the speed it holds, what it has flown."""
+        if self.samples:
+            self.flown = self.flown.after(self.samples[-1], msg)
         self.samples = [*self.samples[-2:], msg]
         self.position = (msg.x_m, msg.y_m, msg.z_m)
         self.armed = msg.armed

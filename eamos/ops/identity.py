@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 from pathlib import Path
 
 from .. import __version__
 from ..compiler import CompiledMission
-from ..program.format import DroneProgram
+from ..compiler.amendment import execution_digest
 
 
 def fleet_mission_id(mission: str, participants: list[str]) -> str:
@@ -35,34 +34,6 @@ def restamp(compiled: CompiledMission, mission_id: str) -> CompiledMission:
         for name, prog in compiled.programs.items()
     }
     return dataclasses.replace(compiled, mission_id=mission_id, programs=programs)
-
-
-# Node fields that describe rather than decide: a proxy stands for another
-# drone's node, so only its identity and structure matter here.
-_POSITION_FIELDS = ("line", "col")
-_PROXY_DESCRIPTIVE = ("label", "action", "args", "cond", "count", "block")
-
-
-def execution_digest(program: DroneProgram) -> str:
-    """``sha256:`` of what the drone executes: the program minus descriptive fields.
-
-    Equal digests mean the drone behaves the same (partial deployment keeps it).
-    Left out: the mission id and file name, source positions, and the labels,
-    actions, arguments and conditions of proxy nodes (nodes of other drones,
-    which this drone never runs).
-    """
-    body = program.body()
-    body.pop("mission_id", None)
-    body.pop("source_file", None)
-    nodes = []
-    for node in body["nodes"]:
-        node = {k: v for k, v in node.items() if k not in _POSITION_FIELDS}
-        if not node.get("native"):
-            node = {k: v for k, v in node.items() if k not in _PROXY_DESCRIPTIVE}
-        nodes.append(node)
-    body["nodes"] = nodes
-    canonical = json.dumps(body, sort_keys=True, separators=(",", ":")).encode()
-    return "sha256:" + hashlib.sha256(canonical).hexdigest()
 
 
 def sha256_bytes(data: bytes) -> str:

@@ -34,9 +34,13 @@ folder so the same paths work::
 **Which drones changed.**  The compiler names a mission by a hash of its text,
 so any edit would change every program.  A roll-out therefore gives its
 programs a *fleet mission id* (mission name, participants and eamos version),
-and compares each drone's program without what does not change its behaviour:
-source positions and the labels of *other* drones' nodes.  A drone whose own
-part is unchanged keeps the program it has (its copy may show old line numbers).
+renumbers the new mission's nodes against the programs the drones run (the earlier
+roll-out's, from its run folder: each node keeps its number where its place by
+content, block, drone and action, is the same; :mod:`eamos.compiler.amendment`), so
+inserting a statement into Drone2's part renumbers nothing of Drone1's, and compares
+each drone's program without what does not change its behaviour: source positions
+and the labels of *other* drones' nodes.  A drone whose own part is unchanged keeps
+the program it has (its copy may show old line numbers).
 
 The parts: :mod:`.identity` (fleet mission id, execution digests), :mod:`.probe`
 (step 2), :mod:`.plan` (what to copy, staging, the launch script),
@@ -50,15 +54,18 @@ import os
 import signal
 import socket
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..compiler import CompiledMission, compile_file, write_artifacts
+from ..compiler.amendment import rekey
 from ..config import FleetConfig, fleet_order
 from ..ground import check_hal_settings
 from ..ground.local import new_deployment_id, new_run_dir, telemetry_links, use_run_dir
 from ..ground.vehicles import mavlink_fleet_settings
+from ..program.format import DroneProgram, ProgramError, load_program
 from ..program.uniform import GROUND_STATION
 from .identity import execution_digest, fleet_mission_id, folder_digest, restamp
 from .plan import (
@@ -72,7 +79,7 @@ from .plan import (
     launch_script,
     stage,
 )
-from .probe import check_version, probe, sections
+from .probe import Probe, check_version, probe, sections
 from .record import (
     Rollout,
     Say,
@@ -184,14 +191,71 @@ def _plans(
     return plans
 
 
-def _probe_all(plans: dict[str, DronePlan], mission: str, keys: Path | None, say: Say) -> None:
-    """Step 2: probe every drone, decide and stage its files; FleetError if any is unusable."""
+def _probe_each(
+    plans: dict[str, DronePlan], mission: str
+) -> tuple[dict[str, Probe], list[DroneError]]:
+    """Step 2a: probe every drone in parallel (what it has, before anything is touched)."""
+    return for_each([p.target for p in plans.values()], lambda t: probe(t, mission))
+
+
+def earlier_programs(probes: dict[str, Probe], mission_id: str) -> dict[str, DroneProgram]:
+    """The programs of the roll-out whose stamps most drones carry, read from its run
+    folder on this machine: what the drones run, to renumber the new mission against.
+    Empty when there is none, it is of another fleet mission, or its folder is gone."""
+    named = Counter(
+        str(found.stamp.get("run_dir") or "")
+        for found in probes.values()
+        if found.stamp and found.stamp.get("mission_id") == mission_id
+    )
+    named.pop("", None)
+    if not named:
+        return {}
+    folder = Path(named.most_common(1)[0][0]) / "programs"
+    programs: dict[str, DroneProgram] = {}
+    for path in sorted(folder.glob("*.program.json")) if folder.is_dir() else []:
+        try:
+            program = load_program(path)
+        except ProgramError:
+            return {}
+        programs[program.drone] = program
+    same = all(p.mission_id == mission_id for p in programs.values())
+    return programs if same else {}
+
+
+def renumber_plans(
+    compiled: CompiledMission,
+    plans: dict[str, DronePlan],
+    base: dict[str, DroneProgram],
+    run_dir: Path,
+    svg: bool,
+) -> CompiledMission:
+    """Renumber the mission against ``base`` (the programs the drones run) by content,
+    so that a drone whose part is unchanged has the program it runs, node for node;
+    the run folder's files and every plan follow."""
+    if not base:
+        return compiled
+    compiled = rekey(base, compiled)
+    write_artifacts(compiled, run_dir, svg=svg)
+    for name, plan in plans.items():
+        plan.program = compiled.programs[name]
+        plan.digest = execution_digest(plan.program)
+    return compiled
+
+
+def _decide_all(
+    plans: dict[str, DronePlan],
+    probed: tuple[dict[str, Probe], list[DroneError]],
+    mission: str,
+    keys: Path | None,
+    say: Say,
+) -> None:
+    """Step 2b: decide and stage every drone's files; FleetError if any is unusable."""
     drones = list(plans)
+    probes, errors = probed
 
     def keys_sha(name: str) -> str | None:
         return None if keys is None else folder_digest(keys / name)
 
-    probes, errors = for_each([p.target for p in plans.values()], lambda t: probe(t, mission))
     for name in drones:
         if name not in probes:
             continue
@@ -345,7 +409,11 @@ def rollout(opts: RolloutOptions, say: Say) -> Rollout:
     deployment = new_deployment_id()
     plans = _plans(opts, fleet, compiled, targets, run_dir, deployment)
     with steps.step("probe"):
-        _probe_all(plans, mission, targets.ground.keys, say)
+        probed = _probe_each(plans, mission)
+        # Each drone's program by content against what the drones run (identity.py).
+        base = earlier_programs(probed[0], compiled.mission_id)
+        compiled = renumber_plans(compiled, plans, base, run_dir, opts.svg)
+        _decide_all(plans, probed, mission, targets.ground.keys, say)
     with steps.step("deploy"):
         _deploy_all(plans, mission, say)
     with steps.step("launch"):

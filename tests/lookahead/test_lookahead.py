@@ -19,7 +19,7 @@ from typing import Any
 import pytest
 
 from eamos.check import check_mission
-from eamos.check.lookahead import look_ahead
+from eamos.check.lookahead import look_ahead, measured_drains, measured_speeds
 from eamos.compiler import compile_file
 from eamos.config import ConfigError, FleetConfig
 from eamos.ground.lookahead import news, to_hold
@@ -31,6 +31,7 @@ from bench_lookahead import flown
 
 CROSSING = MISSIONS / "crossing.go"
 SLOW = REPO / "configs" / "crossing_slow.toml"
+COLD = REPO / "configs" / "crossing_cold.toml"
 #: How far into Drone2's leg the snapshot is taken (s).
 INTO_LEG_S = 4.0
 
@@ -81,10 +82,56 @@ def test_the_look_ahead_predicts_the_conflict_from_the_speed_drone2_was_seen_to_
     assert first.in_s is not None and first.in_s >= 10.0, first
     assert cross.start - t < first.in_s < cross.end - t + 2.0, (first.in_s, cross, t)
     assert ahead.speeds == {"Drone2": pytest.approx(1.0, abs=0.05)}
+    # The same speed measured on the wall clock of a run at speed-up 3: 3 m/s of wall time.
+    wall = json.loads(json.dumps(doc))
+    wall["participants"]["Drone2"]["cruise_mps"] *= 3
+    assert measured_speeds(wall, fleet, ["Drone2"]) == {}  # faster than declared: not slowed
+    assert measured_speeds(wall, fleet, ["Drone2"], {"Drone2": 3.0}) == ahead.speeds
     assert ahead.end_in_s is not None and ahead.runs == 1 and ahead.cpu_s > 0
     # Without the measured speed it flies Drone2 as its type says: no conflict ahead.
     del doc["participants"]["Drone2"]["cruise_mps"]
     assert not [p for p in look_ahead(compiled, fleet, doc).predictions], "declared speeds"
+
+
+def test_the_look_ahead_predicts_the_reserve_from_the_drain_drone2_was_seen_to_have() -> None:
+    compiled = compile_file(CROSSING)
+    fleet = FleetConfig.load(COLD)
+    assert fleet.hal_for("Drone2")["disturbance_drain_factor"] == 6.0
+    assert check_mission(compiled, fleet).ok  # the check cannot know the cold battery
+    run, tracks = flown(compiled, fleet, {"Drone2": {"disturbance_drain_factor": 6.0}})
+    leg = leg_of(run, "Drone2", "FlyByX")
+    takeoff = leg_of(run, "Drone2", "Takeoff")
+    t = leg.start + 14.0
+    doc = json.loads(json.dumps(snapshot_at(compiled, run, tracks, t)))
+    # What the ground station's telemetry tally shows by then: seconds, metres, climb, and
+    # six times the battery the model would have used over them.
+    seconds, metres, climbed = t - takeoff.start, 28.0, 3.0
+    modelled = (4.0 * seconds + 0.5 * metres + 2.0 * climbed) / 60.0
+    part = doc["participants"]["Drone2"]
+    part["flown"] = {"s": seconds, "m": metres, "climbed_m": climbed,
+                     "battery_used_pct": 6.0 * modelled}  # fmt: skip
+    part["vehicle"]["battery"] = 100.0 - 6.0 * modelled
+    ahead = look_ahead(compiled, fleet, doc)
+    assert ahead.drains == {"Drone2": pytest.approx(6.0, rel=0.01)}
+    [battery] = [p for p in ahead.predictions if p.check == "battery"]
+    assert battery.drones == ("Drone2",) and battery.severity == "error"
+    assert "below the reserve of 90 %" in battery.message
+    assert ahead.to_json()["drain_factors"] == {"Drone2": 6.0}
+    # Measured on the wall clock of a run at speed-up 2: half the seconds, the same drain.
+    wall = json.loads(json.dumps(doc))
+    wall["participants"]["Drone2"]["flown"]["s"] = seconds / 2
+    assert measured_drains(wall, fleet, ["Drone2"]) != ahead.drains
+    assert measured_drains(wall, fleet, ["Drone2"], {"Drone2": 2.0}) == {
+        "Drone2": pytest.approx(6.0, rel=0.01)
+    }
+    # Drained as its model says, it lands above the reserve: nothing predicted.
+    part["flown"]["battery_used_pct"] = modelled
+    part["vehicle"]["battery"] = 100.0 - modelled
+    calm = look_ahead(compiled, fleet, doc)
+    assert calm.drains == {} and not calm.predictions
+    # Too little flown to tell (under 1 % by the model): not measured.
+    part["flown"] = {"s": 5.0, "m": 2.0, "climbed_m": 3.0, "battery_used_pct": 5.0}
+    assert look_ahead(compiled, fleet, doc).drains == {}
 
 
 def test_the_look_ahead_is_refused_another_missions_snapshot() -> None:

@@ -76,3 +76,32 @@ def test_the_look_ahead_sees_the_slowed_drones_conflict_coming_and_holds_them(
     assert record["speeds_mps"]["Drone2"] == pytest.approx(1.0, abs=0.15), record
     approach = closest_approach(run.run_dir)
     assert approach > MIN_SEPARATION_M, approach
+
+
+COLD_FLEET = REPO / "configs" / "crossing_cold.toml"
+
+
+def test_the_look_ahead_measures_drone2s_cold_battery_and_sees_it_land_below_the_reserve(
+    tmp_path: Path,
+) -> None:
+    """``configs/crossing_cold.toml``: Drone2's battery drains six times its model in the
+    air (the pre-flight check passes, each drone landing above the 90 % reserve).  The
+    ground station measures Drone2's drain from its telemetry and predicts, before Drone2
+    lands, that it lands below the reserve; and it does."""
+    run = start(tmp_path, MISSIONS / "crossing.go", speedup=2, extra=("--fleet", str(COLD_FLEET)))
+    try:
+        said = run.wait_for("look-ahead: error in ", within_s=120)
+        assert run.finish(240) == 0, run.text()
+    finally:
+        run.kill()
+    assert "Drone2" in said and "below the reserve of 90 %" in said, said
+    record = json.loads((run.run_dir / "lookahead.json").read_text())
+    assert record["drain_factors"]["Drone2"] == pytest.approx(6.0, rel=0.25), record
+    assert "Drone1" not in record["drain_factors"], record
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["ok"], summary
+    # Said before it happened, and it happened: Drone2 landed below the reserve.
+    text = run.text()
+    assert text.index(said) < text.index("Drone2 ok        Land"), text
+    assert summary["drones"]["Drone2"]["final"]["battery"] < 90.0, summary["drones"]["Drone2"]
+    assert summary["drones"]["Drone1"]["final"]["battery"] > 90.0

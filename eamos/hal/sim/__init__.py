@@ -13,9 +13,10 @@ from .adapter import SimAdapter, paced_ticks, sim_adapter_from_settings
 from .clock import SimClock
 from .core import PAYLOAD_DELAY_S, SIM_DT_S, Finished, SimCore
 from .plugin_api import SimOutcome, SimView
-from .settings import SimSettings, Waypoint
+from .settings import MAX_DRAIN_FACTOR, SimSettings, Waypoint
 
 __all__ = [
+    "MAX_DRAIN_FACTOR",
     "PAYLOAD_DELAY_S",
     "SIM_DT_S",
     "Finished",

@@ -35,6 +35,8 @@ SIM_STEP_S = 0.02
 MAX_SPEEDUP = 1000.0
 MIN_SPEED_MPS = 0.05
 MAX_DRAIN = 6000.0  # percent per minute: an empty battery in a hundredth of a minute
+#: The largest ``disturbance_drain_factor`` (a battery draining twenty times its model).
+MAX_DRAIN_FACTOR = 20.0
 #: Scripted pilot: coordinates within this many metres of home, waypoints at most.
 MAX_PILOT_M = 10_000.0
 MAX_WAYPOINTS = 10_000
@@ -114,6 +116,9 @@ class SimSettings:
     # vehicle flies horizontally at this fraction of its speeds.  The check models the drone
     # without it (eamos.check.explore.sim_settings); the live look-ahead measures it.
     disturbance_speed_factor: float = 1.0
+    # Another it cannot know (a cold or aged battery): in the air the battery drains this
+    # many times faster than its model says.  Checked without, measured by the look-ahead.
+    disturbance_drain_factor: float = 1.0
     # Disarm by itself this long after a touchdown ending a flight, as PX4 (COM_DISARM_LAND)
     # and ArduCopter do; 0: never (eamos.hal.sim.landing).
     disarm_after_landing_s: float = DISARM_AFTER_LANDING_S
@@ -178,6 +183,7 @@ class SimSettings:
             liftoff_delay_s=num("liftoff_delay_s", ge=0, le=600),
             land_detect_s=num("land_detect_s", ge=0, le=600),
             disturbance_speed_factor=num("disturbance_speed_factor", ge=0.05, le=1),
+            disturbance_drain_factor=num("disturbance_drain_factor", ge=1, le=MAX_DRAIN_FACTOR),
             disarm_after_landing_s=num("disarm_after_landing_s", ge=0, le=3600),
             telemetry_hz=num("telemetry_hz", ge=0.1, le=1 / SIM_STEP_S),
             home_lat_deg=num("home_lat_deg", ge=-90, le=90),
@@ -199,15 +205,16 @@ class SimSettings:
 
     @property
     def limits(self) -> Limits:
-        """The kinematic limits these settings describe."""
+        """The kinematic limits these settings describe (disturbances included)."""
+        drain = self.disturbance_drain_factor
         return Limits(
             horizontal_speed_mps=self.horizontal_speed_mps * self.disturbance_speed_factor,
             climb_speed_mps=self.climb_speed_mps,
             descent_speed_mps=self.descent_speed_mps,
             accel_mps2=self.accel_mps2,
-            drain_airborne_pct_per_min=self.drain_airborne_pct_per_min,
-            drain_per_mps_pct_per_min=self.drain_per_mps_pct_per_min,
-            drain_climb_per_mps_pct_per_min=self.drain_climb_per_mps_pct_per_min,
+            drain_airborne_pct_per_min=self.drain_airborne_pct_per_min * drain,
+            drain_per_mps_pct_per_min=self.drain_per_mps_pct_per_min * drain,
+            drain_climb_per_mps_pct_per_min=self.drain_climb_per_mps_pct_per_min * drain,
             drain_idle_pct_per_min=self.drain_idle_pct_per_min,
         )
 

@@ -1,0 +1,138 @@
+"""``eamos amend RUN_DIR NEW_MISSION.go``: check an amendment to a flying mission.
+
+The new text is compiled, renumbered against the programs in the run folder (each
+node keeps its number where its place by content is the same), compared drone by
+drone, and judged against the run's ``snapshot.json`` (write a fresh one with
+``eamos pause RUN_DIR``): a node that has begun may not change, and the rest of the
+mission, continued from the snapshot under the amended programs on every branch,
+must pass the check (:mod:`eamos.check.amendment`).  An accepted amendment is written
+to ``RUN_DIR/amendments/N/`` (its programs and ``amendment.json``).
+
+Applying it to the drones while they fly is not built yet: the command checks and
+stages, it does not change a running drone.
+
+Exit codes: 0 accepted, 1 refused (a begun node touched, a check error, another
+fleet), 2 bad input (a mission with errors, a folder that is not a run folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from .errors import BadInput, command
+from .exits import EXIT_MISSION_FAILED, EXIT_OK
+from .options import add_fleet_file, add_verbose
+
+_HELP = """\
+Check an amendment to a flying mission before anything changes: compile NEW_MISSION.go,
+match its nodes to the running programs by content (block, drone, action), say per drone
+what is added, removed and changed and at which node the drone would switch, refuse a
+change to a node that has begun (by the run's snapshot.json: `eamos pause RUN_DIR`
+writes a fresh one), and check the rest of the mission from the snapshot under the
+amended programs (separation, geofence, battery, termination, deadlock), as
+`eamos check --from` does.  An accepted amendment is staged in RUN_DIR/amendments/N/.
+Applying it to the flying drones is not built yet."""
+
+_EPILOG = """\
+examples:
+  eamos pause runs/latest                               # a fresh snapshot.json
+  eamos amend runs/latest amended.go                    # the amended text of its mission
+  eamos amend runs/latest amended.go --fleet configs/crossing.toml --json"""
+
+
+def add_amend_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Register ``eamos amend``; returns its parser."""
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        "amend",
+        help="check an amendment to a flying mission against its snapshot",
+        description=_HELP,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("run_dir", metavar="RUN_DIR", type=Path, help="the flying mission's run folder")
+    p.add_argument("mission", metavar="NEW_MISSION.go", type=Path, help="the amended mission")
+    add_fleet_file(p, required=False)
+    p.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="accept the amendment although the check finds errors (a begun node is "
+        "never changed, forced or not)",
+    )
+    add_verbose(p)
+    command(p, run_amend)
+    return p
+
+
+def running_programs(run_dir: Path) -> dict[str, Any]:
+    """The programs of the run folder, by participant; :class:`BadInput` without them."""
+    from eamos.program.format import load_program
+
+    folder = run_dir / "programs"
+    files = sorted(folder.glob("*.program.json")) if folder.is_dir() else []
+    if not files:
+        raise BadInput(f"{run_dir}: not a run folder (no programs/*.program.json)")
+    programs = {}
+    for path in files:
+        program = load_program(path)
+        programs[program.drone] = program
+    return programs
+
+
+def stage(run_dir: Path, report: Any) -> Path:
+    """Write the accepted amendment to the next ``RUN_DIR/amendments/N/``."""
+    root = run_dir / "amendments"
+    root.mkdir(exist_ok=True)
+    number = 1 + max((int(p.name) for p in root.iterdir() if p.name.isdigit()), default=0)
+    folder = root / str(number)
+    (folder / "programs").mkdir(parents=True)
+    for drone, program in report.amended.programs.items():
+        program.save(folder / "programs" / f"{drone}.program.json")
+    (folder / "amendment.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
+    return folder
+
+
+def run_amend(args: argparse.Namespace) -> int:
+    """``eamos amend``: 0 accepted (and staged), 1 refused, 2 bad input."""
+    from eamos.check import check_amendment
+    from eamos.compiler import compile_file
+    from eamos.config import FleetConfig
+    from eamos.virtual import load_snapshot
+
+    from .adapter_actions import refuse_adapter_gaps
+
+    if not args.run_dir.is_dir():
+        raise BadInput(f"{args.run_dir}: not a run folder")
+    running = running_programs(args.run_dir)
+    if not (args.run_dir / "snapshot.json").is_file():
+        raise BadInput(
+            f"{args.run_dir}: no snapshot.json yet: `eamos pause {args.run_dir}` writes one "
+            "(a run writes one at its end too)"
+        )
+    snapshot = load_snapshot(args.run_dir)
+    fleet = FleetConfig.load(args.fleet) if args.fleet else FleetConfig.empty()
+    compiled = compile_file(args.mission)
+    refuse_adapter_gaps(compiled, fleet)
+    report = check_amendment(
+        running, compiled, snapshot, fleet, force=args.force, where=f"{args.run_dir}/snapshot.json"
+    )
+    staged = stage(args.run_dir, report) if report.accepted and report.touched else None
+    if args.json:
+        doc = report.to_json()
+        doc["file"] = str(args.mission)
+        doc["staged"] = None if staged is None else str(staged)
+        json.dump(doc, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        for line in report.lines(str(args.mission)):
+            print(line)
+        if staged is not None:
+            print(f"staged in {staged} (applying to the flying drones is not built yet)")
+    return EXIT_OK if report.accepted else EXIT_MISSION_FAILED
+
+
+__all__ = ["add_amend_parser", "running_programs"]
