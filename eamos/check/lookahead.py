@@ -74,6 +74,8 @@ class Prediction:
     drones: tuple[str, ...]
     lines: tuple[str, ...]
     position: tuple[float, float, float] | None = None
+    #: The keys of the nodes whose actions it names (the monitor outlines them).
+    nodes: tuple[str, ...] = ()
 
     @property
     def key(self) -> str:
@@ -90,6 +92,7 @@ class Prediction:
             "drones": list(self.drones),
             "lines": list(self.lines),
             "position": None if self.position is None else [round(v, 2) for v in self.position],
+            "nodes": list(self.nodes),
         }
 
 
@@ -244,6 +247,14 @@ def prediction(finding: Finding, mission_file: str) -> Prediction:
     drones = tuple(dict.fromkeys(p.drone for p in finding.places if p.drone))
     lines = tuple(f"{p.file or mission_file}:{p.line}" for p in finding.places if p.line)
     where = finding.positions[0][1] if finding.positions else None
+    nodes = tuple(dict.fromkeys(p.node for p in finding.places if p.node))
     return Prediction(
-        finding.check, finding.severity, finding.message, finding.time_s, drones, lines, where
+        finding.check,
+        finding.severity,
+        finding.message,
+        finding.time_s,
+        drones,
+        lines,
+        where,
+        nodes,
     )

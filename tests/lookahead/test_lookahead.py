@@ -78,6 +78,9 @@ def test_the_look_ahead_predicts_the_conflict_from_the_speed_drone2_was_seen_to_
     assert first.severity == "error" and set(first.drones) == {"Drone1", "Drone2"}
     lines = {line_of("Drone1.FlyByY(20)"), line_of("Drone2.FlyByX(40)")}
     assert {line.rsplit(":", 1)[1] for line in first.lines} == lines, first.lines
+    legs = {n.key for p in compiled.programs.values() for n in p.nodes
+            if n.native and n.label in ("FlyByY(20)", "FlyByX(40)")}  # fmt: skip
+    assert set(first.nodes) == legs and first.to_json()["nodes"] == list(first.nodes)
     # Foreseen at least 10 s ahead, within 2 s of when the flight really gets there.
     assert first.in_s is not None and first.in_s >= 10.0, first
     assert cross.start - t < first.in_s < cross.end - t + 2.0, (first.in_s, cross, t)

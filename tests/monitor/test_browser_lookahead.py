@@ -3,8 +3,9 @@
 ``missions/crossing.go`` with ``configs/crossing_slow.toml`` and ``--monitor``: Drone2
 flies at half its type's speed, so the flight heads into a separation conflict.  The
 page's look-ahead panel lists the predicted conflict (both drones, how far ahead), the map
-draws each drone's predicted track and a ring where the conflict would be; the
-screenshot is ``docs/monitor-lookahead.png``.  The look-ahead holds both drones; the
+draws each drone's predicted track and a ring where the conflict would be, the dependency
+graphs outline the two legs heading into it; the
+screenshots are ``docs/monitor-lookahead.png`` and ``docs/monitor-lookahead-graphs.png``.  The look-ahead holds both drones; the
 operator resumes Drone2 from the page, then Drone1 once Drone2 is past: the mission ends
 ok.
 """
@@ -17,6 +18,7 @@ from typing import Any
 
 import pytest
 
+from eamos.compiler import compile_file
 from eamos.ground.summary import RunSummary
 from tests.monitor.live import URL, start_live_run
 from tests.monitor.test_browser import FINAL_WORDS, SCREENSHOT, browser, mission_state, wait_until
@@ -30,6 +32,7 @@ __all__ = ["browser"]  # the fixture, shared with test_browser
 from selenium.webdriver.common.by import By  # noqa: E402
 
 LOOK_AHEAD = SCREENSHOT.with_name("monitor-lookahead.png")
+ON_THE_GRAPHS = SCREENSHOT.with_name("monitor-lookahead-graphs.png")
 
 
 def predicted(driver: Any) -> list[tuple[str, str]]:
@@ -52,6 +55,7 @@ def drawn(driver: Any) -> dict[str, Any]:
               ahead: q('#map polyline.ahead').map((p) => p.dataset.drone),
               rings: q('#map g.predicted').map((g) => g.dataset.check),
               text: q('#forecast li[data-check="separation"]').map((li) => li.textContent),
+              nodes: q('#graphs g.node.predicted').map((g) => g.dataset.node),
             };"""
         )
     )
@@ -72,12 +76,24 @@ def test_the_page_shows_the_predicted_conflict_and_tracks_ahead(
     try:
         browser.get(run.wait_for(URL).group(1))
         wait_until(browser, lambda d: ("separation", "Drone1 Drone2") in predicted(d), 120)
-        seen = wait_until(browser, lambda d: (shown := drawn(d))["rings"] and shown)
+        seen = wait_until(
+            browser, lambda d: (shown := drawn(d))["rings"] and shown["nodes"] and shown
+        )
         assert set(seen["ahead"]) == {"Drone1", "Drone2"} and "separation" in seen["rings"], seen
+        # The two legs heading into the conflict are outlined on the dependency graphs.
+        programs = compile_file(MISSIONS / "crossing.go").programs
+        legs = {n.key for p in programs.values() for n in p.nodes if n.native
+                and n.label in ("FlyByY(20)", "FlyByX(40)")}  # fmt: skip
+        assert set(seen["nodes"]) == legs, seen
         text = seen["text"][0]
         assert "separation error in " in text and "Drone1.FlyByY(20)" in text, text
         browser.execute_script("window.scrollTo(0, 0)")
         assert browser.save_screenshot(str(LOOK_AHEAD))
+        browser.execute_script(
+            "document.querySelector('#graphs g.node.predicted').scrollIntoView({block: 'center'})"
+        )
+        assert browser.save_screenshot(str(ON_THE_GRAPHS))
+        browser.execute_script("window.scrollTo(0, 0)")  # where the operator's buttons were
         # The look-ahead holds both; the operator lets Drone2 by, then Drone1.
         for drone in ("Drone1", "Drone2"):
             wait_until(browser, lambda d, n=drone: operator_state(d, n) == "held", 60)

@@ -141,6 +141,7 @@ function draw() {
   drawAltitude();
   drawGantt();
   colourGraphs();
+  markPredicted();
 }
 
 function fmt(v, digits) { return v === null || v === undefined ? "" : Number(v).toFixed(digits); }
@@ -450,6 +451,20 @@ function colourGraphs() {
       const bb = g.getBBox();
       g.appendChild(el("text", { x: bb.x + bb.width, y: bb.y + 8, class: "count" }, extra.join(" ")));
     }
+  }
+}
+
+function markPredicted() {
+  // The nodes whose actions a look-ahead prediction names, outlined on the graphs.
+  const names = new Map();
+  for (const p of ((state.forecast || {}).predictions || [])) {
+    for (const n of p.nodes || []) names.set(n, `${p.check}${p.in_s === null || p.in_s === undefined ? "" : ` in ${Math.round(p.in_s)} s`}`);
+  }
+  for (const g of document.querySelectorAll("#graphs g.node")) {
+    const why = names.get(g.dataset.node);
+    if ((g.dataset.predicted || "") === (why || "")) continue;
+    g.classList.toggle("predicted", !!why);
+    if (why) g.dataset.predicted = why; else delete g.dataset.predicted;
   }
 }
 
