@@ -22,6 +22,7 @@ snapshot document in, an :class:`AmendmentReport` out.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -60,6 +61,9 @@ class AmendmentReport:
     forced: bool
     #: The amended mission, renumbered against the running one (what would be applied).
     amended: CompiledMission
+    #: The snapshot it was judged against: why it was written ("pause", "end") and when.
+    snapshot_why: str = ""
+    snapshot_at: float = 0.0
 
     @property
     def touched(self) -> list[str]:
@@ -73,7 +77,11 @@ class AmendmentReport:
 
     def lines(self, file: str) -> list[str]:
         """The report as the terminal shows it."""
-        out = [f"amendment of {self.mission} (mission {self.mission_id}) by {file}:"]
+        when = time.strftime("%H:%M:%S", time.localtime(self.snapshot_at))
+        out = [
+            f"amendment of {self.mission} (mission {self.mission_id}) by {file}, judged "
+            f"against the snapshot of {when} ({self.snapshot_why or 'unknown'}):"
+        ]
         for drone, change in self.changes.items():
             if not change.changes:
                 continue
@@ -107,6 +115,7 @@ class AmendmentReport:
         return {
             "mission": self.mission,
             "mission_id": self.mission_id,
+            "snapshot": {"why": self.snapshot_why, "t": self.snapshot_at},
             "accepted": self.accepted,
             "forced": self.forced,
             "touched": self.touched,
@@ -227,6 +236,8 @@ def check_amendment(
         report,
         force and report is not None and not report.ok,
         rekeyed,
+        past.why,
+        past.taken_at,
     )
 
 

@@ -75,6 +75,7 @@ def test_a_change_to_two_drones_later_parts_is_accepted_and_touches_only_them(fl
     assert report.amended.mission_id == flying[0].mission_id
     assert report.check is not None and report.check.ok
     assert report.lines("x.go")[-1] == "accepted"
+    assert report.lines("x.go")[0].endswith("(pause):")  # the snapshot it was judged on
 
 
 def test_an_amendment_that_makes_two_drones_meet_is_refused_with_the_located_finding(flying):

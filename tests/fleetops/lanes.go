@@ -1,5 +1,5 @@
 // Two drones fly a lane each, north and back, at once (tests/fleetops/test_rollout_by_content.py):
-// an edit inserts a statement into Drone2's lane only.
+// an edit inserts a statement into Drone1's lane only.
 package Lanes
 
 var Drone1 Quadcopter

@@ -10,6 +10,7 @@ import pytest
 
 from eamos import __version__
 from eamos.compiler import compile_file
+from eamos.compiler.amendment import rekey
 from eamos.config import ConfigError, FleetConfig, NodeConfig
 from eamos.net.keys import create_fleet_keys
 from eamos.net.link import LinkSettings
@@ -17,6 +18,7 @@ from eamos.ops.identity import execution_digest, fleet_mission_id, restamp
 from eamos.ops.plan import DronePlan, decide, drone_config
 from eamos.ops.probe import Probe, check_version, parse_probe
 from eamos.ops.record import paper_table
+from eamos.ops.rollout import earlier_programs
 from eamos.ops.ssh import DroneError, classify
 from eamos.ops.status import current_action
 from eamos.ops.targets import SshTarget, load_targets
@@ -95,6 +97,48 @@ def plan_for(program, config: str = "cfg") -> DronePlan:
 
 def probe_with(stamp: dict | None, sums: dict[str, str]) -> Probe:
     return Probe("eamos " + __version__, 10**6, stamp, sums, None, False)
+
+
+LANES = REPO / "tests" / "fleetops" / "lanes.go"
+INSERTION = ("\tDrone1.FlyByX(-4)\n", "\tDrone1.FlyByZ(1)\n\tDrone1.FlyByX(-4)\n")
+
+
+def rolled_out(path: Path, run_dir: Path):  # type: ignore[no-untyped-def]
+    """``path`` compiled as a roll-out stamps it, its programs in ``run_dir/programs``."""
+    compiled = compile_file(path)
+    compiled = restamp(compiled, fleet_mission_id(compiled.mission.name, list(compiled.programs)))
+    (run_dir / "programs").mkdir(parents=True)
+    for name, program in compiled.programs.items():
+        program.save(run_dir / "programs" / f"{name}.program.json")
+    return compiled
+
+
+def test_a_rollout_renumbers_against_the_run_folder_the_drones_stamps_name(tmp_path):
+    first = rolled_out(LANES, tmp_path / "run1")
+    stamp = {"mission_id": first.mission_id, "run_dir": str(tmp_path / "run1")}
+    probes = {d: probe_with(stamp, {}) for d in ("Drone1", "Drone2")}
+    base = earlier_programs(probes, first.mission_id)
+    assert set(base) == set(first.programs)
+    text = LANES.read_text().replace(*INSERTION)
+    (tmp_path / "lanes.go").write_text(text)
+    edited_lanes = compile_file(tmp_path / "lanes.go")
+    edited_lanes = restamp(edited_lanes, first.mission_id)
+    as_written = {d: execution_digest(p) for d, p in edited_lanes.programs.items()}
+    renumbered = {d: execution_digest(p) for d, p in rekey(base, edited_lanes).programs.items()}
+    before = {d: execution_digest(p) for d, p in first.programs.items()}
+    # Numbered as written, the insertion into Drone1's lane (written first) renumbers
+    # Drone2's nodes: its program changes too.  Renumbered, only Drone1's changes.
+    assert as_written["Drone2"] != before["Drone2"]
+    assert renumbered["Drone2"] == before["Drone2"] and renumbered["Drone1"] != before["Drone1"]
+
+
+def test_without_the_earlier_run_folder_a_rollout_compares_as_numbered(tmp_path):
+    first = rolled_out(LANES, tmp_path / "run1")
+    gone = {"mission_id": first.mission_id, "run_dir": str(tmp_path / "elsewhere")}
+    assert earlier_programs({"Drone1": probe_with(gone, {})}, first.mission_id) == {}
+    other = {"mission_id": "another", "run_dir": str(tmp_path / "run1")}
+    assert earlier_programs({"Drone1": probe_with(other, {})}, first.mission_id) == {}
+    assert earlier_programs({"Drone1": probe_with(None, {})}, first.mission_id) == {}
 
 
 def test_decide_keeps_an_unchanged_program_and_copies_a_changed_config():

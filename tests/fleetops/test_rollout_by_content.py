@@ -1,10 +1,10 @@
 """A roll-out compares programs by content (issue 31): an insertion into one drone's part
 redeploys only that drone, over real SSH to two namespace hosts.
 
-Numbered as written, inserting one statement into Drone2's lane renumbers every node
-after it, Drone1's too, and both drones were redeployed.  Renumbered against the
-programs of the earlier roll-out (:func:`eamos.compiler.amendment.rekey`), Drone1's
-program is the one it runs, node for node: it is kept, and flies with Drone2's new one.
+Numbered as written, inserting one statement into Drone1's lane (written first) renumbers
+every node after it, Drone2's too, and both drones were redeployed.  Renumbered against
+the programs of the earlier roll-out (:func:`eamos.compiler.amendment.rekey`), Drone2's
+program is the one it runs, node for node: it is kept, and flies with Drone1's new one.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("fleet-lab")]
 LANES = Path(__file__).with_name("lanes.go")
 
 
-def test_an_insertion_into_drone2s_lane_redeploys_only_drone2_and_both_fly(
+def test_an_insertion_into_drone1s_lane_redeploys_only_drone1_and_both_fly(
     lab: Lab, fleet_keys: Path, tmp_path: Path
 ) -> None:
     lab.reset("d1", "d2")
@@ -30,12 +30,12 @@ def test_an_insertion_into_drone2s_lane_redeploys_only_drone2_and_both_fly(
     )
     first = lab.eamos("rollout", str(LANES), str(fleet), "--run-dir", str(tmp_path / "run1"))
     assert first.returncode == 0, first.stdout + first.stderr
-    drone1 = lab.hosts["d1"].folder / "Lanes" / "programs" / "Drone1.program.json"
-    before = drone1.read_bytes()
+    drone2 = lab.hosts["d2"].folder / "Lanes" / "programs" / "Drone2.program.json"
+    before = drone2.read_bytes()
     edited = tmp_path / "lanes.go"
     text = LANES.read_text()
     edited.write_text(
-        text.replace("\tDrone2.FlyByX(-4)\n", "\tDrone2.FlyByZ(1)\n\tDrone2.FlyByX(-4)\n")
+        text.replace("\tDrone1.FlyByX(-4)\n", "\tDrone1.FlyByZ(1)\n\tDrone1.FlyByX(-4)\n")
     )
     run2 = tmp_path / "run2"
     second = lab.eamos(
@@ -43,15 +43,15 @@ def test_an_insertion_into_drone2s_lane_redeploys_only_drone2_and_both_fly(
     )
     out = second.stdout
     assert second.returncode == 0, out + second.stderr
-    assert re.search(r"  Drone1: unchanged, kept: copy \d+\.\d+ s \(config\)", out), out
-    assert re.search(r"  Drone2: changed, redeployed: copy \d+\.\d+ s \(program, config\)", out)
-    assert drone1.read_bytes() == before  # its program file untouched
+    assert re.search(r"  Drone2: unchanged, kept: copy \d+\.\d+ s \(config\)", out), out
+    assert re.search(r"  Drone1: changed, redeployed: copy \d+\.\d+ s \(program, config\)", out)
+    assert drone2.read_bytes() == before  # its program file untouched
     programs = {
         d: json.loads((run2 / "programs" / f"{d}.program.json").read_text())
         for d in ("Drone1", "Drone2")
     }
     # The inserted climb has a new number, after every node of the first roll-out's.
-    climb = next(n for n in programs["Drone2"]["nodes"] if n.get("label") == "FlyByZ(1)")
+    climb = next(n for n in programs["Drone1"]["nodes"] if n.get("label") == "FlyByZ(1)")
     first_numbers = [
         n["meg"]
         for d in ("Drone1", "Drone2")
@@ -60,7 +60,7 @@ def test_an_insertion_into_drone2s_lane_redeploys_only_drone2_and_both_fly(
         ]
     ]
     assert climb["meg"] > max(first_numbers)
-    # The kept Drone1 and the redeployed Drone2 fly the mission together.
+    # The kept Drone2 and the redeployed Drone1 fly the mission together.
     start = lab.eamos("start", str(run2), "--plain")
     assert start.returncode == 0, start.stdout + start.stderr
     summary = json.loads((run2 / "summary.json").read_text())
@@ -69,5 +69,5 @@ def test_an_insertion_into_drone2s_lane_redeploys_only_drone2_and_both_fly(
         name: [a["args"] for a in report["actions"] if a["action"] == "FlyByZ"]
         for name, report in summary["drones"].items()
     }
-    assert climbs == {"Drone1": [], "Drone2": [[1.0]]}
+    assert climbs == {"Drone1": [[1.0]], "Drone2": []}
     lab.reset("d1", "d2")
