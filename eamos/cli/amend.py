@@ -70,6 +70,7 @@ def add_amend_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def running_programs(run_dir: Path) -> dict[str, Any]:
     """The programs of the run folder, by participant; :class:`BadInput` without them."""
+    from eamos.config import fleet_order
     from eamos.program.format import load_program
 
     folder = run_dir / "programs"
@@ -80,7 +81,9 @@ def running_programs(run_dir: Path) -> dict[str, Any]:
     for path in files:
         program = load_program(path)
         programs[program.drone] = program
-    return programs
+    # As the compiler orders them: the ground station, then the drones as declared.
+    order = [n for n in programs if n not in fleet_order(programs)] + fleet_order(programs)
+    return {name: programs[name] for name in order}
 
 
 def stage(run_dir: Path, report: Any) -> Path:
@@ -94,6 +97,39 @@ def stage(run_dir: Path, report: Any) -> Path:
         program.save(folder / "programs" / f"{drone}.program.json")
     (folder / "amendment.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
     return folder
+
+
+def amendment_preview(run_dir: Path, fleet: Any, text: str) -> dict[str, Any]:
+    """An amendment uploaded from the monitor page, judged and staged as ``eamos amend``
+    does: ``{"ok", "accepted", "lines", "report", "staged"}``, or ``{"ok": false,
+    "error"}`` for a text that does not compile or a run folder without a snapshot."""
+    from eamos.check import check_amendment
+    from eamos.compiler import MissionError, compile_mission, render_diagnostics
+    from eamos.config import ConfigError
+    from eamos.program.format import ProgramError
+    from eamos.virtual import SnapshotError, load_snapshot
+
+    name = "uploaded.go"
+    try:
+        running = running_programs(run_dir)
+        if not (run_dir / "snapshot.json").is_file():
+            raise BadInput("no snapshot.json yet: pause the mission first")
+        compiled = compile_mission(text, str(run_dir / "amendments" / name))
+        report = check_amendment(
+            running, compiled, load_snapshot(run_dir), fleet, where=f"{run_dir}/snapshot.json"
+        )
+    except MissionError as exc:
+        return {"ok": False, "error": render_diagnostics(exc.diagnostics, name, text)}
+    except (BadInput, SnapshotError, ProgramError, ConfigError) as exc:
+        return {"ok": False, "error": str(exc)}
+    staged = stage(run_dir, report) if report.accepted and report.touched else None
+    return {
+        "ok": True,
+        "accepted": report.accepted,
+        "lines": report.lines(name),
+        "report": report.to_json(),
+        "staged": None if staged is None else str(staged),
+    }
 
 
 def run_amend(args: argparse.Namespace) -> int:
@@ -135,4 +171,4 @@ def run_amend(args: argparse.Namespace) -> int:
     return EXIT_OK if report.accepted else EXIT_MISSION_FAILED
 
 
-__all__ = ["add_amend_parser", "running_programs"]
+__all__ = ["add_amend_parser", "amendment_preview", "running_programs"]

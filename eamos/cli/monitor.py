@@ -13,7 +13,7 @@ import contextlib
 import signal
 import sys
 import threading
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -95,8 +95,10 @@ def live_monitor(
     stop: threading.Event,
     display: Display,
     homes: Mapping[str, tuple[float, float]] | None = None,
+    amend: Callable[[str], dict[str, Any]] | None = None,
 ) -> Iterator[Monitored]:
-    """``display`` alone, or teed to a live monitor served while the block runs."""
+    """``display`` alone, or teed to a live monitor served while the block runs
+    (``amend``: judges an amendment uploaded from the page, :func:`.amend.preview`)."""
     if opts is None:
         yield Monitored(display)
         return
@@ -112,6 +114,7 @@ def live_monitor(
             host=opts.host,
             open_browser=opts.open_browser,
             homes=homes,
+            amend=amend,
         )
     except MonitorError as exc:
         raise BadInput(str(exc)) from exc

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from eamos.cli.amend import amendment_preview
 from eamos.cli.exits import EXIT_INTERRUPTED, EXIT_MISSION_FAILED, EXIT_OK
 from eamos.cli.monitor import MonitorOptions, add_monitor_options, live_monitor
 from eamos.cli.options import (
@@ -178,7 +180,8 @@ def run_mission(
     shown = display or make_display(opts.live, drones)
     # The map's frame: each drone's home as the check and the simulated drones see it.
     homes = fleet.homes(fleet_order(compiled.programs))
-    with live_monitor(opts.monitor, run_dir, stop, shown, homes) as monitored:
+    amend = functools.partial(amendment_preview, run_dir, fleet)
+    with live_monitor(opts.monitor, run_dir, stop, shown, homes, amend) as monitored:
         summary = fly_local(
             LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
             run_dir,

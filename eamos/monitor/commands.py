@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from starlette.requests import Request
     from starlette.responses import Response
 
-__all__ = ["abort_endpoint", "bounded_body", "command_endpoint"]
+__all__ = ["abort_endpoint", "amend_endpoint", "bounded_body", "command_endpoint"]
 
 
 class CommandedServer(Protocol):
@@ -30,12 +30,15 @@ class CommandedServer(Protocol):
     hub: Any
     on_abort: Callable[[str, bool], None] | None
     on_command: Callable[[str, str, str], str] | None
+    on_amend: Callable[[str, str], dict[str, Any]] | None
 
     def refuse(self, origin: str, why: str, abort: bool = False) -> None: ...
 
 
 #: The largest body read (an abort is ``{"token": "..."}``: some 40 bytes; a command 120).
 MAX_COMMAND_BYTES = 4096
+#: The largest amendment read: a mission text of a few thousand lines.
+MAX_AMEND_BYTES = 512 * 1024
 
 
 async def abort_endpoint(server: CommandedServer, request: Request) -> Response:
@@ -106,6 +109,43 @@ async def command_endpoint(server: CommandedServer, request: Request) -> Respons
     if why:
         return answer(why, 409)
     return JSONResponse({"ok": True})
+
+
+async def amend_endpoint(server: CommandedServer, request: Request) -> Response:
+    """``{"token", "text"}``: judge an amendment to the flying mission (``server.on_amend``,
+    on a worker thread: it compiles and simulates), as ``eamos amend`` does; the answer is
+    its report (``ok`` false with ``error`` for a text that does not compile)."""
+    from starlette.responses import JSONResponse
+
+    def answer(error: str, status: int) -> Response:
+        return JSONResponse({"ok": False, "error": error}, status_code=status)
+
+    peer = request.client
+    origin = f"monitor page at {peer.host}:{peer.port}" if peer else "monitor page"
+    if server.replay is not None or server.on_amend is None:
+        return answer("this monitor cannot amend the run (a replay?)", 409)
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "application/json":
+        server.refuse(origin, "the body is not application/json")
+        return answer("send JSON", 415)
+    body = await bounded_body(request, MAX_AMEND_BYTES)
+    if body is None:
+        server.refuse(origin, f"an amendment over {MAX_AMEND_BYTES} bytes")
+        return answer("body too large", 413)
+    try:
+        data = json.loads(body)
+    except (ValueError, RecursionError):
+        data = None
+    data = data if isinstance(data, dict) else {}
+    token = data.get("token")
+    if not (isinstance(token, str) and secrets.compare_digest(token, server.token)):
+        server.refuse(origin, "an amendment without the run's token")
+        return answer("not the run's token", 403)
+    text = data.get("text")
+    if not isinstance(text, str):
+        return answer("text must be the mission's text", 400)
+    doc = await asyncio.to_thread(server.on_amend, text, origin)
+    return JSONResponse(doc, status_code=200 if doc.get("ok") else 422)
 
 
 async def bounded_body(request: Request, limit: int) -> bytes | None:

@@ -74,6 +74,7 @@ def start_live_monitor(
     host: str = "127.0.0.1",
     open_browser: bool = False,
     homes: Mapping[str, tuple[float, float]] | None = None,
+    amend: Callable[[str], dict[str, Any]] | None = None,
 ) -> MonitorServer:
     """Serve the monitor of the run in ``run_dir`` (its programs and graphs already there).
 
@@ -108,8 +109,18 @@ def start_live_monitor(
         say(f"{command} {drone or 'the mission'}: requested from the {origin}")
         return ""
 
+    def on_amend(text: str, origin: str) -> dict[str, Any]:
+        """An amendment uploaded from the page, judged as ``eamos amend`` judges it."""
+        assert amend is not None
+        log.warning("monitor.amend", origin=origin, chars=len(text))
+        doc = amend(text)
+        verdict = "accepted" if doc.get("accepted") else "refused" if doc.get("ok") else "bad"
+        say(f"amendment from the {origin}: {verdict}")
+        return doc
+
     server = MonitorServer(hub, host=host, port=port, on_abort=on_abort, on_problem=on_problem)
     server.on_command = on_command
+    server.on_amend = on_amend if amend is not None else None
     server.start()
     log.info("monitor.start", url=f"http://{host}:{server.port}/")
     say(f"monitor: {server.url}")

@@ -46,7 +46,7 @@ from functools import partial
 from importlib import resources
 from typing import TYPE_CHECKING, Any, Protocol
 
-from .commands import MAX_COMMAND_BYTES, abort_endpoint, command_endpoint
+from .commands import MAX_COMMAND_BYTES, abort_endpoint, amend_endpoint, command_endpoint
 from .hub import Hub
 from .setup import MonitorError
 
@@ -158,6 +158,8 @@ class MonitorServer:
         self.on_abort = on_abort
         # The operator's commands: (command, drone, origin) -> why refused ("": sent).
         self.on_command: Callable[[str, str, str], str] | None = None
+        # An amendment's text from the page: (text, origin) -> its judgement (eamos amend's).
+        self.on_amend: Callable[[str, str], dict[str, Any]] | None = None
         self.on_problem = on_problem
         self.clock = clock
         self.refusals = RefusalLimiter()
@@ -314,6 +316,7 @@ class MonitorServer:
                 Route("/api/state", self._state),
                 Route("/api/abort", partial(abort_endpoint, self), methods=["POST"]),
                 Route("/api/command", partial(command_endpoint, self), methods=["POST"]),
+                Route("/api/amend", partial(amend_endpoint, self), methods=["POST"]),
                 WebSocketRoute("/ws", self._ws),
             ],
             lifespan=lifespan,

@@ -4,10 +4,10 @@
 flies at half its type's speed, so the flight heads into a separation conflict.  The
 page's look-ahead panel lists the predicted conflict (both drones, how far ahead), the map
 draws each drone's predicted track and a ring where the conflict would be, the dependency
-graphs outline the two legs heading into it; the
-screenshots are ``docs/monitor-lookahead.png`` and ``docs/monitor-lookahead-graphs.png``.  The look-ahead holds both drones; the
-operator resumes Drone2 from the page, then Drone1 once Drone2 is past: the mission ends
-ok.
+graphs outline the two legs heading into it; the screenshots are
+``docs/monitor-lookahead.png`` and ``docs/monitor-lookahead-graphs.png``.  The look-ahead
+holds both drones; the operator resumes Drone2 from the page, then Drone1 once Drone2 is
+past: the mission ends ok.
 """
 
 from __future__ import annotations

@@ -246,3 +246,37 @@ def test_a_failing_tick_does_not_freeze_the_pages(
             got = json.loads(ws.recv(timeout=WAIT_S))
         assert got["type"] == "patches"  # sent by the tick after the failing one
     assert server.problems == 1 and "a tick's bug" in told.problems[0]
+
+
+# -- an amendment's upload (issue 31) ----------------------------------------------------------
+
+
+def test_an_amendment_needs_the_token_json_a_bounded_body_and_a_text(
+    served: tuple[MonitorServer, Told],
+) -> None:
+    server, _ = served
+    judged: list[tuple[str, str]] = []
+    # Without a judge (a replay, a roll-out's monitor): refused as such.
+    body = json.dumps({"token": "the-token", "text": "package m"}).encode()
+    assert request(server, "POST", "/api/amend", body, JSON)[0] == 409
+
+    def judge(text: str, origin: str) -> dict[str, Any]:
+        judged.append((text, origin))
+        return {"ok": True}
+
+    server.on_amend = judge
+    assert request(server, "POST", "/api/amend", body, {"Content-Type": "text/plain"})[0] == 415
+    wrong = json.dumps({"token": "not-it", "text": "package m"}).encode()
+    assert request(server, "POST", "/api/amend", wrong, JSON)[0] == 403
+    untexted = json.dumps({"token": "the-token", "text": 3}).encode()
+    assert request(server, "POST", "/api/amend", untexted, JSON)[0] == 400
+    huge = json.dumps({"token": "the-token", "text": "x" * 600_000}).encode()
+    assert request(server, "POST", "/api/amend", huge, JSON)[0] == 413
+    assert judged == []  # none of those reached the judge
+    status, answer = request(server, "POST", "/api/amend", body, JSON)
+    assert status == 200 and json.loads(answer) == {"ok": True}
+    assert judged and judged[0][0] == "package m" and judged[0][1].startswith("monitor page at")
+    # A judge that says the text is bad (it does not compile): 422 with its error.
+    server.on_amend = lambda text, origin: {"ok": False, "error": "uploaded.go:1:1: error: ..."}
+    status, answer = request(server, "POST", "/api/amend", body, JSON)
+    assert status == 422 and json.loads(answer)["error"].startswith("uploaded.go:1:1")

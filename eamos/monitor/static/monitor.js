@@ -133,6 +133,7 @@ function draw() {
   if (st) $("stats").textContent = `updates coalesced ${st.coalesced}, frames dropped ${st.dropped}`;
   $("abort").disabled = !token || !!replay || FINAL.has(m.state) || ws.readyState !== 1;
   $("pause").disabled = !commandsOn() || m.state !== "running";
+  $("amend-check").disabled = !commandsOn();
   $("resume").disabled = !commandsOn() || m.state !== "paused";
   drawDrones();
   drawLinks();
@@ -513,6 +514,45 @@ async function doCommand() {
   out.textContent = res.ok ? `${command} sent to ${drone || "every drone"}.` : `${command} refused: ${body.error || res.status}`;
 }
 
+// -- an amendment: judged as `eamos amend` judges it, not applied ----------------------------
+
+let amendment = null; // the latest judgement: its changes, to mark on the graphs
+
+async function checkAmendment() {
+  const file = $("amend-file").files[0];
+  if (!file) return;
+  const out = $("amend-report");
+  out.hidden = false;
+  out.dataset.verdict = "checking";
+  out.textContent = `checking ${file.name} ...`;
+  const res = await fetch("/api/amend", {
+    method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify({ token, text: await file.text() }),
+  });
+  const body = await res.json().catch(() => ({}));
+  if (!res.ok || !body.ok) {
+    amendment = null;
+    out.dataset.verdict = "bad";
+    out.textContent = `${file.name}: ${body.error || res.status}`;
+  } else {
+    amendment = body.report;
+    out.dataset.verdict = body.accepted ? "accepted" : "refused";
+    const staged = body.staged ? `\nstaged in ${body.staged} (applying to the flying drones is not built yet)` : "";
+    out.textContent = body.lines.join("\n") + staged;
+  }
+  markAmended();
+}
+
+function markAmended() {
+  // The running nodes an amendment touches (changed, removed, or redirected), outlined.
+  const touched = new Set();
+  for (const change of Object.values((amendment || {}).changes || {})) {
+    for (const key of [...(change.touched || []), ...(change.redirected || [])]) touched.add(key);
+  }
+  for (const g of document.querySelectorAll("#graphs g.node")) g.classList.toggle("amended", touched.has(g.dataset.node));
+}
+
 // -- abort and replay ---------------------------------------------------------------------
 
 async function doAbort() {
@@ -569,6 +609,7 @@ async function main() {
   $("resume").addEventListener("click", () => askCommand("resume", ""));
   $("cmd-yes").addEventListener("click", doCommand);
   $("cmd-no").addEventListener("click", () => { $("cmd-confirm").hidden = true; pending = null; });
+  $("amend-check").addEventListener("click", checkAmendment);
   if (replay) setupReplay();
   await loadGraphs();
   connect();
