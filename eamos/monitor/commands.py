@@ -73,26 +73,28 @@ async def abort_endpoint(server: CommandedServer, request: Request) -> Response:
     return JSONResponse({"ok": False, "error": "not the run's token"}, status_code=403)
 
 
-async def command_endpoint(server: CommandedServer, request: Request) -> Response:
-    """Check a command request and hand it to ``server.on_command`` (on a worker thread:
-    it waits for the ground station's answer)."""
+def _answer(error: str, status: int) -> Response:
     from starlette.responses import JSONResponse
 
-    def answer(error: str, status: int) -> Response:
-        return JSONResponse({"ok": False, "error": error}, status_code=status)
+    return JSONResponse({"ok": False, "error": error}, status_code=status)
 
+
+async def _guarded(
+    server: CommandedServer, request: Request, what: str, limit: int
+) -> tuple[dict[str, Any], str] | Response:
+    """A request to the run checked as every command is: JSON only, a body of at most
+    ``limit`` bytes, the run's token; ``(its fields, the page's origin)``, or the answer
+    refusing it (each refusal told through ``server.refuse``, as ``what``)."""
     peer = request.client
     origin = f"monitor page at {peer.host}:{peer.port}" if peer else "monitor page"
-    if server.replay is not None or server.on_command is None:
-        return answer("this monitor cannot command the run (a replay?)", 409)
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind != "application/json":
         server.refuse(origin, "the body is not application/json")
-        return answer("send JSON", 415)
-    body = await bounded_body(request, MAX_COMMAND_BYTES)
+        return _answer("send JSON", 415)
+    body = await bounded_body(request, limit)
     if body is None:
-        server.refuse(origin, f"a body over {MAX_COMMAND_BYTES} bytes")
-        return answer("body too large", 413)
+        server.refuse(origin, f"{what} over {limit} bytes")
+        return _answer("body too large", 413)
     try:
         data = json.loads(body)
     except (ValueError, RecursionError):
@@ -100,14 +102,28 @@ async def command_endpoint(server: CommandedServer, request: Request) -> Respons
     data = data if isinstance(data, dict) else {}
     token = data.get("token")
     if not (isinstance(token, str) and secrets.compare_digest(token, server.token)):
-        server.refuse(origin, "a command without the run's token")
-        return answer("not the run's token", 403)
+        server.refuse(origin, f"{what} without the run's token")
+        return _answer("not the run's token", 403)
+    return data, origin
+
+
+async def command_endpoint(server: CommandedServer, request: Request) -> Response:
+    """Check a command request and hand it to ``server.on_command`` (on a worker thread:
+    it waits for the ground station's answer)."""
+    from starlette.responses import JSONResponse
+
+    if server.replay is not None or server.on_command is None:
+        return _answer("this monitor cannot command the run (a replay?)", 409)
+    checked = await _guarded(server, request, "a command", MAX_COMMAND_BYTES)
+    if not isinstance(checked, tuple):
+        return checked
+    data, origin = checked
     command, drone = data.get("command"), data.get("drone", "")
     if not isinstance(command, str) or not isinstance(drone, str):
-        return answer("command and drone must be strings", 400)
+        return _answer("command and drone must be strings", 400)
     why = await asyncio.to_thread(server.on_command, command[:40], drone[:100], origin)
     if why:
-        return answer(why, 409)
+        return _answer(why, 409)
     return JSONResponse({"ok": True})
 
 
@@ -117,33 +133,15 @@ async def amend_endpoint(server: CommandedServer, request: Request) -> Response:
     its report (``ok`` false with ``error`` for a text that does not compile)."""
     from starlette.responses import JSONResponse
 
-    def answer(error: str, status: int) -> Response:
-        return JSONResponse({"ok": False, "error": error}, status_code=status)
-
-    peer = request.client
-    origin = f"monitor page at {peer.host}:{peer.port}" if peer else "monitor page"
     if server.replay is not None or server.on_amend is None:
-        return answer("this monitor cannot amend the run (a replay?)", 409)
-    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if kind != "application/json":
-        server.refuse(origin, "the body is not application/json")
-        return answer("send JSON", 415)
-    body = await bounded_body(request, MAX_AMEND_BYTES)
-    if body is None:
-        server.refuse(origin, f"an amendment over {MAX_AMEND_BYTES} bytes")
-        return answer("body too large", 413)
-    try:
-        data = json.loads(body)
-    except (ValueError, RecursionError):
-        data = None
-    data = data if isinstance(data, dict) else {}
-    token = data.get("token")
-    if not (isinstance(token, str) and secrets.compare_digest(token, server.token)):
-        server.refuse(origin, "an amendment without the run's token")
-        return answer("not the run's token", 403)
+        return _answer("this monitor cannot amend the run (a replay?)", 409)
+    checked = await _guarded(server, request, "an amendment", MAX_AMEND_BYTES)
+    if not isinstance(checked, tuple):
+        return checked
+    data, origin = checked
     text = data.get("text")
     if not isinstance(text, str):
-        return answer("text must be the mission's text", 400)
+        return _answer("text must be the mission's text", 400)
     doc = await asyncio.to_thread(server.on_amend, text, origin)
     return JSONResponse(doc, status_code=200 if doc.get("ok") else 422)
 

@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from eamos.ground.summary import RunSummary
 from tests.support.runs import REPO, run_argv
 
 URL = re.compile(r"monitor: (http://127\.0\.0\.1:(\d+)/\?token=(\S+))")
@@ -78,3 +79,11 @@ def start_live_run(
     run = LiveRun(proc)
     threading.Thread(target=run._pump, daemon=True).start()
     return run
+
+
+def ended_ok(run: LiveRun, code: int, tmp_path: Path) -> RunSummary:
+    """The summary of a run that exited with ``code``: it must have exited 0 and be ok."""
+    assert code == 0, "\n".join(run.lines)
+    summary = RunSummary.read(tmp_path / "summary.json")
+    assert summary.ok
+    return summary

@@ -18,8 +18,7 @@ from typing import Any
 import pytest
 
 from eamos.compiler import compile_file
-from eamos.ground.summary import RunSummary
-from tests.monitor.live import URL, start_live_run
+from tests.monitor.live import URL, ended_ok, start_live_run
 from tests.monitor.test_browser import FINAL_WORDS, SCREENSHOT, browser, mission_state, wait_until
 from tests.operator.runs import operator
 from tests.support.four_lanes import HEAD_ON, LANES, LATER_PARTS, amended, line_of
@@ -92,9 +91,7 @@ def test_the_page_checks_an_amendment_against_the_paused_run(tmp_path: Path, bro
     finally:
         if run.proc.poll() is None:
             run.proc.kill()
-    assert code == 0, "\n".join(run.lines)
-    summary = RunSummary.read(tmp_path / "summary.json")
-    assert summary.ok
+    summary = ended_ok(run, code, tmp_path)
     # Not applied: every drone flew its lane as written.
     for name, result in summary.drones.items():
         assert result.report is not None

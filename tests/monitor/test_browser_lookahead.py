@@ -19,8 +19,7 @@ from typing import Any
 import pytest
 
 from eamos.compiler import compile_file
-from eamos.ground.summary import RunSummary
-from tests.monitor.live import URL, start_live_run
+from tests.monitor.live import URL, ended_ok, start_live_run
 from tests.monitor.test_browser import FINAL_WORDS, SCREENSHOT, browser, mission_state, wait_until
 from tests.monitor.test_browser_operator import confirm, operator_state
 from tests.support.runs import MISSIONS, REPO
@@ -106,9 +105,7 @@ def test_the_page_shows_the_predicted_conflict_and_tracks_ahead(
     finally:
         if run.proc.poll() is None:
             run.proc.kill()
-    assert code == 0, "\n".join(run.lines)
-    summary = RunSummary.read(tmp_path / "summary.json")
-    assert summary.ok
+    summary = ended_ok(run, code, tmp_path)
     origins = [(c["command"], c["drone"], str(c["origin"])) for c in summary.operator_commands]
     assert [(c, d) for c, d, _ in origins] == [
         ("hold", "Drone1"),

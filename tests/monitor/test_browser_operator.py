@@ -17,8 +17,7 @@ from typing import Any
 
 import pytest
 
-from eamos.ground.summary import RunSummary
-from tests.monitor.live import URL, start_live_run
+from tests.monitor.live import URL, ended_ok, start_live_run
 from tests.monitor.test_browser import (
     FINAL_WORDS,
     SCREENSHOT,
@@ -98,9 +97,7 @@ def test_pause_and_a_drone_command_from_the_page(tmp_path: Path, browser: Any) -
     finally:
         if run.proc.poll() is None:
             run.proc.kill()
-    assert code == 0, "\n".join(run.lines)
-    summary = RunSummary.read(tmp_path / "summary.json")
-    assert summary.ok
+    summary = ended_ok(run, code, tmp_path)
     got = [(c["command"], c["drone"]) for c in summary.operator_commands]
     assert got == [("pause", ""), ("hold", "Drone2"), ("resume", "")]
     assert all(
