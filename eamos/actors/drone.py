@@ -9,6 +9,7 @@ mission on this drone: the vehicle lands before this returns.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import json
 import threading
@@ -311,6 +312,7 @@ def _execute(
         if runtime.completed.wait(0.5) or runtime.link is None:
             continue
         activity = ask_activity(runtime.executive, ASK_TIMEOUT_S)
+        activity = dataclasses.replace(activity, held=runtime.held_by_operator)
         if activity.resolved and not checked_airborne:
             checked_airborne = True
             ending = left_airborne(runtime)

@@ -153,6 +153,8 @@ class DroneRuntime:
         self.completed = threading.Event()
         self.aborted = threading.Event()
         self.abort_reason = ""
+        # Paused or held by the operator (until a resume): only the ground station resumes.
+        self.held_by_operator = False
         self.adapter_error: AdapterError | None = None
         self._lock = threading.Lock()
         self._resolved_told = self._stopped = False
@@ -251,6 +253,7 @@ class DroneRuntime:
         self.log.warning(
             "mission.operator", command=msg.command, target=msg.target, origin=msg.origin
         )
+        self.held_by_operator = msg.command in ("pause", "hold")
         try:
             if self.hal is not None and self.hal.is_alive():
                 self.hal.tell(Operate(msg.command))

@@ -11,6 +11,10 @@ Two ways a drone can be left with nobody to end its mission:
 * **no Complete**: it has resolved, but the ground station has been silent for
   longer than ``peer_wait_limit_s``: the ``Complete`` will never come, so it
   ends as if it had (its report is kept in its own folder).
+* **held without a ground station**: the operator paused or held it, and the
+  ground station, the only one that can resume it, has been silent for longer
+  than ``peer_wait_limit_s``: stranded as above (it would otherwise hover for
+  good, its action suspended).
 
 Pure: :func:`end_on_own` takes the time, what the executive says
 (:class:`Activity`) and when each peer went silent (:func:`silent_since`, from
@@ -53,6 +57,7 @@ class Activity:
 
     resolved: bool  # every top-level node finished
     idle_since: float | None  # monotonic time no action has run since; None: one runs now
+    held: bool = False  # paused or held by the operator (only the ground station resumes it)
 
 
 @dataclass(frozen=True)
@@ -134,6 +139,13 @@ def end_on_own(
                 f"(peer_wait_limit_s = {limit_s:g}); ending on its own",
             )
         return None
+    since = silent.get(GROUND_STATION)
+    if activity.held and since is not None and now - since > limit_s:
+        return EndOnOwn(
+            "stranded",
+            f"stranded: held by the operator, and the ground station, which alone can resume "
+            f"it, has been silent for {now - since:.0f} s (peer_wait_limit_s = {limit_s:g})",
+        )
     if activity.idle_since is None:
         return None
     for peer in sorted(sources):

@@ -62,6 +62,11 @@ def idle(since: float) -> Activity:
         (100.0, Activity(True, 50.0), {"Drone1": 10.0}, None),
         # Not resolved and the ground station is silent: stranded like any source.
         (100.0, idle(50.0), {GROUND_STATION: 80.0}, "stranded"),
+        # Held by the operator, its action suspended (not idle): only the ground station
+        # can resume it; after the limit of its silence, stranded, not before.
+        (100.0, Activity(False, None, held=True), {GROUND_STATION: 80.0}, "stranded"),
+        (100.0, Activity(False, None, held=True), {GROUND_STATION: 95.0}, None),
+        (100.0, Activity(False, None, held=True), {"Drone1": 10.0}, None),
     ],
 )
 def test_end_on_own(
@@ -71,6 +76,13 @@ def test_end_on_own(
     assert (ending.kind if ending else None) == expected
     if ending is not None:
         assert f"peer_wait_limit_s = {LIMIT:g}" in ending.reason
+
+
+def test_a_held_drone_without_its_ground_station_says_why_it_ends() -> None:
+    held = Activity(False, None, held=True)
+    ending = end_on_own(100.0, held, {GROUND_STATION: 80.0}, set(), LIMIT)
+    assert ending is not None and ending.peer is None
+    assert ending.reason.startswith("stranded: held by the operator, and the ground station")
 
 
 def test_the_reason_names_the_peer_and_the_wait() -> None:

@@ -114,6 +114,32 @@ def test_a_killed_ground_station_leaves_drones_that_land_and_end_on_their_own(
         assert report["final"]["z"] == pytest.approx(0.0, abs=0.15) and not report["final"]["armed"]
 
 
+def test_drones_paused_when_the_ground_station_dies_land_on_their_own(tmp_path: Path) -> None:
+    """Paused, the drones hold their legs suspended; only the ground station resumes them.
+    It is killed: each applies its end policy once it has been silent for the limit."""
+    run = LiveRun.start(tmp_path, MISSIONS / "experiment_b.go", speedup=5, timeout_s=600)
+    pids = {}
+    try:
+        run.wait_for("running   FlyByY")
+        pids = {d: node_pid(run.run_dir, d) for d in ("Drone1", "Drone2")}
+        proc = eamos("pause", str(run.run_dir), timeout=60)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        run.kill()  # kill -9 of `eamos run` while paused
+        for drone, pid in pids.items():
+            assert wait_gone(pid, 120 + DEFAULT_PEER_WAIT_LIMIT_S), f"{drone} still runs"
+    finally:
+        for pid in pids.values():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+    for drone in ("Drone1", "Drone2"):
+        logs = run.run_dir / "logs" / drone
+        said = (logs / "node.out").read_text()
+        assert "stranded: held by the operator, and the ground station" in said, said
+        report = read_json(logs / "report.json")
+        assert report["aborted"] and report["abort_reason"].startswith("stranded: held"), report
+        assert report["final"]["z"] == pytest.approx(0.0, abs=0.15) and not report["final"]["armed"]
+
+
 def test_eamos_abort_lands_the_drones_of_an_eamos_run_folder(tmp_path: Path) -> None:
     run = LiveRun.start(tmp_path, long_leg(tmp_path), speedup=1, timeout_s=600)
     pids = {}
