@@ -124,6 +124,13 @@ class LookAhead:
         }
 
 
+def _measured(doc: Mapping[str, Any], drones: list[str], name: str) -> list[tuple[str, Any]]:
+    """Each of ``drones`` the snapshot has a part for, with that part's ``name`` field."""
+    participants = doc.get("participants") or {}
+    parts = [(d, participants.get(d)) for d in drones]
+    return [(d, part.get(name)) for d, part in parts if isinstance(part, dict)]
+
+
 def measured_speeds(
     doc: Mapping[str, Any],
     fleet: FleetConfig,
@@ -133,10 +140,7 @@ def measured_speeds(
     """The drones seen cruising slower than their model: drone -> the speed it held (m/s
     of vehicle time: the wall-clock measure divided by the drone's speed-up)."""
     out: dict[str, float] = {}
-    participants = doc.get("participants") or {}
-    for drone in drones:
-        part = participants.get(drone)
-        cruise = part.get("cruise_mps") if isinstance(part, dict) else None
+    for drone, cruise in _measured(doc, drones, "cruise_mps"):
         if not isinstance(cruise, int | float):
             continue
         cruise = cruise / (speedups or {}).get(drone, 1.0)
@@ -158,10 +162,7 @@ def measured_drains(
     drone -> how many times faster (the battery used over the flight seen, against what
     the model would have used over the same seconds of vehicle time, metres and climb)."""
     out: dict[str, float] = {}
-    participants = doc.get("participants") or {}
-    for drone in drones:
-        part = participants.get(drone)
-        flown = part.get("flown") if isinstance(part, dict) else None
+    for drone, flown in _measured(doc, drones, "flown"):
         if not isinstance(flown, dict):
             continue
         try:

@@ -82,7 +82,8 @@ def running_programs(run_dir: Path) -> dict[str, Any]:
         program = load_program(path)
         programs[program.drone] = program
     # As the compiler orders them: the ground station, then the drones as declared.
-    order = [n for n in programs if n not in fleet_order(programs)] + fleet_order(programs)
+    drones = fleet_order(programs)
+    order = [n for n in programs if n not in drones] + drones
     return {name: programs[name] for name in order}
 
 
