@@ -32,6 +32,7 @@ __all__ = [
     "DeliverInterrupt",
     "DroneExecutive",
     "ExecutiveSnapshot",
+    "NewProgram",
     "Snapshot",
     "TriggerReceived",
     "ask_activity",
@@ -64,6 +65,14 @@ class DeliverInterrupt:
 @dataclass(frozen=True)
 class AskActivity:
     """Ask: the executive's :class:`~.stranded.Activity` (resolved? idle since when?)."""
+
+
+@dataclass(frozen=True)
+class NewProgram:
+    """Ask: run an amended ``program`` with these node actors (:mod:`.reprogram`)."""
+
+    program: DroneProgram
+    nodes: Mapping[str, Mailbox[Interrupt]]
 
 
 @dataclass(frozen=True)
@@ -169,17 +178,15 @@ class DroneExecutive(RuntimePart):
         self.to_ground = to_ground
         self.log = log
         self.failure = failure
-        self.top_level = {n.key for n in program.native_nodes() if not n.loops}
-        self.labels = {n.key: n.label for n in program.native_nodes()}
+        self.top_level: set[str] = set()
+        self.labels: dict[str, str] = {}
+        self.scope_index: dict[int, list[Mailbox[Interrupt]]] = {}
+        self._take_program(program, nodes)
         self.resolved: dict[str, str] = {}
         self.records: list[ActionRecord] = []
         self.triggers_received = 0
         self.state_changed_s: float | None = None
         self.state_action: str | None = None
-        self.scope_index: dict[int, list[Mailbox[Interrupt]]] = {}
-        for node in program.native_nodes():
-            for scope in node.scopes:
-                self.scope_index.setdefault(scope, []).append(nodes[node.key])
         self.finished_actions = 0
         self.running: set[tuple[str, tuple[int, ...]]] = set()  # (node, iteration) running now
         self.idle_since: float | None = time.monotonic()
@@ -195,6 +202,16 @@ class DroneExecutive(RuntimePart):
         self.resolved_event = threading.Event()
         if not self.top_level:
             self.resolved_event.set()
+
+    def _take_program(self, program: DroneProgram, nodes: Mapping[str, Mailbox[Interrupt]]) -> None:
+        """Run ``program`` with these node actors (at the start, and when amended)."""
+        self.program, self.nodes = program, nodes
+        self.top_level = {n.key for n in program.native_nodes() if not n.loops}
+        self.labels = {n.key: n.label for n in program.native_nodes()}
+        self.scope_index = {}
+        for node in program.native_nodes():
+            for scope in node.scopes:
+                self.scope_index.setdefault(scope, []).append(nodes[node.key])
 
     def on_start(self) -> None:
         self._flush_alarm.start()  # here, not in the first event's turn (on a trigger's path)
@@ -238,6 +255,9 @@ class DroneExecutive(RuntimePart):
             self.triggers_received += 1
         elif isinstance(message, Snapshot):
             return self.snapshot()
+        elif isinstance(message, NewProgram):
+            self._take_program(message.program, message.nodes)
+            return Activity(self.resolved_event.is_set(), self.idle_since)
         elif isinstance(message, AskActivity):
             return Activity(self.resolved_event.is_set(), self.idle_since)
         return None

@@ -39,6 +39,7 @@ def incoming_arcs(program: DroneProgram) -> dict[tuple[str, str], str]:
 
 
 _CONTROL = (wire.Start, wire.Abort, wire.Complete, wire.Operator)
+_ORDERS = ("prepare", "commit", "cancel")  # an amendment's phases, from the ground station
 
 
 class StartGate:
@@ -192,7 +193,7 @@ class InRouter:
     speaks as it, with its key).  ``sender`` is authenticated: the In-Bridge
     accepts on each peer's socket only messages naming that peer, and with CURVE
     the socket proved the peer's key."""
-    arc_hosts: Mapping[tuple[str, str], str] | None = None
+    arc_hosts: dict[tuple[str, str], str] | None = None
     """:func:`incoming_arcs` of the program: a trigger counts only on one of these arcs,
     and only from the participant hosting its source node (an authenticated sender
     may still lie about the node it speaks for).  None: not checked."""
@@ -205,6 +206,21 @@ class InRouter:
     acknowledged: Callable[[TriggersAcknowledged], None] | None = None
     """Where the triggers a peer acknowledged go: the node's journal, so that a
     restarted node never sends them again (:mod:`.rejoin`).  None: nowhere."""
+    amend: Callable[[wire.Amend], None] | None = None
+    """The runtime's handler of an amendment's phases (:mod:`.reprogram`), from the
+    ground station only.  None: amendments are not taken (the ground station)."""
+
+    def accept_arcs(self, arcs: Mapping[tuple[str, str], str]) -> None:
+        """Take triggers on ``arcs`` too (an amendment's new arcs, before any flies)."""
+        if self.arc_hosts is not None:
+            self.arc_hosts.update(arcs)
+
+    def keep_arcs(self, arcs: Mapping[tuple[str, str], str]) -> None:
+        """Take triggers on ``arcs`` only (an amendment applied or cancelled)."""
+        if self.arc_hosts is not None:
+            for arc in [a for a in self.arc_hosts if a not in arcs]:
+                del self.arc_hosts[arc]
+            self.arc_hosts.update(arcs)
 
     def __call__(self, msg: Delivered) -> None:
         try:
@@ -244,7 +260,9 @@ class InRouter:
         elif isinstance(msg, wire.Interrupt):
             if self.gate is None or not self.gate.hold(msg):
                 self._interrupt(msg)
-        elif isinstance(msg, _CONTROL) and msg.sender not in self.control_from:
+        elif (
+            isinstance(msg, _CONTROL) or (isinstance(msg, wire.Amend) and msg.phase in _ORDERS)
+        ) and msg.sender not in self.control_from:
             # A fleet member's key does not make it the ground station: a drone
             # must not end, abort or start another's mission.
             self.log.warning(
@@ -255,6 +273,11 @@ class InRouter:
             )
         elif isinstance(msg, wire.Abort):
             self.abort(msg.reason or f"abort from {msg.sender}")
+        elif isinstance(msg, wire.Amend) and msg.phase not in _ORDERS:
+            return True  # a drone's answer: for the ground station
+        elif isinstance(msg, wire.Amend):
+            if self.amend is not None:
+                self.amend(msg)
         elif isinstance(msg, wire.Operator):
             if self.operator is not None and msg.target in ("", self.drone):
                 self.operator(msg)

@@ -35,6 +35,7 @@ import pykka
 
 from ..logs import LogLine, log_line
 from ..program.format import ProgramNode
+from .amendable import Amendable, AmendNode
 from .continuation import Replay, install_continuation
 from .dispatch import Dispatcher, LazyMail, PooledActor
 from .failure import tell_operator
@@ -205,6 +206,7 @@ class MissionNode(PooledActor):
             )
         self.links: Links | None = None
         self.crashed = False
+        self.amendable = Amendable()  # an amendment's hold on this node (.reprogram)
         self._current: object = None  # the message being handled (for the failure policy)
         enabled = getattr(self.log, "is_enabled_for", None)
         self._debug = enabled is None or bool(enabled(logging.DEBUG))
@@ -218,15 +220,20 @@ class MissionNode(PooledActor):
 
     # -- messages -> logic inputs ---------------------------------------------------
 
-    def on_receive(self, message: object) -> None:
+    def on_receive(self, message: object) -> object:
+        if isinstance(message, AmendNode) and message.op in ("hold", "hold-out", "retire"):
+            return self._amend_answer(message)
         try:
-            if self.crashed:
-                return None  # a failed node stays failed: later messages change nothing
+            if self.crashed or self.amendable.retired or self.amendable.keeps(message):
+                return None  # failed, replaced, or held for an amendment: kept for later
             self._current = message
-            self._apply(self._input(message))
+            if isinstance(message, AmendNode):
+                self._amend_act(message)
+            else:
+                self._act(message)
             while self._inline:  # handled after the effects that started them, in order
                 self._current = finished = self._inline.pop(0)
-                self._apply(self._input(finished))
+                self._act(finished)
             self._send_news()
         finally:
             if self._lines:
@@ -238,6 +245,34 @@ class MissionNode(PooledActor):
                 self.links.uniform.write_results()
             if isinstance(message, RemoteTrigger):
                 self._received_note(message)
+        return None
+
+    def _act(self, message: object) -> None:
+        effects = self._input(message)
+        self.amendable.seen(message, effects)
+        self._apply(effects)
+
+    def _amend_answer(self, message: AmendNode) -> object:
+        """An amendment's question (:mod:`.amendable`): may the node be held, what it kept."""
+        if message.op == "retire":
+            return self.amendable.retire()
+        if self.crashed:
+            return False
+        if message.op == "hold":
+            return self.amendable.hold_in()
+        return self.amendable.hold_out()
+
+    def _amend_act(self, message: AmendNode) -> None:
+        """An amendment cancelled (``release``) or applied (``reroute``): what the node
+        kept goes on, to its old or its new successors."""
+        if message.op == "reroute":
+            self.logic.routes = message.routes
+            self._apply(self.amendable.reroute(message.routes))
+        elif message.op == "release":
+            arrived, emits = self.amendable.release()
+            self._apply(emits)
+            for kept in arrived:
+                self._act(kept)
 
     def _received_note(self, t: RemoteTrigger) -> None:
         # After the node's work (its action already started): off the trigger's path.
@@ -306,6 +341,7 @@ class MissionNode(PooledActor):
     def _apply(self, effects: Sequence[Effect]) -> None:
         # Triggers to other drones first: a peer waits for them, and nothing of this
         # drone is ordered against them (local effects keep their order).
+        effects = self.amendable.outgoing(effects)  # a redirected node holds them
         for effect in effects:
             if type(effect) is Emit and effect.route.external:
                 self._emit(effect)

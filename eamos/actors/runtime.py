@@ -57,6 +57,7 @@ from .operator import Operate
 from .outbox import Outbox
 from .readiness import announce_ready
 from .reporting import gather_report
+from .reprogram import Reprogramming
 from .startup import NetSettings, RuntimeStartup, StartGateSettings
 from .teardown import tear_down
 from .uniform_api import Abort as HalAbort
@@ -199,8 +200,10 @@ class DroneRuntime:
         build.start_nodes(self.dispatcher, self.nodes)
         self.executive = build.start_executive(self.dispatcher, self.nodes, outbox, self._to_ground)
         build.wire_nodes(self.nodes, self.hal, board, outbox, self.executive, space)
+        # A drone takes amendments from its ground station (the ground station none).
+        amend = None if self.ground_handler is not None else Reprogramming(self, build).handle
         self.router = build.router(
-            self.nodes, self.executive, board, self.abort, self.completed, self.operate
+            self.nodes, self.executive, board, self.abort, self.completed, self.operate, amend
         )
         self.inb = build.connect(link, self.router)
 

@@ -246,6 +246,7 @@ class RuntimeStartup:
         abort: Callable[[str], None],
         completed: threading.Event,
         operator: Callable[[wire.Operator], None] | None = None,
+        amend: Callable[[wire.Amend], None] | None = None,
     ) -> InRouter:
         """The In-Bridge's routing: each message to the actor it is for."""
         return InRouter(
@@ -261,6 +262,7 @@ class RuntimeStartup:
             arc_hosts=incoming_arcs(self.program),
             gate=self._gate(),
             operator=operator,
+            amend=amend,
             acknowledged=self._journal_acknowledged if self.journal is not None else None,
         )
 

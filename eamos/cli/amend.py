@@ -6,13 +6,14 @@ drone, and judged against the run's ``snapshot.json`` (write a fresh one with
 ``eamos pause RUN_DIR``): a node that has begun may not change, and the rest of the
 mission, continued from the snapshot under the amended programs on every branch,
 must pass the check (:mod:`eamos.check.amendment`).  An accepted amendment is written
-to ``RUN_DIR/amendments/N/`` (its programs and ``amendment.json``).
+to ``RUN_DIR/amendments/N/`` (its programs and ``amendment.json``).  With ``--apply``
+the running ground station first writes a fresh snapshot to judge against, then applies
+the accepted amendment to the drones it changes (:mod:`eamos.ground.amend`).
 
-Applying it to the drones while they fly is not built yet: the command checks and
-stages, it does not change a running drone.
-
-Exit codes: 0 accepted, 1 refused (a begun node touched, a check error, another
-fleet), 2 bad input (a mission with errors, a folder that is not a run folder).
+Exit codes: 0 accepted (and applied with ``--apply``), 1 refused (a begun node touched,
+a check error, another fleet; with ``--apply``, a drone that refused to switch), 2 bad
+input (a mission with errors, a folder that is not a run folder), 3 no ground station
+runs the mission (``--apply``).
 """
 
 from __future__ import annotations
@@ -25,7 +26,12 @@ from typing import Any
 
 from .errors import BadInput, command
 from .exits import EXIT_MISSION_FAILED, EXIT_OK
+from .operator import origin
 from .options import add_fleet_file, add_verbose
+
+#: How long ``--apply`` waits for the ground station: its two phases, each bounded.
+APPLY_TIMEOUT_S = 90.0
+
 
 _HELP = """\
 Check an amendment to a flying mission before anything changes: compile NEW_MISSION.go,
@@ -35,12 +41,15 @@ change to a node that has begun (by the run's snapshot.json: `eamos pause RUN_DI
 writes a fresh one), and check the rest of the mission from the snapshot under the
 amended programs (separation, geofence, battery, termination, deadlock), as
 `eamos check --from` does.  An accepted amendment is staged in RUN_DIR/amendments/N/.
-Applying it to the flying drones is not built yet."""
+With --apply, the running ground station writes a fresh snapshot first, and an accepted
+amendment is applied to the drones it changes: each switches to its new part while the
+others fly on untouched."""
 
 _EPILOG = """\
 examples:
   eamos pause runs/latest                               # a fresh snapshot.json
   eamos amend runs/latest amended.go                    # the amended text of its mission
+  eamos amend runs/latest amended.go --apply            # checked against now, then flown
   eamos amend runs/latest amended.go --fleet configs/crossing.toml --json"""
 
 
@@ -62,6 +71,12 @@ def add_amend_parser(subparsers: Any) -> argparse.ArgumentParser:
         action="store_true",
         help="accept the amendment although the check finds errors (a begun node is "
         "never changed, forced or not)",
+    )
+    p.add_argument(
+        "--apply",
+        action="store_true",
+        help="judge against a snapshot the running ground station writes now, and apply an "
+        "accepted amendment to the drones it changes",
     )
     add_verbose(p)
     command(p, run_amend)
@@ -145,6 +160,10 @@ def run_amend(args: argparse.Namespace) -> int:
     if not args.run_dir.is_dir():
         raise BadInput(f"{args.run_dir}: not a run folder")
     running = running_programs(args.run_dir)
+    if args.apply:  # judged against the drones as they are now
+        from eamos.ground.operator import send_command
+
+        send_command(args.run_dir, "snapshot", "", origin())
     if not (args.run_dir / "snapshot.json").is_file():
         raise BadInput(
             f"{args.run_dir}: no snapshot.json yet: `eamos pause {args.run_dir}` writes one "
@@ -158,18 +177,39 @@ def run_amend(args: argparse.Namespace) -> int:
         running, compiled, snapshot, fleet, force=args.force, where=f"{args.run_dir}/snapshot.json"
     )
     staged = stage(args.run_dir, report) if report.accepted and report.touched else None
+    applied = apply_error = None
+    if args.apply and staged is not None:
+        apply_error = apply_staged(args.run_dir, staged)
+        applied = not apply_error
     if args.json:
         doc = report.to_json()
         doc["file"] = str(args.mission)
         doc["staged"] = None if staged is None else str(staged)
+        doc["applied"], doc["apply_error"] = applied, apply_error
         json.dump(doc, sys.stdout, indent=2)
         sys.stdout.write("\n")
     else:
         for line in report.lines(str(args.mission)):
             print(line)
         if staged is not None:
-            print(f"staged in {staged} (applying to the flying drones is not built yet)")
-    return EXIT_OK if report.accepted else EXIT_MISSION_FAILED
+            print(f"staged in {staged}")
+        if applied:
+            print(f"applied: {', '.join(report.touched)} switched to their amended part")
+        elif apply_error:
+            print(f"not applied: {apply_error}")
+    return EXIT_OK if report.accepted and not apply_error else EXIT_MISSION_FAILED
 
 
-__all__ = ["add_amend_parser", "amendment_preview", "running_programs"]
+def apply_staged(run_dir: Path, staged: Path) -> str:
+    """Have the ground station running ``run_dir`` apply the amendment staged in
+    ``staged``: "" when applied, else why not (nothing changed unless it says so)."""
+    from eamos.ground.operator import OperatorError, send_command
+
+    try:
+        send_command(run_dir, "amend", staged.name, origin(), timeout_s=APPLY_TIMEOUT_S)
+    except OperatorError as exc:
+        return str(exc).removeprefix("refused by the ground station: ")
+    return ""
+
+
+__all__ = ["add_amend_parser", "amendment_preview", "apply_staged", "running_programs"]

@@ -40,9 +40,6 @@ from .phases import CompiledMission
 #: Node attributes that name other nodes by execution-graph number.
 _NUMBER_REFS = ("begin", "end", "catch")
 _NUMBER_LISTS = ("loops", "scopes")
-#: Node fields that locate or describe rather than decide (see :func:`execution_body`).
-_POSITION_FIELDS = ("line", "col", "catch_line")
-_PROXY_DESCRIPTIVE = ("label", "action", "args", "cond", "count", "block")
 
 
 @dataclass(frozen=True, order=True)
@@ -235,17 +232,6 @@ def rekey(running: Mapping[str, DroneProgram], amended: CompiledMission) -> Comp
     )
 
 
-def _executed(node: ProgramNode) -> dict[str, Any]:
-    """What of a node its drone executes (see :func:`execution_body`)."""
-    doc = {f.name: getattr(node, f.name) for f in dataclasses.fields(node)}
-    for name in _POSITION_FIELDS:
-        doc.pop(name, None)
-    if not node.native:
-        for name in _PROXY_DESCRIPTIVE:
-            doc.pop(name, None)
-    return doc
-
-
 def execution_body(program: DroneProgram) -> dict[str, Any]:
     """What the drone executes: the program minus its descriptive fields.
 
@@ -259,7 +245,7 @@ def execution_body(program: DroneProgram) -> dict[str, Any]:
     body = program.body()
     for name in ("mission_id", "source_file"):
         body.pop(name, None)
-    body["nodes"] = [_jsonable(_executed(n)) for n in program.nodes]
+    body["nodes"] = [_jsonable(n.executed()) for n in program.nodes]
     return body
 
 
@@ -299,7 +285,7 @@ def drone_change(
     new = {n.key: n for n in amended.nodes} if amended else {}
     added = [new[k] for k in new if k not in old]
     removed = [old[k] for k in old if k not in new]
-    changed = [new[k] for k in new if k in old and _executed(new[k]) != _executed(old[k])]
+    changed = [new[k] for k in new if k in old and new[k].executed() != old[k].executed()]
     arcs_old = {(a.src, a.dst, a.kind) for a in running.arcs} if running else set()
     arcs_new = {(a.src, a.dst, a.kind) for a in amended.arcs} if amended else set()
     arcs_added = sorted(arcs_new - arcs_old)

@@ -117,9 +117,20 @@ def desk_handler(
     clock: Callable[[], float] = time.monotonic,
 ) -> Handler:
     """The desk's handler for ``station``: :func:`command`; a pause also writes the
-    mission's state (``snapshot.json``) once it is sent, and ``pauses`` counts it."""
+    mission's state (``snapshot.json``) once it is sent, and ``pauses`` counts it.
+    Two requests are the desk's own: ``snapshot`` writes the mission's state now (an
+    amendment is judged against it), ``amend`` with the amendment's number in ``drone``
+    applies ``RUN_DIR/amendments/N/`` (:class:`~.amend.AmendmentApplier`)."""
+    from .amend import AmendmentApplier
+
+    applier = AmendmentApplier(station, run_dir)
 
     def handle(what: str, drone: str, origin: str) -> str:
+        if what == "snapshot":
+            snapshot(station, run_dir, f"asked by {origin or 'the operator'}")
+            return ""
+        if what == "amend":
+            return applier.apply(drone, origin)
         why = command(station, what, drone, origin)
         if not why and what == "pause":
             snapshot(station, run_dir, "pause")

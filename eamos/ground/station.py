@@ -182,6 +182,7 @@ class GroundStation:
         self.over = False
         self.started = False  # the Start was sent: the operator's commands may come
         self.paused = False  # the operator paused the mission (until a resume)
+        self.amendment_answers: Callable[[wire.Amend], None] | None = None  # (.amend)
 
     # -- wiring -------------------------------------------------------------------------
 
@@ -198,6 +199,9 @@ class GroundStation:
         if isinstance(msg, wire.Progress):
             for event in progress_events(msg):
                 self._handle_one(event)
+        elif isinstance(msg, wire.Amend):  # a drone's answer to an amendment's phase
+            if self.amendment_answers is not None:
+                self.amendment_answers(msg)
         else:
             self._handle_one(msg)
 

@@ -1,4 +1,4 @@
-"""The EAMOS wire format, version 5: the only place messages become bytes and back.
+"""The EAMOS wire format, version 7: the only place messages become bytes and back.
 
 Every message crossing the network between participants (drones and the ground
 station) is one of the frozen :class:`msgspec.Struct` types below.  On the wire it is a two-frame
@@ -27,7 +27,7 @@ ZeroMQ multipart message ``[topic, payload]``:
   =====  ======  ========================================================
   key    type    meaning
   =====  ======  ========================================================
-  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 6)
+  ``v``  int     wire version, always :data:`WIRE_VERSION` (= 7)
   ``t``  str     message type code (table below)
   ``m``  str     mission id; receivers drop messages of other missions
   ``s``  str     sender: name of the participant that sent the message
@@ -77,6 +77,15 @@ ZeroMQ multipart message ``[topic, payload]``:
                              target                  ``tg``    str, the drone ("": every one)
                              origin                  ``o``     str, who asked (for the logs)
                              seq                     ``q``     int >= 0, broadcast sequence
+  ``amd``    Amend           dest                    ``d``     str, the drone (its answer: GCS)
+                             number                  ``nb``    int >= 0, the staged amendment
+                             phase                   ``ph``    "prepare"|"commit"|"cancel" (to
+                                                               a drone), "prepared"|"committed"|
+                                                               "cancelled"|"refused" (its answer)
+                             program                 ``pg``    bin, the drone's new program
+                                                               file (UTF-8 JSON; prepare)
+                             reason                  ``r``     str, why refused
+                             seq                     ``q``     int >= 0
   ``prg``    Progress        dest                    ``d``     str (default ``"GCS"``)
                              state                   ``st``    str, e.g. "started", "done"
                              node                    ``nd``    str
@@ -116,49 +125,18 @@ ZeroMQ multipart message ``[topic, payload]``:
                                                                each name in ``ak``/``bk``
   =========  ==============  ======================  ========  ================================
 
-  ``seq`` (key ``q``) numbers the reliable messages: Trigger, Interrupt, Ready,
-  Resolved, Report and ReportPart per link (sender, dest), Start, Abort, Complete and
-  Operator per sender (broadcast sequence); 1, 2, 3 ... as the reliability layer
-  (:mod:`eamos.net.session`) sends them, 0 for a message sent outside it (not
-  acknowledged, not deduplicated).  Progress, TelemetrySample, Ack and
-  Heartbeat are never acknowledged: progress and telemetry are latest-value
-  data, acks and heartbeats are repeated anyway.
+  ``seq`` (key ``q``) numbers the reliable messages (per link: Trigger, Interrupt,
+  Ready, Amend, Resolved, Report, ReportPart; per sender: the broadcasts) 1, 2, 3 ...,
+  0 outside the reliability layer (:mod:`eamos.net.session`).  Progress, telemetry,
+  Ack and Heartbeat are never acknowledged.
 
-  Floats accept msgpack ints on decode (converted to float); bools are never
-  accepted where numbers are expected.  "Plain data" is nil, bool, int, float,
-  str, bin, array and str-keyed maps, nested at most :data:`MAX_DEPTH` deep
-  (arrays come back as lists).  The order of the keys in the map carries no
-  meaning (this encoder writes ``t`` first, the envelope's ``v`` and ``n`` last).
-
-Ready, Progress, Resolved, Report and ReportPart are addressed to the ground
-station; their ``dest`` defaults to :data:`GROUND_STATION` so their constructors
-stay short.
-
-A report too large for one message travels as ReportParts: the MessagePack
-encoding of the report map cut into ``parts`` slices of at most
-:data:`REPORT_PART_BYTES`, sent in order on the reliable link (so they arrive
-once each, in order); the receiver joins them and decodes the whole as a
-Report's ``rp`` (:mod:`eamos.net.reports`).
-
-Inside a process a message is built by its constructor, plainly; the session stamps
-``seq`` and ``incarnation`` (:func:`msgspec.structs.replace`).  What a peer sends is
-validated once, by :func:`decode`, at the trust boundary: msgpack unpacks with every
-length bounded, :func:`plain_map` bounds the nesting of plain data without recursing,
-and :func:`msgspec.convert` checks each field against its type (bounds, choices).
-
-:func:`decode` raises :class:`WireError`, and nothing else, for any malformed
-input: wrong frame count, oversize frames, payload that is not msgpack or nests
-too deep, wrong or missing version, unknown type, missing, extra or wrongly
-typed fields, or a topic that does not match the message; its ``reason`` is
-``"version"`` for a payload of another wire version (an older or newer program),
-``"oversize"`` for a payload over :data:`MAX_PAYLOAD_BYTES` and ``"malformed"``
-otherwise.  Its texts name the field at fault and show no value longer than a
-few dozen characters.  Changing anything in this table means bumping
-:data:`WIRE_VERSION`; ``docs/wire-format.md`` holds the same table.
+The rest (plain data, floats, key order, defaults, reports in parts, what :func:`decode`
+checks: it raises :class:`WireError` and nothing else) is in ``docs/wire-format.md``,
+which holds the same table.  Changing the table means bumping :data:`WIRE_VERSION`.
 
 Version history: 1 (first format); 2 adds ``q``, Ack and Heartbeat (reliable
 delivery, liveness); 3 the incarnation (``n``, Ack's ``di``, Heartbeat's ``ki``: a
-restarted peer); 4 ReportPart; 5 Start's ``dp``; 6 Operator (``opc``).
+restarted peer); 4 ReportPart; 5 Start's ``dp``; 6 Operator (``opc``); 7 Amend (``amd``).
 """
 
 from __future__ import annotations
@@ -185,6 +163,8 @@ __all__ = [
     "WIRE_VERSION",
     "Abort",
     "Ack",
+    "Amend",
+    "AmendPhase",
     "Complete",
     "Heartbeat",
     "Interrupt",
@@ -211,7 +191,7 @@ __all__ = [
     "unpack_bounded",
 ]
 
-WIRE_VERSION: Final = 6
+WIRE_VERSION: Final = 7
 """Version of this format, carried in every payload under key ``v``."""
 
 GROUND_STATION: Final = _GCS  # the same name the compiler gives the ground station
@@ -278,9 +258,13 @@ say it without recursing)."""
 DeploymentId: TypeAlias = Annotated[str, msgspec.Meta(pattern="^[A-Za-z0-9._-]{0,64}$")]
 PartCount: TypeAlias = Annotated[int, msgspec.Meta(ge=1, le=MAX_REPORT_PARTS)]
 PartData: TypeAlias = Annotated[bytes, msgspec.Meta(max_length=REPORT_PART_BYTES)]
+ProgramText: TypeAlias = Annotated[bytes, msgspec.Meta(max_length=MAX_PAYLOAD_BYTES)]
 TriggerStatus: TypeAlias = Literal["done", "skipped", "failed"]
 InterruptMode: TypeAlias = Literal["all", "waits", "suspend", "resume"]
 OperatorCommand: TypeAlias = Literal["pause", "resume", "hold", "land", "return-home", "release"]
+AmendPhase: TypeAlias = Literal[
+    "prepare", "commit", "cancel", "prepared", "committed", "cancelled", "refused"
+]
 
 
 # ---------------------------------------------------------------------------
@@ -302,7 +286,7 @@ class _Base(_Fields, frozen=True, kw_only=True):
     KIND: ClassVar[str] = ""
 
     # In every payload; decode reads it before anything else (a WireError "version").
-    version: Literal[6] = msgspec.field(default=WIRE_VERSION, name="v")
+    version: Literal[7] = msgspec.field(default=WIRE_VERSION, name="v")
     # The session stamps it on sending.
     incarnation: Seq = msgspec.field(default=0, name="n")
 
@@ -407,6 +391,21 @@ class Operator(_Base, frozen=True, tag="opc"):
     seq: Seq = msgspec.field(default=0, name="q")
 
 
+class Amend(_Base, frozen=True, tag="amd"):
+    """An amendment applied in two phases (:mod:`eamos.actors.reprogram`): the ground
+    station's ``prepare`` (with the drone's new ``program``), ``commit`` or ``cancel``,
+    and the drone's answer to each (``reason`` when ``refused``)."""
+
+    KIND: ClassVar[str] = "to"
+
+    dest: Name = msgspec.field(name="d")
+    number: Seq = msgspec.field(name="nb")
+    phase: AmendPhase = msgspec.field(name="ph")
+    program: ProgramText = msgspec.field(default=b"", name="pg")
+    reason: str = msgspec.field(default="", name="r")
+    seq: Seq = msgspec.field(default=0, name="q")
+
+
 class Progress(_Base, frozen=True, tag="prg"):
     """A node/action event on the sender, for live display at the ground station."""
 
@@ -500,6 +499,7 @@ Message = (
     | Abort
     | Complete
     | Operator
+    | Amend
     | Progress
     | Resolved
     | Report
@@ -512,7 +512,7 @@ Message = (
 MESSAGE_TYPES: Final[tuple[type[_Base], ...]] = get_args(Message)
 
 RELIABLE_TO: Final[frozenset[type[_Base]]] = frozenset(
-    {Trigger, Interrupt, Ready, Resolved, Report, ReportPart}
+    {Trigger, Interrupt, Ready, Amend, Resolved, Report, ReportPart}
 )
 """Addressed messages the reliability layer numbers per link (sender, dest) and acknowledges."""
 

@@ -82,6 +82,11 @@ class ProgramError(Exception):
     """A drone program file is missing, damaged, or of an unsupported version."""
 
 
+#: Node fields that locate or describe rather than decide (see :meth:`ProgramNode.executed`).
+_POSITION_FIELDS = ("line", "col", "catch_line")
+_PROXY_DESCRIPTIVE = ("label", "action", "args", "cond", "count", "block")
+
+
 @dataclass(frozen=True)
 class ProgramNode:
     """One MDG node (native, or a proxy for a node of another drone)."""
@@ -115,6 +120,18 @@ class ProgramNode:
     line: int = 0
     col: int = 0
     block: str = ""
+
+    def executed(self) -> dict[str, Any]:
+        """What of this node its drone executes: every field but where it is written, and
+        of a proxy (another drone's node) none of what describes it.  Equal for two nodes:
+        the drone behaves the same (an amendment does not touch it)."""
+        doc = {f.name: getattr(self, f.name) for f in fields(self)}
+        for name in _POSITION_FIELDS:
+            del doc[name]
+        if not self.native:
+            for name in _PROXY_DESCRIPTIVE:
+                del doc[name]
+        return doc
 
 
 @dataclass(frozen=True)
@@ -417,24 +434,30 @@ def load_program(path: Path) -> DroneProgram:
         raise ProgramError(f"{path}: no such program file") from exc
     except (OSError, ValueError) as exc:
         raise ProgramError(f"{path}: cannot read the program: {exc}") from exc
+    return program_from_bytes(data, str(path))
+
+
+def program_from_bytes(data: bytes, where: str = "program") -> DroneProgram:
+    """A program file's bytes, verified as :func:`load_program` verifies a file (``where``
+    names them in errors): the bytes of an amended program sent to a flying drone."""
     if len(data) > MAX_PROGRAM_BYTES:
-        raise ProgramError(f"{path}: over {MAX_PROGRAM_BYTES} bytes: not a program file")
+        raise ProgramError(f"{where}: over {MAX_PROGRAM_BYTES} bytes: not a program file")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise ProgramError(f"{path}: cannot read the program: {exc}") from exc
+        raise ProgramError(f"{where}: cannot read the program: {exc}") from exc
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ProgramError(
-            f"{path}: not valid JSON (line {exc.lineno}): the file is damaged"
+            f"{where}: not valid JSON (line {exc.lineno}): the file is damaged"
         ) from exc
     except RecursionError as exc:
         raise ProgramError(
-            f"{path}: nested more than {MAX_PROGRAM_DEPTH} deep: the file is damaged"
+            f"{where}: nested more than {MAX_PROGRAM_DEPTH} deep: the file is damaged"
         ) from exc
-    _check_depth(doc, str(path))
-    return program_from_dict(doc, str(path))
+    _check_depth(doc, where)
+    return program_from_dict(doc, where)
 
 
 def _check_depth(doc: Any, where: str) -> None:

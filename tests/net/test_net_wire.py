@@ -63,6 +63,8 @@ SAMPLES: list[Message] = [
     Heartbeat(M, "GCS", {}, 3, leaving=True),
     ReportPart(M, "D2", 1, 3, b"\x81\xa1a", seq=5),
     wire.Operator(M, "GCS", "pause", origin="monitor page"),
+    wire.Amend(M, "GCS", "D1", 2, "prepare", b'{"format": "eamos-program"}', seq=3),
+    wire.Amend(M, "D1", "GCS", 2, "refused", reason="n5 FlyByX(12) has begun"),
 ]
 
 
@@ -207,7 +209,8 @@ MALFORMED: list[tuple[str, Any, str]] = [
     ("version 3", [TO, body(v=3)], "version"),
     ("version 4", [TO, body(v=4)], "version"),
     ("version 5", [TO, body(v=5)], "version"),
-    ("version 7", [TO, body(v=7)], "version"),
+    ("version 6", [TO, body(v=6)], "version"),
+    ("version 8", [TO, body(v=8)], "version"),
     ("version true", [TO, body(v=True)], "version"),
     ("version float", [TO, body(v=3.0)], "version"),
     ("version str", [TO, body(v="2")], "version"),

@@ -58,6 +58,11 @@ KINDS: list[tuple[wire.Message, bytes, dict[str, Any]]] = [
         {"c": "hold", "tg": "D2", "o": "cli user ann", "q": 4, "n": 0},
     ),
     (
+        wire.Amend(M, "GCS", "D2", 1, "prepare", b"{}", seq=5),
+        b"to/D2",
+        {"d": "D2", "nb": 1, "ph": "prepare", "pg": b"{}", "r": "", "q": 5, "n": 0},
+    ),
+    (
         wire.Progress(M, "D2", "started", "n4", "goto", {"lat": 1.5, "path": [1, "a", None]}),
         b"to/GCS",
         {
@@ -109,6 +114,7 @@ CODES = {
     wire.Abort: "abt",
     wire.Complete: "cmp",
     wire.Operator: "opc",
+    wire.Amend: "amd",
     wire.Progress: "prg",
     wire.Resolved: "res",
     wire.Report: "rep",
@@ -119,7 +125,7 @@ CODES = {
 
 
 def expected(msg: wire.Message, own: dict[str, Any]) -> dict[str, Any]:
-    return {"v": 6, "t": CODES[type(msg)], "m": M, "s": msg.sender, **own}
+    return {"v": 7, "t": CODES[type(msg)], "m": M, "s": msg.sender, **own}
 
 
 def test_every_kind_is_here() -> None:
