@@ -6,7 +6,7 @@ the report's parts :class:`Finding`, :class:`Place`, :class:`RunSummary`, and th
 tracks and separation geometry (:class:`Track`, :func:`pair_conflicts`).
 """
 
-from .amendment import AmendmentReport, Refusal, check_amendment
+from .amendment import AmendmentReport, FlyingMission, Refusal, check_amendment
 from .explore import CHECK_TIME_LIMIT_S, MAX_RUNS, MIN_SEPARATION_M, check_mission
 from .findings import CheckReport, Finding, Place, RunSummary
 from .separation import Conflict, conflicts, pair_conflicts
@@ -20,6 +20,7 @@ __all__ = [
     "CheckReport",
     "Conflict",
     "Finding",
+    "FlyingMission",
     "Place",
     "Refusal",
     "RunSummary",

@@ -25,6 +25,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from ..compiler import CompiledMission
@@ -242,3 +243,35 @@ def check_amendment(
 
 
 __all__ = ["AmendmentReport", "Refusal", "begun_refusals", "check_amendment"]
+
+
+class FlyingMission:
+    """The mission a run folder's drones fly now: as compiled, then each amendment applied
+    to them, in order (``amendments/N/`` with ``applied.json``): its text (``mission.go``)
+    renumbered against what flew before it, as ``eamos amend`` renumbered it.  The live
+    look-ahead forecasts what flies (:func:`eamos.cli.run.forecast`).
+    """
+
+    def __init__(self, compiled: CompiledMission, run_dir: Path) -> None:
+        self.compiled = compiled
+        self.run_dir = Path(run_dir)
+        self.applied = 0  # the last amendment taken in
+
+    def now(self) -> CompiledMission:
+        """The mission as it flies now (read again only when an amendment was applied)."""
+        from ..compiler import MissionError, compile_mission
+
+        root = self.run_dir / "amendments"
+        done = sorted(
+            int(p.parent.name) for p in root.glob("*/applied.json") if p.parent.name.isdigit()
+        )
+        for number in (n for n in done if n > self.applied):
+            text_file = root / str(number) / "mission.go"
+            try:
+                text = text_file.read_text(encoding="utf-8")
+                amended = compile_mission(text, str(text_file))
+            except (OSError, UnicodeDecodeError, MissionError):
+                continue  # not ours to judge again: it was checked when staged
+            self.compiled = rekey(self.compiled.programs, amended)
+            self.applied = number
+        return self.compiled

@@ -29,10 +29,6 @@ from .exits import EXIT_MISSION_FAILED, EXIT_OK
 from .operator import origin
 from .options import add_fleet_file, add_verbose
 
-#: How long ``--apply`` waits for the ground station: its two phases, each bounded.
-APPLY_TIMEOUT_S = 90.0
-
-
 _HELP = """\
 Check an amendment to a flying mission before anything changes: compile NEW_MISSION.go,
 match its nodes to the running programs by content (block, drone, action), say per drone
@@ -63,7 +59,9 @@ def add_amend_parser(subparsers: Any) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("run_dir", metavar="RUN_DIR", type=Path, help="the flying mission's run folder")
-    p.add_argument("mission", metavar="NEW_MISSION.go", type=Path, help="the amended mission")
+    p.add_argument(
+        "mission", metavar="NEW_MISSION.go", type=Path, nargs="?", help="the amended mission"
+    )
     add_fleet_file(p, required=False)
     p.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
     p.add_argument(
@@ -77,6 +75,13 @@ def add_amend_parser(subparsers: Any) -> argparse.ArgumentParser:
         action="store_true",
         help="judge against a snapshot the running ground station writes now, and apply an "
         "accepted amendment to the drones it changes",
+    )
+    p.add_argument(
+        "--staged",
+        metavar="N",
+        type=int,
+        help="instead of a new text: apply the amendment staged in RUN_DIR/amendments/N/ "
+        "(checked when it was staged; a drone refuses it if a node it changes has begun since)",
     )
     add_verbose(p)
     command(p, run_amend)
@@ -102,8 +107,9 @@ def running_programs(run_dir: Path) -> dict[str, Any]:
     return {name: programs[name] for name in order}
 
 
-def stage(run_dir: Path, report: Any) -> Path:
-    """Write the accepted amendment to the next ``RUN_DIR/amendments/N/``."""
+def stage(run_dir: Path, report: Any, text: str) -> Path:
+    """Write the accepted amendment to the next ``RUN_DIR/amendments/N/``: its text
+    (``mission.go``), its renumbered programs and the report (``amendment.json``)."""
     root = run_dir / "amendments"
     root.mkdir(exist_ok=True)
     number = 1 + max((int(p.name) for p in root.iterdir() if p.name.isdigit()), default=0)
@@ -112,6 +118,7 @@ def stage(run_dir: Path, report: Any) -> Path:
     for drone, program in report.amended.programs.items():
         program.save(folder / "programs" / f"{drone}.program.json")
     (folder / "amendment.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
+    (folder / "mission.go").write_text(text, encoding="utf-8")
     return folder
 
 
@@ -138,7 +145,7 @@ def amendment_preview(run_dir: Path, fleet: Any, text: str) -> dict[str, Any]:
         return {"ok": False, "error": render_diagnostics(exc.diagnostics, name, text)}
     except (BadInput, SnapshotError, ProgramError, ConfigError) as exc:
         return {"ok": False, "error": str(exc)}
-    staged = stage(run_dir, report) if report.accepted and report.touched else None
+    staged = stage(run_dir, report, text) if report.accepted and report.touched else None
     return {
         "ok": True,
         "accepted": report.accepted,
@@ -159,6 +166,15 @@ def run_amend(args: argparse.Namespace) -> int:
 
     if not args.run_dir.is_dir():
         raise BadInput(f"{args.run_dir}: not a run folder")
+    if (args.staged is None) == (args.mission is None):
+        raise BadInput("give either NEW_MISSION.go or --staged N")
+    if args.staged is not None:
+        staged = args.run_dir / "amendments" / str(args.staged)
+        if not (staged / "amendment.json").is_file():
+            raise BadInput(f"{staged}: no amendment staged there")
+        why = apply_staged(args.run_dir, staged)
+        print(f"not applied: {why}" if why else f"applied: amendment {args.staged}")
+        return EXIT_MISSION_FAILED if why else EXIT_OK
     running = running_programs(args.run_dir)
     if args.apply:  # judged against the drones as they are now
         from eamos.ground.operator import send_command
@@ -176,7 +192,8 @@ def run_amend(args: argparse.Namespace) -> int:
     report = check_amendment(
         running, compiled, snapshot, fleet, force=args.force, where=f"{args.run_dir}/snapshot.json"
     )
-    staged = stage(args.run_dir, report) if report.accepted and report.touched else None
+    text = args.mission.read_text(encoding="utf-8")  # compiled above: it reads
+    staged = stage(args.run_dir, report, text) if report.accepted and report.touched else None
     applied = apply_error = None
     if args.apply and staged is not None:
         apply_error = apply_staged(args.run_dir, staged)
@@ -203,11 +220,14 @@ def run_amend(args: argparse.Namespace) -> int:
 def apply_staged(run_dir: Path, staged: Path) -> str:
     """Have the ground station running ``run_dir`` apply the amendment staged in
     ``staged``: "" when applied, else why not (nothing changed unless it says so)."""
+    from eamos.ground.amend import APPLY_TIMEOUT_S
     from eamos.ground.operator import OperatorError, send_command
 
     try:
         send_command(run_dir, "amend", staged.name, origin(), timeout_s=APPLY_TIMEOUT_S)
     except OperatorError as exc:
+        if "no ground station runs" in str(exc):
+            raise  # exit 3: nothing to apply to
         return str(exc).removeprefix("refused by the ground station: ")
     return ""
 

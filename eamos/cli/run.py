@@ -191,7 +191,7 @@ def run_mission(
             speedup=opts.speedup,
             display=monitored.display,
             drones_per_process=opts.drones_per_process,
-            forecast=forecast(compiled, fleet, opts.speedup),
+            forecast=forecast(compiled, fleet, opts.speedup, run_dir),
         )
         monitored.finish(summary)
     if opts.summary is not None:
@@ -200,13 +200,18 @@ def run_mission(
 
 
 def forecast(
-    compiled: CompiledMission, fleet: FleetConfig, speedup: float | None = None
+    compiled: CompiledMission,
+    fleet: FleetConfig,
+    speedup: float | None = None,
+    run_dir: Path | None = None,
 ) -> Forecast:
-    """The live look-ahead's forecast of ``compiled`` (``[look_ahead]``, docs/operations.md).
+    """The live look-ahead's forecast of ``compiled`` (``[look_ahead]``, docs/operations.md),
+    amended as the run folder ``run_dir`` says amendments were applied (``FlyingMission``).
 
     Telemetry is stamped with the wall clock; each drone's speed-up (``--speedup`` for a
     simulated one, else its ``hal.speedup``) turns what was measured into vehicle time.
     """
+    from eamos.check import FlyingMission
     from eamos.check.lookahead import look_ahead
 
     speedups: dict[str, float] = {}
@@ -215,7 +220,10 @@ def forecast(
         simulated = hal.get("adapter", "sim") == "sim"
         given = speedup if simulated and speedup is not None else hal.get("speedup", 1.0)
         speedups[drone] = float(given)
-    return lambda doc: look_ahead(compiled, fleet, doc, speedups=speedups).to_json()
+    if run_dir is None:
+        return lambda doc: look_ahead(compiled, fleet, doc, speedups=speedups).to_json()
+    flying = FlyingMission(compiled, run_dir)
+    return lambda doc: look_ahead(flying.now(), fleet, doc, speedups=speedups).to_json()
 
 
 def summary_lines(summary: RunSummary) -> list[str]:

@@ -41,12 +41,21 @@ from eamos.program.uniform import GROUND_STATION
 if TYPE_CHECKING:
     from .station import GroundStation
 
-__all__ = ["APPLIED_FILE", "AmendmentApplier", "apply_refusal", "changed_drones", "read_programs"]
+__all__ = [
+    "APPLIED_FILE",
+    "APPLY_TIMEOUT_S",
+    "AmendmentApplier",
+    "apply_refusal",
+    "changed_drones",
+    "read_programs",
+]
 
 #: What an applied amendment's folder records.
 APPLIED_FILE = "applied.json"
 #: How long each phase waits for every drone's answer.
 PHASE_TIMEOUT_S = 30.0
+#: How long a client waits for the desk's answer to ``amend``: three phases, each bounded.
+APPLY_TIMEOUT_S = 3 * PHASE_TIMEOUT_S + 10.0
 
 
 def read_programs(folder: Path) -> dict[str, DroneProgram]:

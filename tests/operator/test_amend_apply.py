@@ -18,7 +18,10 @@ from typing import Any
 
 import pytest
 
-from eamos.ground.operator import OperatorError, send_command
+from eamos.check import FlyingMission
+from eamos.compiler import compile_file
+from eamos.ground.amend import changed_drones, read_programs
+from eamos.ground.operator import send_command
 from tests.operator.runs import HERE, log_lines, start
 from tests.support.four_lanes import LATER_PARTS, amended
 from tests.support.runs import eamos
@@ -100,6 +103,9 @@ def test_an_applied_amendment_changes_only_the_drones_it_touches(tmp_path: Path)
     assert applied["drones"] == ["Drone3", "Drone4"]
     staged = run_dir / "amendments" / "1" / "programs" / "Drone3.program.json"
     assert (run_dir / "programs" / "Drone3.program.json").read_text() == staged.read_text()
+    # What the look-ahead forecasts from now on: the mission as it flies, amended.
+    flying = FlyingMission(compile_file(LANES), run_dir).now()
+    assert changed_drones(read_programs(run_dir / "programs"), flying.programs) == []
 
 
 def test_a_drone_refuses_an_amendment_to_a_node_begun_since_it_was_judged(
@@ -115,11 +121,12 @@ def test_a_drone_refuses_an_amendment_to_a_node_begun_since_it_was_judged(
         proc = eamos("amend", str(run.run_dir), str(mission), timeout=120)
         assert proc.returncode == 0, proc.stdout + proc.stderr  # staged, not applied
         run.wait_for("Drone1 running   FlyByX(-12)")
-        with pytest.raises(OperatorError) as refused:
-            send_command(run.run_dir, "amend", "1", "test", timeout_s=90)
-        why.append(str(refused.value))
+        proc = eamos("amend", str(run.run_dir), "--staged", "1", timeout=120)
+        assert proc.returncode == 1, proc.stdout + proc.stderr
+        why.append(proc.stdout)
 
     summary = flown(tmp_path / "run", stale)
+    assert why[0].startswith("not applied: "), why
     assert "Drone1: n" in why[0] and "FlyByX(-12) has begun" in why[0], why
     assert "nothing changed" in why[0], why
     for drone, report in summary["drones"].items():
