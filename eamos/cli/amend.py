@@ -19,6 +19,7 @@ runs the mission (``--apply``).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -119,7 +120,23 @@ def stage(run_dir: Path, report: Any, text: str) -> Path:
         program.save(folder / "programs" / f"{drone}.program.json")
     (folder / "amendment.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
     (folder / "mission.go").write_text(text, encoding="utf-8")
+    write_pictures(report.amended, report.touched, folder / "graphs")
     return folder
+
+
+def write_pictures(compiled: Any, drones: Any, graphs: Path) -> dict[str, str]:
+    """The dependency graphs of ``drones`` in ``compiled`` as ``graphs/mdg_<drone>.{dot,svg}``
+    (the run folder's ``graphs/`` once applied); the SVG text of each, by drone."""
+    from eamos.compiler import render_svg, to_dot
+
+    graphs.mkdir(exist_ok=True)
+    svgs = {}
+    for drone in drones:
+        dot = to_dot(compiled.mdgs[drone], "mdg", fleet=list(compiled.programs))
+        svgs[drone] = render_svg(dot)
+        (graphs / f"mdg_{drone}.dot").write_text(dot, encoding="utf-8")
+        (graphs / f"mdg_{drone}.svg").write_text(svgs[drone], encoding="utf-8")
+    return svgs
 
 
 def amendment_preview(run_dir: Path, fleet: Any, text: str) -> dict[str, Any]:
@@ -132,11 +149,15 @@ def amendment_preview(run_dir: Path, fleet: Any, text: str) -> dict[str, Any]:
     from eamos.program.format import ProgramError
     from eamos.virtual import SnapshotError, load_snapshot
 
+    from eamos.ground.operator import OperatorError, send_command
+
     name = "uploaded.go"
+    with contextlib.suppress(OperatorError):  # judged against now, not the last pause
+        send_command(run_dir, "snapshot", "", "monitor page")
     try:
         running = running_programs(run_dir)
         if not (run_dir / "snapshot.json").is_file():
-            raise BadInput("no snapshot.json yet: pause the mission first")
+            raise BadInput("no snapshot.json yet: is the mission flying?")
         compiled = compile_mission(text, str(run_dir / "amendments" / name))
         report = check_amendment(
             running, compiled, load_snapshot(run_dir), fleet, where=f"{run_dir}/snapshot.json"
@@ -146,12 +167,20 @@ def amendment_preview(run_dir: Path, fleet: Any, text: str) -> dict[str, Any]:
     except (BadInput, SnapshotError, ProgramError, ConfigError) as exc:
         return {"ok": False, "error": str(exc)}
     staged = stage(run_dir, report, text) if report.accepted and report.touched else None
+    graphs: dict[str, str] = {}
+    if staged is not None:  # the amended dependency graphs, beside the running ones
+        graphs = {
+            d: (staged / "graphs" / f"mdg_{d}.svg").read_text(encoding="utf-8")
+            for d in report.touched
+        }
     return {
         "ok": True,
         "accepted": report.accepted,
         "lines": report.lines(name),
         "report": report.to_json(),
         "staged": None if staged is None else str(staged),
+        "number": None if staged is None else int(staged.name),
+        "graphs": graphs,
     }
 
 

@@ -47,6 +47,7 @@ __all__ = [
     "AmendmentApplier",
     "apply_refusal",
     "changed_drones",
+    "read_applied",
     "read_programs",
 ]
 
@@ -62,6 +63,16 @@ def read_programs(folder: Path) -> dict[str, DroneProgram]:
     """Every ``*.program.json`` in ``folder``, by participant (ProgramError if damaged)."""
     files = sorted(folder.glob("*.program.json")) if folder.is_dir() else []
     return {p.drone: p for p in map(load_program, files)}
+
+
+def read_applied(run_dir: Path, number: str) -> list[str]:
+    """The drones amendment ``number`` was applied to ([] if it was not, or unreadable)."""
+    try:
+        doc = json.loads((Path(run_dir) / "amendments" / number / APPLIED_FILE).read_text())
+    except (OSError, ValueError):
+        return []
+    drones = doc.get("drones") if isinstance(doc, dict) else None
+    return [str(d) for d in drones] if isinstance(drones, list) else []
 
 
 def changed_drones(
@@ -228,7 +239,8 @@ class AmendmentApplier:
         drones: list[str],
         origin: str,
     ) -> None:
-        """The amended programs become the run folder's (the replaced ones kept)."""
+        """The amended programs and their pictures become the run folder's (the replaced
+        ones kept in ``replaced/``)."""
         replaced = folder / "replaced"
         replaced.mkdir(exist_ok=True)
         programs = self.run_dir / "programs"
@@ -236,5 +248,11 @@ class AmendmentApplier:
             name = f"{drone}.program.json"
             shutil.copyfile(programs / name, replaced / name)
             amended[drone].save(programs / name)
+            for suffix in (".dot", ".svg"):
+                picture = f"mdg_{drone}{suffix}"
+                if (self.run_dir / "graphs" / picture).is_file():
+                    shutil.copyfile(self.run_dir / "graphs" / picture, replaced / picture)
+                if (folder / "graphs" / picture).is_file():
+                    shutil.copyfile(folder / "graphs" / picture, self.run_dir / "graphs" / picture)
         record = {"applied_at": time.time(), "drones": drones, "origin": origin}
         (folder / APPLIED_FILE).write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")

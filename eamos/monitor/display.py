@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from eamos.ground.amend import APPLY_TIMEOUT_S, read_applied
 from eamos.ground.operator import OperatorError, send_command
 from eamos.logs import make_logger
 
@@ -100,12 +101,19 @@ def start_live_monitor(
         say(f"monitor: {text}")
 
     def on_command(command: str, drone: str, origin: str) -> str:
-        """A page's command, sent as ``eamos pause`` sends it: through the run's socket."""
+        """A page's command, sent as ``eamos pause`` sends it: through the run's socket.
+        ``amend`` N applies the staged amendment N, as ``eamos amend --staged N`` does."""
         log.warning("monitor.command", command=command, drone=drone, origin=origin)
+        timeout_s = APPLY_TIMEOUT_S if command == "amend" else 10.0
         try:
-            send_command(run_dir, command, drone, origin)
+            send_command(run_dir, command, drone, origin, timeout_s)
         except OperatorError as exc:
             return str(exc)
+        if command == "amend":
+            applied = read_applied(run_dir, drone)
+            hub.amended(load_setup(run_dir, homes), applied)
+            say(f"amendment {drone} applied to {', '.join(applied)}: from the {origin}")
+            return ""
         say(f"{command} {drone or 'the mission'}: requested from the {origin}")
         return ""
 

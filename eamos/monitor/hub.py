@@ -79,6 +79,12 @@ class Hub:
             self._publish(self.state.forecast(record))
         self.wake()
 
+    def amended(self, setup: MissionSetup, drones: list[str]) -> None:
+        """An amendment was applied to ``drones``: the mission's setup as it flies now."""
+        with self._lock:
+            self._publish(self.state.amended(setup, drones))
+        self.wake()
+
     def abort_request(self, origin: str, accepted: bool) -> None:
         """Record an abort request (and show ``aborting`` when it was accepted)."""
         with self._lock:

@@ -507,6 +507,17 @@ class MonitorState:
         drone.sent_trail = len(drone.trail)
         return [{"k": "drone", **drone.fields(), "trail_add": new}]
 
+    def amended(self, setup: MissionSetup, drones: list[str]) -> list[dict[str, Any]]:
+        """An amendment was applied to ``drones``: ``setup`` is the mission as it flies now
+        (their new nodes are shown from now on; the page draws their graphs again)."""
+        self.setup = setup
+        for part in setup.participants:
+            for node in part.nodes:
+                self.nodes.setdefault(node.key, {"state": "waiting", "iteration": [], "count": 0})
+                self.nodes[node.key]["owner"] = part.name
+                self._loops[node.key], self._kinds[node.key] = node.loops, node.kind
+        return [{"k": "amended", "drones": list(drones)}]
+
     def forecast(self, record: Mapping[str, Any]) -> list[dict[str, Any]]:
         """The live look-ahead's latest cycle: predictions, expected end, tracks ahead."""
         keep = ("predictions", "end_in_s", "ahead", "cycle", "t")

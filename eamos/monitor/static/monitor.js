@@ -72,6 +72,8 @@ function applyPatches(patches) {
       state.forecast = body;
     } else if (k === "link") {
       (state.links || (state.links = {}))[`${body.src}>${body.dst}`] = body;
+    } else if (k === "amended") {
+      redrawGraphs(body.drones); // an amendment was applied: their graphs as they fly now
     }
   }
 }
@@ -396,6 +398,32 @@ function drawGantt() {
 
 // -- graphs -------------------------------------------------------------------------------
 
+async function graphPicture(svgText) {
+  // A compiler's MDG picture, ready for the page: sized, each node named by its key.
+  const doc = new DOMParser().parseFromString(svgText, "image/svg+xml");
+  const svg = document.importNode(doc.documentElement, true);
+  // Graphviz sizes pictures in points: show them at 3/4 of that, scrolling inside their box.
+  const vb = (svg.getAttribute("viewBox") || "").split(/[ ,]+/).map(Number);
+  if (vb.length === 4 && vb[2] > 0) {
+    svg.setAttribute("width", Math.round(vb[2] * 0.75));
+    svg.setAttribute("height", Math.round(vb[3] * 0.75));
+  }
+  for (const g of svg.querySelectorAll("g.node")) {
+    const title = g.querySelector("title");
+    if (!title) continue;
+    g.dataset.node = title.textContent.trim();
+    g.dataset.state = "waiting";
+    for (const s of g.querySelectorAll("ellipse, polygon, path, rect")) s.dataset.fill = s.getAttribute("fill") || "none";
+  }
+  return svg;
+}
+
+async function loadGraph(div, name) {
+  const res = await fetch(`/api/graph/${encodeURIComponent(name)}`);
+  if (!res.ok) { div.appendChild(document.createTextNode("(no picture)")); return; }
+  div.appendChild(await graphPicture(await res.text()));
+}
+
 async function loadGraphs() {
   const box = $("graphs");
   for (const p of setup.participants) {
@@ -404,24 +432,7 @@ async function loadGraphs() {
     div.dataset.participant = p.name;
     div.innerHTML = `<h3><span class="swatch" style="background:${p.colour}"></span>${p.name}</h3>`;
     box.appendChild(div);
-    const res = await fetch(`/api/graph/${encodeURIComponent(p.name)}`);
-    if (!res.ok) { div.appendChild(document.createTextNode("(no picture)")); continue; }
-    const doc = new DOMParser().parseFromString(await res.text(), "image/svg+xml");
-    const svg = document.importNode(doc.documentElement, true);
-    // Graphviz sizes pictures in points: show them at 3/4 of that, scrolling inside their box.
-    const vb = (svg.getAttribute("viewBox") || "").split(/[ ,]+/).map(Number);
-    if (vb.length === 4 && vb[2] > 0) {
-      svg.setAttribute("width", Math.round(vb[2] * 0.75));
-      svg.setAttribute("height", Math.round(vb[3] * 0.75));
-    }
-    for (const g of svg.querySelectorAll("g.node")) {
-      const title = g.querySelector("title");
-      if (!title) continue;
-      g.dataset.node = title.textContent.trim();
-      g.dataset.state = "waiting";
-      for (const s of g.querySelectorAll("ellipse, polygon, path, rect")) s.dataset.fill = s.getAttribute("fill") || "none";
-    }
-    div.appendChild(svg);
+    await loadGraph(div, p.name);
   }
   $("graphs-section").querySelector(".legend").innerHTML = Object.keys(NODE_COLOURS)
     .map((k) => `<span style="background:${NODE_COLOURS[k] || "#fff"}">${k}</span>`).join("");
@@ -499,6 +510,7 @@ function askCommand(command, drone) {
 
 async function doCommand() {
   $("cmd-confirm").hidden = true;
+  $("amend-confirm").hidden = true;
   if (!pending) return;
   const { command, drone } = pending;
   pending = null;
@@ -508,15 +520,21 @@ async function doCommand() {
     body: JSON.stringify({ token, command, drone }),
   });
   const body = await res.json().catch(() => ({}));
-  const out = $("cmd-result");
+  const out = command === "amend" ? $("amend-result") : $("cmd-result");
   out.hidden = false;
   out.dataset.ok = res.ok ? "yes" : "no";
-  out.textContent = res.ok ? `${command} sent to ${drone || "every drone"}.` : `${command} refused: ${body.error || res.status}`;
+  if (command === "amend") {
+    out.textContent = res.ok ? `amendment ${drone} applied.` : `amendment ${drone} not applied: ${body.error || res.status}`;
+    if (res.ok) { $("amend-apply").hidden = true; $("amend-compare").replaceChildren(); amendment = null; markAmended(); }
+  } else {
+    out.textContent = res.ok ? `${command} sent to ${drone || "every drone"}.` : `${command} refused: ${body.error || res.status}`;
+  }
 }
 
-// -- an amendment: judged as `eamos amend` judges it, not applied ----------------------------
+// -- an amendment: judged as `eamos amend` judges it, then applied with a confirmation -------
 
 let amendment = null; // the latest judgement: its changes, to mark on the graphs
+let staged = null; // the number of the staged amendment the Apply button applies
 
 async function checkAmendment() {
   const file = $("amend-file").files[0];
@@ -525,6 +543,10 @@ async function checkAmendment() {
   out.hidden = false;
   out.dataset.verdict = "checking";
   out.textContent = `checking ${file.name} ...`;
+  $("amend-apply").hidden = true;
+  $("amend-result").hidden = true;
+  $("amend-compare").replaceChildren();
+  staged = null;
   const res = await fetch("/api/amend", {
     method: "POST",
     headers: { "Content-Type": "application/json" },
@@ -538,10 +560,64 @@ async function checkAmendment() {
   } else {
     amendment = body.report;
     out.dataset.verdict = body.accepted ? "accepted" : "refused";
-    const staged = body.staged ? `\nstaged in ${body.staged} (applying to the flying drones is not built yet)` : "";
-    out.textContent = body.lines.join("\n") + staged;
+    out.textContent = body.lines.join("\n") + (body.staged ? `\nstaged in ${body.staged}` : "");
+    if (body.number !== null && body.number !== undefined) {
+      staged = body.number;
+      await compareGraphs(body.report, body.graphs || {});
+      $("amend-apply").textContent = `Apply amendment ${staged}`;
+      $("amend-apply").hidden = false;
+    }
   }
   markAmended();
+}
+
+async function compareGraphs(report, graphs) {
+  // Each drone the amendment changes: its graph as it flies and as amended, side by side.
+  const box = $("amend-compare");
+  for (const [name, svgText] of Object.entries(graphs)) {
+    const change = (report.changes || {})[name] || {};
+    const now = document.querySelector(`#graphs .mdg-box[data-participant="${name}"] svg`);
+    const pair = document.createElement("div");
+    pair.className = "amend-pair";
+    pair.dataset.participant = name;
+    const before = document.createElement("div");
+    before.className = "amend-before";
+    before.innerHTML = `<h3>${name}: flying</h3>`;
+    if (now) before.appendChild(now.cloneNode(true));
+    const after = document.createElement("div");
+    after.className = "amend-after";
+    after.innerHTML = `<h3>${name}: amended</h3>`;
+    after.appendChild(await graphPicture(svgText));
+    const old = new Set([...(change.touched || []), ...(change.redirected || [])]);
+    const fresh = new Set([...(change.added || []), ...(change.changed || [])].map((n) => n.key));
+    for (const g of before.querySelectorAll("g.node")) g.classList.toggle("amended", old.has(g.dataset.node));
+    for (const g of after.querySelectorAll("g.node")) g.classList.toggle("amended-new", fresh.has(g.dataset.node));
+    pair.append(before, after);
+    box.appendChild(pair);
+    for (const [side, cls] of [[before, "amended"], [after, "amended-new"]]) {
+      // The first marked node in view in its box (the graphs are taller than the box).
+      const g = side.querySelector(`g.node.${cls}`);
+      if (g) side.scrollTop += g.getBoundingClientRect().top - side.getBoundingClientRect().top - 60;
+    }
+  }
+}
+
+function askApply() {
+  if (staged === null) return;
+  pending = { command: "amend", drone: String(staged) };
+  const drones = ((amendment || {}).touched || []).join(", ");
+  $("amend-question").textContent = `Apply amendment ${staged} to ${drones}? Their nodes not yet begun are replaced; the other drones fly on untouched.`;
+  $("amend-confirm").hidden = false;
+}
+
+async function redrawGraphs(names) {
+  for (const name of names) {
+    const div = document.querySelector(`#graphs .mdg-box[data-participant="${name}"]`);
+    if (!div) continue;
+    for (const svg of div.querySelectorAll("svg")) svg.remove();
+    await loadGraph(div, name);
+  }
+  schedule();
 }
 
 function markAmended() {
@@ -610,6 +686,9 @@ async function main() {
   $("cmd-yes").addEventListener("click", doCommand);
   $("cmd-no").addEventListener("click", () => { $("cmd-confirm").hidden = true; pending = null; });
   $("amend-check").addEventListener("click", checkAmendment);
+  $("amend-apply").addEventListener("click", askApply);
+  $("amend-yes").addEventListener("click", doCommand);
+  $("amend-no").addEventListener("click", () => { $("amend-confirm").hidden = true; pending = null; });
   if (replay) setupReplay();
   await loadGraphs();
   connect();
