@@ -69,6 +69,9 @@ __all__ = [
 
 #: How long one node actor may take to answer (a turn is short; a loaded machine is slow).
 ASK_TIMEOUT_S = 10.0
+#: A prepared amendment neither committed nor cancelled within this is cancelled here:
+#: a ground station lost between the phases does not leave the drone's nodes held.
+PREPARED_FOR_S = 120.0
 
 
 @dataclass(frozen=True)
@@ -189,16 +192,20 @@ class Reprogramming:
             except Exception as exc:  # the runtime's failure policy: this drone lands
                 self.runtime.failures("reprogramming", exc)
                 phase, reason = "refused", f"internal error: {exc!r}"
-        level = "warning" if phase == "refused" else "info"
+        self._answer(msg.number, msg.sender, phase, reason)
+
+    def _answer(self, number: int, dest: str, phase: str, reason: str = "") -> None:
+        """Log the phase's outcome and tell the ground station ``dest``."""
+        level = "warning" if phase == "refused" or reason else "info"
         getattr(self.log, level)(
-            "mission.amendment", number=msg.number, phase=phase, reason=reason or None
+            "mission.amendment", number=number, phase=phase, reason=reason or None
         )
         self.runtime.send(
             wire.Amend(
                 mission=self.runtime.program.mission_id,
                 sender=self.runtime.drone,
-                dest=msg.sender,
-                number=msg.number,
+                dest=dest,
+                number=number,
                 phase=phase,  # type: ignore[arg-type]  # one of the answers
                 reason=reason,
             )
@@ -257,7 +264,22 @@ class Reprogramming:
         assert runtime.router is not None
         runtime.router.accept_arcs(incoming_arcs(new))
         self._pending = _Pending(msg.number, change, fresh, nodes, links, held)
+        expiry = threading.Timer(PREPARED_FOR_S, self._expire, args=(msg.number, msg.sender))
+        expiry.daemon = True
+        expiry.start()
         return "prepared", ""
+
+    def _expire(self, number: int, ground: str) -> None:
+        """Cancel amendment ``number`` if it is still only prepared (see PREPARED_FOR_S),
+        and tell the ground station."""
+        with self._lock:
+            pending = self._pending
+            if pending is None or pending.number != number:
+                return
+            self._pending = None
+            self._done = (number, "cancel")
+            self._cancel(pending)
+        self._answer(number, ground, "cancelled", f"no commit within {PREPARED_FOR_S:g} s")
 
     def _start(self, change: ProgramChange) -> dict[str, pykka.ActorRef[MissionNode]]:
         runtime, startup = self.runtime, self.startup

@@ -146,10 +146,9 @@ def amendment_preview(run_dir: Path, fleet: Any, text: str) -> dict[str, Any]:
     from eamos.check import check_amendment
     from eamos.compiler import MissionError, compile_mission, render_diagnostics
     from eamos.config import ConfigError
+    from eamos.ground.operator import OperatorError, send_command
     from eamos.program.format import ProgramError
     from eamos.virtual import SnapshotError, load_snapshot
-
-    from eamos.ground.operator import OperatorError, send_command
 
     name = "uploaded.go"
     with contextlib.suppress(OperatorError):  # judged against now, not the last pause
