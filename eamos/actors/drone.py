@@ -42,6 +42,8 @@ from .stranded import (
 )
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from eamos.hal.sim import SimClock
 
 #: How long the drone's loop waits for the executive's answer (it answers in ms).
@@ -89,6 +91,21 @@ def load_node_program(config: NodeConfig) -> DroneProgram:
 def net_settings(config: NodeConfig) -> NetSettings:
     """The runtime's network settings from a node config (keys, or plain on loopback)."""
     return NetSettings(config.bind, config.peers, keys=config.keys, link=config.link)
+
+
+def keep_amended(path: Path, program: DroneProgram, journal: NodeJournal) -> None:
+    """An applied amendment switched this drone to ``program``: it becomes the node's
+    program file and its record's program, so a restart resumes the amended program."""
+    try:
+        program.save(path)
+    except OSError as exc:
+        say(
+            program.drone,
+            f"cannot keep the amended program in {path} ({exc}): a restart "
+            "of this node would run the program as rolled out",
+        )
+    journal.program = program.checksum
+    journal.mark("running")
 
 
 def run_drone(
@@ -145,6 +162,7 @@ def run_drone(
         start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),
         replay=replay,
         journal=journal.reported,
+        on_reprogrammed=lambda amended: keep_amended(config.program, amended, journal),
     )
     policy = end_policy(config)
     try:

@@ -30,7 +30,7 @@ make (a new peer to send to, a drone's telemetry not read before).
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol, cast
 
@@ -171,9 +171,17 @@ class Reprogramming:
     time, and answers the ground station.
     """
 
-    def __init__(self, runtime: Reprogrammable, startup: RuntimeStartup) -> None:
+    def __init__(
+        self,
+        runtime: Reprogrammable,
+        startup: RuntimeStartup,
+        switched: Callable[[DroneProgram], None] | None = None,
+    ) -> None:
+        """``switched`` is told each program the drone switched to (its node keeps it, so
+        that a restart resumes the amended program)."""
         self.runtime = runtime
         self.startup = startup
+        self.switched = switched
         self.log = runtime.log
         self._lock = threading.Lock()
         self._pending: _Pending | None = None
@@ -334,6 +342,8 @@ class Reprogramming:
         assert runtime.executive is not None
         runtime.executive.ask(NewProgram(change.program, nodes), timeout=ASK_TIMEOUT_S)
         runtime.program = self.startup.program = change.program
+        if self.switched is not None:
+            self.switched(change.program)
 
     @staticmethod
     def _carried(kept: tuple[Kept, ...], wiring: NodeWiring) -> list[Kept]:

@@ -105,13 +105,16 @@ class DroneRuntime:
         start_gate: StartGateSettings | None = None,
         replay: Replay | None = None,
         journal: Callable[[list[dict[str, Any]]], None] | None = None,
+        on_reprogrammed: Callable[[DroneProgram], None] | None = None,
     ) -> None:
         """``log_writer``: the process's log writer when several runtimes share a process;
         ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
         nothing before it (:class:`~.inbound.StartGate`; None: no gate); ``replay``: a
         node restarted mid-mission replays what it reported (:mod:`.continuation`);
-        ``journal``: receives each batch of progress reported (:mod:`.rejoin`)."""
+        ``journal``: receives each batch of progress reported (:mod:`.rejoin`);
+        ``on_reprogrammed``: told each program an amendment switched to (:mod:`.reprogram`)."""
         self.program = program
+        self.on_reprogrammed = on_reprogrammed
         self.battery_reserve_pct = battery_reserve_pct  # a Try's Body fails below it
         self.drone = program.drone
         self.adapter = adapter
@@ -201,7 +204,9 @@ class DroneRuntime:
         self.executive = build.start_executive(self.dispatcher, self.nodes, outbox, self._to_ground)
         build.wire_nodes(self.nodes, self.hal, board, outbox, self.executive, space)
         # A drone takes amendments from its ground station (the ground station none).
-        amend = None if self.ground_handler is not None else Reprogramming(self, build).handle
+        amend = None
+        if self.ground_handler is None:
+            amend = Reprogramming(self, build, self.on_reprogrammed).handle
         self.router = build.router(
             self.nodes, self.executive, board, self.abort, self.completed, self.operate, amend
         )

@@ -22,6 +22,7 @@ from eamos.check import FlyingMission
 from eamos.compiler import compile_file
 from eamos.ground.amend import changed_drones, read_programs
 from eamos.ground.operator import send_command
+from eamos.program.format import load_program
 from tests.operator.runs import HERE, log_lines, start
 from tests.support.four_lanes import LATER_PARTS, amended
 from tests.support.runs import eamos
@@ -99,6 +100,12 @@ def test_an_applied_amendment_changes_only_the_drones_it_touches(tmp_path: Path)
     for drone in ("Drone3", "Drone4"):
         phases = [e["phase"] for e in log_lines(run_dir, drone, "mission", "mission.amendment")]
         assert phases == ["prepared", "committed"], (drone, phases)
+        # A restart of its node would resume the amended program (its record names it).
+        amended_program = load_program(
+            run_dir / "amendments" / "1" / "programs" / f"{drone}.program.json"
+        )
+        record = json.loads((run_dir / "logs" / drone / "node-state.json").read_text())
+        assert record["program"] == amended_program.checksum, (drone, record)
     applied = json.loads((run_dir / "amendments" / "1" / "applied.json").read_text())
     assert applied["drones"] == ["Drone3", "Drone4"]
     staged = run_dir / "amendments" / "1" / "programs" / "Drone3.program.json"
