@@ -3,7 +3,8 @@
 ``tests/operator/four_lanes.go`` with ``--monitor`` (Debian's chromium), paused while
 every drone flies its first leg; the page's Amendment section uploads a new text of the
 mission and shows how ``eamos amend`` judges it.  Drone1 and Drone2 sent at each other is
-refused with the separation finding at the new lines, and nothing is staged.  A change to
+refused with the separation finding at the new lines, a change to the leg Drone1 flies is
+refused with the node named, and nothing is staged.  A change to
 Drone3's and Drone4's later legs is accepted: the running nodes it touches are outlined on
 the graphs, and each changed drone's graph is shown as it flies and as amended, side by
 side, the new and changed nodes marked.  Applied with the Apply button and its
@@ -25,7 +26,14 @@ from eamos.compiler import compile_file
 from tests.monitor.live import URL, ended_ok, start_live_run
 from tests.monitor.test_browser import FINAL_WORDS, SCREENSHOT, browser, mission_state, wait_until
 from tests.operator.runs import operator
-from tests.support.four_lanes import HEAD_ON, LANES, LATER_PARTS, amended, line_of
+from tests.support.four_lanes import (
+    HEAD_ON,
+    LANES,
+    LATER_PARTS,
+    RUNNING_LEG,
+    amended,
+    line_of,
+)
 
 pytestmark = [pytest.mark.e2e, pytest.mark.xdist_group("monitor-browser")]
 
@@ -105,6 +113,14 @@ def test_the_page_checks_previews_and_applies_an_amendment(tmp_path: Path, brows
         text = amended(*HEAD_ON)
         assert f"uploaded.go:{line_of(text, 'Drone1.FlyByY(5)')}:" in refused["text"], refused
         assert "refused: the check of the rest" in refused["text"], refused
+        assert not browser.find_element(By.ID, "amend-apply").is_displayed()
+        # The leg Drone1 is flying: refused with the node named, nothing checked.
+        running = tmp_path / "running.go"
+        running.write_text(amended(*RUNNING_LEG))
+        seen = check(browser, running)
+        assert seen["verdict"] == "refused", seen
+        leg = f"FlyByX(12) (line {line_of(amended(), 'Drone1.FlyByX(12)')}) is running"
+        assert leg in seen["text"], seen
         assert not browser.find_element(By.ID, "amend-apply").is_displayed()
         assert not (run_dir / "amendments").exists() or not any((run_dir / "amendments").iterdir())
         # The later legs of Drone3 and Drone4: accepted, staged, previewed.
