@@ -172,7 +172,7 @@ def _renumbered_attrs(attrs: Mapping[str, Any], numbers: Mapping[int, int]) -> d
 
 
 def _renumbered_program(
-    program: DroneProgram, numbers: Mapping[int, int], mission_id: str
+    program: DroneProgram, numbers: Mapping[int, int], mission_id: str, mission: str
 ) -> DroneProgram:
     keys = {n.key: _node_key(numbers[n.meg], n.drone, "@" in n.key) for n in program.nodes}
     nodes = [
@@ -191,7 +191,9 @@ def _renumbered_program(
         (ProgramArc(keys[a.src], keys[a.dst], a.kind, a.external) for a in program.arcs),
         key=lambda a: (order[a.src], order[a.dst], a.src, a.dst),
     )
-    return dataclasses.replace(program, mission_id=mission_id, nodes=tuple(nodes), arcs=tuple(arcs))
+    return dataclasses.replace(
+        program, mission=mission, mission_id=mission_id, nodes=tuple(nodes), arcs=tuple(arcs)
+    )
 
 
 def _renumbered_graph(graph: nx.DiGraph, numbers: Mapping[int, int], keyed: bool) -> nx.DiGraph:
@@ -214,12 +216,15 @@ def _renumbered_graph(graph: nx.DiGraph, numbers: Mapping[int, int], keyed: bool
 
 def rekey(running: Mapping[str, DroneProgram], amended: CompiledMission) -> CompiledMission:
     """``amended`` renumbered against the ``running`` programs (see the module docstring),
-    carrying the running mission's id: the mission its drones run, amended.
+    carrying the running mission's id and name: the mission its drones run, amended (a
+    text without a ``package`` line is named after its file, which an amended copy is not).
 
     The execution graph, the dependency graphs and the programs are renumbered; the
     mission tree keeps the numbers of the amended text (it is the text's tree).
     """
-    mission_id = next(iter(running.values())).mission_id if running else amended.mission_id
+    first = next(iter(running.values()), None)
+    mission_id = first.mission_id if first is not None else amended.mission_id
+    name = first.mission if first is not None else amended.mission.name
     numbers = renumbering(running, amended.programs)
     return dataclasses.replace(
         amended,
@@ -227,7 +232,8 @@ def rekey(running: Mapping[str, DroneProgram], amended: CompiledMission) -> Comp
         meg=_renumbered_graph(amended.meg, numbers, keyed=False),
         mdgs={d: _renumbered_graph(g, numbers, keyed=True) for d, g in amended.mdgs.items()},
         programs={
-            d: _renumbered_program(p, numbers, mission_id) for d, p in amended.programs.items()
+            d: _renumbered_program(p, numbers, mission_id, name)
+            for d, p in amended.programs.items()
         },
     )
 

@@ -186,6 +186,9 @@ class AmendmentApplier:
             runtime.log.warning("mission.amendment.refused", number=number, why=refused)
             return "not applied, nothing changed: " + "; ".join(refused)
         for drone in drones:
+            # A node of this drone that restarts from now on runs the amended program:
+            # its Ready names that one (the ground station refuses any other).
+            self.station.checksums[drone] = amended[drone].checksum
             self._send(number, drone, "commit")
         answers = self._wait(number, drones, ("committed", "refused"))
         silent = [d for d in drones if d not in answers or answers[d].phase != "committed"]

@@ -132,3 +132,19 @@ def test_progress_marks_what_ran_before_a_reported_node_as_ended() -> None:
     assert progress[leg.key] == "running" and progress[arm.key] == "ended"
     assert land.key not in progress
     assert node_progress(programs, {leg.key: "ok"})[leg.key] == "ended"
+
+
+def test_an_amended_copy_of_a_mission_without_package_keeps_the_running_name() -> None:
+    # Without a `package` line a mission is named after its file: the amended copy's
+    # file name must not make every drone's program differ.
+    text = LANES.read_text().replace("package FourLanes\n", "")
+    running = compile_mission(text, "lanes.go")
+    edited = compile_mission(
+        text.replace("\tDrone2.FlyByX(-12)\n", "\tDrone2.FlyByX(-6)\n\tDrone2.FlyByX(-6)\n"),
+        "lanes-split.go",
+    )
+    assert edited.programs["Drone1"].mission != running.programs["Drone1"].mission
+    amended = rekey(running.programs, edited)
+    changes = compare(running.programs, amended.programs)
+    assert [d for d, c in changes.items() if c.touched] == ["Drone2"], changes
+    assert {p.mission for p in amended.programs.values()} == {running.programs["GCS"].mission}
