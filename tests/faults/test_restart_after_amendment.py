@@ -1,8 +1,9 @@
 """A node restarted after an amendment resumes the amended program (issue 31).
 
 Drone1 flies a MAVLink vehicle in a process of its own (it outlives the node); Drone2
-waits for it before both land.  While Drone1 flies its first leg, ``eamos amend --apply`` splits its way back in two; during its second
-leg its node is killed with ``kill -9`` and started again with its config.  The node had
+waits for it before both land.  While Drone1 flies its first leg, ``eamos amend --apply``
+splits its way back in two (Drone2's landing now waits for the second half); during its
+second leg its node is killed with ``kill -9`` and started again with its config.  The node had
 kept the amended program as its program file and record (``node-state.json``), so the new
 node resumes it from its progress journal: what had ended is not flown again, the second
 leg flies its rest, and the way back is the amended one.
