@@ -29,6 +29,7 @@ make (a new peer to send to, a drone's telemetry not read before).
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -255,9 +256,15 @@ class Reprogramming:
             *((k, "hold") for k in change.retire),
             *((k, "hold-out") for k in change.reroute),
         ]:
-            if runtime.nodes[key].ask(AmendNode(op), timeout=ASK_TIMEOUT_S) is not True:
+            node = runtime.program.node(key)
+            try:
+                free = runtime.nodes[key].ask(AmendNode(op), timeout=ASK_TIMEOUT_S) is True
+            except (pykka.Timeout, pykka.ActorDeadError):
+                # Nothing changed yet: refused, not a failure (the mission flies on as is).
                 self._release(held)
-                node = runtime.program.node(key)
+                return "refused", f"{key} {node.label} did not answer within {ASK_TIMEOUT_S:g} s"
+            if not free:
+                self._release(held)
                 state = "has begun" if op == "hold" else "has ended"
                 return "refused", f"{key} {node.label} {state}, and the amendment changes it"
             held.append(key)
@@ -363,4 +370,5 @@ class Reprogramming:
 
     def _release(self, held: list[str]) -> None:
         for key in held:
-            self.runtime.nodes[key].tell(AmendNode("release"))
+            with contextlib.suppress(pykka.ActorDeadError):  # only while the drone stops
+                self.runtime.nodes[key].tell(AmendNode("release"))
