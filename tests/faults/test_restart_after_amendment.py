@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from tests.faults.runs import LiveRun
-from tests.faults.test_restarted_node import kill_and_restart, landed_disarmed
+from tests.faults.test_restarted_node import LOOP_FLEET, kill_and_restart, landed_disarmed
 from tests.support.runs import eamos
 
 MISSION = """
@@ -53,13 +53,8 @@ func SEQ_Down1() {
     Drone1.Disarm()
 }
 """
-FLEET = """
-[drones.Drone1.hal]
-adapter = "mavlink"
-sim_vehicle = { autopilot = "ardupilot", prearm_delay_s = 2 }
-connect_timeout_s = 20
-armable_timeout_s = 90
-"""
+#: Drone1's vehicle, as in the restart test: a MAVLink vehicle in a process of its own.
+FLEET = LOOP_FLEET
 
 
 @pytest.mark.e2e
