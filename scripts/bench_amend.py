@@ -34,7 +34,7 @@ from eamos.check import check_amendment
 from eamos.compiler import compile_mission
 from eamos.compiler.amendment import rekey
 from eamos.config import FleetConfig
-from eamos.ground.amend import AmendmentApplier
+from eamos.ground.amend import JUDGED_AGAINST, AmendmentApplier, judged_against
 from eamos.ground.station import GroundStation
 from eamos.hal import make_adapter
 from eamos.hal.fake import FakeAdapter
@@ -106,7 +106,8 @@ def one_fleet(drones: int) -> dict[str, float]:
             for name, program in compiled.programs.items():
                 program.save(run_dir / "programs" / f"{name}.program.json")
                 amended.programs[name].save(staged / "programs" / f"{name}.program.json")
-            (staged / "amendment.json").write_text(json.dumps({"accepted": True}))
+            doc = {"accepted": True, JUDGED_AGAINST: judged_against(compiled.programs)}
+            (staged / "amendment.json").write_text(json.dumps(doc))
             applier = AmendmentApplier(station, run_dir)
             w0, c0 = time.perf_counter(), time.process_time()
             why = applier.apply("1", "bench")

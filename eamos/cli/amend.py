@@ -92,25 +92,23 @@ def add_amend_parser(subparsers: Any) -> argparse.ArgumentParser:
 def running_programs(run_dir: Path) -> dict[str, Any]:
     """The programs of the run folder, by participant; :class:`BadInput` without them."""
     from eamos.config import fleet_order
-    from eamos.program.format import load_program
+    from eamos.ground.amend import read_programs
 
-    folder = run_dir / "programs"
-    files = sorted(folder.glob("*.program.json")) if folder.is_dir() else []
-    if not files:
+    programs = read_programs(run_dir / "programs")
+    if not programs:
         raise BadInput(f"{run_dir}: not a run folder (no programs/*.program.json)")
-    programs = {}
-    for path in files:
-        program = load_program(path)
-        programs[program.drone] = program
     # As the compiler orders them: the ground station, then the drones as declared.
     drones = fleet_order(programs)
     order = [n for n in programs if n not in drones] + drones
     return {name: programs[name] for name in order}
 
 
-def stage(run_dir: Path, report: Any, text: str) -> Path:
+def stage(run_dir: Path, report: Any, text: str, running: Any) -> Path:
     """Write the accepted amendment to the next ``RUN_DIR/amendments/N/``: its text
-    (``mission.go``), its renumbered programs and the report (``amendment.json``)."""
+    (``mission.go``), its renumbered programs and the report (``amendment.json``, with the
+    ``running`` programs it was checked against)."""
+    from eamos.ground.amend import JUDGED_AGAINST, judged_against
+
     root = run_dir / "amendments"
     root.mkdir(exist_ok=True)
     number = 1 + max((int(p.name) for p in root.iterdir() if p.name.isdigit()), default=0)
@@ -118,7 +116,8 @@ def stage(run_dir: Path, report: Any, text: str) -> Path:
     (folder / "programs").mkdir(parents=True)
     for drone, program in report.amended.programs.items():
         program.save(folder / "programs" / f"{drone}.program.json")
-    (folder / "amendment.json").write_text(json.dumps(report.to_json(), indent=2) + "\n")
+    doc = {**report.to_json(), JUDGED_AGAINST: judged_against(running)}
+    (folder / "amendment.json").write_text(json.dumps(doc, indent=2) + "\n")
     (folder / "mission.go").write_text(text, encoding="utf-8")
     write_pictures(report.amended, report.touched, folder / "graphs")
     return folder
@@ -165,7 +164,7 @@ def amendment_preview(run_dir: Path, fleet: Any, text: str) -> dict[str, Any]:
         return {"ok": False, "error": render_diagnostics(exc.diagnostics, name, text)}
     except (BadInput, SnapshotError, ProgramError, ConfigError) as exc:
         return {"ok": False, "error": str(exc)}
-    staged = stage(run_dir, report, text) if report.accepted and report.touched else None
+    staged = stage(run_dir, report, text, running) if report.accepted and report.touched else None
     graphs: dict[str, str] = {}
     if staged is not None:  # the amended dependency graphs, beside the running ones
         graphs = {
@@ -221,7 +220,9 @@ def run_amend(args: argparse.Namespace) -> int:
         running, compiled, snapshot, fleet, force=args.force, where=f"{args.run_dir}/snapshot.json"
     )
     text = args.mission.read_text(encoding="utf-8")  # compiled above: it reads
-    staged = stage(args.run_dir, report, text) if report.accepted and report.touched else None
+    staged = (
+        stage(args.run_dir, report, text, running) if report.accepted and report.touched else None
+    )
     applied = apply_error = None
     if args.apply and staged is not None:
         apply_error = apply_staged(args.run_dir, staged)

@@ -44,15 +44,19 @@ if TYPE_CHECKING:
 __all__ = [
     "APPLIED_FILE",
     "APPLY_TIMEOUT_S",
+    "JUDGED_AGAINST",
     "AmendmentApplier",
     "apply_refusal",
     "changed_drones",
+    "judged_against",
     "read_applied",
     "read_programs",
 ]
 
 #: What an applied amendment's folder records.
 APPLIED_FILE = "applied.json"
+#: The key of ``amendment.json`` naming the programs (by checksum) it was checked against.
+JUDGED_AGAINST = "judged_against"
 #: How long each phase waits for every drone's answer.
 PHASE_TIMEOUT_S = 30.0
 #: How long a client waits for the desk's answer to ``amend``: three phases, each bounded.
@@ -63,6 +67,13 @@ def read_programs(folder: Path) -> dict[str, DroneProgram]:
     """Every ``*.program.json`` in ``folder``, by participant (ProgramError if damaged)."""
     files = sorted(folder.glob("*.program.json")) if folder.is_dir() else []
     return {p.drone: p for p in map(load_program, files)}
+
+
+def judged_against(running: Mapping[str, DroneProgram]) -> dict[str, str]:
+    """What ``amendment.json`` records of the programs an amendment was checked against:
+    applied later, it may replace only those (another amendment applied in between would
+    otherwise be undone)."""
+    return {name: program.checksum for name, program in running.items()}
 
 
 def read_applied(run_dir: Path, number: str) -> list[str]:
@@ -165,6 +176,11 @@ class AmendmentApplier:
             return f"amendment {number} was refused by its check: nothing to apply"
         if (folder / APPLIED_FILE).exists():
             return f"amendment {number} was applied already"
+        if doc.get(JUDGED_AGAINST) != judged_against(running):
+            return (
+                f"amendment {number} was checked against other programs than those flying now "
+                "(another amendment applied since?): check it again"
+            )
         why = apply_refusal(running, amended)
         drones = changed_drones(running, amended)
         if why or not drones:

@@ -12,6 +12,7 @@ flies as written.
 from __future__ import annotations
 
 import json
+import shutil
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,7 +23,7 @@ import pytest
 from eamos.actors import reprogram
 from eamos.compiler import compile_mission
 from eamos.compiler.amendment import rekey
-from eamos.ground.amend import AmendmentApplier
+from eamos.ground.amend import JUDGED_AGAINST, AmendmentApplier, judged_against
 from eamos.net import wire
 from eamos.program.uniform import GROUND_STATION
 
@@ -128,12 +129,17 @@ def test_a_committed_amendment_flies_and_the_peer_waits_for_the_new_node(
     for name, program in made.compiled.programs.items():
         program.save(run_dir / "programs" / f"{name}.program.json")
         new[name].save(staged / "programs" / f"{name}.program.json")
-    (staged / "amendment.json").write_text(json.dumps({"accepted": True}))
+    doc = {"accepted": True, JUDGED_AGAINST: judged_against(made.compiled.programs)}
+    (staged / "amendment.json").write_text(json.dumps(doc))
+    # A second amendment checked against the same programs, staged before the first is applied.
+    shutil.copytree(staged, run_dir / "amendments" / "2")
     applier = AmendmentApplier(made.station, run_dir)
     hold_arms(made)
     assert applier.apply("1", "test") == ""
     assert json.loads((staged / "applied.json").read_text())["drones"] == ["D1", "D2"]
     assert applier.apply("1", "test") == "amendment 1 was applied already"
+    # Applied now, it would undo what the first changed: refused, nothing sent.
+    assert "checked against other programs than those flying now" in applier.apply("2", "test")
     ran = fly_on(made)
     assert [a for a in ran["D1"] if a[0].startswith("Fly")] == [
         ("FlyByX", (4.0,)),
