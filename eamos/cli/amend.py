@@ -250,14 +250,21 @@ def apply_staged(run_dir: Path, staged: Path) -> str:
     """Have the ground station running ``run_dir`` apply the amendment staged in
     ``staged``: "" when applied, else why not (nothing changed unless it says so)."""
     from eamos.ground.amend import APPLY_TIMEOUT_S
-    from eamos.ground.operator import OperatorError, send_command
+    from eamos.ground.operator import (
+        CommandRefused,
+        NoGroundStation,
+        OperatorError,
+        send_command,
+    )
 
     try:
         send_command(run_dir, "amend", staged.name, origin(), timeout_s=APPLY_TIMEOUT_S)
+    except NoGroundStation:
+        raise  # exit 3: nothing to apply to
+    except CommandRefused as exc:
+        return exc.reason
     except OperatorError as exc:
-        if "no ground station runs" in str(exc):
-            raise  # exit 3: nothing to apply to
-        return str(exc).removeprefix("refused by the ground station: ")
+        return str(exc)
     return ""
 
 

@@ -35,6 +35,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "SOCKET_NAME",
+    "CommandRefused",
+    "NoGroundStation",
     "OperatorDesk",
     "OperatorError",
     "PauseClock",
@@ -145,6 +147,18 @@ def desk_handler(
 
 class OperatorError(ConnectionError):
     """The ground station of a run folder cannot be reached, or refused the command."""
+
+
+class NoGroundStation(OperatorError):
+    """No ground station runs the mission of the run folder (no one listens on its desk)."""
+
+
+class CommandRefused(OperatorError):
+    """The ground station refused the command; ``reason`` is why, as it said it."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(f"refused by the ground station: {reason}")
+        self.reason = reason
 
 
 class OperatorDesk:
@@ -271,7 +285,7 @@ def send_command(
                     break
                 data += chunk
         except (FileNotFoundError, ConnectionRefusedError):
-            raise OperatorError(
+            raise NoGroundStation(
                 f"{run_dir}: no ground station runs this mission (no {SOCKET_NAME}: is "
                 "`eamos run` or `eamos start` running for this folder?)"
             ) from None
@@ -283,4 +297,4 @@ def send_command(
         raise OperatorError(f"{path}: the ground station gave no answer") from None
     if not isinstance(answer, dict) or answer.get("ok") is not True:
         error = answer.get("error") if isinstance(answer, dict) else None
-        raise OperatorError(f"refused by the ground station: {error or 'no reason given'}")
+        raise CommandRefused(str(error or "no reason given"))
