@@ -17,12 +17,16 @@ import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+import zmq
+
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
 from eamos.logs import LogWriter, close_logger, make_logger, report_write_error
 from eamos.net import wire
 from eamos.net.reports import report_messages
+from eamos.net.sockets import participant_context
 from eamos.net.wire import WireError
+from eamos.net.zap import ZapHandler
 from eamos.program.format import DroneProgram, load_program
 from eamos.program.uniform import GROUND_STATION
 
@@ -69,6 +73,38 @@ class NodeStop(threading.Event):
         self.set()
 
 
+@dataclasses.dataclass(frozen=True)
+class ProcessShare:
+    """What the drones of one process share instead of having one each.
+
+    One log writer (its thread writes every drone's lines, in batches), one
+    clock stepping every simulated vehicle, one ZeroMQ context (one set of libzmq
+    I/O and reaper threads) and its ZAP handler (one authenticator thread; each
+    drone answers in a domain of its own: :class:`eamos.net.zap.ZapHandler`).
+    :meth:`open` makes them, :meth:`close` ends them once every drone has stopped.
+    """
+
+    writer: LogWriter
+    sim_clock: SimClock
+    context: zmq.Context[Any]
+    zap: ZapHandler
+
+    @classmethod
+    def open(cls) -> ProcessShare:
+        """A new set, for the drones about to start in this process."""
+        from eamos.hal.sim import SimClock  # here: a process of one drone never loads it
+
+        context = participant_context()
+        return cls(LogWriter(), SimClock("sim-clock"), context, ZapHandler(context))
+
+    def close(self) -> None:
+        """End them (every drone stopped: its sockets are closed); the writer last."""
+        self.sim_clock.close()
+        self.zap.stop()
+        self.context.term()
+        self.writer.close()
+
+
 class DroneEnd(enum.Enum):
     """How a drone's part ended (the command line maps it to an exit code)."""
 
@@ -112,16 +148,15 @@ def run_drone(
     config: NodeConfig,
     program: DroneProgram,
     stop: threading.Event,
-    log_writer: LogWriter | None = None,
-    sim_clock: SimClock | None = None,
+    shared: ProcessShare | None = None,
 ) -> DroneEnd:
     """Run one drone until the mission completes or is aborted, or it must end on its own.
 
     A drone stranded by a lost peer, or left without ``Complete`` by a silent
     ground station, ends after ``peer_wait_limit_s`` (see :mod:`.stranded`).
-    ``log_writer``: the process's writer when several drones share a process
-    (without one, this drone's logs get their own); ``sim_clock``: the clock that
-    steps the process's simulated drones (without one, a simulated drone has its own).
+    ``shared``: what the drones of the process share (:class:`ProcessShare`) when
+    several do; without it, this drone has its own log writer, ZeroMQ context and
+    (simulated) clock.
     """
     journal = NodeJournal(
         config.log_dir, config.drone, program.mission_id, program.checksum, config.deployment
@@ -147,8 +182,9 @@ def run_drone(
     else:
         journal.mark("ready")
     journal.begin(resume=decision.resume)
-    writer = log_writer if log_writer is not None else LogWriter()
+    writer = shared.writer if shared is not None else LogWriter()
     adapter_log = make_logger(config.log_dir / "adapter.log", writer=writer, drone=config.drone)
+    sim_clock = shared.sim_clock if shared is not None else None
     adapter = make_adapter(config.drone, config.hal, adapter_log, sim_clock)
     runtime = DroneRuntime(
         program,
@@ -157,6 +193,8 @@ def run_drone(
         config.log_dir,
         battery_reserve_pct=config.battery_reserve_pct,
         log_writer=writer,
+        context=shared.context if shared is not None else None,
+        zap=shared.zap if shared is not None else None,
         # Nothing acts before this deployment's Start; the first trigger to reach a
         # node is recorded first (a restart then knows something ran).
         start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),
@@ -224,7 +262,7 @@ def run_drone(
         runtime.stop()
         journal.close()
         close_logger(adapter_log)
-        if log_writer is None:
+        if shared is None:
             writer.close()
 
 

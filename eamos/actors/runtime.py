@@ -40,6 +40,8 @@ from ..logs import DroneLogs, EventLog, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
 from ..net.link import Delivered, Link
+from ..net.sockets import participant_context
+from ..net.zap import ZapHandler
 from ..program.format import DroneProgram
 from .board import TelemetryBoard, WhenLanded
 from .continuation import Replay
@@ -98,6 +100,7 @@ class DroneRuntime:
         log_dir: Path | None = None,
         *,
         context: zmq.Context[Any] | None = None,
+        zap: ZapHandler | None = None,
         ground_handler: Callable[[Delivered], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
@@ -108,6 +111,8 @@ class DroneRuntime:
         on_reprogrammed: Callable[[DroneProgram], None] | None = None,
     ) -> None:
         """``log_writer``: the process's log writer when several runtimes share a process;
+        ``context``, ``zap``: the process's ZeroMQ context and its ZAP handler when several
+        runtimes share them (:class:`~eamos.actors.drone.ProcessShare`; None: its own);
         ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
         nothing before it (:class:`~.inbound.StartGate`; None: no gate); ``replay``: a
         node restarted mid-mission replays what it reported (:mod:`.continuation`);
@@ -121,7 +126,7 @@ class DroneRuntime:
         self.net = net
         self.log_dir = log_dir
         self._own_context = context is None
-        self.context: zmq.Context[Any] = context if context is not None else zmq.Context()
+        self.context: zmq.Context[Any] = context if context is not None else participant_context()
         self.ground_handler = ground_handler  # set on the ground station: receives drone reports
         self.extra_topics = extra_topics
         self.logs = DroneLogs.open(log_dir, self.drone, log_writer)
@@ -140,6 +145,7 @@ class DroneRuntime:
             start_gate=start_gate,
             replay=replay,
             journal=journal,
+            zap=zap,
         )
         # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None

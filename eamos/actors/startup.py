@@ -26,6 +26,7 @@ from ..net.bridges import InBridge
 from ..net.effects import TriggersAcknowledged
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import Delivered, Link, LinkSettings
+from ..net.zap import ZapHandler
 from ..program.format import DroneProgram
 from .board import LatestSample, LocalSample, TelemetryBoard
 from .continuation import Replay
@@ -103,8 +104,10 @@ class RuntimeStartup:
         start_gate: StartGateSettings | None = None,
         replay: Replay | None = None,
         journal: Callable[[list[dict[str, Any]]], None] | None = None,
+        zap: ZapHandler | None = None,
     ) -> None:
         self.program = program
+        self.zap = zap  # the shared context's ZAP handler (None: the link starts its own)
         self.start_gate = start_gate
         self.replay = replay  # a restarted node's past (see DroneRuntime)
         self.journal = journal
@@ -136,6 +139,7 @@ class RuntimeStartup:
                 self.logs.mission,
                 keys=self.net.keys,
                 settings=self.net.link,
+                zap=self.zap,
             )
         except (zmq.ZMQError, KeysError) as exc:
             raise DroneRuntimeError(
@@ -289,7 +293,11 @@ class RuntimeStartup:
             waits = peers if self.ground_handler is not None else ()
             link.connect(peers, topics, router, watch=self.watched_peers(), announced=waits)
         except (zmq.ZMQError, ValueError) as exc:
-            raise DroneRuntimeError(f"cannot connect the in-bridge to {peers}: {exc}") from exc
+            named = ", ".join(f"{n} at {ep}" for n, ep in list(peers.items())[:3])
+            more = f" and {len(peers) - 3} more" if len(peers) > 3 else ""
+            raise DroneRuntimeError(
+                f"cannot connect the in-bridge to {named}{more}: {exc}"
+            ) from exc
         assert link.inb is not None
         return link.inb
 

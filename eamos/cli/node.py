@@ -40,10 +40,8 @@ from eamos.cli.errors import run_reported
 from eamos.cli.exits import EXIT_CONNECT, EXIT_INTERNAL, EXIT_MISSION_FAILED, EXIT_OK
 
 if TYPE_CHECKING:
-    from eamos.actors.drone import DroneEnd
+    from eamos.actors.drone import DroneEnd, ProcessShare
     from eamos.config import NodeConfig
-    from eamos.hal.sim import SimClock
-    from eamos.logs import LogWriter
 
 # The runtime (ZeroMQ, Pykka, structlog, the HAL) is imported where a node runs, not at
 # the top: ``eamos-node --help`` and ``--version`` answer without loading it.
@@ -106,16 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run_node(
-    config: NodeConfig,
-    stop: threading.Event,
-    log_writer: LogWriter | None = None,
-    sim_clock: SimClock | None = None,
-) -> int:
+def run_node(config: NodeConfig, stop: threading.Event, shared: ProcessShare | None = None) -> int:
     """Run the participant ``config`` names until the mission ends; return the exit code.
 
-    ``log_writer``, ``sim_clock``: the process's log writer and the clock stepping its
-    simulated drones, when drones share the process.
+    ``shared``: what the drones of this process share, when several do.
     """
     from eamos.actors.drone import load_node_program, run_drone
     from eamos.program.uniform import GROUND_STATION
@@ -126,7 +118,7 @@ def run_node(
 
         summary = run_ground_node(config, program, stop)
         return EXIT_OK if summary.ok else EXIT_MISSION_FAILED
-    return exit_code(run_drone(config, program, stop, log_writer, sim_clock))
+    return exit_code(run_drone(config, program, stop, shared))
 
 
 def load_group(paths: list[Path]) -> list[NodeConfig]:
@@ -147,17 +139,15 @@ def load_group(paths: list[Path]) -> list[NodeConfig]:
 def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -> int:
     """Run each drone of ``configs`` in its own thread; the worst exit code of them."""
     codes: dict[str, int] = {}
-    # One thread writes every drone's log lines, in batches (not one per drone); one
-    # clock steps every simulated drone (not a thread each).
+    # One log writer, one simulation clock, one ZeroMQ context and its ZAP handler for
+    # all of them, not one each.
+    from eamos.actors.drone import ProcessShare
     from eamos.config import EXIT_CODE_FILE
-    from eamos.hal.sim import SimClock  # here: a process of one drone never loads it
-    from eamos.logs import LogWriter
 
-    writer = LogWriter()
-    clock = SimClock("sim-clock")
+    shared = ProcessShare.open()
 
     def one(config: NodeConfig) -> None:
-        code = guarded(lambda: run_node(config, stop, writer, clock), verbose, config.drone)
+        code = guarded(lambda: run_node(config, stop, shared), verbose, config.drone)
         codes[config.drone] = code
         try:
             (config.log_dir / EXIT_CODE_FILE).write_text(f"{code}\n")
@@ -171,8 +161,7 @@ def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -
         # Bounded waits so that the main thread still takes signals (they set ``stop``).
         while thread.is_alive():
             thread.join(0.5)
-    clock.close()
-    writer.close()
+    shared.close()
     return max(codes.values(), default=EXIT_INTERNAL)
 
 

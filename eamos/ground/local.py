@@ -427,7 +427,7 @@ def write_node_configs(
             },
             hal=dict(hal),
             ready_timeout_s=ready_timeout_s,
-            keys_dir=keys_root / name,
+            keys_dir=keys_root,  # the run's one folder (FleetKeys.load finds name's in it)
             battery_reserve_pct=battery_reserve_pct,
             link=links[name] if links is not None and name in links else LinkSettings(),
             deployment=deployment,
@@ -492,7 +492,7 @@ def _fly_local(
     endpoints = {n: f"tcp://127.0.0.1:{p}" for n, p in zip(names, ports, strict=True)}
     # A fresh CURVE key pair per participant for every run: the links are
     # encrypted and only this run's participants can connect (docs/network.md).
-    keys_dir = create_fleet_keys(fresh_keys_folder(run_dir), names)
+    keys_dir = create_fleet_keys(fresh_keys_folder(run_dir), names, shipped=False)
     # MAVLink simulated vehicles (hal.sim_vehicle) start first; their nodes get the connection.
     # Every drone stands at its home in the fleet frame, as the check saw it: simulated
     # drones and simulated MAVLink vehicles are placed there; a MAVLink drone's node is
@@ -552,7 +552,7 @@ def _fly_local(
         NetSettings(
             endpoints[GROUND_STATION],
             {n: endpoints[n] for n in drones},
-            keys=FleetKeys.load(keys_dir / GROUND_STATION, GROUND_STATION),
+            keys=FleetKeys.load(keys_dir, GROUND_STATION),
         ),
         run_dir / "logs" / GROUND_STATION,
         ground_hal,

@@ -268,7 +268,11 @@ class GroundStation:
                         view.state = "back"
                         gone = f"{view.name}: silent"
                         self.failures = [f for f in self.failures if not f.startswith(gone)]
-            self._cond.notify_all()
+            if not isinstance(msg, (wire.TelemetrySample, wire.Progress)):
+                # What the waiters wait for (ready, resolved, lost, reports, failures):
+                # not the stream of samples and progress, each of which would wake
+                # them to look at every drone again.
+                self._cond.notify_all()
         if self.on_change is not None:
             self.on_change(view.name, view, msg)
         if stopped_early:

@@ -17,7 +17,10 @@
 * :mod:`eamos.net.bridges` -- :class:`OutBridge` (XPUB) and :class:`InBridge` (SUB),
   plain or CURVE (code in ``out_bridge``, ``in_bridge``, ``sockets``).
 * :mod:`eamos.net.keys` -- fleet key pairs (``eamos keys``), the ZAP
-  authenticator, the plain-on-loopback rule.
+  authenticator, the plain-on-loopback rule; :mod:`eamos.net.zap` the ZAP handler a
+  context's participants share (:class:`ZapHandler`).
+* :mod:`eamos.net.readiness` -- :class:`~eamos.net.readiness.SocketWatch`, how an
+  In-Bridge waits on a socket per peer at the cost of those ready.
 * :mod:`eamos.net.descriptors` -- the file-descriptor limit a node raises.
 
 See ``docs/wire-format.md`` for the message table and ``docs/network.md`` for
@@ -54,6 +57,7 @@ from eamos.net.wire import (
     topic_telemetry,
     topic_to,
 )
+from eamos.net.zap import ZapHandler
 
 __all__ = [
     "GROUND_STATION",
@@ -82,6 +86,7 @@ __all__ = [
     "Trigger",
     "TriggersAcknowledged",
     "WireError",
+    "ZapHandler",
     "decode",
     "encode",
     "topic_heartbeat",

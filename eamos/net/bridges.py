@@ -41,8 +41,9 @@ final Abort or Complete get out before the process exits.
 Security
 --------
 With ``curve=`` (a :class:`~eamos.net.keys.FleetKeys`) the Out-Bridge is a
-CURVE server (ZAP domain :data:`~eamos.net.keys.ZAP_DOMAIN`, enforced: a
-context without a ZAP handler admits nobody) and the In-Bridge opens one CURVE
+CURVE server (ZAP domain :func:`~eamos.net.zap.participant_domain`, enforced: a
+context without a ZAP handler admits nobody; the participants of one context
+share its handler, :class:`~eamos.net.zap.ZapHandler`) and the In-Bridge opens one CURVE
 client socket per peer, each knowing that peer's public key, so a message read
 from a socket comes from that peer.  With ``check_sender=True`` the In-Bridge
 also drops messages whose ``sender`` is not the peer of the socket they came

@@ -10,9 +10,9 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import zmq
-from zmq import zmq_poll
 
 from eamos.logs import EventLog, make_logger
+from eamos.net.readiness import SocketWatch
 from eamos.net.reconnect import Reconnector
 from eamos.net.sockets import (
     CMD_CONNECT,
@@ -53,7 +53,11 @@ def latest_telemetry(batch: list[list[bytes]]) -> tuple[list[list[bytes]], int]:
     return kept, len(batch) - len(kept)
 
 
-def read_batch(sub: zmq.Socket[Any], limit: int = 256) -> list[list[bytes]]:
+#: The most messages one socket gives per turn (others are not starved by a flood).
+READ_BATCH = 256
+
+
+def read_batch(sub: zmq.Socket[Any], limit: int = READ_BATCH) -> list[list[bytes]]:
     """The multipart messages waiting on ``sub``, at most ``limit``.
 
     Bounded so that a stop or subscribe command, or another peer, is not
@@ -366,25 +370,33 @@ class InBridge(BridgeThread):
         ctrl = self._ctrl_rx
         subs = self._subs
         monitors = {m.socket: m for m in self._monitors}
-        # One list of poll items for the thread's life (zmq.Poller builds one per
-        # call, and a dict of the result per wake-up); results come in this
-        # order, so the control pipe is seen first.
-        items: list[tuple[Any, int]] = [(ctrl, POLLIN_BIT)]
-        items += [(sub, POLLIN_BIT) for sub in subs]
-        items += [(mon, POLLIN_BIT) for mon in monitors]
+        # Woken by the sockets that are ready, not by a walk over all of them: a fan-in
+        # endpoint watches two sockets per peer (SocketWatch).
+        watch = SocketWatch()
+        for sock in (ctrl, *subs, *monitors):
+            watch.add(sock)
         reconnector = self._reconnector
         try:
             while True:
                 timeout = reconnector.poll_timeout_ms()
-                events = zmq_poll(items, -1 if timeout is None else timeout)
-                if events and events[0][0] is ctrl and not self._drain_control():
-                    return
-                reconnector.reconnect_due()
+                ready = watch.wait(None if timeout is None else timeout / 1000)
+                # A socket this thread connects or subscribes raises no signal for
+                # what that brings at once: it is looked at again (SocketWatch).
+                if ctrl in ready:
+                    if not self._drain_control():
+                        return
+                    for sub in subs:
+                        watch.again(sub)
+                for again in reconnector.reconnect_due():
+                    watch.again(reconnector.sockets[again])
                 delivered = False
-                for sock, _ in events:
+                for sock in ready:
                     peer = subs.get(sock)
                     if peer is not None:
-                        delivered = self._drain_sub(sock, peer) or delivered
+                        drained, more = self._drain_sub(sock, peer)
+                        delivered = drained or delivered
+                        if more:
+                            watch.again(sock)
                     elif sock is not ctrl:
                         monitors[sock].drain()
                 if self._closed:
@@ -399,6 +411,7 @@ class InBridge(BridgeThread):
         except zmq.ZMQError:
             self._log.exception("net.in.thread_error")
         finally:
+            watch.close()
             with self._lock:
                 self._ctrl_tx.close()
                 self._tx_open = False
@@ -421,7 +434,8 @@ class InBridge(BridgeThread):
             elif frames[0] == CMD_CONNECT:
                 self._reconnector.announced(frames[1].decode("utf-8"))
 
-    def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> bool:
+    def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> tuple[bool, bool]:
+        """Read a batch of ``sub``: whether it held any, and whether more may wait."""
         batch = read_batch(sub)
         kept, skipped = latest_telemetry(batch)
         self._ledger.superseded += skipped
@@ -429,7 +443,7 @@ class InBridge(BridgeThread):
             if self._closed:
                 break  # close() was called from on_message: deliver nothing more
             self._handle(frames, peer)
-        return bool(batch)
+        return bool(batch), len(batch) >= READ_BATCH
 
     def _handle(self, frames: list[bytes], peer: str = "") -> None:
         """Filter, decode and deliver one received multipart message from ``peer``.

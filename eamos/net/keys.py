@@ -40,10 +40,9 @@ import zmq
 import zmq.auth
 
 from eamos.logs import make_logger
-from eamos.net.zap import start_authenticator
+from eamos.net.zap import ZapHandler, participant_domain
 
 __all__ = [
-    "ZAP_DOMAIN",
     "FleetAuthenticator",
     "FleetKeys",
     "KeysError",
@@ -53,8 +52,6 @@ __all__ = [
     "plain_refusal",
 ]
 
-ZAP_DOMAIN: Final = "eamos"
-"""ZAP domain of every Out-Bridge; the authenticator answers for it."""
 
 PUBLIC_DIR: Final = "public"
 SECRET_SUFFIX: Final = ".key_secret"
@@ -76,11 +73,16 @@ def _check_name(name: str) -> str:
     return name
 
 
-def create_fleet_keys(out_dir: Path, names: Iterable[str], *, force: bool = False) -> Path:
+def create_fleet_keys(
+    out_dir: Path, names: Iterable[str], *, force: bool = False, shipped: bool = True
+) -> Path:
     """Write a fresh CURVE key pair per participant under ``out_dir``; return ``out_dir``.
 
     Refuses (``KeysError``) to overwrite existing keys unless ``force``: a new
     key set must be shipped to every drone, which is worth a deliberate choice.
+    ``shipped``: give each participant's folder its copy of every public key (the
+    folder shipped to it); a local run, whose participants all read ``out_dir``
+    itself (:meth:`FleetKeys.load`), has no use for the N² copies.
     """
     out_dir = Path(out_dir)
     wanted = sorted({_check_name(str(n)) for n in names})
@@ -113,8 +115,9 @@ def create_fleet_keys(out_dir: Path, names: Iterable[str], *, force: bool = Fals
         # The participant's folder keeps only its secret certificate (which holds
         # the public key too); the public one goes to the fleet directory.
         Path(pub_file).replace(public / f"{name}{PUBLIC_SUFFIX}")
-    for name in wanted:
-        shutil.copytree(public, out_dir / name / PUBLIC_DIR)
+    if shipped:
+        for name in wanted:
+            shutil.copytree(public, out_dir / name / PUBLIC_DIR)
     return out_dir
 
 
@@ -239,25 +242,36 @@ class _FleetCredentials:
 
 
 class FleetAuthenticator:
-    """The ZAP authenticator of one ZeroMQ context, letting in only the fleet.
+    """One participant's ZAP answers: only the fleet's keys join its Out-Bridge.
 
-    ZAP handlers are per context (they bind ``inproc://zeromq.zap.01``), so a
-    context can host one fleet's CURVE servers; a second authenticator on the
-    same context raises :class:`KeysError`.  Start it before binding any
-    CURVE server socket (the sockets also set ``ZAP_ENFORCE_DOMAIN`` so a
+    ZAP handlers are per context (they bind ``inproc://zeromq.zap.01``).  Given
+    the context's shared :class:`~eamos.net.zap.ZapHandler` (``zap``: several
+    participants in one process, one context), it answers in the participant's
+    own domain there; without one it starts a handler of its own, and a second
+    such on the same context raises :class:`KeysError`.  Start it before binding
+    any CURVE server socket (the sockets also set ``ZAP_ENFORCE_DOMAIN`` so a
     missing handler refuses everyone instead of admitting everyone).
     """
 
-    def __init__(self, context: zmq.Context[Any], keys: FleetKeys, log: Any = None) -> None:
+    def __init__(
+        self,
+        context: zmq.Context[Any],
+        keys: FleetKeys,
+        log: Any = None,
+        *,
+        zap: ZapHandler | None = None,
+    ) -> None:
         self._log = log if log is not None else make_logger(None)
         self.credentials = _FleetCredentials(keys, self._log)
-        # The domain must be the one the sockets name (ZAP_ENFORCE_DOMAIN).
+        self._own = zap is None
+        self._zap = zap if zap is not None else ZapHandler(context)
+        # The domain must be the one the participant's sockets name (ZAP_ENFORCE_DOMAIN).
         try:
-            self._auth = start_authenticator(context, ZAP_DOMAIN, self.credentials)
+            self._zap.admit(participant_domain(keys.me), self.credentials)
         except zmq.ZMQError as exc:
             raise KeysError(
                 f"cannot start the ZAP authenticator ({exc}); one CURVE participant per "
-                "ZeroMQ context"
+                "ZeroMQ context, or participants sharing a ZapHandler"
             ) from exc
         self._stopped = False
 
@@ -268,7 +282,8 @@ class FleetAuthenticator:
             return sum(self.credentials.denied.values())
 
     def stop(self) -> None:
-        """Stop the authenticator and close its sockets (before ``Context.term``); idempotent."""
+        """Stop its own authenticator (a shared one is its owner's to stop); idempotent."""
         if not self._stopped:
             self._stopped = True
-            self._auth.stop()
+            if self._own:
+                self._zap.stop()

@@ -56,6 +56,7 @@ from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
 from eamos.net.sockets import should_log
 from eamos.net.transport import InSide, OutSide, Transport, ZmqTransport
+from eamos.net.zap import ZapHandler
 
 __all__ = [
     "Delivered",
@@ -526,7 +527,8 @@ class Link(LinkDriver[OutBridge, InBridge]):
     (with ``keys``, starting the ZAP authenticator first) and connects the
     In-Bridge in :meth:`connect`.  ``clock`` (default :func:`time.monotonic`)
     and ``rng`` (the retransmission jitter) are injectable, as is the
-    ``transport`` (default :class:`~eamos.net.transport.ZmqTransport`).
+    ``transport`` (default :class:`~eamos.net.transport.ZmqTransport`).  ``zap``: the
+    context's ZAP handler when participants share the context (else one of its own).
     """
 
     def __init__(
@@ -542,6 +544,7 @@ class Link(LinkDriver[OutBridge, InBridge]):
         transport: Transport[OutBridge, InBridge] | None = None,
         clock: Clock = time.monotonic,
         rng: random.Random | None = None,
+        zap: ZapHandler | None = None,
     ) -> None:
         settings = settings or LinkSettings()
         log = log if log is not None else make_logger(None)
@@ -549,7 +552,13 @@ class Link(LinkDriver[OutBridge, InBridge]):
         self.keys = keys
         if transport is None:
             transport = ZmqTransport(
-                context, bind, mission, log, keys=keys, heartbeat_ms=settings.zmq_heartbeat_ms
+                context,
+                bind,
+                mission,
+                log,
+                keys=keys,
+                heartbeat_ms=settings.zmq_heartbeat_ms,
+                zap=zap,
             )
         session = ReliableSession(name, mission, settings, log=log, rng=rng)
         super().__init__(session, transport, log, clock=clock)

@@ -116,16 +116,18 @@ class Reconnector:
         wait = min(self._due.values()) - time.monotonic()
         return max(0, int(wait * 1e3) + 1)
 
-    def reconnect_due(self) -> None:
-        """Reconnect every peer whose time has come."""
+    def reconnect_due(self) -> list[str]:
+        """Reconnect every peer whose time has come; those reconnected."""
         if not self._due:
-            return
+            return []
+        done: list[str] = []
         now = time.monotonic()
         for peer, due in list(self._due.items()):
             if due > now:
                 continue
             del self._due[peer]
             self._reconnect(peer, now)
+            done.append(peer)
             self.reconnects += 1
             if should_log(self.reconnects):
                 self._log.info(
@@ -134,6 +136,7 @@ class Reconnector:
                     endpoint=self.peers[peer],
                     count=self.reconnects,
                 )
+        return done
 
     def _reconnect(self, peer: str, now: float) -> None:
         # disconnect + connect: a fresh session whatever libzmq did with the old

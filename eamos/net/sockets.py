@@ -15,6 +15,7 @@ import zmq
 from zmq.utils.monitor import recv_monitor_message
 
 from eamos.net.settings import DEFAULT_HEARTBEAT_MS
+from eamos.net.zap import participant_domain
 
 if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
@@ -41,6 +42,7 @@ __all__ = [
     "control_pair",
     "curve_client",
     "curve_server",
+    "participant_context",
     "recv_message",
     "send_message",
     "should_log",
@@ -122,6 +124,20 @@ CMD_STOP: Final = b"stop"
 # flooding peer cannot fill the disk with log lines.
 LOG_FIRST: Final = 100
 LOG_EVERY: Final = 1000
+
+
+def participant_context() -> zmq.Context[Any]:
+    """A ZeroMQ context for one participant or for all of a process.
+
+    Its socket limit is libzmq's largest (``ZMQ_SOCKET_LIMIT``), not the default 1023:
+    a participant holds two sockets per peer it listens to (its SUB and that SUB's
+    monitor) and libzmq one more per monitor, so a ground station of 300 drones, or a
+    process of 50 drones in a relay of 100, would run out of sockets (``EMFILE``,
+    "Too many open files") long before it runs out of descriptors.
+    """
+    context: zmq.Context[Any] = zmq.Context()
+    context.set(zmq.MAX_SOCKETS, context.get(zmq.SOCKET_LIMIT))
+    return context
 
 
 def control_pair(context: zmq.Context[Any], name: str) -> tuple[zmq.Socket[Any], zmq.Socket[Any]]:
@@ -221,12 +237,11 @@ class Monitor:
 
 def curve_server(sock: zmq.Socket[Any], keys: FleetKeys) -> None:
     """Make ``sock`` (before it binds) a CURVE server that only ZAP-approved keys may join."""
-    from eamos.net.keys import ZAP_DOMAIN
-
     sock.setsockopt(zmq.CURVE_SERVER, 1)
     sock.setsockopt(zmq.CURVE_PUBLICKEY, keys.public)
     sock.setsockopt(zmq.CURVE_SECRETKEY, keys.secret)
-    sock.setsockopt(zmq.ZAP_DOMAIN, ZAP_DOMAIN.encode())
+    # The participant's own domain: its provider answers there (eamos.net.zap).
+    sock.setsockopt(zmq.ZAP_DOMAIN, participant_domain(keys.me).encode())
     # Without a ZAP handler on the context, refuse everyone (libzmq's default
     # would be to accept any client key).
     sock.setsockopt(zmq.ZAP_ENFORCE_DOMAIN, 1)

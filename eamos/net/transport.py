@@ -21,6 +21,7 @@ from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
 from eamos.net.settings import DEFAULT_HEARTBEAT_MS
+from eamos.net.zap import ZapHandler
 
 if TYPE_CHECKING:
     from eamos.logs import EventLog
@@ -114,8 +115,10 @@ class ZmqTransport:
         *,
         keys: FleetKeys | None = None,
         heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
+        zap: ZapHandler | None = None,
     ) -> None:
         self.context = context
+        self.zap = zap  # the context's shared ZAP handler (None: one of its own)
         self.bind = bind
         self.mission = mission
         self.log = log
@@ -138,7 +141,7 @@ class ZmqTransport:
         # Before any connection is accepted: idle clients must not exhaust the limit.
         raise_descriptor_limit(self.log)
         if self.keys is not None:
-            self.auth = FleetAuthenticator(self.context, self.keys, self.log)
+            self.auth = FleetAuthenticator(self.context, self.keys, self.log, zap=self.zap)
         try:
             return OutBridge(
                 self.context,

@@ -45,7 +45,7 @@ def local_deployment(run_dir: Path) -> Deployment:
     ground_bind = first.peers.get(GROUND_STATION)
     if ground_bind is None:
         raise RunFolderError(f"{first.path}: net.peers has no {GROUND_STATION}")
-    keys = run_dir / "keys" / GROUND_STATION
+    keys = run_dir / "keys"  # the run's one key folder (a local run ships none)
     drones = sorted(configs)
     return Deployment(
         mission=program.mission,
@@ -55,7 +55,7 @@ def local_deployment(run_dir: Path) -> Deployment:
         endpoints={n: configs[n].bind for n in drones},
         ground_bind=ground_bind,
         run_dir=run_dir.resolve(),
-        keys_dir=keys if keys.is_dir() else None,
+        keys_dir=keys if (keys / GROUND_STATION).is_dir() else None,
     )
 
 

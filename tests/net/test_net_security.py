@@ -269,7 +269,7 @@ def test_one_authenticator_per_context(tmp_path: Path) -> None:
     ctx: zmq.Context[Any] = zmq.Context()
     first = FleetAuthenticator(ctx, keys)
     try:
-        with pytest.raises(KeysError, match="one CURVE participant per"):
+        with pytest.raises(KeysError, match="one CURVE participant per ZeroMQ context"):
             FleetAuthenticator(ctx, keys)
     finally:
         first.stop()

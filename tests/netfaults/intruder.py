@@ -30,7 +30,8 @@ import zmq.auth
 from zmq.auth.thread import ThreadAuthenticator
 
 from eamos.net import wire
-from eamos.net.keys import ZAP_DOMAIN, FleetKeys
+from eamos.net.keys import FleetKeys
+from eamos.net.zap import participant_domain
 
 
 def main() -> int:
@@ -56,14 +57,14 @@ def main() -> int:
     ctx: zmq.Context[Any] = zmq.Context()
     auth = ThreadAuthenticator(ctx)
     auth.start()
-    auth.configure_curve(domain=ZAP_DOMAIN, location=zmq.auth.CURVE_ALLOW_ANY)
+    auth.configure_curve(domain=participant_domain(args.pose), location=zmq.auth.CURVE_ALLOW_ANY)
 
     server = ctx.socket(zmq.XPUB)
     server.setsockopt(zmq.XPUB_VERBOSE, 1)
     server.curve_server = True
     server.curve_publickey = own.public
     server.curve_secretkey = own.secret
-    server.zap_domain = ZAP_DOMAIN.encode()
+    server.zap_domain = participant_domain(args.pose).encode()
     server.bind(args.bind)
 
     spies: list[zmq.Socket[Any]] = []
