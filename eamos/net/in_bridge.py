@@ -6,6 +6,7 @@ See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -52,6 +53,10 @@ def latest_telemetry(batch: list[list[bytes]]) -> tuple[list[list[bytes]], int]:
     kept = [f for i, f in enumerate(batch) if f[0][:3] != b"tm/" or newest[f[0]] == i]
     return kept, len(batch) - len(kept)
 
+
+#: A turn of the receive loop longer than this is reported (``on_stall``): far above a
+#: turn's usual length, and below the link's own stall threshold.
+STALL_S = 0.05
 
 #: The most messages one socket gives per turn (others are not starved by a flood).
 READ_BATCH = 256
@@ -202,8 +207,10 @@ class InBridge(BridgeThread):
         heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
         on_batch_end: Callable[[], None] | None = None,
         announced: Iterable[str] = (),
+        on_stall: Callable[[float], None] | None = None,
     ) -> None:
         self.mission = mission
+        self._on_stall = on_stall
         self.peers: dict[str, str] = dict(connect)
         self.secure = curve is not None
         self._on_message = on_message
@@ -380,6 +387,7 @@ class InBridge(BridgeThread):
             while True:
                 timeout = reconnector.poll_timeout_ms()
                 ready = watch.wait(None if timeout is None else timeout / 1000)
+                turn_began = time.monotonic()
                 # A socket this thread connects or subscribes raises no signal for
                 # what that brings at once: it is looked at again (SocketWatch).
                 if ctrl in ready:
@@ -406,6 +414,7 @@ class InBridge(BridgeThread):
                         self._on_batch_end()
                     except BaseException as exc:  # see _handle
                         self._ledger.consumer_failed(exc, type="batch_end")
+                self._turn_took(time.monotonic() - turn_began)
         except zmq.ContextTerminated:
             self._log.warning("net.in.context_terminated")
         except zmq.ZMQError:
@@ -420,6 +429,15 @@ class InBridge(BridgeThread):
                 monitor.close()
             for sub in self._subs:
                 sub.close()
+
+    def _turn_took(self, seconds: float) -> None:
+        """A turn of the loop took ``seconds``: told to ``on_stall`` when that is long
+        (:data:`STALL_S`): what peers sent meanwhile waited unread, not their silence."""
+        if seconds > STALL_S and self._on_stall is not None:
+            try:
+                self._on_stall(seconds)
+            except BaseException as exc:  # see _handle
+                self._ledger.consumer_failed(exc, type="stall")
 
     def _drain_control(self) -> bool:
         while True:

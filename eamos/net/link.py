@@ -264,6 +264,7 @@ class LinkDriver(Generic[OutT, InT]):
                 self._receive,
                 self._flush_acks,
                 announced=[p for p in announced if p in names],
+                on_stall=self._receive_stalled,
             )
             listening, self._listening = self._listening, set()
         for peer in listening:  # subscribed before the In-Bridge existed
@@ -375,6 +376,13 @@ class LinkDriver(Generic[OutT, InT]):
         now = self.clock()
         with self._cond:
             self._execute(self.session.on_batch_end(now))
+
+    def _receive_stalled(self, stalled_s: float) -> None:
+        """In-Bridge: one turn of its loop took ``stalled_s``
+        (:meth:`~eamos.net.session.ReliableSession.on_receive_stall`)."""
+        now = self.clock()
+        with self._cond:
+            self.session.on_receive_stall(stalled_s, now)
 
     def _on_subscription(self, topic: bytes, on: bool) -> None:
         # Out-Bridge thread: a peer (re)subscribed, e.g. after a reconnect.  What

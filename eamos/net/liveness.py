@@ -115,6 +115,7 @@ class Liveness:
         """Something came from ``peer``: the ``back`` event if it had been lost."""
         silent = 0.0 if peer.heard is None else now - peer.heard
         peer.heard = now
+        peer.forgiven_s = 0.0
         if not peer.watched:
             return None  # no heartbeats from it: its silence would mean nothing
         if peer.state == "left":
@@ -171,6 +172,21 @@ class Liveness:
             for tx in [broadcasts, *(p.tx for p in peers)]:
                 if tx.due is not None:  # and the receive thread gets its turn first
                     tx.due = max(tx.due + late, now + LATE_TICK_S)
+
+    def receive_stalled(self, now: float, peers: Iterable[Peer], stalled_s: float) -> None:
+        """The receive loop took ``stalled_s`` over one turn (a burst to handle, a busy
+        machine): what the other peers sent meanwhile waited unread, so that time is not
+        their silence either, and this participant's deadlines grow as for a late timer."""
+        if stalled_s <= LATE_TICK_S:
+            return
+        self.lateness.note(now, stalled_s)
+        # Bounded per silence: a loop that is always busy must not hide a dead peer.
+        most = MAX_EXTENSION * self.settings.peer_timeout_s
+        for peer in peers:
+            give = min(stalled_s, max(0.0, most - peer.forgiven_s))
+            if give > 0.0:
+                peer.forgiven_s += give
+                self.forgive([peer], give, now)
 
     def forgive(self, peers: Iterable[Peer], stalled_s: float, now: float) -> None:
         """This participant's own loop stalled ``stalled_s``: that time is not the peers' silence.

@@ -206,6 +206,8 @@ class Peer:
     last_nack: float = float("-inf")
     state: str = "unknown"  # unknown | up | lost | left
     heard: float | None = None
+    # Receive-loop stalls credited to its silence since it was last heard (bounded).
+    forgiven_s: float = 0.0
     srtt: float | None = None
     rttvar: float = 0.0
     tel_time: float | None = None  # sample time of the latest telemetry from it

@@ -271,6 +271,10 @@ class ReliableSession:
             return []  # nothing may follow the goodbye heartbeat
         return self._receiver.acks(now)
 
+    def on_receive_stall(self, stalled_s: float, now: float) -> None:
+        """One turn of the receive loop took ``stalled_s``: not the peers' silence."""
+        self._live.receive_stalled(now, self._peers.values(), stalled_s)
+
     def on_subscription(self, topic: bytes, now: float) -> list[SessionEffect]:
         """A peer (re)subscribed to ``topic``: what the socket dropped meanwhile goes now."""
         actions: list[SessionEffect] = []

@@ -88,9 +88,11 @@ class Transport(Protocol[OutT_co, InT_co]):
         on_message: Callable[[wire.Message], None],
         on_batch_end: Callable[[], None],
         announced: Iterable[str] = (),
+        on_stall: Callable[[float], None] | None = None,
     ) -> InT_co:
         """The incoming side, connected to ``peers`` (name -> endpoint), on ``topics``;
-        those in ``announced`` once they announce themselves (:meth:`InSide.announce`)."""
+        those in ``announced`` once they announce themselves (:meth:`InSide.announce`);
+        ``on_stall`` told how long a turn of the receive loop took when it took long."""
         ...
 
     def close(self) -> None:
@@ -162,6 +164,7 @@ class ZmqTransport:
         on_message: Callable[[wire.Message], None],
         on_batch_end: Callable[[], None],
         announced: Iterable[str] = (),
+        on_stall: Callable[[float], None] | None = None,
     ) -> InBridge:
         """Connect an In-Bridge (not started) to ``peers`` and subscribe it to ``topics``
         (``announced``: see :class:`InBridge`)."""
@@ -177,6 +180,7 @@ class ZmqTransport:
             heartbeat_ms=self.heartbeat_ms,
             on_batch_end=on_batch_end,
             announced=announced,
+            on_stall=on_stall,
         )
 
     def close(self) -> None:

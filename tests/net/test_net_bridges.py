@@ -425,3 +425,37 @@ def test_bad_endpoint_raises_without_leaking(ctx: zmq.Context[Any]) -> None:
     term.start()
     term.join(WAIT_S)
     assert not term.is_alive()  # no socket left open
+
+
+def test_a_long_turn_of_the_receive_loop_is_reported_as_a_stall(
+    ctx: zmq.Context[Any], bridges: Bridges
+) -> None:
+    # A consumer that takes long over one message (a burst on a busy machine): the
+    # bridge tells how long the turn took, so the link does not count it as the
+    # peers' silence.  Quick messages are no stall.
+    stalls: list[float] = []
+    slow = threading.Event()  # never set: the consumer's wait is its slowness
+    inbox = Collector()
+
+    def consumer(msg: Message) -> None:
+        if isinstance(msg, Trigger) and msg.iteration[0] == 99:
+            slow.wait(0.3)
+        inbox(msg)
+
+    out = bridges.out()
+    inb = InBridge(
+        ctx, {"D1": out.endpoint}, [topic_to("D2")], consumer, MISSION, on_stall=stalls.append
+    )
+    bridges.made.append(inb)
+    inb.start()
+    assert out.wait_subscribed([topic_to("D2")], WAIT_S)
+    for n in range(5):
+        out.send(trig("D1", "D2", n))
+    assert inbox.wait_count(5)
+    assert stalls == []
+    out.send(trig("D1", "D2", 99))
+    assert inbox.wait_count(6)
+    deadline = time.monotonic() + WAIT_S
+    while not stalls and time.monotonic() < deadline:
+        slow.wait(0.01)
+    assert len(stalls) == 1 and 0.3 <= stalls[0] < WAIT_S

@@ -174,3 +174,32 @@ def test_lateness_keeps_the_largest_of_the_window() -> None:
     for k in range(1000):  # rising lateness keeps one entry
         w.note(20.0 + k, k / 1000)
     assert len(w._kept) == 1
+
+
+def test_a_stalled_receive_loop_does_not_make_a_peer_lost() -> None:
+    # The timer runs on time, but one turn of the receive loop took long (a burst of
+    # triggers on a fan-in drone): B's heartbeats waited unread meanwhile.
+    s, due = session_hearing_b()
+    stall = FAST.peer_timeout_s * 0.9
+    s.on_receive_stall(stall, stall)
+    now, events = 0.0, list[str]()
+    while now < FAST.peer_timeout_s + stall * 0.5 and not events:
+        now = due
+        actions, due = s.on_tick(now)
+        events = lost_events(actions)
+    assert events == []  # without the stall credited, B was lost by now
+
+
+def test_receive_stalls_cannot_hide_a_dead_peer_for_ever() -> None:
+    # A receive loop that is always busy: B never speaks again, and is still lost,
+    # once the credit for the stalls reaches its bound.
+    s, due = session_hearing_b()
+    now, events = 0.0, list[str]()
+    limit = (1 + 3 * MAX_EXTENSION) * FAST.peer_timeout_s + FAST.heartbeat_s
+    while now < 10 * limit and not events:
+        now = due
+        s.on_receive_stall(2 * LATE_TICK_S, now)
+        actions, due = s.on_tick(now)
+        events = lost_events(actions)
+    assert events == ["lost"]
+    assert now <= limit, now
