@@ -181,7 +181,12 @@ class Monitor:
         on_disconnect: Callable[[], None] | None = None,
         on_retry: Callable[[], None] | None = None,
     ) -> None:
-        self.socket = sock.get_monitor_socket(MONITOR_EVENTS)
+        # A unique address, not pyzmq's default (made from the socket's descriptor
+        # number): the drones of a process share one context, where a descriptor
+        # closed by one drone and reused by another would name a monitor still bound.
+        self.socket = sock.get_monitor_socket(
+            MONITOR_EVENTS, addr=f"inproc://eamos-monitor-{uuid.uuid4().hex}"
+        )
         self._owner = sock
         self._log = log
         self._peer = peer
