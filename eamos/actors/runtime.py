@@ -111,8 +111,8 @@ class DroneRuntime:
         on_reprogrammed: Callable[[DroneProgram], None] | None = None,
     ) -> None:
         """``log_writer``: the process's log writer when several runtimes share a process;
-        ``context``, ``zap``: the process's ZeroMQ context and its ZAP handler when several
-        runtimes share them (:class:`~eamos.actors.drone.ProcessShare`; None: its own);
+        ``context``, ``zap``: a ZeroMQ context and its ZAP handler that several runtimes
+        share (:class:`~eamos.net.zap.ZapHandler`; None: its own context);
         ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
         nothing before it (:class:`~.inbound.StartGate`; None: no gate); ``replay``: a
         node restarted mid-mission replays what it reported (:mod:`.continuation`);

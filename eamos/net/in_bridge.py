@@ -134,6 +134,15 @@ class ReceiveLedger:
                 exc_info=exc,
             )
 
+    def turn_took(self, seconds: float, on_stall: Callable[[float], None] | None) -> None:
+        """A turn of the receive loop took ``seconds``: told to ``on_stall`` when that is
+        long (:data:`STALL_S`): what peers sent meanwhile waited unread, not their silence."""
+        if seconds > STALL_S and on_stall is not None:
+            try:
+                on_stall(seconds)
+            except BaseException as exc:  # a consumer's failure is its own
+                self.consumer_failed(exc, type="stall")
+
     def consumer_failed(self, exc: BaseException, **fields: Any) -> None:
         """The consumer's callback raised ``exc`` (``net.in.callback_error``)."""
         self.callback_errors += 1
@@ -414,7 +423,7 @@ class InBridge(BridgeThread):
                         self._on_batch_end()
                     except BaseException as exc:  # see _handle
                         self._ledger.consumer_failed(exc, type="batch_end")
-                self._turn_took(time.monotonic() - turn_began)
+                self._ledger.turn_took(time.monotonic() - turn_began, self._on_stall)
         except zmq.ContextTerminated:
             self._log.warning("net.in.context_terminated")
         except zmq.ZMQError:
@@ -429,15 +438,6 @@ class InBridge(BridgeThread):
                 monitor.close()
             for sub in self._subs:
                 sub.close()
-
-    def _turn_took(self, seconds: float) -> None:
-        """A turn of the loop took ``seconds``: told to ``on_stall`` when that is long
-        (:data:`STALL_S`): what peers sent meanwhile waited unread, not their silence."""
-        if seconds > STALL_S and self._on_stall is not None:
-            try:
-                self._on_stall(seconds)
-            except BaseException as exc:  # see _handle
-                self._ledger.consumer_failed(exc, type="stall")
 
     def _drain_control(self) -> bool:
         while True:
