@@ -359,17 +359,17 @@ def _execute(
             continue
         activity = ask_activity(runtime.executive, ASK_TIMEOUT_S)
         activity = dataclasses.replace(activity, held=runtime.held_by_operator)
+        silent = silent_since(list(runtime.link.peer_events), time.time(), time.monotonic())
         if activity.resolved and not checked_airborne:
             checked_airborne = True
-            ending = left_airborne(runtime)
-        else:
-            ending = end_on_own(
-                time.monotonic(),
-                activity,
-                silent_since(list(runtime.link.peer_events), time.time(), time.monotonic()),
-                sources,
-                limit_s,
+            # Held and alone, the hold is what strands it, even when a peer that ended
+            # the same way a moment earlier failed this part's last nodes.
+            held = activity.held and end_on_own(
+                time.monotonic(), activity, silent, sources, limit_s
             )
+            ending = held or left_airborne(runtime)
+        else:
+            ending = end_on_own(time.monotonic(), activity, silent, sources, limit_s)
         if ending is None:
             continue
         peer = ending.peer

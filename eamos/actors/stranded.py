@@ -130,8 +130,16 @@ def end_on_own(
     ``silent`` maps a silent peer to the monotonic time it went silent;
     ``sources`` are the peers the drone may be waiting for.
     """
+    since = silent.get(GROUND_STATION)
+    if activity.held and since is not None and now - since > limit_s:
+        # First, resolved or not: a peer that ended the same way a moment earlier
+        # may have failed this part's last nodes, but what strands it is the hold.
+        return EndOnOwn(
+            "stranded",
+            f"stranded: held by the operator, and the ground station, which alone can resume "
+            f"it, has been silent for {now - since:.0f} s (peer_wait_limit_s = {limit_s:g})",
+        )
     if activity.resolved:
-        since = silent.get(GROUND_STATION)
         if since is not None and now - since > limit_s:
             return EndOnOwn(
                 "no_complete",
@@ -139,13 +147,6 @@ def end_on_own(
                 f"(peer_wait_limit_s = {limit_s:g}); ending on its own",
             )
         return None
-    since = silent.get(GROUND_STATION)
-    if activity.held and since is not None and now - since > limit_s:
-        return EndOnOwn(
-            "stranded",
-            f"stranded: held by the operator, and the ground station, which alone can resume "
-            f"it, has been silent for {now - since:.0f} s (peer_wait_limit_s = {limit_s:g})",
-        )
     if activity.idle_since is None:
         return None
     for peer in sorted(sources):

@@ -85,6 +85,15 @@ def test_a_held_drone_without_its_ground_station_says_why_it_ends() -> None:
     assert ending.reason.startswith("stranded: held by the operator, and the ground station")
 
 
+def test_a_held_drone_whose_part_a_peer_failed_still_names_the_hold() -> None:
+    # Two drones held, the ground station gone: the one whose limit came first ends,
+    # and its failed triggers resolve the other's part a moment before its own check.
+    held_and_resolved = Activity(True, None, held=True)
+    ending = end_on_own(100.0, held_and_resolved, {GROUND_STATION: 80.0}, set(), LIMIT)
+    assert ending is not None
+    assert ending.reason.startswith("stranded: held by the operator, and the ground station")
+
+
 def test_the_reason_names_the_peer_and_the_wait() -> None:
     ending = end_on_own(100.0, idle(50.0), {"Drone1": 80.0}, {"Drone1"}, LIMIT)
     assert ending is not None
