@@ -179,7 +179,6 @@ class PhaseClock:
         self.drones = drones
         self.ready_at: float | None = None
         self.resolved_at: float | None = None
-        self._station: Any = None
         self._waiting = set(drones)  # not resolved yet
 
     def __enter__(self) -> PhaseClock:
@@ -189,7 +188,7 @@ class PhaseClock:
         return None
 
     def watch(self, station: Any) -> None:
-        self._station = station
+        return None  # each event's own view tells (see event)
 
     def event(self, name: str, view: Any, msg: Any) -> None:
         # Counted from each event's own view: a snapshot of every drone per event would

@@ -364,10 +364,11 @@ def _execute(
             checked_airborne = True
             # Held and alone, the hold is what strands it, even when a peer that ended
             # the same way a moment earlier failed this part's last nodes.
-            held = activity.held and end_on_own(
-                time.monotonic(), activity, silent, sources, limit_s
-            )
-            ending = held or left_airborne(runtime)
+            ending = None
+            if activity.held:
+                ending = end_on_own(time.monotonic(), activity, silent, sources, limit_s)
+            if ending is None:
+                ending = left_airborne(runtime)
         else:
             ending = end_on_own(time.monotonic(), activity, silent, sources, limit_s)
         if ending is None:

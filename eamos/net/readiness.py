@@ -43,7 +43,7 @@ class SocketWatch:
     def add(self, sock: zmq.Socket[Any]) -> None:
         """Watch ``sock`` (checked at the next :meth:`wait`, for what is queued already)."""
         fd = sock.getsockopt(zmq.FD)
-        assert isinstance(fd, int)  # an int on every platform but Windows' SOCKET handles
+        assert isinstance(fd, int)  # pyzmq types every option as int | bytes
         self._selector.register(fd, selectors.EVENT_READ, sock)
         self._unchecked.add(sock)
 

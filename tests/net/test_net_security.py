@@ -374,3 +374,46 @@ def test_config_with_keys_and_link_settings(tmp_path: Path) -> None:
     assert config.peer_give_up_s == 20
     plain = NodeConfig.load(write_config(tmp_path, 'bind = "tcp://127.0.0.1:6001"\nplain = true'))
     assert plain.keys is None
+
+
+def test_participants_sharing_a_context_share_its_zap_handler(tmp_path: Path) -> None:
+    # Two participants' Out-Bridges on one context, one ZapHandler: each admits the
+    # fleet in its own ZAP domain, and a refused key is counted by the one it knocked on.
+    from eamos.net.zap import ZapHandler
+
+    fleet = create_fleet_keys(tmp_path / "fleet", ["D1", "D2", "GCS"])
+    keys = {n: FleetKeys.load(fleet / n, n) for n in ("D1", "D2", "GCS")}
+    evil = FleetKeys.load(create_fleet_keys(tmp_path / "evil", ["GCS"]) / "GCS", "GCS")
+    intruder = FleetKeys("GCS", evil.public, evil.secret, dict(keys["GCS"].fleet))
+    shared: zmq.Context[Any] = zmq.Context()
+    client: zmq.Context[Any] = zmq.Context()
+    zap = ZapHandler(shared)
+    auths = {d: FleetAuthenticator(shared, keys[d], zap=zap) for d in ("D1", "D2")}
+    outs = {d: OutBridge(shared, "tcp://127.0.0.1:0", None, curve=keys[d]) for d in auths}
+    ins: list[InBridge] = []
+    try:
+        for out in outs.values():
+            out.start()
+        for d, out in outs.items():
+            ins.append(
+                InBridge(client, {d: out.endpoint}, [b""], Inbox(), MISSION, curve=keys["GCS"])
+            )
+        ins.append(
+            InBridge(client, {"D2": outs["D2"].endpoint}, [b"x"], Inbox(), MISSION, curve=intruder)
+        )
+        for inb in ins:
+            inb.start()
+        assert outs["D1"].wait_subscribed([b""], WAIT_S)
+        assert outs["D2"].wait_subscribed([b""], WAIT_S)
+        assert eventually(lambda: auths["D2"].denied >= 1)
+        assert auths["D1"].denied == 0  # the refusal is D2's alone
+    finally:
+        for inb in ins:
+            inb.close()
+        for out in outs.values():
+            out.close()
+        for auth in auths.values():
+            auth.stop()
+        zap.stop()
+        shared.destroy(linger=0)
+        client.destroy(linger=0)
