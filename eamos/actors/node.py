@@ -106,6 +106,9 @@ _APPLY: dict[type, str] = {
     Note: "_note",
 }
 
+#: Effects told to the executive before the turn's triggers to other drones leave.
+_RECORDS_FIRST = (Record, Progress)
+
 
 __all__ = [
     "CONDITION_KINDS",
@@ -342,12 +345,34 @@ class MissionNode(PooledActor):
         # Triggers to other drones first: a peer waits for them, and nothing of this
         # drone is ordered against them (local effects keep their order).
         effects = self.amendable.outgoing(effects)  # a redirected node holds them
+        external = [e for e in effects if isinstance(e, Emit) and e.route.external]
+        if external:
+            self._tell_records_first(effects)
+        for emit in external:
+            self._emit(emit)
         for effect in effects:
-            if type(effect) is Emit and effect.route.external:
-                self._emit(effect)
+            if isinstance(effect, Emit) and effect.route.external:
+                continue  # sent above
+            if external and type(effect) in _RECORDS_FIRST:
+                continue  # told above
+            getattr(self, _APPLY[type(effect)])(effect)
+
+    def _tell_records_first(self, effects: Sequence[Effect]) -> None:
+        """The turn's action records and progress, to the executive before a trigger goes
+        to another drone: that peer may end the mission at once, and this drone's report
+        (asked of the executive then, after this mail) must hold every action whose end
+        the trigger announced.  A tell is one append to an inbox: no thread is woken
+        (:class:`~.dispatch.LazyMail`), and the turn's log lines still wait."""
+        assert self.links is not None
         for effect in effects:
-            if type(effect) is not Emit or not effect.route.external:
+            if type(effect) in _RECORDS_FIRST:
                 getattr(self, _APPLY[type(effect)])(effect)
+        if self._news:
+            news, self._news = tuple(self._news), []
+            try:
+                self.links.executive.tell(ExecutiveNews(news))
+            except pykka.ActorDeadError:
+                self.log.debug("mission.node.receiver_gone", message="ExecutiveNews")
 
     def _tell(self, ref: Mailbox[T], message: T) -> None:
         if self._lines:  # what the receiver writes because of it comes after them

@@ -112,6 +112,56 @@ def test_the_trigger_to_another_drone_leaves_before_the_turns_lines(tmp_path: Pa
     assert ts["uniform.result"] <= ts["mission.outbridge.sent"] <= ts["mission.node.finished"]
 
 
+class ExecutiveAtSend(PeekingLink):
+    """Also notes what the executive had been told when a trigger left."""
+
+    def __init__(self, logs: DroneLogs, folder: Path, executive: Recorder) -> None:
+        super().__init__(logs, folder)
+        self.executive = executive
+        self.told: list[list[Any]] = []
+
+    def send(self, msg: wire.Message) -> bool:
+        with self.executive.changed:
+            self.told.append(list(self.executive.messages))
+        return super().send(msg)
+
+
+def test_the_action_record_reaches_the_executive_before_the_trigger_leaves(
+    tmp_path: Path,
+) -> None:
+    # The peer may end the mission on this trigger; this drone's report, asked of its
+    # executive then, must already hold the action whose end the trigger announced
+    # (tests/actors/test_node_actors.py's RepeatFor once missed a last iteration).
+    from eamos.actors.messages import ActionRecord
+
+    logs = DroneLogs.open(tmp_path, "D1")
+    executive = Recorder(unpack_news=True)
+    link = ExecutiveAtSend(logs, tmp_path, executive)
+    outbox = Outbox(link, "D1", "m1", logs.mission)  # type: ignore[arg-type]
+    space = UniformSpace(FakeAdapter("D1", auto=True), logs.uniform)
+    dispatcher = Dispatcher(workers=1, name="test-turn-lines-3")
+    peers = {name: Recorder() for name in ("hal", "board")}
+    links = Links({}, peers["hal"], peers["board"], outbox, executive, space)  # type: ignore[arg-type]
+    spec = ProgramNode("n5", 5, "action", "D1", True, label="Arm()", action="Arm", args=())
+    routes = (Route("n9", "D2", "seq", True),)
+    ref = MissionNode.start(
+        dispatcher, spec, routes, frozenset({"n1"}), frozenset(), "D1", logs.mission
+    )
+    try:
+        ref.tell(Wire(links))
+        ref.tell(RemoteTrigger("n1", "n5", (), "done", "D0"))
+        assert link.done.wait(WAIT_S)
+        ref.stop()
+    finally:
+        dispatcher.shutdown()
+        logs.close()
+    (told,) = link.told
+    records = [m for m in told if isinstance(m, ActionRecord)]
+    assert [(r.node, r.action, r.result) for r in records] == [("n5", "Arm", "ok")]
+    # The turn's log lines still waited for the trigger.
+    assert "mission.node.triggered" not in link.seen[0][0]
+
+
 def test_a_held_result_line_is_written_before_any_later_line_of_the_uniform_log(
     tmp_path: Path,
 ) -> None:
