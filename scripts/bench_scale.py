@@ -35,12 +35,21 @@ each N in a fresh process, and reported per N:
   ``messages_sent``), at ``ground_telemetry_hz`` (the fleet file's ``[net]`` key,
   docs/configuration.md; ``--ground-telemetry-hz``, default the fleet's default).
 
+* ``ground_cpu_s``: this process's CPU seconds during the run (the ground station,
+  its keys, configs and summary, and with ``--monitor`` the monitor), a part of
+  ``cpu_s``;
+* with ``--monitor``: the live browser monitor is served as ``eamos run --monitor``
+  serves it (:func:`eamos.monitor.display.start_live_monitor`) with one websocket
+  client reading every update in a thread of this process (its CPU counted in
+  ``ground_cpu_s`` too), and ``monitor`` gives the bytes and messages the page got;
+  the monitor's added CPU is ``ground_cpu_s`` with it minus without, over ``flight``.
+
 ``--drones-per-process N|auto`` runs N drones per ``eamos-node`` process
 (``eamos run --drones-per-process``; default ``auto``, about one per core, as
 ``eamos run``; 1: a process per drone); ``processes`` says how many there were.
 
 Usage: ``python scripts/bench_scale.py --json [--drones 10,25,50,100] [--speedup 10]
-[--drones-per-process 1] [--ground-telemetry-hz 20]``.
+[--drones-per-process 1] [--ground-telemetry-hz 20] [--monitor]``.
 """
 
 from __future__ import annotations
@@ -206,6 +215,47 @@ class PhaseClock:
             self.ready_at = time.monotonic()
 
 
+class MonitorPage:
+    """The live monitor served as ``eamos run --monitor`` serves it, and one page's
+    websocket reading every update (in a thread of this process)."""
+
+    def __init__(self, run_dir: Path, stop: threading.Event, clock: PhaseClock) -> None:
+        from eamos.monitor.display import TeeDisplay, start_live_monitor
+
+        self.server = start_live_monitor(run_dir, stop, clock.say)
+        self.display = TeeDisplay(clock, self.server.hub)  # type: ignore[arg-type]
+        self.counts = {"bytes": 0, "messages": 0}
+        self._done = threading.Event()
+        self._connected = threading.Event()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        if not self._connected.wait(30.0):
+            raise RuntimeError("the monitor's websocket did not connect")
+
+    def _read(self) -> None:
+        from websockets.exceptions import ConnectionClosed
+        from websockets.sync.client import connect
+
+        with connect(f"ws://127.0.0.1:{self.server.port}/ws") as ws:
+            self._connected.set()
+            while not self._done.is_set():
+                try:
+                    text = ws.recv(timeout=0.5)
+                except TimeoutError:
+                    continue
+                except ConnectionClosed:  # the server stopped
+                    return
+                self.counts["bytes"] += len(text)
+                self.counts["messages"] += 1
+
+    def close(self) -> dict[str, int]:
+        """Stop serving; what the page got."""
+        self.server.stop()
+        self._done.set()
+        self._reader.join(timeout=10.0)
+        return {"bytes_to_page": self.counts["bytes"], "messages_to_page": self.counts["messages"]}
+
+
 def relay_gaps_ms(reports: dict[str, Any], drones: int) -> list[float]:
     """End of one drone's relay action to the start of the next one's, both relays (ms)."""
 
@@ -273,6 +323,7 @@ def one_run(
     per_process: int | None,
     keep: str = "",
     ground_telemetry_hz: float | None = None,
+    monitor: bool = False,
 ) -> dict[str, Any]:
     """Fly the relay mission with ``drones`` drones here (run in a fresh process)."""
     import dataclasses
@@ -297,19 +348,24 @@ def one_run(
         fleet = FleetConfig.empty()
         if ground_telemetry_hz is not None:
             fleet = dataclasses.replace(fleet, ground_telemetry_hz=ground_telemetry_hz)
+        stop = threading.Event()
+        page = MonitorPage(run_dir, stop, clock) if monitor else None
         started = time.monotonic()
         started_wall = time.time()
         before = resource.getrusage(resource.RUSAGE_SELF)
-        summary = fly_local(
-            LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
-            run_dir,
-            fleet,
-            Limits(ready_timeout_s=max(60.0, 3.0 * drones), timeout_s=timeout_s),
-            threading.Event(),
-            speedup=speedup,
-            display=clock,  # type: ignore[arg-type]  # the Display protocol, duck-typed
-            drones_per_process=per_process,
-        )
+        try:
+            summary = fly_local(
+                LocalMission(compiled.mission.name, compiled.mission_id, compiled.programs),
+                run_dir,
+                fleet,
+                Limits(ready_timeout_s=max(60.0, 3.0 * drones), timeout_s=timeout_s),
+                stop,
+                speedup=speedup,
+                display=page.display if page is not None else clock,  # type: ignore[arg-type]
+                drones_per_process=per_process,
+            )
+        finally:
+            watched = page.close() if page is not None else None
         ended = time.monotonic()
         peak_kib = sampler.stop()
         me = resource.getrusage(resource.RUSAGE_SELF)
@@ -346,7 +402,9 @@ def one_run(
                 + kids.ru_stime,
                 2,
             ),
+            "ground_cpu_s": round(me.ru_utime + me.ru_stime - before.ru_utime - before.ru_stime, 2),
             "bench_cpu_s": round(before.ru_utime + before.ru_stime, 2),
+            "monitor": watched,
             "peak_rss_mb": round(peak_kib / 1024, 1),
             "retransmissions": retrans,
             "peer_lost_events": count_in_logs(run_dir / "logs", b'"mission.peer.lost"'),
@@ -397,12 +455,21 @@ def main() -> None:
     parser.add_argument(
         "--keep", default="", metavar="DIR", help="keep each run folder as DIR/run-N (a new DIR)"
     )
+    parser.add_argument(
+        "--monitor", action="store_true", help="serve the live monitor to one websocket page"
+    )
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # the child's part
     args = parser.parse_args()
     if args.one:
         per_process = None if args.drones_per_process == "auto" else int(args.drones_per_process)
         result = one_run(
-            args.one, args.speedup, args.timeout, per_process, args.keep, args.ground_telemetry_hz
+            args.one,
+            args.speedup,
+            args.timeout,
+            per_process,
+            args.keep,
+            args.ground_telemetry_hz,
+            args.monitor,
         )
         print(json.dumps(result))
         return
@@ -427,6 +494,7 @@ def main() -> None:
                     if args.ground_telemetry_hz is not None
                     else []
                 ),
+                *(["--monitor"] if args.monitor else []),
             ],
             capture_output=True,
             text=True,

@@ -106,8 +106,31 @@ _APPLY: dict[type, str] = {
     Note: "_note",
 }
 
-#: Effects told to the executive before the turn's triggers to other drones leave.
-_RECORDS_FIRST = (Record, Progress)
+
+def turn_order(
+    effects: Sequence[Effect],
+) -> tuple[list[Record | Progress], list[Emit], list[Effect]]:
+    """A turn's effects in the order a node applies them: (news for the executive that
+    goes before the triggers, the triggers to other drones, the rest in their order).
+
+    Triggers to other drones go first: a peer waits for them, and nothing of this drone
+    is ordered against them.  Only the turn's action records and progress go before
+    them (when there are any): that peer may end the mission at once, and this drone's
+    report, asked of its executive then, must hold every action whose end the trigger
+    announced.  Telling the executive is an append to its inbox; no thread is woken
+    (:class:`~.dispatch.LazyMail`).
+    """
+    external = [e for e in effects if isinstance(e, Emit) and e.route.external]
+    if not external:
+        return [], [], list(effects)
+    first: list[Record | Progress] = []
+    rest: list[Effect] = []
+    for effect in effects:
+        if isinstance(effect, Record | Progress):
+            first.append(effect)
+        elif not (isinstance(effect, Emit) and effect.route.external):
+            rest.append(effect)
+    return first, external, rest
 
 
 __all__ = [
@@ -121,6 +144,7 @@ __all__ = [
     "MissionNode",
     "Route",
     "Wire",
+    "turn_order",
 ]
 
 
@@ -297,10 +321,10 @@ class MissionNode(PooledActor):
         for log, method, event, fields, at in lines:
             log_line(log, method, event, fields, at)  # stamped when it happened
 
-    def _send_news(self) -> None:
+    def _send_news(self, lines: bool = True) -> None:
         if self._news and self.links is not None:
             news, self._news = tuple(self._news), []
-            self._tell(self.links.executive, ExecutiveNews(news))
+            self._tell(self.links.executive, ExecutiveNews(news), lines)
 
     def on_failure(
         self,
@@ -342,40 +366,20 @@ class MissionNode(PooledActor):
     # -- effects -> messages ------------------------------------------------------------
 
     def _apply(self, effects: Sequence[Effect]) -> None:
-        # Triggers to other drones first: a peer waits for them, and nothing of this
-        # drone is ordered against them (local effects keep their order).
-        effects = self.amendable.outgoing(effects)  # a redirected node holds them
-        external = [e for e in effects if isinstance(e, Emit) and e.route.external]
+        first, external, rest = turn_order(self.amendable.outgoing(effects))
+        for news in first:
+            getattr(self, _APPLY[type(news)])(news)
         if external:
-            self._tell_records_first(effects)
+            self._send_news(lines=False)  # the turn's lines still wait for its triggers
         for emit in external:
             self._emit(emit)
-        for effect in effects:
-            if isinstance(effect, Emit) and effect.route.external:
-                continue  # sent above
-            if external and type(effect) in _RECORDS_FIRST:
-                continue  # told above
+        for effect in rest:
             getattr(self, _APPLY[type(effect)])(effect)
 
-    def _tell_records_first(self, effects: Sequence[Effect]) -> None:
-        """The turn's action records and progress, to the executive before a trigger goes
-        to another drone: that peer may end the mission at once, and this drone's report
-        (asked of the executive then, after this mail) must hold every action whose end
-        the trigger announced.  A tell is one append to an inbox: no thread is woken
-        (:class:`~.dispatch.LazyMail`), and the turn's log lines still wait."""
-        assert self.links is not None
-        for effect in effects:
-            if type(effect) in _RECORDS_FIRST:
-                getattr(self, _APPLY[type(effect)])(effect)
-        if self._news:
-            news, self._news = tuple(self._news), []
-            try:
-                self.links.executive.tell(ExecutiveNews(news))
-            except pykka.ActorDeadError:
-                self.log.debug("mission.node.receiver_gone", message="ExecutiveNews")
-
-    def _tell(self, ref: Mailbox[T], message: T) -> None:
-        if self._lines:  # what the receiver writes because of it comes after them
+    def _tell(self, ref: Mailbox[T], message: T, lines: bool = True) -> None:
+        """``ref.tell(message)``, this turn's log lines written first (``lines``: what the
+        receiver writes because of it comes after them)."""
+        if lines and self._lines:
             self._write_lines()
         try:
             ref.tell(message)

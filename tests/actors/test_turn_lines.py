@@ -219,3 +219,22 @@ def test_a_stand_in_out_bridge_is_told_the_trigger(tmp_path: Path) -> None:
         dispatcher.shutdown()
         logs.close()
     assert "mission.node.finished" in events(tmp_path / "mission.log")
+
+
+def test_turn_order_puts_records_before_triggers_to_other_drones_only() -> None:
+    # Pure: the order a node applies a turn's effects in.
+    from eamos.actors.logic.effects import Effect, Emit, Progress, Record, Resolve, StartAction
+    from eamos.actors.messages import ActionRecord, NodeEvent
+    from eamos.actors.node import turn_order
+
+    record = Record(ActionRecord("n5", "Arm", (), (), 1.0, 2.0, "ok"))
+    progress = Progress(NodeEvent("n5", "running", "Arm"))
+    local = Emit(Route("n6", "D1", "seq", False), (), "done")
+    remote = Emit(Route("n9", "D2", "seq", True), (), "done")
+    resolve = Resolve((), "done", True)
+    start = StartAction((1,), "Arm", ())
+    turn: list[Effect] = [start, local, record, remote, progress, resolve]
+    assert turn_order(turn) == ([record, progress], [remote], [start, local, resolve])
+    # Without a trigger to another drone, the turn keeps its order.
+    alone: list[Effect] = [start, record, local, resolve]
+    assert turn_order(alone) == ([], [], alone)
