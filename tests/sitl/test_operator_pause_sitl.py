@@ -27,6 +27,16 @@ SETTLE_S = 3.0
 #: on a loaded machine (tests/sitl/test_sitl_experiments.py judges it by window means):
 #: measured 0.92 m of lateral wander in its hold at a load of 10, its brake done in 4.7 s.
 HOLD_M = {"arducopter": 0.5, "px4": 1.0}
+#: The pause is sent once the vehicle has logged a position past this x (m).
+MID_LEG_X_M = 3.0
+
+
+def wait_until_past(run_dir: Path, drone: str, x_m: float, within_s: float = 120.0) -> None:
+    """Wait (bounded) until the drone's adapter has logged a position past ``x_m``."""
+    deadline = time.monotonic() + within_s
+    while not any(p[1] > x_m for p in positions(run_dir, drone)):
+        assert time.monotonic() < deadline, f"{drone} never passed x = {x_m} m"
+        time.sleep(0.1)
 
 
 @pytest.mark.parametrize("autopilot", ["arducopter", "px4"])
@@ -40,6 +50,9 @@ def test_a_real_autopilot_holds_mid_leg_and_goes_on_to_its_end(
     )
     try:
         run.wait_for("Drone1 running   FlyByX(40)", within_s=400)
+        # Mid-leg by the vehicle's own position, not by the line: PX4 takes its time to
+        # pick up speed, and a pause sent at once came at 0.97 m on a loaded machine.
+        wait_until_past(run.run_dir, "Drone1", MID_LEG_X_M)
         operator("pause", str(run.run_dir))
         time.sleep(PAUSE_S)
         operator("resume", str(run.run_dir))
