@@ -17,12 +17,16 @@ import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+import zmq
+
 from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
 from eamos.logs import LogWriter, close_logger, make_logger, report_write_error
 from eamos.net import wire
 from eamos.net.reports import report_messages
+from eamos.net.sockets import participant_context
 from eamos.net.wire import WireError
+from eamos.net.zap import ZapHandler
 from eamos.program.format import DroneProgram, load_program
 from eamos.program.uniform import GROUND_STATION
 
@@ -73,28 +77,31 @@ class NodeStop(threading.Event):
 class ProcessShare:
     """What the drones of one process share instead of having one each.
 
-    One log writer (its thread writes every drone's lines, in batches) and one
-    clock stepping every simulated vehicle.  :meth:`open` makes them, :meth:`close`
-    ends them once every drone has stopped.  Each drone keeps a ZeroMQ context of its
-    own: with one context for all of them (:class:`eamos.net.zap.ZapHandler` lets
-    their runtimes share one, ``DroneRuntime(context=..., zap=...)``), a few drones of
-    200- and 300-drone runs stopped hearing and being heard at the end of the mission
-    (docs/performance.md), a cause not found yet.
+    One log writer (its thread writes every drone's lines, in batches), one
+    clock stepping every simulated vehicle, one ZeroMQ context (one set of libzmq
+    I/O and reaper threads) and its ZAP handler (one authenticator thread; each
+    drone answers in a domain of its own: :class:`eamos.net.zap.ZapHandler`).
+    :meth:`open` makes them, :meth:`close` ends them once every drone has stopped.
     """
 
     writer: LogWriter
     sim_clock: SimClock
+    context: zmq.Context[Any]
+    zap: ZapHandler
 
     @classmethod
     def open(cls) -> ProcessShare:
         """A new set, for the drones about to start in this process."""
         from eamos.hal.sim import SimClock  # here: a process of one drone never loads it
 
-        return cls(LogWriter(), SimClock("sim-clock"))
+        context = participant_context()
+        return cls(LogWriter(), SimClock("sim-clock"), context, ZapHandler(context))
 
     def close(self) -> None:
         """End them (every drone stopped: its sockets are closed); the writer last."""
         self.sim_clock.close()
+        self.zap.stop()
+        self.context.term()
         self.writer.close()
 
 
@@ -148,7 +155,8 @@ def run_drone(
     A drone stranded by a lost peer, or left without ``Complete`` by a silent
     ground station, ends after ``peer_wait_limit_s`` (see :mod:`.stranded`).
     ``shared``: what the drones of the process share (:class:`ProcessShare`) when
-    several do; without it, this drone has its own log writer and (simulated) clock.
+    several do; without it, this drone has its own log writer, ZeroMQ context and
+    (simulated) clock.
     """
     journal = NodeJournal(
         config.log_dir, config.drone, program.mission_id, program.checksum, config.deployment
@@ -185,6 +193,8 @@ def run_drone(
         config.log_dir,
         battery_reserve_pct=config.battery_reserve_pct,
         log_writer=writer,
+        context=shared.context if shared is not None else None,
+        zap=shared.zap if shared is not None else None,
         # Nothing acts before this deployment's Start; the first trigger to reach a
         # node is recorded first (a restart then knows something ran).
         start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),

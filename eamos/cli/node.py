@@ -139,7 +139,8 @@ def load_group(paths: list[Path]) -> list[NodeConfig]:
 def run_group(configs: list[NodeConfig], stop: threading.Event, verbose: bool) -> int:
     """Run each drone of ``configs`` in its own thread; the worst exit code of them."""
     codes: dict[str, int] = {}
-    # One log writer and one simulation clock for all of them, not one each.
+    # One log writer, one simulation clock, one ZeroMQ context and its ZAP handler for
+    # all of them, not one each.
     from eamos.actors.drone import ProcessShare
     from eamos.config import EXIT_CODE_FILE
 

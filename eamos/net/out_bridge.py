@@ -246,10 +246,10 @@ class OutBridge(BridgeThread):
             with self._lock:
                 self._ctrl_tx.close()
                 self._tx_open = False
+                if monitor is not None:
+                    monitor.close()  # before its socket (see Monitor.close)
                 self._xpub.close()
             self._ctrl_rx.close()
-            if monitor is not None:
-                monitor.close()
             with self._cond:
                 self._running = False
                 self._cond.notify_all()

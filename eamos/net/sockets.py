@@ -233,10 +233,23 @@ class Monitor:
                     self._on_disconnect()
 
     def close(self) -> None:
-        try:
-            self._owner.disable_monitor()
-        except zmq.ZMQError:
-            pass
+        """Stop the monitor, then close its reading end: before the monitored socket closes.
+
+        libzmq hands each event to the monitor with a blocking send, on the thread that
+        raised it (the context's I/O thread).  An event after the reading end closed,
+        with the monitor still on (a socket that lingers after its close still raises
+        ``EVENT_DISCONNECTED``), blocks that thread for good, and with it every socket
+        of the context: drones sharing one context went deaf and mute at a mission's end.
+        A monitored socket closed first can no longer stop its monitor: logged
+        (``net.monitor.closed_late``), a bug of the caller.
+        """
+        if self._owner.closed:
+            self._log.error("net.monitor.closed_late", peer=self._peer)
+        else:
+            try:
+                self._owner.disable_monitor()
+            except zmq.ZMQError:
+                self._log.exception("net.monitor.disable_failed", peer=self._peer)
         self.socket.close(linger=0)
 
 

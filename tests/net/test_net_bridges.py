@@ -459,3 +459,35 @@ def test_a_long_turn_of_the_receive_loop_is_reported_as_a_stall(
     while not stalls and time.monotonic() < deadline:
         slow.wait(0.01)
     assert len(stalls) == 1 and 0.3 <= stalls[0] < WAIT_S
+
+
+def test_closing_bridges_stops_their_monitors_before_their_sockets(
+    ctx: zmq.Context[Any], tmp_path: Any
+) -> None:
+    # libzmq sends monitor events with a blocking send on the context's I/O thread: a
+    # socket closed before its monitor was stopped, whose reader then closed, blocked
+    # that thread at its next event, and every other participant of the context with
+    # it (drones sharing a context went deaf and mute at a mission's end).
+    log = make_logger(tmp_path / "net.log", drone="D1")
+    first = OutBridge(ctx, "tcp://127.0.0.1:0", log)
+    first.start()
+    listener = InBridge(ctx, {"D1": first.endpoint}, [TOPIC_ALL], Collector(), MISSION, log)
+    listener.start()
+    assert first.wait_subscribed([TOPIC_ALL], WAIT_S)
+    first.close()
+    listener.close()
+    # The context still carries a participant's messages.
+    second = OutBridge(ctx, "tcp://127.0.0.1:0", log)
+    second.start()
+    inbox = Collector()
+    inb = InBridge(ctx, {"D2": second.endpoint}, [TOPIC_ALL], inbox, MISSION, log)
+    inb.start()
+    assert second.wait_subscribed([TOPIC_ALL], WAIT_S)
+    second.send(Start(MISSION, "D2"))
+    assert inbox.wait_count(1)
+    inb.close()
+    second.close()
+    close_logger(log)
+    events = [e["event"] for e in read_log(tmp_path / "net.log")]
+    assert "net.monitor.closed_late" not in events
+    assert "net.monitor.disable_failed" not in events
