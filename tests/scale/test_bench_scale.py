@@ -82,3 +82,19 @@ def test_smoke_run_at_10_and_25_drones_has_every_field() -> None:
         assert run["relay_gap_ms"]["count"] == 2 * (run["drones"] - 1)
         assert run["cpu_s"] > 0 and run["peak_rss_mb"] > 0
         assert run["simulated_flight_s"] > 0
+        assert 0 < run["ground_cpu_s"] < run["cpu_s"] and run["monitor"] is None
+
+
+@pytest.mark.e2e
+def test_smoke_run_with_the_monitor_served_to_a_page() -> None:
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPT), "--json", "--drones", "5", "--speedup", "50", "--monitor"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run,) = json.loads(proc.stdout)["runs"]
+    assert run["ok"] is True, run.get("error") or run["outcome"]
+    # The page got the run's updates over its websocket.
+    assert run["monitor"]["messages_to_page"] > 0 and run["monitor"]["bytes_to_page"] > 0
