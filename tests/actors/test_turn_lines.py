@@ -56,6 +56,18 @@ class PeekingLink:
         return True
 
 
+def arm_node(dispatcher: Dispatcher, links: Links, logs: DroneLogs) -> Any:
+    """D1's node n5, Arm() then a trigger to D2's n9, started, wired and triggered."""
+    spec = ProgramNode("n5", 5, "action", "D1", True, label="Arm()", action="Arm", args=())
+    routes = (Route("n9", "D2", "seq", True),)
+    ref = MissionNode.start(
+        dispatcher, spec, routes, frozenset({"n1"}), frozenset(), "D1", logs.mission
+    )
+    ref.tell(Wire(links))
+    ref.tell(RemoteTrigger("n1", "n5", (), "done", "D0"))
+    return ref
+
+
 def test_the_trigger_to_another_drone_leaves_before_the_turns_lines(tmp_path: Path) -> None:
     logs = DroneLogs.open(tmp_path, "D1")
     link = PeekingLink(logs, tmp_path)
@@ -65,21 +77,10 @@ def test_the_trigger_to_another_drone_leaves_before_the_turns_lines(tmp_path: Pa
     dispatcher = Dispatcher(workers=1, name="test-turn-lines")
     peers = {name: Recorder() for name in ("hal", "board", "executive")}
     links = Links({}, peers["hal"], peers["board"], outbox, peers["executive"], space)
-    spec = ProgramNode("n5", 5, "action", "D1", True, label="Arm()", action="Arm", args=())
-    ref = MissionNode.start(
-        dispatcher,
-        spec,
-        (Route("n9", "D2", "seq", True),),
-        frozenset({"n1"}),
-        frozenset(),
-        "D1",
-        logs.mission,
-    )
+    ref = arm_node(dispatcher, links, logs)
     try:
-        ref.tell(Wire(links))
-        ref.tell(RemoteTrigger("n1", "n5", (), "done", "D0"))
         assert link.done.wait(WAIT_S)
-        peers["executive"].wait_count(1)  # the turn ended (its news is its last message)
+        peers["executive"].wait_count(2)  # the turn ended (its news after the trigger)
         ref.stop()
     finally:
         dispatcher.shutdown()
@@ -142,14 +143,8 @@ def test_the_action_record_reaches_the_executive_before_the_trigger_leaves(
     dispatcher = Dispatcher(workers=1, name="test-turn-lines-3")
     peers = {name: Recorder() for name in ("hal", "board")}
     links = Links({}, peers["hal"], peers["board"], outbox, executive, space)  # type: ignore[arg-type]
-    spec = ProgramNode("n5", 5, "action", "D1", True, label="Arm()", action="Arm", args=())
-    routes = (Route("n9", "D2", "seq", True),)
-    ref = MissionNode.start(
-        dispatcher, spec, routes, frozenset({"n1"}), frozenset(), "D1", logs.mission
-    )
+    ref = arm_node(dispatcher, links, logs)
     try:
-        ref.tell(Wire(links))
-        ref.tell(RemoteTrigger("n1", "n5", (), "done", "D0"))
         assert link.done.wait(WAIT_S)
         ref.stop()
     finally:
@@ -202,14 +197,8 @@ def test_a_stand_in_out_bridge_is_told_the_trigger(tmp_path: Path) -> None:
     peers = {name: Recorder() for name in ("hal", "board", "out", "executive")}
     space = UniformSpace(FakeAdapter("D1", auto=True), logs.uniform)
     links = Links({}, peers["hal"], peers["board"], peers["out"], peers["executive"], space)
-    spec = ProgramNode("n5", 5, "action", "D1", True, label="Arm()", action="Arm", args=())
-    routes = (Route("n9", "D2", "seq", True),)
-    ref = MissionNode.start(
-        dispatcher, spec, routes, frozenset({"n1"}), frozenset(), "D1", logs.mission
-    )
+    ref = arm_node(dispatcher, links, logs)
     try:
-        ref.tell(Wire(links))
-        ref.tell(RemoteTrigger("n1", "n5", (), "done", "D0"))
         assert peers["out"].wait_for(SendTrigger) == SendTrigger(
             "D2", Trigger("n5", "n9", (), "done")
         )
