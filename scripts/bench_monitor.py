@@ -100,7 +100,9 @@ def _feed(hub: Hub | None, drones: int, hz: float, seconds: float) -> list[float
     return costs
 
 
-def _client(port: int, stop: threading.Event, counts: dict[str, int]) -> None:
+def read_page(port: int, stop: threading.Event, counts: dict[str, int]) -> None:
+    """One page of the monitor at ``port``: count the bytes and messages its websocket
+    gets until ``stop`` is set or the server stops."""
     from websockets.exceptions import ConnectionClosed
     from websockets.sync.client import connect
 
@@ -126,7 +128,7 @@ def bench_hub(drones: int, hz: float, seconds: float) -> dict[str, Any]:
     server = MonitorServer(hub).start()
     counts = {"bytes": 0, "messages": 0}
     stop = threading.Event()
-    reader = threading.Thread(target=_client, args=(server.port, stop, counts), daemon=True)
+    reader = threading.Thread(target=read_page, args=(server.port, stop, counts), daemon=True)
     reader.start()
     while server.clients() == 0:  # the client connected (bounded by the reader's timeout)
         time.sleep(0.01)
@@ -209,7 +211,7 @@ def run_once(
         found = re.search(r"monitor: http://127\.0\.0\.1:(\d+)/", line)
         if found:
             reader = threading.Thread(
-                target=_client, args=(int(found.group(1)), stop, counts), daemon=True
+                target=read_page, args=(int(found.group(1)), stop, counts), daemon=True
             )
             reader.start()
     code = proc.wait()
