@@ -7,13 +7,16 @@ once: when the peer (re)subscribes, when it is heard again after silence, and on
 nack.  The safety net is a timer per sequence: after the retransmission timeout
 (RTO: smoothed round-trip time + 4 deviations, clamped to ``[rto_min_s, rto_max_s]``,
 Jacobson/Karn) the unacknowledged messages are resent, the timeout doubling up to
-``rto_max_s`` with +-20 % jitter, until acknowledged.  Pure: time is passed in.
+``rto_max_s`` with +-20 % jitter, until acknowledged.  A timer that comes due while
+this machine runs late waits a grace in proportion (``grace``: the session's
+:meth:`~eamos.net.liveness.Liveness.margin_s`): the receiver, as busy, acknowledges
+as late, and resending then repeats what arrived.  Pure: time is passed in.
 """
 
 from __future__ import annotations
 
 import random
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Final
 
 import eamos.net.wire as wire
@@ -26,6 +29,14 @@ from eamos.net.settings import LinkSettings
 __all__ = ["Sender"]
 
 _NEVER: Final = float("inf")
+
+Grace = Callable[[float], float]
+"""The time a retransmission timeout of so many seconds waits more, the machine as busy as it
+is (:meth:`eamos.net.liveness.Liveness.margin_s` at the timer's call)."""
+
+
+def _no_grace(timeout_s: float) -> float:
+    return 0.0
 
 
 class Sender:
@@ -86,17 +97,26 @@ class Sender:
             tx.due = now
             actions.append(Wake(now))
 
-    def link_timer(self, peer: Peer, now: float, actions: list[SessionEffect]) -> float:
-        """``peer``'s link timer at ``now``: resend if due (or give up: it left); next due."""
+    def link_timer(
+        self, peer: Peer, now: float, actions: list[SessionEffect], grace: Grace = _no_grace
+    ) -> float:
+        """``peer``'s link timer at ``now``: resend if due, its ``grace`` included (or give
+        up: it left); when it is due next."""
         tx = peer.tx
-        if tx.due is not None and now >= tx.due:
-            if peer.state == "left":
-                self.counters.abandoned += len(tx.pending)
-                tx.pending.clear()
-                tx.due = None
-            else:
-                self.resend(peer, tx, now, actions)
-                tx.back_off(now, self.settings.rto_max_s, self._rng)
+        if tx.due is None:
+            return _NEVER
+        if peer.state == "left":
+            if now < tx.due:
+                return tx.due
+            self.counters.abandoned += len(tx.pending)
+            tx.pending.clear()
+            tx.due = None
+            return _NEVER
+        waits = tx.due + grace(tx.backoff)
+        if now < waits:
+            return waits
+        self.resend(peer, tx, now, actions)
+        tx.back_off(now, self.settings.rto_max_s, self._rng)
         return _NEVER if tx.due is None else tx.due
 
     def broadcast_timer(
@@ -105,10 +125,15 @@ class Sender:
         peers: Iterable[Peer],
         now: float,
         actions: list[SessionEffect],
+        grace: Grace = _no_grace,
     ) -> float:
-        """The broadcasts' timer at ``now``: resend past the slowest peer if due; next due."""
+        """The broadcasts' timer at ``now``: resend past the slowest peer if due, its ``grace``
+        included; when it is due next."""
         btx = broadcasts.tx
-        if btx.due is not None and now >= btx.due:
+        if btx.due is not None:
+            waits = btx.due + grace(btx.backoff)
+            if now < waits:
+                return waits
             self.resend(None, btx, now, actions, after=broadcasts.slowest(peers))
             btx.back_off(now, self.settings.rto_max_s, self._rng)
         return _NEVER if btx.due is None else btx.due

@@ -301,12 +301,16 @@ class ReliableSession:
             self._hb_due = now + s.heartbeat_s
             actions.append(Send(self._heartbeat_message(leaving=False)))
         deadline = self._hb_due
+
+        def grace(timeout_s: float) -> float:
+            return self._live.margin_s(timeout_s, now)
+
         for peer in peers:
             # One peer's timers: retransmission, then liveness and telemetry staleness.
-            deadline = min(deadline, self._sender.link_timer(peer, now, actions))
+            deadline = min(deadline, self._sender.link_timer(peer, now, actions, grace))
             deadline = min(deadline, self._live.check(peer, now, actions))
         deadline = min(
-            deadline, self._sender.broadcast_timer(self._broadcasts, peers, now, actions)
+            deadline, self._sender.broadcast_timer(self._broadcasts, peers, now, actions, grace)
         )
         sent, due = self._tel.tick(now)
         actions += sent

@@ -39,7 +39,11 @@ class LinkSettings:
     rto_max_s: float = 0.0
     """Upper bound of the retransmission timeout; 0: five times ``heartbeat_s``."""
     rto_initial_s: float = 0.0
-    """Retransmission timeout before any round trip was measured; 0: ``rto_min_s``."""
+    """Retransmission timeout before any round trip was measured; 0: three times
+    ``heartbeat_s`` (within ``[rto_min_s, rto_max_s]``).  A link's first message is
+    acknowledged by the receiver's next heartbeat, up to ``heartbeat_s`` later, and the
+    receiver may be as busy as the sender: at a 200-drone fork on two cores the first
+    round trips took up to 2.5 s (docs/performance.md)."""
     window: int = 256
     """At most this many messages of one link are retransmitted per timeout."""
     reorder_limit: int = 65536
@@ -54,7 +58,8 @@ class LinkSettings:
         if self.rto_max_s == 0:
             object.__setattr__(self, "rto_max_s", max(5 * self.heartbeat_s, self.rto_min_s))
         if self.rto_initial_s == 0:
-            object.__setattr__(self, "rto_initial_s", self.rto_min_s)
+            initial = min(max(3 * self.heartbeat_s, self.rto_min_s), self.rto_max_s)
+            object.__setattr__(self, "rto_initial_s", initial)
         for name in (
             "heartbeat_s",
             "peer_timeout_s",

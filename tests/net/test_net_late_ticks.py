@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
+
 from eamos.net import wire
 from eamos.net.effects import PeerChanged, TelemetryStale
 from eamos.net.liveness import LATENESS_FACTOR, LATENESS_WINDOW_S, MAX_EXTENSION, Lateness
@@ -104,6 +106,32 @@ def test_a_stalled_timer_waits_before_resending_what_may_have_been_acknowledged(
         now = due
         actions, due = s.on_tick(now)
     assert [m.iteration for m in retransmitted(actions)] == [(0,)]
+
+
+def first_resend_at(late_by: float) -> float:
+    """A trigger to B, never acknowledged (B heard all along), the timer called ``late_by``
+    after each time it asks: when it is first resent."""
+    s, _ = session_hearing_b()
+    s.on_send(wire.Trigger(MISSION, "A", "B", "a", "b", (0,), "done"), 0.0)
+    _, due = s.on_tick(0.0)
+    while True:
+        now = due + late_by
+        s.on_receive(heartbeat_from("B"), now)  # B is up: only the ack is missing
+        actions, due = s.on_tick(now)
+        if retransmitted(actions):
+            assert s.counters.late_ticks == 0  # late, but never a stall
+            return now
+        assert now < 10 * FAST.rto_max_s
+
+
+def test_a_timer_running_late_gives_the_acknowledgement_as_much_longer() -> None:
+    on_time = first_resend_at(0.0)
+    assert on_time == pytest.approx(FAST.rto_initial_s)
+    # A machine this late acknowledges as late: the timeout waits twice the lateness more.
+    late = 0.8 * LATE_TICK_S
+    resent = first_resend_at(late)
+    grace = LATENESS_FACTOR * late
+    assert FAST.rto_initial_s + grace <= resent <= FAST.rto_initial_s + grace + late + 1e-9
 
 
 def silent_until_lost(s: ReliableSession, due: float, late_by: float) -> float:

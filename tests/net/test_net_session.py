@@ -214,6 +214,15 @@ def test_settings_are_validated() -> None:
 # -- retransmission timing --------------------------------------------------------------
 
 
+def test_the_first_timeout_is_three_heartbeats_within_the_bounds() -> None:
+    # Before a round trip is measured: the ack rides the receiver's next heartbeat.
+    assert LinkSettings().rto_initial_s == pytest.approx(3.0)
+    assert LinkSettings(heartbeat_s=0.5, peer_timeout_s=3.0).rto_initial_s == pytest.approx(1.5)
+    assert LinkSettings(heartbeat_s=1.0, rto_max_s=2.5).rto_initial_s == pytest.approx(2.5)
+    assert LinkSettings(heartbeat_s=1.0, rto_min_s=4.0, rto_max_s=9.0).rto_initial_s == 4.0
+    assert LinkSettings(rto_initial_s=1.2).rto_initial_s == 1.2  # said explicitly: kept
+
+
 def test_retransmission_timeout_doubles_with_jitter_up_to_the_maximum() -> None:
     fleet = Fleet(["A", "B"])
     a = fleet.sessions["A"]
