@@ -349,6 +349,7 @@ class Reprogramming:
         assert runtime.executive is not None
         runtime.executive.ask(NewProgram(change.program, nodes), timeout=ASK_TIMEOUT_S)
         runtime.program = self.startup.program = change.program
+        self.startup.pace_telemetry(change.program)
         if self.switched is not None:
             self.switched(change.program)
 

@@ -19,7 +19,7 @@ from typing import Any
 import pykka
 import zmq
 
-from ..hal.api import Adapter, AdapterError, Telemetry
+from ..hal.api import Adapter, AdapterError, Telemetry, read_at_most
 from ..logs import DroneLogs
 from ..net import wire
 from ..net.bridges import InBridge
@@ -40,7 +40,7 @@ from .node import Links, MissionNode, Wire
 from .outbox import Outbox
 from .rejoin import acknowledged_entry
 from .uniform_api import UniformAPI, UniformSpace, answers_at_once, start_uniform_api
-from .wiring import subscriptions, watched_peers
+from .wiring import subscriptions, telemetry_read_hz, watched_peers
 
 __all__ = ["NetSettings", "RuntimeStartup", "StartGateSettings"]
 
@@ -181,7 +181,14 @@ class RuntimeStartup:
             latest.put(sample)
             board.tell(LocalSample(sample))
 
+        self.pace_telemetry(self.program)
         return start_uniform_api(space, on_sample)
+
+    def pace_telemetry(self, program: DroneProgram) -> None:
+        """Tell the adapter how often ``program``'s drone reads its samples at most."""
+        read_at_most(
+            self.adapter, telemetry_read_hz(program, self.net.link, self.battery_reserve_pct)
+        )
 
     def node_dispatcher(self) -> Dispatcher:
         """The node actors' dispatcher (the executive runs on it too)."""

@@ -9,10 +9,37 @@ wait for it.
 from __future__ import annotations
 
 from ..net import wire
+from ..net.settings import LinkSettings
+from ..program.conditions import properties
 from ..program.format import DroneProgram
 from ..program.uniform import GROUND_STATION
 
-__all__ = ["connected_peers", "destinations", "released_arcs", "subscriptions", "watched_peers"]
+__all__ = [
+    "connected_peers",
+    "destinations",
+    "released_arcs",
+    "subscriptions",
+    "telemetry_read_hz",
+    "watched_peers",
+]
+
+
+def telemetry_read_hz(
+    program: DroneProgram, link: LinkSettings, battery_floor_pct: float | None
+) -> float | None:
+    """How often this drone's own telemetry samples are read at most (None: as they come).
+
+    Its samples leave for others at most ``link.telemetry_max_hz`` (the ground
+    station's rate, or the peers' when another drone's conditions read it).  Read
+    on board as they come: when a condition of its own reads its own properties,
+    or a battery floor (``battery_floor_pct``) fails a Try's Body below it.
+    """
+    if battery_floor_pct is not None:
+        return None
+    for node in program.native_nodes():
+        if any(drone == program.drone for drone, _ in properties(node.cond)):
+            return None
+    return link.telemetry_max_hz
 
 
 def destinations(program: DroneProgram) -> list[str]:

@@ -194,6 +194,14 @@ def taken_over(adapter: object) -> TakenOver | None:
     return value if isinstance(value, TakenOver) else None
 
 
+def read_at_most(adapter: object, hz: float | None) -> None:
+    """Tell ``adapter`` its samples are read at most ``hz`` times a second (None: as they
+    come), for an adapter that paces what it sends by it (the simulated one at rest)."""
+    tell = getattr(adapter, "read_at_most", None)
+    if callable(tell):
+        tell(hz)
+
+
 def vehicle_facts(adapter: object) -> dict[str, Any]:
     """The adapter's ``facts()`` for the run's summary ({} for an adapter without them)."""
     facts = getattr(adapter, "facts", None)

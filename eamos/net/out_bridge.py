@@ -15,6 +15,7 @@ import zmq
 from eamos.logs import EventLog, make_logger
 from eamos.net.descriptors import connection_budget
 from eamos.net.sockets import (
+    BOUND_HEARTBEAT_FACTOR,
     CMD_STOP,
     CMD_WAKE,
     DEFAULT_HEARTBEAT_MS,
@@ -81,7 +82,7 @@ class OutBridge(BridgeThread):
         # VERBOSE: pass every subscription up, not only the first per topic, so a
         # peer that reconnects (or a second peer) is seen too.
         self._xpub.setsockopt(zmq.XPUB_VERBOSE, 1)
-        connection_options(self._xpub, heartbeat_ms)
+        connection_options(self._xpub, heartbeat_ms * BOUND_HEARTBEAT_FACTOR)
         self._monitor: Monitor | None = None
         try:
             if curve is not None:

@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from eamos.net.keys import FleetKeys
 
 __all__ = [
+    "BOUND_HEARTBEAT_FACTOR",
     "CMD_CONNECT",
     "CMD_STOP",
     "CMD_SUB",
@@ -156,6 +157,19 @@ def control_pair(context: zmq.Context[Any], name: str) -> tuple[zmq.Socket[Any],
 
 def should_log(count: int) -> bool:
     return count <= LOG_FIRST or count % LOG_EVERY == 0
+
+
+BOUND_HEARTBEAT_FACTOR: Final = 5
+"""The bound side of a connection (an Out-Bridge's XPUB) pings this many times less often.
+
+ZeroMQ heartbeats (ZMTP PING, each answered by a PONG, both sealed with CURVE on the
+I/O threads) went both ways on every connection every interval: at 100 drones, more
+frames than the fleet's own messages.  The connecting side (an In-Bridge's SUB)
+keeps the interval: its timeout is what makes it reconnect to a peer that came back.
+The bound side only has to close a connection whose subscriber vanished, which can
+wait; it cannot leave that to the TTL its subscribers' PINGs carry, because libzmq
+(4.3.5, ``zmtp_engine.cpp``) arms that timer only while the connection has output
+pending, never on an idle publisher's connection (``tests/net/test_net_dead_connection.py``)."""
 
 
 def connection_options(sock: zmq.Socket[Any], heartbeat_ms: int) -> None:

@@ -106,6 +106,11 @@ def test_an_applied_amendment_changes_only_the_drones_it_touches(tmp_path: Path)
         )
         record = json.loads((run_dir / "logs" / drone / "node-state.json").read_text())
         assert record["program"] == amended_program.checksum, (drone, record)
+        # Its vehicle was told again how often the new program reads its samples.
+        rates = log_lines(run_dir, drone, "adapter", "adapter.read_rate")
+        assert len(rates) == 2, (drone, rates)
+    for drone in ("Drone1", "Drone2"):
+        assert len(log_lines(run_dir, drone, "adapter", "adapter.read_rate")) == 1, drone
     applied = json.loads((run_dir / "amendments" / "1" / "applied.json").read_text())
     assert applied["drones"] == ["Drone3", "Drone4"]
     staged = run_dir / "amendments" / "1" / "programs" / "Drone3.program.json"

@@ -166,6 +166,10 @@ class SimAdapter:
         self._started = False
         self._closed = False
         self._on_telemetry: TelemetryCallback | None = None
+        # read_at_most(): wall seconds between the samples a resting vehicle sends for its
+        # battery alone (None: every 0.1 % it drains), and when it last sent one.
+        self._read_period_s: float | None = None
+        self._sent_at = 0.0
 
     # -- Adapter protocol ----------------------------------------------------
 
@@ -179,7 +183,8 @@ class SimAdapter:
             self._started = True
             self._on_telemetry = on_telemetry
             first = self._core.start()
-            self._pacer.restart(self._clock.now())
+            self._sent_at = self._clock.now()
+            self._pacer.restart(self._sent_at)
         self._emit([first])
         self._clock.attach(self)
 
@@ -208,6 +213,22 @@ class SimAdapter:
                 self._catch_up(waking=True)  # the rest ends: news
                 self._core.abort()
         self._clock.poke(self)
+
+    def read_at_most(self, hz: float | None) -> None:
+        """Its samples are read at most ``hz`` times a wall second (None: as they come).
+
+        A vehicle at rest then wakes for its draining battery alone only that often:
+        the samples in between would be coalesced unread.  Hovering at a high
+        speed-up, the shown battery (0.1 %) changes several times a wall second, and
+        each change was a wake-up and a sample.  What moves, arms, lands or ends a
+        timer is sent at once as before; the battery a late sample shows is exact.
+        """
+        if hz is not None and not hz > 0:
+            raise ValueError(f"hz must be > 0 or None, got {hz!r}")
+        with self._lock:
+            self._read_period_s = None if hz is None else 1.0 / hz
+        self._log.info("adapter.read_rate", hz=hz)
+        self._clock.poke(self)  # a rest computed for the old rate ends at the next tick
 
     def close(self) -> None:
         """Stop stepping; actions still running end "cancelled". Idempotent."""
@@ -307,6 +328,10 @@ class SimAdapter:
                     return math.inf
                 if self._asleep is not None:
                     self._catch_up(now, waking=True)  # the rest is over (or a request came)
+                    if self._read_period_s is not None:
+                        skipped = self._core.unsent()  # what the rest left unread, now
+                        if skipped is not None:
+                            samples.append(skipped)
                 steps = self._pacer.due(now)
                 for _ in range(steps):
                     done, sampled = self._core.step()
@@ -315,6 +340,10 @@ class SimAdapter:
                 if steps:
                     self._tick_cond.notify_all()
                 rest = self._core.idle_steps(MAX_REST_STEPS)
+                if samples:
+                    self._sent_at = now
+                if self._read_period_s is not None and rest < MAX_REST_STEPS:
+                    rest = max(rest, min(self._core.quiet_steps(MAX_REST_STEPS), self._unread(now)))
                 if rest > self._pacer.steps_per_tick:
                     self._asleep = (now, rest)
                     wake = now + rest * SIM_DT_S / self.settings.speedup
@@ -323,6 +352,13 @@ class SimAdapter:
             self._deliver(finished)
         self._emit(samples)
         return wake
+
+    def _unread(self, now: float) -> int:
+        """The steps from ``now`` until a sample is read again (lock held; read_at_most())."""
+        period = self._read_period_s
+        if period is None:
+            return 0
+        return max(0, int((self._sent_at + period - now) * self.settings.speedup / SIM_DT_S))
 
     def _catch_up(self, now: float | None = None, waking: bool = False) -> None:
         """Skip the idle steps wall time has covered while resting (lock held).
