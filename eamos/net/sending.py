@@ -9,8 +9,9 @@ nack.  The safety net is a timer per sequence: after the retransmission timeout
 Jacobson/Karn) the unacknowledged messages are resent, the timeout doubling up to
 ``rto_max_s`` with +-20 % jitter, until acknowledged.  A timer that comes due while
 this machine runs late waits a grace in proportion (``grace``: the session's
-:meth:`~eamos.net.liveness.Liveness.margin_s`): the receiver, as busy, acknowledges
-as late, and resending then repeats what arrived.  Pure: time is passed in.
+:meth:`~eamos.net.liveness.Liveness.margin_s`, the margin its liveness deadlines get):
+the receiver, as busy, acknowledges as late, and resending then repeats what arrived.
+Pure: time is passed in.
 """
 
 from __future__ import annotations
@@ -30,20 +31,16 @@ __all__ = ["Sender"]
 
 _NEVER: Final = float("inf")
 
-Grace = Callable[[float], float]
-"""The time a retransmission timeout of so many seconds waits more, the machine as busy as it
-is (:meth:`eamos.net.liveness.Liveness.margin_s` at the timer's call)."""
-
-
-def _no_grace(timeout_s: float) -> float:
-    return 0.0
+Grace = Callable[[float, float], float]
+"""``(timeout_s, now)``: how much longer a retransmission timeout of so many seconds waits
+at ``now``, the machine as busy as it is (:meth:`eamos.net.liveness.Liveness.margin_s`)."""
 
 
 class Sender:
     """Numbers reliable messages and decides when the unacknowledged ones go again.
 
     It works on the :class:`~eamos.net.sequence.Sending` half of each link and of the
-    broadcasts; ``rng`` draws the back-off's jitter.
+    broadcasts; ``rng`` draws the back-off's jitter, ``grace`` the load's margin.
     """
 
     def __init__(
@@ -52,11 +49,13 @@ class Sender:
         counters: SessionCounters,
         log: EventLog,
         rng: random.Random,
+        grace: Grace,
     ) -> None:
         self.settings = settings
         self.counters = counters
         self.log = log
         self._rng = rng
+        self._grace = grace
 
     def send(
         self, tx: Sending, msg: wire.Message, now: float, incarnation: int
@@ -97,11 +96,9 @@ class Sender:
             tx.due = now
             actions.append(Wake(now))
 
-    def link_timer(
-        self, peer: Peer, now: float, actions: list[SessionEffect], grace: Grace = _no_grace
-    ) -> float:
-        """``peer``'s link timer at ``now``: resend if due, its ``grace`` included (or give
-        up: it left); when it is due next."""
+    def link_timer(self, peer: Peer, now: float, actions: list[SessionEffect]) -> float:
+        """``peer``'s link timer at ``now``: resend if due, the load's grace included (or
+        give up: it left); when it is due next."""
         tx = peer.tx
         if tx.due is None:
             return _NEVER
@@ -112,7 +109,7 @@ class Sender:
             tx.pending.clear()
             tx.due = None
             return _NEVER
-        waits = tx.due + grace(tx.backoff)
+        waits = tx.due + self._grace(tx.backoff, now)
         if now < waits:
             return waits
         self.resend(peer, tx, now, actions)
@@ -125,13 +122,12 @@ class Sender:
         peers: Iterable[Peer],
         now: float,
         actions: list[SessionEffect],
-        grace: Grace = _no_grace,
     ) -> float:
-        """The broadcasts' timer at ``now``: resend past the slowest peer if due, its ``grace``
-        included; when it is due next."""
+        """The broadcasts' timer at ``now``: resend past the slowest peer if due, the load's
+        grace included; when it is due next."""
         btx = broadcasts.tx
         if btx.due is not None:
-            waits = btx.due + grace(btx.backoff)
+            waits = btx.due + self._grace(btx.backoff, now)
             if now < waits:
                 return waits
             self.resend(None, btx, now, actions, after=broadcasts.slowest(peers))

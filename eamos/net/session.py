@@ -148,11 +148,14 @@ class ReliableSession:
         self.log: EventLog = log if log is not None else make_logger(None)
         self.counters = SessionCounters()
         self._peers: dict[str, Peer] = {}
-        self._sender = Sender(s, self.counters, self.log, rng or random.Random())
+        self._live = Liveness(s, self.log)
+        # The retransmission timers wait the margin the liveness deadlines get for load.
+        self._sender = Sender(
+            s, self.counters, self.log, rng or random.Random(), self._live.margin_s
+        )
         self._receiver = Receiver(name, mission, self.incarnation, s, self.counters, self.log)
         self._broadcasts = Broadcasts(s.rto_initial_s)
         self._tel = TelemetryOut(1.0 / s.telemetry_max_hz, s.heartbeat_s)
-        self._live = Liveness(s, self.log)
         self._hb_due = float("-inf")
         self.closed = False
 
@@ -301,16 +304,12 @@ class ReliableSession:
             self._hb_due = now + s.heartbeat_s
             actions.append(Send(self._heartbeat_message(leaving=False)))
         deadline = self._hb_due
-
-        def grace(timeout_s: float) -> float:
-            return self._live.margin_s(timeout_s, now)
-
         for peer in peers:
             # One peer's timers: retransmission, then liveness and telemetry staleness.
-            deadline = min(deadline, self._sender.link_timer(peer, now, actions, grace))
+            deadline = min(deadline, self._sender.link_timer(peer, now, actions))
             deadline = min(deadline, self._live.check(peer, now, actions))
         deadline = min(
-            deadline, self._sender.broadcast_timer(self._broadcasts, peers, now, actions, grace)
+            deadline, self._sender.broadcast_timer(self._broadcasts, peers, now, actions)
         )
         sent, due = self._tel.tick(now)
         actions += sent

@@ -168,8 +168,9 @@ frames than the fleet's own messages.  The connecting side (an In-Bridge's SUB)
 keeps the interval: its timeout is what makes it reconnect to a peer that came back.
 The bound side only has to close a connection whose subscriber vanished, which can
 wait; it cannot leave that to the TTL its subscribers' PINGs carry, because libzmq
-(4.3.5, ``zmtp_engine.cpp``) arms that timer only while the connection has output
-pending, never on an idle publisher's connection (``tests/net/test_net_dead_connection.py``)."""
+(``zmtp_engine.cpp``; the bundled 4.3.5 behaves so) arms that timer only while the
+connection's output is active, never on an idle publisher's connection
+(``tests/net/test_net_dead_connection.py``)."""
 
 
 def connection_options(sock: zmq.Socket[Any], heartbeat_ms: int) -> None:

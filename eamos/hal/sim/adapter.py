@@ -342,8 +342,10 @@ class SimAdapter:
                 rest = self._core.idle_steps(MAX_REST_STEPS)
                 if samples:
                     self._sent_at = now
-                if self._read_period_s is not None and rest < MAX_REST_STEPS:
-                    rest = max(rest, min(self._core.quiet_steps(MAX_REST_STEPS), self._unread(now)))
+                period = self._read_period_s
+                if period is not None and rest < MAX_REST_STEPS:
+                    unread = self._unread(now, period)
+                    rest = max(rest, min(self._core.quiet_steps(MAX_REST_STEPS), unread))
                 if rest > self._pacer.steps_per_tick:
                     self._asleep = (now, rest)
                     wake = now + rest * SIM_DT_S / self.settings.speedup
@@ -353,12 +355,10 @@ class SimAdapter:
         self._emit(samples)
         return wake
 
-    def _unread(self, now: float) -> int:
-        """The steps from ``now`` until a sample is read again (lock held; read_at_most())."""
-        period = self._read_period_s
-        if period is None:
-            return 0
-        return max(0, int((self._sent_at + period - now) * self.settings.speedup / SIM_DT_S))
+    def _unread(self, now: float, period_s: float) -> int:
+        """The steps from ``now`` until a sample is read again, one read every ``period_s``
+        (lock held; :meth:`read_at_most`)."""
+        return max(0, int((self._sent_at + period_s - now) * self.settings.speedup / SIM_DT_S))
 
     def _catch_up(self, now: float | None = None, waking: bool = False) -> None:
         """Skip the idle steps wall time has covered while resting (lock held).
