@@ -118,6 +118,24 @@ def read_page(port: int, stop: threading.Event, counts: dict[str, int]) -> None:
             counts["messages"] += 1
 
 
+def open_page(
+    server: MonitorServer,
+    stop: threading.Event,
+    counts: dict[str, int],
+    timeout_s: float = 30.0,
+) -> threading.Thread:
+    """:func:`read_page` of ``server`` in a thread, once the server counts it connected
+    (a benchmark's bounded wait); the thread."""
+    reader = threading.Thread(target=read_page, args=(server.port, stop, counts), daemon=True)
+    reader.start()
+    deadline = time.monotonic() + timeout_s
+    while server.clients() == 0:
+        if time.monotonic() > deadline:
+            raise RuntimeError("the monitor's websocket did not connect")
+        time.sleep(0.01)
+    return reader
+
+
 def bench_hub(drones: int, hz: float, seconds: float) -> dict[str, Any]:
     cpu0, wall0 = time.process_time(), time.monotonic()
     _feed(None, drones, hz, seconds)
@@ -128,10 +146,7 @@ def bench_hub(drones: int, hz: float, seconds: float) -> dict[str, Any]:
     server = MonitorServer(hub).start()
     counts = {"bytes": 0, "messages": 0}
     stop = threading.Event()
-    reader = threading.Thread(target=read_page, args=(server.port, stop, counts), daemon=True)
-    reader.start()
-    while server.clients() == 0:  # the client connected (bounded by the reader's timeout)
-        time.sleep(0.01)
+    reader = open_page(server, stop, counts)
     cpu0, wall0 = time.process_time(), time.monotonic()
     costs = _feed(hub, drones, hz, seconds)
     server.stop(drain_s=5.0)

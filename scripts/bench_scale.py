@@ -222,7 +222,7 @@ class MonitorPage:
     websocket reading every update (in a thread of this process)."""
 
     def __init__(self, run_dir: Path, stop: threading.Event, clock: PhaseClock) -> None:
-        from bench_monitor import read_page  # a sibling script: the page bench_monitor reads
+        from bench_monitor import open_page  # a sibling script: the page bench_monitor reads
 
         from eamos.monitor.display import TeeDisplay, start_live_monitor
 
@@ -230,15 +230,7 @@ class MonitorPage:
         self.display = TeeDisplay(clock, self.server.hub)  # type: ignore[arg-type]
         self.counts = {"bytes": 0, "messages": 0}
         self._done = threading.Event()
-        self._reader = threading.Thread(
-            target=read_page, args=(self.server.port, self._done, self.counts), daemon=True
-        )
-        self._reader.start()
-        deadline = time.monotonic() + 30.0
-        while self.server.clients() == 0:  # a benchmark's bounded wait for its page
-            if time.monotonic() > deadline:
-                raise RuntimeError("the monitor's websocket did not connect")
-            time.sleep(0.01)
+        self._reader = open_page(self.server, self._done, self.counts)
 
     def close(self) -> dict[str, int]:
         """Stop serving; what the page got."""
