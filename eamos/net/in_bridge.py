@@ -19,6 +19,7 @@ from eamos.net.sockets import (
     CMD_CONNECT,
     CMD_STOP,
     CMD_SUB,
+    CONNECTING_PING_FACTOR,
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_HWM,
     EVENTS_OPT,
@@ -251,7 +252,7 @@ class InBridge(BridgeThread):
                 # this before buffering them: the memory bound.  Oversized messages
                 # below it are dropped by decode with the connection kept.
                 sub.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
-                connection_options(sub, heartbeat_ms)
+                connection_options(sub, heartbeat_ms, CONNECTING_PING_FACTOR)
                 if curve is not None:
                     curve_client(sub, curve, curve.fleet[peer])
                 monitor = Monitor(

@@ -1,7 +1,8 @@
 """A connection that goes silent without closing (a peer's machine gone) is dropped at both ends.
 
-The In-Bridge's SUB pings every interval (ZeroMQ heartbeats, ``connection_options``),
-the Out-Bridge's XPUB :data:`BOUND_HEARTBEAT_FACTOR` times less often.  Between them a
+The In-Bridge's SUB pings every :data:`CONNECTING_PING_FACTOR` intervals (ZeroMQ
+heartbeats, ``connection_options``; any frame it receives resets its timeout), the
+Out-Bridge's XPUB every :data:`BOUND_HEARTBEAT_FACTOR`.  Between them a
 real TCP relay forwards bytes until it is told to go silent: from then on it forwards
 nothing on the connections it has, and closes none of them (no FIN, no RST: what a
 pulled network cable looks like).  Each bridge must close its end of the frozen
