@@ -52,6 +52,19 @@ def test_a_pacer_runs_the_steps_wall_time_covered() -> None:
         Pacer(0.0)
 
 
+def test_pacers_of_one_speed_up_step_on_one_grid() -> None:
+    # Restarted at different moments, two vehicles at x10 step on the same 2 ms grid,
+    # so rests that end at the same moment end on the same step.
+    a, b = Pacer(10.0), Pacer(10.0)
+    a.restart(1.0033)
+    b.restart(1.0051)
+    assert a.stepped_to() == pytest.approx(1.002) and b.stepped_to() == pytest.approx(1.004)
+    assert a.due(1.0061) == 2 and b.due(1.0061) == 1  # each up to the grid's 1.006
+    assert a.stepped_to() == pytest.approx(b.stepped_to()) == pytest.approx(1.006)
+    a.restart(1.006)  # a time computed as a grid step stays on that step
+    assert a.stepped_to() == pytest.approx(1.006)
+
+
 def vehicles(n: int, clock: SimClock, speedup: float) -> list[SimAdapter]:
     out = []
     for i in range(n):
@@ -62,14 +75,16 @@ def vehicles(n: int, clock: SimClock, speedup: float) -> list[SimAdapter]:
 
 
 def run_clock(clock: SimClock, fake: FakeTime, until: float, done: list[Done]) -> int:
-    """Tick as the thread would (the wait it asks for, at least a step) until ``done``."""
+    """Tick as the thread would (the wait it asks for) until ``done``; the fake time is
+    then that of the round that saw it done."""
     rounds = 0
-    while not all(d.is_done for d in done):
+    while True:
         wait = clock.tick()
         rounds += 1
+        if all(d.is_done for d in done):
+            return rounds
         fake.now += wait if math.isfinite(wait) else 1.0
         assert fake.now < until, "not done in time"
-    return rounds
 
 
 def fly(sim: SimAdapter, clock: SimClock, fake: FakeTime, command: Command) -> ActionResult:

@@ -16,6 +16,7 @@ import pytest
 
 from eamos.hal.api import Telemetry, read_at_most
 from eamos.hal.sim import SimAdapter, SimClock, SimSettings
+from eamos.hal.sim.telemetry import ReadRate
 from eamos.program.uniform import Arm, Takeoff
 
 from .hal_helpers import TelemetrySink, cmd
@@ -78,11 +79,13 @@ def test_a_resting_vehicle_read_twice_a_second_samples_its_battery_about_that_of
     assert all(0.1 - 1e-9 <= step <= 5 * drain_per_s + 0.1 + 1e-9 for step in steps)
     # ... and the latest one sent is the latest the other run sent, or one change before.
     assert free_samples[-1].battery_pct - samples[-1].battery_pct <= 0.1 + 1e-9
-    # What moves is sent as it moves (the paced run first sends what its rest left unread).
-    # (Both at the sampling rate; its phase differs by where each rest ended.)
+    # What moves is sent once a read period, and where it stopped at once; as they
+    # come, at the sampling rate (10 Hz of simulated time: 100 a wall second at x10).
     moving, free_moving = [s for s in flight if s.x_m > 0], [s for s in free_flight if s.x_m > 0]
-    assert abs(len(moving) - len(free_moving)) <= 1 and len(moving) >= 20
+    flight_wall_s = len(free_moving) / SimSettings().telemetry_hz / SPEEDUP
+    assert len(free_moving) >= 20 and 1 <= len(moving) <= 2.0 * flight_wall_s + 2
     assert moving[-1].x_m == free_moving[-1].x_m == pytest.approx(5.0, abs=0.05)
+    assert len({(s.armed, s.landed) for s in flight}) == 1  # in the air throughout
     free.close()
     paced.close()
 
@@ -98,3 +101,66 @@ def test_the_read_rate_is_checked_and_can_be_lifted() -> None:
     sim.read_at_most(None)  # an amended program reads its own battery: as they come again
     read_at_most(object(), 2.0)  # an adapter that cannot pace its samples is left alone
     sim.close()
+
+
+def test_vehicles_that_came_to_rest_at_different_times_wake_together() -> None:
+    # A relay: each takes off after the one before, so each rest begins at its own
+    # moment.  Read at the same rate, their reads fall on the same multiples of the
+    # period, and the clock wakes about once a period for all of them, where it
+    # woke once for each (ten vehicles, twice a second: about 20 rounds a second).
+    fake = FakeTime()
+    fake.now += 0.0123  # not on any grid
+    clock = SimClock(time_fn=fake, threaded=False)
+    sinks = [TelemetrySink() for _ in range(10)]
+    fleet = [
+        SimAdapter(f"D{i}", SimSettings(arm_delay_s=0.0, speedup=SPEEDUP), clock=clock)
+        for i in range(len(sinks))
+    ]
+    for sim, sink in zip(fleet, sinks, strict=True):
+        sim.start(sink)
+        read_at_most(sim, 2.0)
+    for sim in fleet:
+        assert fly(sim, clock, fake, Arm()).ok
+        assert fly(sim, clock, fake, Takeoff(1.0 + 0.37 * int(sim.drone[1:]))).ok
+        run_for(clock, fake, 0.077)  # the next one starts at its own moment
+    run_for(clock, fake, 1.0)  # settled
+    before = [sink.count() for sink in sinks]
+    rounds = clock.ticks
+    run_for(clock, fake, HOVER_WALL_S)
+    assert clock.ticks - rounds <= 2.0 * HOVER_WALL_S + 3
+    for sim, sink, count in zip(fleet, sinks, before, strict=True):
+        # Each still sends its battery twice a second, and its simulated time keeps
+        # up with the wall clock (no step lost to the shared grid).
+        assert 2.0 * HOVER_WALL_S - 2 <= sink.count() - count <= 2.0 * HOVER_WALL_S + 1
+        assert sim.sim_time_s == pytest.approx((fake.now - 1000.0123) * SPEEDUP, abs=0.5)
+        sim.close()
+
+
+def sample_at(x_m: float, armed: bool = True, landed: bool = False) -> Telemetry:
+    return Telemetry("D1", 0.0, x_m, 0.0, 3.0, 0.0, 0.0, 3.0, 90.0, armed, landed)
+
+
+def test_a_moving_vehicle_read_twice_a_second_sends_its_latest_sample_that_often() -> None:
+    reads = ReadRate()
+    reads.period_s = 0.5
+    out = [reads.pass_on([sample_at(0.0)], 10.0, news=False)]  # the first goes at once
+    # Moving: a sample every 10 ms of wall time; one goes out each half second, the latest.
+    out += [reads.pass_on([sample_at(i / 100)], 10.0 + i / 100, news=False) for i in range(1, 100)]
+    sent = [s.x_m for batch in out for s in batch]
+    assert sent == [0.0, 0.5]
+    # Held: the newest waits for the period's end, even without a newer sample.
+    assert reads.pass_on([], 11.0, news=False) == [sample_at(0.99)]
+    # What arms, lands, ends an action or comes to rest goes at once.
+    assert reads.pass_on([sample_at(1.0, landed=True)], 11.01, news=False) == [
+        sample_at(1.0, landed=True)
+    ]
+    assert reads.pass_on([sample_at(1.1, landed=True)], 11.02, news=True) == [
+        sample_at(1.1, landed=True)
+    ]
+    # Read as they come again: every sample, the held one first.
+    assert reads.pass_on([sample_at(1.2, landed=True)], 11.03, news=False) == []
+    reads.period_s = None
+    assert reads.pass_on([sample_at(1.3, landed=True)], 11.04, news=False) == [
+        sample_at(1.2, landed=True),
+        sample_at(1.3, landed=True),
+    ]

@@ -90,6 +90,7 @@ from eamos.hal.kinematics import VehicleState
 from eamos.hal.sim.clock import MAX_LAG_S, MIN_WALL_TICK_S, Pacer, SimClock
 from eamos.hal.sim.core import SIM_DT_S, Finished, SimCore
 from eamos.hal.sim.settings import SimSettings, Waypoint
+from eamos.hal.sim.telemetry import ReadRate
 from eamos.logs import EventLog, make_logger
 from eamos.program.plugins import EMPTY_PLUGINS, PluginRegistry, discover_plugins
 from eamos.program.uniform import Command
@@ -166,10 +167,8 @@ class SimAdapter:
         self._started = False
         self._closed = False
         self._on_telemetry: TelemetryCallback | None = None
-        # read_at_most(): wall seconds between the samples a resting vehicle sends for its
-        # battery alone (None: every 0.1 % it drains), and when it last sent one.
-        self._read_period_s: float | None = None
-        self._sent_at = 0.0
+        # read_at_most(): the samples that go out, and when the last one did.
+        self._reads = ReadRate()
 
     # -- Adapter protocol ----------------------------------------------------
 
@@ -183,8 +182,8 @@ class SimAdapter:
             self._started = True
             self._on_telemetry = on_telemetry
             first = self._core.start()
-            self._sent_at = self._clock.now()
-            self._pacer.restart(self._sent_at)
+            self._reads.sent_at = self._clock.now()
+            self._pacer.restart(self._reads.sent_at)
         self._emit([first])
         self._clock.attach(self)
 
@@ -220,13 +219,14 @@ class SimAdapter:
         A vehicle at rest then wakes for its draining battery alone only that often:
         the samples in between would be coalesced unread.  Hovering at a high
         speed-up, the shown battery (0.1 %) changes several times a wall second, and
-        each change was a wake-up and a sample.  What moves, arms, lands or ends a
-        timer is sent at once as before; the battery a late sample shows is exact.
+        each change was a wake-up and a sample.  A moving vehicle sends its latest
+        sample once a period (:class:`~eamos.hal.sim.telemetry.ReadRate`); what arms,
+        lands, or comes to rest is sent at once; the battery a late sample shows is exact.
         """
         if hz is not None and not hz > 0:
             raise ValueError(f"hz must be > 0 or None, got {hz!r}")
         with self._lock:
-            self._read_period_s = None if hz is None else 1.0 / hz
+            self._reads.period_s = None if hz is None else 1.0 / hz
         self._log.info("adapter.read_rate", hz=hz)
         self._clock.poke(self)  # a rest computed for the old rate ends at the next tick
 
@@ -328,7 +328,7 @@ class SimAdapter:
                     return math.inf
                 if self._asleep is not None:
                     self._catch_up(now, waking=True)  # the rest is over (or a request came)
-                    if self._read_period_s is not None:
+                    if self._reads.period_s is not None:
                         skipped = self._core.unsent()  # what the rest left unread, now
                         if skipped is not None:
                             samples.append(skipped)
@@ -340,25 +340,38 @@ class SimAdapter:
                 if steps:
                     self._tick_cond.notify_all()
                 rest = self._core.idle_steps(MAX_REST_STEPS)
-                if samples:
-                    self._sent_at = now
-                period = self._read_period_s
+                period = self._reads.period_s
+                quiet = rest
                 if period is not None and rest < MAX_REST_STEPS:
-                    unread = self._unread(now, period)
-                    rest = max(rest, min(self._core.quiet_steps(MAX_REST_STEPS), unread))
+                    quiet = self._core.quiet_steps(MAX_REST_STEPS)
+                news = bool(finished) or quiet > self._pacer.steps_per_tick
+                samples = self._reads.pass_on(samples, now, news)
+                if period is not None and rest < MAX_REST_STEPS:
+                    rest = max(rest, min(quiet, self._unread(period)))
                 if rest > self._pacer.steps_per_tick:
-                    self._asleep = (now, rest)
-                    wake = now + rest * SIM_DT_S / self.settings.speedup
+                    # From the last step run, on the grid every vehicle of this
+                    # speed-up shares (Pacer): rests that end together wake once.
+                    since = self._pacer.stepped_to()
+                    self._asleep = (since, rest)
+                    wake = since + rest * self._pacer.step_wall_s
         finally:
             # Actions that ended in the steps before an exception still get their answer.
             self._deliver(finished)
         self._emit(samples)
         return wake
 
-    def _unread(self, now: float, period_s: float) -> int:
-        """The steps from ``now`` until a sample is read again, one read every ``period_s``
-        (lock held; :meth:`read_at_most`)."""
-        return max(0, int((self._sent_at + period_s - now) * self.settings.speedup / SIM_DT_S))
+    def _unread(self, period_s: float) -> int:
+        """The steps from the last one run until a sample is read again, one read every
+        ``period_s`` (lock held; :meth:`read_at_most`).
+
+        The read falls on a multiple of ``period_s`` of the clock's wall time, the
+        one nearest a period after the last sample (half a period early at most):
+        resting vehicles read at the same rate then wake together, the clock once a
+        period for all of them instead of once for each.
+        """
+        read_at = math.ceil((self._reads.sent_at + period_s) / period_s - 0.5) * period_s
+        ahead = (read_at - self._pacer.stepped_to()) / self._pacer.step_wall_s
+        return max(0, math.ceil(ahead - 1e-6))
 
     def _catch_up(self, now: float | None = None, waking: bool = False) -> None:
         """Skip the idle steps wall time has covered while resting (lock held).
@@ -371,14 +384,15 @@ class SimAdapter:
             return
         now = self._clock.now() if now is None else now
         since, most = self._asleep
-        covered = min(most, int((now - since) * self.settings.speedup / SIM_DT_S))
+        # The tolerance keeps a rest's end, computed on the step grid, a whole step.
+        covered = min(most, int((now - since) / self._pacer.step_wall_s + 1e-6))
         self._core.skip(covered)
         if waking or covered >= most:
             self._asleep = None
             self._pacer.restart(now)
         else:
             # Counted from the last whole step skipped: no fraction of a step is lost.
-            self._asleep = (since + covered * SIM_DT_S / self.settings.speedup, most - covered)
+            self._asleep = (since + covered * self._pacer.step_wall_s, most - covered)
 
     def _crash(self, exc: BaseException) -> None:
         with self._lock:

@@ -64,6 +64,11 @@ class Pacer:
     (no drift): however late a round comes, the steps it runs are those wall time
     has covered; a vehicle more than :data:`MAX_LAG_S` behind runs one tick's steps
     and takes the rest as lost time (it slows down instead of bursting).
+
+    The schedule's steps fall on one grid of wall time, the multiples of
+    ``step_wall_s``, shared by every pacer of the same speed-up: vehicles that rest
+    until the same moment then end their rests on the same step, and the clock wakes
+    once for all of them, not once for each.
     """
 
     def __init__(self, speedup: float) -> None:
@@ -71,15 +76,21 @@ class Pacer:
             raise ValueError(f"speedup must be > 0, got {speedup!r}")
         self.speedup = speedup
         self.steps_per_tick = max(1, round(MIN_WALL_TICK_S * speedup / SIM_DT_S))
-        self.wall_tick_s = self.steps_per_tick * SIM_DT_S / speedup
+        self.step_wall_s = SIM_DT_S / speedup
+        self.wall_tick_s = self.steps_per_tick * self.step_wall_s
         self._max_lag_steps = max(self.steps_per_tick, int(MAX_LAG_S * speedup / SIM_DT_S))
         self._origin = 0.0
         self._done = 0
 
     def restart(self, now: float) -> None:
-        """Count from ``now``: its first steps are due one tick later."""
-        self._origin = now
+        """Count from the step of the grid at ``now`` (at most one step before it)."""
+        # The tolerance keeps a time computed as a grid step (a rest's end) on its step.
+        self._origin = math.floor(now / self.step_wall_s + 1e-6) * self.step_wall_s
         self._done = 0
+
+    def stepped_to(self) -> float:
+        """The wall time the steps run so far have reached (a step of the grid)."""
+        return self._origin + self._done * self.step_wall_s
 
     def due(self, now: float) -> int:
         """The steps wall time has covered by ``now`` and not yet run; counted as run."""
@@ -88,7 +99,8 @@ class Pacer:
         if steps > self._max_lag_steps:
             # Far behind (a stalled machine): one tick now, the rest not made up.
             steps = self.steps_per_tick
-            self._origin = now - steps * SIM_DT_S / self.speedup
+            self.restart(now)
+            self._origin -= steps * self.step_wall_s
             self._done = steps
             return steps
         if steps <= 0:

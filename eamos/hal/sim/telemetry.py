@@ -163,6 +163,44 @@ class TelemetrySampler:
                 )
 
 
+class ReadRate:
+    """Which samples of a vehicle go out when they are read at most every ``period_s``
+    (pure: wall time passed in; :meth:`eamos.hal.sim.adapter.SimAdapter.read_at_most`).
+
+    ``period_s`` None: every sample, as it comes.  Otherwise a moving vehicle sends its
+    latest sample once a period and holds the newer ones, as the link would coalesce
+    them anyway (:class:`eamos.net.liveness.TelemetryOut`, the same rule): at 10 Hz of
+    simulated time and x10, a flying drone made a hundred samples a wall second for
+    two that left.  A sample that arms, disarms, lands or takes off goes at once, and
+    so does the latest when an action ends or the vehicle comes to rest.
+    """
+
+    def __init__(self) -> None:
+        self.period_s: float | None = None
+        self.sent_at = 0.0  # wall time the last sample went out
+        self._held: Telemetry | None = None
+        self._flags: tuple[bool, bool] | None = None
+
+    def pass_on(self, samples: list[Telemetry], now: float, news: bool) -> list[Telemetry]:
+        """What goes out at ``now`` of ``samples`` (a pace's, oldest first) and of the one
+        held before; ``news``: an action ended, or the vehicle rests from now on."""
+        if self._held is not None:
+            samples = [self._held, *samples]
+            self._held = None
+        if not samples:
+            return samples
+        if self.period_s is not None:
+            latest = samples[-1]
+            news = news or (latest.armed, latest.landed) != self._flags
+            if not (news or now >= self.sent_at + self.period_s):
+                self._held = latest
+                return []
+            samples = [latest]
+        self.sent_at = now
+        self._flags = (samples[-1].armed, samples[-1].landed)
+        return samples
+
+
 def _passed(due: float, period: float, bound: float) -> tuple[float, float | None]:
     """``due`` plus ``period`` until it exceeds ``bound``: the loop ``while due <= bound:
     due += period``, its sums the same (the additions before the last few in a C loop);
@@ -179,4 +217,4 @@ def _passed(due: float, period: float, bound: float) -> tuple[float, float | Non
     return due, last
 
 
-__all__ = ["EPS_S", "POSITION_LOG_PERIOD_S", "TelemetrySampler"]
+__all__ = ["EPS_S", "POSITION_LOG_PERIOD_S", "ReadRate", "TelemetrySampler"]
