@@ -221,7 +221,8 @@ class SimAdapter:
         speed-up, the shown battery (0.1 %) changes several times a wall second, and
         each change was a wake-up and a sample.  A moving vehicle sends its latest
         sample once a period (:class:`~eamos.hal.sim.telemetry.ReadRate`); what arms,
-        lands, or comes to rest is sent at once; the battery a late sample shows is exact.
+        lands, ends an action or comes to rest is sent at once; the battery a late
+        sample shows is exact.
         """
         if hz is not None and not hz > 0:
             raise ValueError(f"hz must be > 0 or None, got {hz!r}")
