@@ -39,6 +39,7 @@ from .rejoin import NodeJournal, say
 from .runtime import DroneRuntime, NetSettings, StartGateSettings
 from .stranded import (
     EndOnOwn,
+    activity_matters,
     caught_lost_peer,
     end_on_own,
     silent_since,
@@ -367,9 +368,11 @@ def _execute(
         # the runtime's events are set by the in-bridge thread.
         if runtime.completed.wait(0.5) or runtime.link is None:
             continue
+        silent = silent_since(list(runtime.link.peer_events), time.time(), time.monotonic())
+        if not activity_matters(silent, runtime.part_resolved.is_set(), checked_airborne):
+            continue
         activity = ask_activity(runtime.executive, ASK_TIMEOUT_S)
         activity = dataclasses.replace(activity, held=runtime.held_by_operator)
-        silent = silent_since(list(runtime.link.peer_events), time.time(), time.monotonic())
         if activity.resolved and not checked_airborne:
             checked_airborne = True
             # Held and alone, the hold is what strands it, even when a peer that ended

@@ -162,12 +162,14 @@ class DroneExecutive(RuntimePart):
         failure: FailureSink | None = None,
         journal: Callable[[list[dict[str, Any]]], None] | None = None,
         position: Callable[[], tuple[float, float, float] | None] | None = None,
+        resolved: threading.Event | None = None,
     ) -> None:
         """``journal``: also hand each progress event to it as it happens, before the
         batch that carries it to the ground station (the node's own record,
         :class:`~.rejoin.NodeJournal`: an action that ended is on disk before a kill
         can lose it), a running action with where its vehicle was when it began
-        (``position()``, its latest sample)."""
+        (``position()``, its latest sample).  ``resolved``: set once every top-level
+        node finished (the runtime's thread waits on it instead of asking)."""
         super().__init__(dispatcher)
         self.program = program
         self.journal = journal
@@ -199,7 +201,7 @@ class DroneExecutive(RuntimePart):
         # new thread, per interval); it tells the executive to flush.
         self._flush_alarm = Alarm(self._tell_flush, name=f"eamos-progress-{self.drone}")
         self._flush_due = False
-        self.resolved_event = threading.Event()
+        self.resolved_event = resolved if resolved is not None else threading.Event()
         if not self.top_level:
             self.resolved_event.set()
 

@@ -162,6 +162,7 @@ class DroneRuntime:
         self.services: Dispatcher | None = None  # the telemetry board's (one actor: one worker)
         self.completed = threading.Event()
         self.aborted = threading.Event()
+        self.part_resolved = threading.Event()  # set by the executive: every top-level node ended
         self.abort_reason = ""
         # Paused or held by the operator (until a resume): only the ground station resumes.
         self.held_by_operator = False
@@ -207,7 +208,9 @@ class DroneRuntime:
             raise DroneRuntimeError(f"{self.drone}: {self.adapter_error}")
         self.dispatcher = build.node_dispatcher()
         build.start_nodes(self.dispatcher, self.nodes)
-        self.executive = build.start_executive(self.dispatcher, self.nodes, outbox, self._to_ground)
+        self.executive = build.start_executive(
+            self.dispatcher, self.nodes, outbox, self._to_ground, self.part_resolved
+        )
         build.wire_nodes(self.nodes, self.hal, board, outbox, self.executive, space)
         # A drone takes amendments from its ground station (the ground station none).
         amend = None

@@ -218,9 +218,10 @@ class RuntimeStartup:
         nodes: dict[str, pykka.ActorRef[MissionNode]],
         outbox: Outbox,
         to_ground: Callable[[wire.Message], None],
+        resolved: threading.Event,
     ) -> pykka.ActorRef[DroneExecutive]:
         """The executive, on the nodes' dispatcher: their news (LazyMail) then wakes no
-        other thread."""
+        other thread; it sets ``resolved`` once the drone's part resolved."""
         return DroneExecutive.start(
             dispatcher,
             self.program,
@@ -231,6 +232,7 @@ class RuntimeStartup:
             self.failures,
             journal=self.journal,
             position=self.latest.position,
+            resolved=resolved,
         )
 
     def wire_nodes(

@@ -36,6 +36,7 @@ __all__ = [
     "END_POLICIES",
     "Activity",
     "EndOnOwn",
+    "activity_matters",
     "end_on_own",
     "silent_since",
     "trigger_sources",
@@ -116,6 +117,17 @@ def silent_since(
             went_silent_wall = float(event.get("t", now_wall)) - float(event.get("silent_s", 0.0))
             out[peer] = now - max(0.0, now_wall - went_silent_wall)
     return out
+
+
+def activity_matters(silent: Mapping[str, float], resolved: bool, checked: bool) -> bool:
+    """Whether the executive's :class:`Activity` can change what the drone does now.
+
+    With no peer silent, :func:`end_on_own` ends nothing, whatever the activity; what
+    is left is the one check of a part that resolved (``resolved``, not yet
+    ``checked``).  Otherwise the drone's thread need not ask the executive: twice a
+    second per drone, each a round trip through a worker thread.
+    """
+    return bool(silent) or (resolved and not checked)
 
 
 def end_on_own(

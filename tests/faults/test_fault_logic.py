@@ -20,7 +20,7 @@ import pytest
 
 from eamos.actors.failure import FailurePolicy
 from eamos.actors.runtime import land_now
-from eamos.actors.stranded import Activity, end_on_own, silent_since
+from eamos.actors.stranded import Activity, activity_matters, end_on_own, silent_since
 from eamos.ground.display import format_event
 from eamos.ground.flight import Limits, StopRequest, fly, install_stop_handler
 from eamos.ground.station import ParticipantFailed
@@ -76,6 +76,27 @@ def test_end_on_own(
     assert (ending.kind if ending else None) == expected
     if ending is not None:
         assert f"peer_wait_limit_s = {LIMIT:g}" in ending.reason
+
+
+@pytest.mark.parametrize(
+    "activity",
+    [
+        idle(0.0),
+        BUSY,
+        Activity(True, 0.0),
+        Activity(False, None, held=True),
+        Activity(True, None, held=True),
+    ],
+)
+def test_with_no_peer_silent_the_activity_need_not_be_asked(activity: Activity) -> None:
+    # Nothing ends on its own while every peer is heard, whatever the executive says:
+    # the drone's thread asks it only when a peer is silent, or once its part resolved.
+    for now in (0.0, 100.0, 1e6):
+        assert end_on_own(now, activity, {}, {"Drone1", GROUND_STATION}, LIMIT) is None
+    assert not activity_matters({}, resolved=False, checked=False)
+    assert activity_matters({}, resolved=True, checked=False)
+    assert not activity_matters({}, resolved=True, checked=True)
+    assert activity_matters({"Drone1": 10.0}, resolved=False, checked=True)
 
 
 def test_a_held_drone_without_its_ground_station_says_why_it_ends() -> None:
