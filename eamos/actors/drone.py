@@ -14,7 +14,7 @@ import enum
 import json
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import zmq
@@ -50,11 +50,17 @@ if TYPE_CHECKING:
     from pathlib import Path
 
     from eamos.hal.sim import SimClock
+    from eamos.net.link import Link
 
 #: How long the drone's loop waits for the executive's answer (it answers in ms).
 ASK_TIMEOUT_S = 30.0
-REPORT_ACK_TIMEOUT_S = 10.0
-"""How long a drone waits for the ground station to acknowledge its final report."""
+REPORT_ACK_TIMEOUT_S = 60.0
+"""How long a drone offers its final report until the ground station acknowledges it:
+as long as the ground station waits for reports after a mission's end (a connection that
+a lossy network cut takes seconds to come back, and the report goes again at once when
+it does).  A ground station that leaves ends the wait sooner."""
+REPORT_ACK_STOPPED_S = 10.0
+"""... once a signal stopped the node; after this long the drone also says it still waits."""
 VEHICLE_SILENT_S = 10.0
 """Landing, a vehicle that sends no telemetry sample for this long (wall seconds) is
 silent (its link lost, its autopilot dead): the drone stops waiting for it to land."""
@@ -123,6 +129,32 @@ def load_node_program(config: NodeConfig) -> DroneProgram:
             f"{config.path}: drone: is {config.drone!r} but the program is for {program.drone!r}"
         )
     return program
+
+
+def report_acknowledged(
+    link: Link, stop: threading.Event, notice: Callable[[str], None] | None = None
+) -> bool:
+    """Wait until the ground station acknowledged the final report (True), for at most
+    :data:`REPORT_ACK_TIMEOUT_S`, or :data:`REPORT_ACK_STOPPED_S` once a signal stopped
+    the node (``stop``); a ground station that left ends the wait as acknowledged (the
+    link waits for no peer that left).  ``notice`` is told once, after
+    :data:`REPORT_ACK_STOPPED_S`, that the drone still waits."""
+    began = time.monotonic()
+    told = False
+    while True:
+        waited = time.monotonic() - began
+        limit = REPORT_ACK_STOPPED_S if stop.is_set() else REPORT_ACK_TIMEOUT_S
+        if waited >= limit:
+            return False
+        if notice is not None and not told and waited >= REPORT_ACK_STOPPED_S:
+            told = True
+            notice(
+                f"the ground station has not acknowledged the report yet: it is offered for "
+                f"up to {REPORT_ACK_TIMEOUT_S:g} s (Ctrl-C ends the wait)"
+            )
+        # In slices only so that a signal is noticed.
+        if link.flush(min(limit - waited, 1.0), peers=[GROUND_STATION]):
+            return True
 
 
 def net_settings(config: NodeConfig) -> NetSettings:
@@ -254,7 +286,9 @@ def run_drone(
         if (
             not gone
             and runtime.link is not None
-            and not runtime.link.flush(REPORT_ACK_TIMEOUT_S, peers=[GROUND_STATION])
+            and not report_acknowledged(
+                runtime.link, stop, lambda text: tell_operator(config.drone, text)
+            )
         ):
             runtime.log.warning("mission.report.unacknowledged", timeout_s=REPORT_ACK_TIMEOUT_S)
         journal.mark("ended")

@@ -20,6 +20,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from eamos.actors.drone import REPORT_ACK_TIMEOUT_S
 from eamos.actors.runtime import DroneRuntime, NetSettings
 from eamos.config import LookAheadSettings
 from eamos.hal import make_adapter
@@ -33,8 +34,9 @@ from .lookahead import Forecast, LookAheadLoop
 from .operator import OperatorDesk, PauseClock, desk_handler, snapshot
 from .station import GroundStation
 
-#: How long the drones have to send their final report after the mission ends.
-REPORT_WAIT_OK_S = 60.0
+#: How long the drones have to send their final report after the mission ends: as long
+#: as a drone offers it (a lossy network may hold it back for seconds).
+REPORT_WAIT_OK_S = REPORT_ACK_TIMEOUT_S
 #: ... after an abort (they land first).
 REPORT_WAIT_ABORTED_S = 180.0
 
