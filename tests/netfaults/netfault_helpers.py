@@ -203,14 +203,15 @@ class LabFleet:
 
 def not_ok(summary: dict[str, Any]) -> str:
     """Why a run was not ok, for an assertion's message: its outcome and each report not ok."""
-    parts = {"outcome": summary.get("outcome"), "result": summary.get("result")}
+    parts: dict[str, Any] = {"outcome": summary.get("outcome"), "result": summary.get("result")}
     reports = {**summary.get("drones", {}), GROUND_STATION: summary.get("ground_station") or {}}
     for name, report in reports.items():
         if not report.get("ok"):
-            parts[name] = {k: v for k, v in report.items() if k not in ("actions", "net")}
-            parts[name]["actions not ok"] = [
+            shown = {k: v for k, v in report.items() if k not in ("actions", "net")}
+            shown["actions not ok"] = [
                 a for a in report.get("actions", []) if a.get("result") != "ok"
             ]
+            parts[name] = shown
     return json.dumps(parts, default=str)[:6000]
 
 
