@@ -25,6 +25,7 @@ from eamos.logs import LogWriter, close_logger, make_logger, report_write_error
 from eamos.net import wire
 from eamos.net.reports import report_messages
 from eamos.net.sockets import participant_context
+from eamos.net.timers import TimerHost
 from eamos.net.wire import WireError
 from eamos.net.zap import ZapHandler
 from eamos.program.format import DroneProgram, load_program
@@ -87,7 +88,8 @@ class ProcessShare:
     One log writer (its thread writes every drone's lines, in batches), one
     clock stepping every simulated vehicle, one ZeroMQ context (one set of libzmq
     I/O and reaper threads) and its ZAP handler (one authenticator thread; each
-    drone answers in a domain of its own: :class:`eamos.net.zap.ZapHandler`).
+    drone answers in a domain of its own: :class:`eamos.net.zap.ZapHandler`), and one
+    thread ticking every drone's link (:class:`eamos.net.timers.TimerHost`).
     :meth:`open` makes them, :meth:`close` ends them once every drone has stopped.
     """
 
@@ -95,6 +97,7 @@ class ProcessShare:
     sim_clock: SimClock
     context: zmq.Context[Any]
     zap: ZapHandler
+    timers: TimerHost
 
     @classmethod
     def open(cls) -> ProcessShare:
@@ -102,11 +105,12 @@ class ProcessShare:
         from eamos.hal.sim import SimClock  # here: a process of one drone never loads it
 
         context = participant_context()
-        return cls(LogWriter(), SimClock("sim-clock"), context, ZapHandler(context))
+        return cls(LogWriter(), SimClock("sim-clock"), context, ZapHandler(context), TimerHost())
 
     def close(self) -> None:
         """End them (every drone stopped: its sockets are closed); the writer last."""
         self.sim_clock.close()
+        self.timers.stop()
         self.zap.stop()
         self.context.term()
         self.writer.close()
@@ -228,6 +232,7 @@ def run_drone(
         log_writer=writer,
         context=shared.context if shared is not None else None,
         zap=shared.zap if shared is not None else None,
+        timers=shared.timers if shared is not None else None,
         # Nothing acts before this deployment's Start; the first trigger to reach a
         # node is recorded first (a restart then knows something ran).
         start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),

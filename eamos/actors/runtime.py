@@ -41,6 +41,7 @@ from ..net import wire
 from ..net.bridges import InBridge, OutBridge
 from ..net.link import Delivered, Link
 from ..net.sockets import participant_context
+from ..net.timers import TimerHost
 from ..net.zap import ZapHandler
 from ..program.format import DroneProgram
 from .board import TelemetryBoard, WhenLanded
@@ -101,6 +102,7 @@ class DroneRuntime:
         *,
         context: zmq.Context[Any] | None = None,
         zap: ZapHandler | None = None,
+        timers: TimerHost | None = None,
         ground_handler: Callable[[Delivered], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
@@ -112,7 +114,8 @@ class DroneRuntime:
     ) -> None:
         """``log_writer``: the process's log writer when several runtimes share a process;
         ``context``, ``zap``: a ZeroMQ context and its ZAP handler that several runtimes
-        share (:class:`~eamos.net.zap.ZapHandler`; None: its own context);
+        share (:class:`~eamos.net.zap.ZapHandler`; None: its own context); ``timers``: the
+        process's link timer thread that several runtimes share (None: the link's own);
         ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
         nothing before it (:class:`~.inbound.StartGate`; None: no gate); ``replay``: a
         node restarted mid-mission replays what it reported (:mod:`.continuation`);
@@ -146,6 +149,7 @@ class DroneRuntime:
             replay=replay,
             journal=journal,
             zap=zap,
+            timers=timers,
         )
         # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None

@@ -26,6 +26,7 @@ from ..net.bridges import InBridge
 from ..net.effects import TriggersAcknowledged
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import Delivered, Link, LinkSettings
+from ..net.timers import TimerHost
 from ..net.zap import ZapHandler
 from ..program.format import DroneProgram
 from .board import LatestSample, LocalSample, TelemetryBoard
@@ -105,9 +106,11 @@ class RuntimeStartup:
         replay: Replay | None = None,
         journal: Callable[[list[dict[str, Any]]], None] | None = None,
         zap: ZapHandler | None = None,
+        timers: TimerHost | None = None,
     ) -> None:
         self.program = program
         self.zap = zap  # the shared context's ZAP handler (None: the link starts its own)
+        self.timers = timers  # the process's link timer thread (None: the link's own)
         self.start_gate = start_gate
         self.replay = replay  # a restarted node's past (see DroneRuntime)
         self.journal = journal
@@ -140,6 +143,7 @@ class RuntimeStartup:
                 keys=self.net.keys,
                 settings=self.net.link,
                 zap=self.zap,
+                timers=self.timers,
             )
         except (zmq.ZMQError, KeysError) as exc:
             raise DroneRuntimeError(

@@ -9,10 +9,11 @@ Out-/In-Bridges, CURVE with fleet keys), what a participant's runtime uses.
 
 Threads: the In-Bridge's receive thread runs :meth:`LinkDriver._receive` and
 the explicit acks at the end of each batch; the Out-Bridge's thread reports
-(re)subscriptions; one timer thread per link (:class:`LinkTimer`) calls
-``on_tick`` and then waits on a Condition until the session's next deadline
-(or until a send or a receive brings an earlier one: a
-:class:`~eamos.net.session.Wake` action), never polling.  One lock serialises
+(re)subscriptions; a timer thread per link
+(:class:`~eamos.net.timers.LinkTimer`), or one for every link of a process
+(:class:`~eamos.net.timers.TimerHost`), calls ``on_tick`` and then waits until
+the session's next deadline (or until a send or a receive brings an earlier
+one: a :class:`~eamos.net.session.Wake` action), never polling.  One lock serialises
 every call into the session, and the wire messages it returns are handed to
 the Out-Bridge under that lock, so a link's wire order is its seq order; the
 application callback runs outside it.
@@ -33,7 +34,7 @@ import random
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, TypeVar
 
 import zmq
 
@@ -55,6 +56,7 @@ from eamos.net.reports import ReportJoiner
 from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
 from eamos.net.sockets import should_log
+from eamos.net.timers import TimerHost, link_timer
 from eamos.net.transport import InSide, OutSide, Transport, ZmqTransport
 from eamos.net.zap import ZapHandler
 
@@ -77,111 +79,13 @@ Clock = Callable[[], float]
 Delivered = wire.Message | PeerStatus | TelemetryStale | TriggersAcknowledged
 
 
-class TimerOwner(Protocol):
-    """What a :class:`LinkTimer` calls back: the driver of the session it ticks."""
-
-    clock: Clock
-
-    @property
-    def closed(self) -> bool:
-        """Whether the session was closed (the timer's end); read with the lock held."""
-        ...
-
-    def tick(self) -> tuple[list[SessionEffect], float]:
-        """The session's tick carried out (lock held): what to deliver, the next deadline."""
-        ...
-
-    def deliver(self, later: list[SessionEffect]) -> None:
-        """Hand ``later`` to the application (lock not held)."""
-        ...
-
-
-class LinkTimer:
-    """A link's timer thread: the session's tick at each of its deadlines, and nothing between.
-
-    Kept apart from :class:`LinkDriver` because its job is one of time alone:
-    when to run the next tick.  Between two ticks it waits on ``wake``, a
-    Condition on the driver's lock, until the deadline the last tick returned,
-    or until the driver reports an earlier one (:meth:`kick`, for a
-    :class:`~eamos.net.effects.Wake` action); it never polls.  It is kicked
-    only for an earlier deadline, so a busy link does not wake it for every
-    message.  A turn that raises is logged (``net.link.timer_error``) and
-    counted (:attr:`errors`), and the next comes ``retry_s`` later.
-    """
-
-    def __init__(
-        self, owner: TimerOwner, wake: threading.Condition, log: EventLog, name: str, retry_s: float
-    ) -> None:
-        self._owner = owner
-        self._wake = wake
-        self._log = log
-        self._retry_s = retry_s
-        self._next_wake = float("inf")
-        self.errors = 0
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> None:
-        """Start the thread."""
-        self._thread.start()
-
-    def kick(self, at: float) -> None:
-        """A deadline at ``at`` appeared (lock held): wake the thread if it sleeps past it."""
-        if at < self._next_wake:
-            self._next_wake = at
-            self._wake.notify()
-
-    def wake_all(self) -> None:
-        """Wake the thread to see that the session closed (lock held)."""
-        self._wake.notify_all()
-
-    def join(self, timeout_s: float) -> None:
-        """Wait for the thread to end, unless called on it or it never started."""
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join(timeout_s)
-
-    def _run(self) -> None:
-        while True:
-            try:
-                if not self._turn():
-                    return
-            # A bug in one turn (the session's tick, a delivery) must not stop the
-            # timer: no retransmission, heartbeat or liveness check would follow.
-            except BaseException as exc:
-                self.errors += 1
-                if should_log(self.errors):
-                    self._log.error(
-                        "net.link.timer_error",
-                        error=f"{type(exc).__name__}: {exc}"[:300],
-                        errors=self.errors,
-                        exc_info=exc,
-                    )
-                # Not at once again: a turn that keeps failing must not spin a core.
-                with self._wake:
-                    if self._owner.closed:
-                        return
-                    self._wake.wait(self._retry_s)
-
-    def _turn(self) -> bool:
-        """One turn of the timer: the session's tick, then a wait; False once closed."""
-        owner = self._owner
-        with self._wake:
-            if owner.closed:
-                return False
-            later, deadline = owner.tick()
-            if not later:
-                self._next_wake = deadline
-                self._wake.wait(max(0.0, deadline - owner.clock()))
-                self._next_wake = float("-inf")  # awake: nobody needs to kick
-        owner.deliver(later)
-        return True
-
-
 class LinkDriver(Generic[OutT, InT]):
     """Runs ``session`` over ``transport`` on threads, reading time from ``clock``.
 
     Build it (opens and starts the outgoing side), :meth:`connect` to the
-    peers (incoming side, timer thread), :meth:`send` from any thread,
+    peers (incoming side, timer), :meth:`send` from any thread,
     :meth:`close` at the end.  ``out`` and ``inb`` are the transport's two sides.
+    ``timers``: the process's shared timer thread (None: a thread of the link's own).
     """
 
     def __init__(
@@ -191,6 +95,7 @@ class LinkDriver(Generic[OutT, InT]):
         log: EventLog | None = None,
         *,
         clock: Clock = time.monotonic,
+        timers: TimerHost | None = None,
     ) -> None:
         self.session = session
         self.name = session.name
@@ -200,15 +105,11 @@ class LinkDriver(Generic[OutT, InT]):
         self.log = log if log is not None else make_logger(None)
         self.clock = clock
         # One lock guards the session.  Two conditions on it: _cond for flush()
-        # waiters, the timer's for its thread (see LinkTimer).
+        # waiters, the timer's (see eamos.net.timers).
         lock = threading.RLock()
         self._cond = threading.Condition(lock)
-        self._timer = LinkTimer(
-            self,
-            threading.Condition(lock),
-            self.log,
-            f"eamos-link-{self.name}",
-            retry_s=self.settings.heartbeat_s,
+        self._timer = link_timer(
+            self, threading.Condition(lock), self.log, self.settings.heartbeat_s, timers
         )
         self._flush_waiters = 0
         self._on_message: Callable[[Delivered], None] = lambda msg: None
@@ -399,7 +300,7 @@ class LinkDriver(Generic[OutT, InT]):
         if inb is not None and peer:
             inb.announce(peer)  # a peer connected to us: it listens, connect to it
 
-    # -- the timer's turn (LinkTimer) -------------------------------------------------------
+    # -- the timer's turn (eamos.net.timers) ------------------------------------------------
 
     @property
     def closed(self) -> bool:
@@ -553,6 +454,7 @@ class Link(LinkDriver[OutBridge, InBridge]):
         clock: Clock = time.monotonic,
         rng: random.Random | None = None,
         zap: ZapHandler | None = None,
+        timers: TimerHost | None = None,
     ) -> None:
         settings = settings or LinkSettings()
         log = log if log is not None else make_logger(None)
@@ -569,7 +471,7 @@ class Link(LinkDriver[OutBridge, InBridge]):
                 zap=zap,
             )
         session = ReliableSession(name, mission, settings, log=log, rng=rng)
-        super().__init__(session, transport, log, clock=clock)
+        super().__init__(session, transport, log, clock=clock, timers=timers)
 
     @property
     def auth(self) -> FleetAuthenticator | None:

@@ -23,6 +23,7 @@ from eamos.ground import free_ports
 from eamos.net import wire
 from eamos.net.keys import FleetKeys, create_fleet_keys
 from eamos.net.link import Link, LinkSettings
+from eamos.net.timers import TimerHost
 
 from .session_helpers import FAST, MISSION, sample, trig
 
@@ -122,6 +123,7 @@ class Net:
         topics: tuple[bytes, ...] = (),
         log: Any = None,
         clock: Callable[[], float] = time.monotonic,
+        timers: TimerHost | None = None,
     ) -> Link:
         for n in [name, *peers]:
             self.endpoints.setdefault(n, f"tcp://127.0.0.1:{free_port()}")
@@ -132,7 +134,15 @@ class Net:
             assert self.keys_dir is not None
             keys = FleetKeys.load(self.keys_dir / name, name)
         link = Link(
-            ctx, name, MISSION, self.endpoints[name], log, keys=keys, settings=settings, clock=clock
+            ctx,
+            name,
+            MISSION,
+            self.endpoints[name],
+            log,
+            keys=keys,
+            settings=settings,
+            clock=clock,
+            timers=timers,
         )
         self.links.append(link)
         if connect:
