@@ -35,6 +35,18 @@ __all__ = ["HostedTimer", "LinkTimer", "TimerHost", "TimerOwner", "link_timer"]
 Clock = Callable[[], float]
 
 
+def log_timer_error(log: EventLog, exc: BaseException, errors: int) -> None:
+    """Log a timer's failed turn (``net.link.timer_error``): the first ones, then every
+    so many (:func:`~eamos.net.sockets.should_log`)."""
+    if should_log(errors):
+        log.error(
+            "net.link.timer_error",
+            error=f"{type(exc).__name__}: {exc}"[:300],
+            errors=errors,
+            exc_info=exc,
+        )
+
+
 class TimerOwner(Protocol):
     """What a link's timer calls back: the driver of the session it ticks."""
 
@@ -107,13 +119,7 @@ class LinkTimer:
             # timer: no retransmission, heartbeat or liveness check would follow.
             except BaseException as exc:
                 self.errors += 1
-                if should_log(self.errors):
-                    self._log.error(
-                        "net.link.timer_error",
-                        error=f"{type(exc).__name__}: {exc}"[:300],
-                        errors=self.errors,
-                        exc_info=exc,
-                    )
+                log_timer_error(self._log, exc, self.errors)
                 # Not at once again: a turn that keeps failing must not spin a core.
                 with self._wake:
                     if self._owner.closed:
@@ -203,13 +209,7 @@ class HostedTimer:
         # A bug in one link's tick must stop neither its timer nor the other links'.
         except BaseException as exc:
             self.errors += 1
-            if should_log(self.errors):
-                self._log.error(
-                    "net.link.timer_error",
-                    error=f"{type(exc).__name__}: {exc}"[:300],
-                    errors=self.errors,
-                    exc_info=exc,
-                )
+            log_timer_error(self._log, exc, self.errors)
             self._host.schedule(self, self._host.clock() + self._retry_s, replace=True)
 
 

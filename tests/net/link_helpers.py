@@ -9,6 +9,7 @@ does to PUB/SUB traffic; every wait is bounded.
 
 from __future__ import annotations
 
+import itertools
 import random
 import threading
 import time
@@ -35,6 +36,7 @@ __all__ = [
     "Lossy",
     "Net",
     "eventually",
+    "fail_one_tick",
     "free_port",
     "network",
     "sample",
@@ -165,6 +167,19 @@ def network(tmp: Path) -> Iterator[Net]:
         yield net
     finally:
         net.close()
+
+
+def fail_one_tick(link: Link, which: int = 2) -> None:
+    """Make the ``which``-th (0-based) tick of ``link``'s session raise, once."""
+    real_tick = link.session.on_tick
+    ticks = itertools.count()
+
+    def on_tick(now: float) -> Any:
+        if next(ticks) == which:
+            raise RuntimeError("a tick's bug")
+        return real_tick(now)
+
+    link.session.on_tick = on_tick  # type: ignore[method-assign]
 
 
 def eventually(predicate: Callable[[], bool], timeout: float = WAIT_S) -> bool:

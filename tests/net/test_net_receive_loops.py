@@ -9,7 +9,6 @@ injected where they would arise, to show the loop itself holds whatever the caus
 
 from __future__ import annotations
 
-import itertools
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -28,7 +27,7 @@ from eamos.net import InBridge, OutBridge, wire
 from eamos.net import in_bridge as in_bridge_module
 from eamos.net.keys import FleetAuthenticator, FleetKeys, create_fleet_keys
 
-from .link_helpers import MISSION, WAIT_S, Inbox, Lossy, eventually, network, trig
+from .link_helpers import MISSION, WAIT_S, Inbox, Lossy, eventually, fail_one_tick, network, trig
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -278,15 +277,7 @@ def test_the_link_timer_survives_a_failing_tick_and_still_retransmits(tmp_path: 
             b = net.link("B", ["A"], inbox)
             a = net.link("A", ["B"], log=log)
             assert a.wait_subscribed([wire.topic_to("B")], WAIT_S)
-            real_tick = a.session.on_tick
-            ticks = itertools.count()
-
-            def on_tick(now: float) -> Any:
-                if next(ticks) == 2:
-                    raise RuntimeError("a tick's bug")
-                return real_tick(now)
-
-            a.session.on_tick = on_tick  # type: ignore[method-assign]
+            fail_one_tick(a)
             assert eventually(lambda: a.timer_errors == 1)
             lossy = Lossy(a)
             lost = {1}

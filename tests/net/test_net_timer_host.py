@@ -8,16 +8,14 @@ only its timer.
 
 from __future__ import annotations
 
-import itertools
 import threading
 from pathlib import Path
-from typing import Any
 
 from eamos.logs import close_logger, make_logger, read_log
 from eamos.net import wire
 from eamos.net.timers import TimerHost
 
-from .link_helpers import WAIT_S, Inbox, Lossy, eventually, network, trig
+from .link_helpers import WAIT_S, Inbox, Lossy, eventually, fail_one_tick, network, trig
 
 
 def _link_threads(before: set[threading.Thread]) -> list[str]:
@@ -65,15 +63,7 @@ def test_a_failing_tick_stops_neither_its_links_timer_nor_the_others(tmp_path: P
             b = net.link("B", ["A"], timers=host)
             a = net.link("A", ["B"], log=log, timers=host)
             assert a.wait_subscribed([wire.topic_to("B")], WAIT_S)
-            real_tick = a.session.on_tick
-            ticks = itertools.count()
-
-            def on_tick(now: float) -> Any:
-                if next(ticks) == 2:
-                    raise RuntimeError("a tick's bug")
-                return real_tick(now)
-
-            a.session.on_tick = on_tick  # type: ignore[method-assign]
+            fail_one_tick(a)
             assert eventually(lambda: a.timer_errors == 1)
             beats = {x.name: x.session.counters.heartbeats_sent for x in (a, b)}
             assert eventually(
