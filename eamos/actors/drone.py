@@ -135,6 +135,12 @@ def load_node_program(config: NodeConfig) -> DroneProgram:
     return program
 
 
+def report_ack_limit(stop: threading.Event) -> float:
+    """How long a drone offers its final report: :data:`REPORT_ACK_STOPPED_S` once a
+    signal stopped the node (``stop``), else :data:`REPORT_ACK_TIMEOUT_S`."""
+    return REPORT_ACK_STOPPED_S if stop.is_set() else REPORT_ACK_TIMEOUT_S
+
+
 def report_acknowledged(
     link: Link, stop: threading.Event, notice: Callable[[str], None] | None = None
 ) -> bool:
@@ -147,7 +153,7 @@ def report_acknowledged(
     told = False
     while True:
         waited = time.monotonic() - began
-        limit = REPORT_ACK_STOPPED_S if stop.is_set() else REPORT_ACK_TIMEOUT_S
+        limit = report_ack_limit(stop)
         if waited >= limit:
             return False
         if notice is not None and not told and waited >= REPORT_ACK_STOPPED_S:
@@ -295,7 +301,7 @@ def run_drone(
                 runtime.link, stop, lambda text: tell_operator(config.drone, text)
             )
         ):
-            runtime.log.warning("mission.report.unacknowledged", timeout_s=REPORT_ACK_TIMEOUT_S)
+            runtime.log.warning("mission.report.unacknowledged", timeout_s=report_ack_limit(stop))
         journal.mark("ended")
         return DroneEnd.DONE if report.ok else DroneEnd.FAILED
     finally:

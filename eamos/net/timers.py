@@ -70,7 +70,7 @@ class TimerOwner(Protocol):
 class LinkTimer:
     """A link's timer thread: the session's tick at each of its deadlines, and nothing between.
 
-    Kept apart from :class:`LinkDriver` because its job is one of time alone:
+    Kept apart from :class:`~eamos.net.link.LinkDriver` because its job is one of time alone:
     when to run the next tick.  Between two ticks it waits on ``wake``, a
     Condition on the driver's lock, until the deadline the last tick returned,
     or until the driver reports an earlier one (:meth:`kick`, for a
@@ -228,7 +228,12 @@ class TimerHost:
     def timer(
         self, owner: TimerOwner, lock: threading.Condition, log: EventLog, retry_s: float
     ) -> HostedTimer:
-        """A timer for ``owner`` (a link), whose ticks run with ``lock`` held."""
+        """A timer for ``owner`` (a link), whose ticks run with ``lock`` held.
+
+        Raises ValueError if ``owner`` reads another clock than the host: its deadlines
+        would be compared with the wrong time."""
+        if owner.clock is not self.clock:
+            raise ValueError(f"link {owner.name} reads another clock than its shared timer")
         return HostedTimer(self, owner, lock, log, retry_s)
 
     def on_its_thread(self) -> bool:

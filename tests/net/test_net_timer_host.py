@@ -11,6 +11,8 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
+import pytest
+
 from eamos.logs import close_logger, make_logger, read_log
 from eamos.net import wire
 from eamos.net.timers import TimerHost
@@ -93,3 +95,12 @@ def test_closing_one_link_ends_only_its_timer(tmp_path: Path) -> None:
     finally:
         host.stop()
     assert _link_threads(before) == []  # the host's thread ended with stop()
+
+
+def test_a_link_with_a_clock_of_its_own_is_refused_by_a_shared_timer(tmp_path: Path) -> None:
+    host = TimerHost()
+    try:
+        with network(tmp_path) as net, pytest.raises(ValueError, match="another clock"):
+            net.link("A", ["B"], clock=lambda: 0.0, timers=host)
+    finally:
+        host.stop()
