@@ -23,6 +23,7 @@ from eamos.config import ConfigError, NodeConfig
 from eamos.hal import make_adapter
 from eamos.logs import LogWriter, close_logger, make_logger, report_write_error
 from eamos.net import wire
+from eamos.net.receive_host import ReceiveHost
 from eamos.net.reports import report_messages
 from eamos.net.sockets import participant_context
 from eamos.net.timers import TimerHost
@@ -89,7 +90,8 @@ class ProcessShare:
     clock stepping every simulated vehicle, one ZeroMQ context (one set of libzmq
     I/O and reaper threads) and its ZAP handler (one authenticator thread; each
     drone answers in a domain of its own: :class:`eamos.net.zap.ZapHandler`), and one
-    thread ticking every drone's link (:class:`eamos.net.timers.TimerHost`).
+    thread ticking every drone's link (:class:`eamos.net.timers.TimerHost`) and one
+    reading every drone's In-Bridge (:class:`eamos.net.receive_host.ReceiveHost`).
     :meth:`open` makes them, :meth:`close` ends them once every drone has stopped.
     """
 
@@ -98,6 +100,7 @@ class ProcessShare:
     context: zmq.Context[Any]
     zap: ZapHandler
     timers: TimerHost
+    receivers: ReceiveHost
 
     @classmethod
     def open(cls) -> ProcessShare:
@@ -105,12 +108,20 @@ class ProcessShare:
         from eamos.hal.sim import SimClock  # here: a process of one drone never loads it
 
         context = participant_context()
-        return cls(LogWriter(), SimClock("sim-clock"), context, ZapHandler(context), TimerHost())
+        return cls(
+            LogWriter(),
+            SimClock("sim-clock"),
+            context,
+            ZapHandler(context),
+            TimerHost(),
+            ReceiveHost(context),
+        )
 
     def close(self) -> None:
         """End them (every drone stopped: its sockets are closed); the writer last."""
         self.sim_clock.close()
         self.timers.stop()
+        self.receivers.stop()
         self.zap.stop()
         self.context.term()
         self.writer.close()
@@ -239,6 +250,7 @@ def run_drone(
         context=shared.context if shared is not None else None,
         zap=shared.zap if shared is not None else None,
         timers=shared.timers if shared is not None else None,
+        receivers=shared.receivers if shared is not None else None,
         # Nothing acts before this deployment's Start; the first trigger to reach a
         # node is recorded first (a restart then knows something ran).
         start_gate=StartGateSettings(config.deployment, lambda: journal.mark("running")),

@@ -170,10 +170,11 @@ class StartGate:
 class InRouter:
     """Called by the link (on its receive thread) with every message for this participant.
 
-    A trigger's node, and an interrupt's executive, run their turn on that
-    thread when they are idle (:func:`~.dispatch.tell_here`: no worker woken on
-    the trigger's path).  ``ground_handler`` is set on the ground station: it
-    also sees reports, progress, peer status and the fleet's telemetry.  An
+    A trigger's node, an interrupt's executive and a telemetry sample's board run
+    their turn on that thread when they are idle (:func:`~.dispatch.tell_here`: no
+    worker woken on the trigger's path, nor for each sample).  ``ground_handler``
+    is set on the ground station: it also sees reports, progress, peer status and
+    the fleet's telemetry.  An
     exception while routing to the runtime's actors goes to the runtime's
     failure policy (``failure``); one in the ground station's handler goes back
     to the link, which logs it.
@@ -244,13 +245,15 @@ class InRouter:
             if self.gate is None or not self.gate.hold(msg):
                 self._trigger(msg)
         elif isinstance(msg, wire.TelemetrySample):
-            self.board.tell(RemoteTelemetry(msg.sender, telemetry_values(msg)))
+            # On this thread (caller runs): at the ground station the fleet's samples
+            # would otherwise wake the board's worker for each one.
+            tell_here(self.board, RemoteTelemetry(msg.sender, telemetry_values(msg)))
             return True
         elif isinstance(msg, TelemetryStale):
             # Withdraw the drone's values: a condition reading them now waits
             # (Unknown) for a fresh sample instead of deciding on old data.
             # The link logged mission.telemetry.stale.
-            self.board.tell(RemoteTelemetry(msg.sender, stale_values(msg.age_s)))
+            tell_here(self.board, RemoteTelemetry(msg.sender, stale_values(msg.age_s)))
         elif isinstance(msg, PeerStatus):
             # The link logged mission.peer.<state>; the ground station shows it.
             return True

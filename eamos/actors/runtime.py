@@ -40,6 +40,7 @@ from ..logs import DroneLogs, EventLog, LogWriter
 from ..net import wire
 from ..net.bridges import InBridge, OutBridge
 from ..net.link import Delivered, Link
+from ..net.receive_host import ReceiveHost
 from ..net.sockets import participant_context
 from ..net.timers import TimerHost
 from ..net.zap import ZapHandler
@@ -103,6 +104,7 @@ class DroneRuntime:
         context: zmq.Context[Any] | None = None,
         zap: ZapHandler | None = None,
         timers: TimerHost | None = None,
+        receivers: ReceiveHost | None = None,
         ground_handler: Callable[[Delivered], None] | None = None,
         extra_topics: tuple[bytes, ...] = (),
         battery_reserve_pct: float | None = None,
@@ -116,6 +118,7 @@ class DroneRuntime:
         ``context``, ``zap``: a ZeroMQ context and its ZAP handler that several runtimes
         share (:class:`~eamos.net.zap.ZapHandler`; None: its own context); ``timers``: the
         process's link timer thread that several runtimes share (None: the link's own);
+        ``receivers``: the process's In-Bridge receive thread, likewise;
         ``start_gate``: a drone's node takes only its own deployment's Start, and acts on
         nothing before it (:class:`~.inbound.StartGate`; None: no gate); ``replay``: a
         node restarted mid-mission replays what it reported (:mod:`.continuation`);
@@ -150,6 +153,7 @@ class DroneRuntime:
             journal=journal,
             zap=zap,
             timers=timers,
+            receivers=receivers,
         )
         # The parts, as far as they are built (None: not yet, or the start failed before).
         self.link: Link | None = None

@@ -26,12 +26,13 @@ from ..net.bridges import InBridge
 from ..net.effects import TriggersAcknowledged
 from ..net.keys import FleetKeys, KeysError, plain_refusal
 from ..net.link import Delivered, Link, LinkSettings
+from ..net.receive_host import ReceiveHost
 from ..net.timers import TimerHost
 from ..net.zap import ZapHandler
 from ..program.format import DroneProgram
 from .board import LatestSample, LocalSample, TelemetryBoard
 from .continuation import Replay
-from .dispatch import Dispatcher
+from .dispatch import Dispatcher, tell_here
 from .errors import DroneRuntimeError
 from .executive import DroneExecutive
 from .failure import FailurePolicy, tell_operator
@@ -107,10 +108,12 @@ class RuntimeStartup:
         journal: Callable[[list[dict[str, Any]]], None] | None = None,
         zap: ZapHandler | None = None,
         timers: TimerHost | None = None,
+        receivers: ReceiveHost | None = None,
     ) -> None:
         self.program = program
         self.zap = zap  # the shared context's ZAP handler (None: the link starts its own)
         self.timers = timers  # the process's link timer thread (None: the link's own)
+        self.receivers = receivers  # the process's receive thread (None: the link's own)
         self.start_gate = start_gate
         self.replay = replay  # a restarted node's past (see DroneRuntime)
         self.journal = journal
@@ -144,6 +147,7 @@ class RuntimeStartup:
                 settings=self.net.link,
                 zap=self.zap,
                 timers=self.timers,
+                receivers=self.receivers,
             )
         except (zmq.ZMQError, KeysError) as exc:
             raise DroneRuntimeError(
@@ -183,7 +187,9 @@ class RuntimeStartup:
 
         def on_sample(sample: Telemetry) -> None:
             latest.put(sample)
-            board.tell(LocalSample(sample))
+            # The board's turn runs on the adapter's thread (caller runs): a worker
+            # woken for every sample cost more than the turn; it never calls the adapter.
+            tell_here(board, LocalSample(sample))
 
         self.pace_telemetry(self.program)
         return start_uniform_api(space, on_sample)

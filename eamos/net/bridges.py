@@ -23,16 +23,21 @@ threads behind a full memory barrier (a lock).  So:
   a subscription frame waiting after its send wakes the thread through an
   in-process PAIR pipe.  Messages from one thread leave in the order they were
   sent, and ``send`` never blocks (XPUB drops at the high-water mark instead).
-* ``InBridge`` runs one receive thread polling the SUB socket and a control
-  PAIR pipe; ``add_subscription`` and ``close`` talk to it through that pipe.
-  ``on_message`` is called on that thread, so it should hand work off quickly
-  (e.g. to an actor's mailbox) rather than block.
+* ``InBridge``'s sockets (a SUB socket and a monitor per peer) are read by one
+  receive thread (:class:`~eamos.net.receive_host.ReceiveHost`): a thread of its
+  own for a participant alone in its process, or the one thread that reads every
+  In-Bridge of the drones sharing a process.  ``add_subscription``, ``announce``
+  and ``close`` are requests queued to that thread (a control PAIR pipe wakes
+  it).  ``on_message`` is called on that thread, so it should hand work off
+  quickly (e.g. to an actor's mailbox) rather than block; a bridge whose own
+  sockets fail leaves the thread, the others read on.
 
 Lifecycle
 ---------
-Construct (binds/connects and subscribes), ``start()`` (starts the thread),
-use, ``close()`` (idempotent, never blocks for long: sockets are closed with a
-small linger by the bridge thread itself, which is then joined with a timeout).
+Construct (binds/connects and subscribes), ``start()`` (starts the thread, or
+hands the In-Bridge to its receive thread), use, ``close()`` (idempotent, never
+blocks for long: sockets are closed with a small linger by the thread that owns
+them, which the caller waits for with a timeout).
 Both bridges are also context managers (``with OutBridge(...) as out:``).
 Closing sockets never blocks in ZeroMQ; only ``Context.term()`` waits for up to
 the linger time to flush messages still queued to peers, which is what lets a

@@ -6,29 +6,24 @@ See :mod:`eamos.net.bridges` for the threading model, the lifecycle and security
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable, Iterable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 import zmq
 
 from eamos.logs import EventLog, make_logger
-from eamos.net.readiness import SocketWatch
+from eamos.net.receive_host import ReceiveHost
 from eamos.net.reconnect import Reconnector
 from eamos.net.sockets import (
-    CMD_CONNECT,
-    CMD_STOP,
-    CMD_SUB,
     CONNECTING_PING_FACTOR,
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_HWM,
     EVENTS_OPT,
+    JOIN_TIMEOUT_S,
     MAX_FRAME_BYTES,
     POLLIN_BIT,
-    BridgeThread,
     Monitor,
     connection_options,
-    control_pair,
     curve_client,
     recv_message,
     should_log,
@@ -54,10 +49,6 @@ def latest_telemetry(batch: list[list[bytes]]) -> tuple[list[list[bytes]], int]:
     kept = [f for i, f in enumerate(batch) if f[0][:3] != b"tm/" or newest[f[0]] == i]
     return kept, len(batch) - len(kept)
 
-
-#: A turn of the receive loop longer than this is reported (``on_stall``): far above a
-#: turn's usual length, and below the link's own stall threshold.
-STALL_S = 0.05
 
 #: The most messages one socket gives per turn (others are not starved by a flood).
 READ_BATCH = 256
@@ -135,10 +126,11 @@ class ReceiveLedger:
                 exc_info=exc,
             )
 
-    def turn_took(self, seconds: float, on_stall: Callable[[float], None] | None) -> None:
-        """A turn of the receive loop took ``seconds``: told to ``on_stall`` when that is
-        long (:data:`STALL_S`): what peers sent meanwhile waited unread, not their silence."""
-        if seconds > STALL_S and on_stall is not None:
+    def stalled(self, seconds: float, on_stall: Callable[[float], None] | None) -> None:
+        """A turn of the receive thread took ``seconds`` (more than
+        :data:`~eamos.net.receive_host.STALL_S`): told to ``on_stall``, for what peers
+        sent meanwhile waited unread, which is not their silence."""
+        if on_stall is not None:
             try:
                 on_stall(seconds)
             except BaseException as exc:  # a consumer's failure is its own
@@ -157,7 +149,69 @@ class ReceiveLedger:
             )
 
 
-class InBridge(BridgeThread):
+def peer_options(
+    sub: zmq.Socket[Any], hwm: int, heartbeat_ms: int, curve: tuple[FleetKeys, str] | None
+) -> None:
+    """Set up ``sub``, an In-Bridge's socket to one peer (``curve``: the keys, the peer)."""
+    sub.setsockopt(zmq.LINGER, 0)
+    sub.setsockopt(zmq.RCVHWM, hwm)
+    # ZeroMQ refuses (and disconnects) peers sending frames larger than this before
+    # buffering them: the memory bound.  Oversized messages below it are dropped by
+    # decode with the connection kept.
+    sub.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
+    connection_options(sub, heartbeat_ms, CONNECTING_PING_FACTOR)
+    if curve is not None:
+        keys, peer = curve
+        curve_client(sub, keys, keys.fleet[peer])
+
+
+class Admission:
+    """Which received messages are this participant's: its topics, its mission, their sender.
+
+    Topics are matched exactly (ZeroMQ's prefix matching would deliver ``to/D10``
+    to a subscriber of ``to/D1``); a topic ending in ``/`` (or empty) is a
+    deliberate prefix.  Every message turned away is counted in ``ledger``.
+    Used on the receive thread only (before it starts, by the bridge's caller).
+    """
+
+    def __init__(self, mission: str, check_sender: bool, ledger: ReceiveLedger) -> None:
+        self.mission = mission
+        self._check_sender = check_sender
+        self._ledger = ledger
+        self._exact: set[bytes] = set()
+        self._prefixes: set[bytes] = set()
+
+    def subscribe(self, topic: bytes) -> None:
+        """Take messages on ``topic`` too."""
+        if topic == b"" or topic.endswith(b"/"):
+            self._prefixes.add(topic)
+        else:
+            self._exact.add(topic)
+
+    def admit(self, frames: list[bytes], peer: str) -> Message | None:
+        """The message ``frames`` carry if it is for us (else None, counted and logged).
+
+        Raises only what the decoder does beyond :class:`~eamos.net.wire.WireError`
+        (a bug of ours: the caller counts it)."""
+        topic = frames[0]
+        if topic not in self._exact and not any(topic.startswith(p) for p in self._prefixes):
+            self._ledger.ignored += 1
+            return None
+        try:
+            msg = decode(frames)
+        except WireError as exc:
+            self._ledger.drop(exc.reason, topic, str(exc), peer=peer)
+            return None
+        if msg.mission != self.mission:
+            self._ledger.drop("other_mission", topic, msg.mission, sender=msg.sender, peer=peer)
+            return None
+        if self._check_sender and msg.sender != peer:
+            self._ledger.drop("sender", topic, f"{msg.sender!r} on {peer!r}'s link", peer=peer)
+            return None
+        return msg
+
+
+class InBridge:
     """The participant's incoming side: one SUB socket per peer it connects to.
 
     ``connect`` maps peer names to their Out-Bridge endpoints; ``subscribe``
@@ -218,6 +272,7 @@ class InBridge(BridgeThread):
         on_batch_end: Callable[[], None] | None = None,
         announced: Iterable[str] = (),
         on_stall: Callable[[float], None] | None = None,
+        host: ReceiveHost | None = None,
     ) -> None:
         self.mission = mission
         self._on_stall = on_stall
@@ -225,7 +280,6 @@ class InBridge(BridgeThread):
         self.secure = curve is not None
         self._on_message = on_message
         self._on_batch_end = on_batch_end
-        self._check_sender = check_sender
         self._log = log if log is not None else make_logger(None)
         if curve is not None:
             missing = curve.missing(self.peers)
@@ -234,11 +288,10 @@ class InBridge(BridgeThread):
         self._subs: dict[zmq.Socket[Any], str] = {}
         self._monitors: list[Monitor] = []
         self._reconnector = Reconnector(self.peers, self._log)
-        self._ctrl_rx, self._ctrl_tx = control_pair(context, "in")
         # Owned by the receive thread once started; before that, by the caller
         # under _lock (the thread start is the hand-over).
-        self._exact: set[bytes] = set()
-        self._prefixes: set[bytes] = set()
+        self._ledger = ReceiveLedger(self._log)
+        self._admission = Admission(mission, check_sender, self._ledger)
         topics = list(subscribe)
         wait_for = set(announced)
         try:
@@ -246,15 +299,7 @@ class InBridge(BridgeThread):
                 sub = context.socket(zmq.SUB)
                 self._subs[sub] = peer
                 self._reconnector.sockets[peer] = sub
-                sub.setsockopt(zmq.LINGER, 0)
-                sub.setsockopt(zmq.RCVHWM, hwm)
-                # ZeroMQ refuses (and disconnects) peers sending frames larger than
-                # this before buffering them: the memory bound.  Oversized messages
-                # below it are dropped by decode with the connection kept.
-                sub.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
-                connection_options(sub, heartbeat_ms, CONNECTING_PING_FACTOR)
-                if curve is not None:
-                    curve_client(sub, curve, curve.fleet[peer])
+                peer_options(sub, hwm, heartbeat_ms, None if curve is None else (curve, peer))
                 monitor = Monitor(
                     sub,
                     self._log,
@@ -270,47 +315,107 @@ class InBridge(BridgeThread):
             # A bad endpoint must not leak sockets (and block Context.term).
             self._close_sockets()
             raise
-
-        self._lock = threading.Lock()  # guards _ctrl_tx and the lifecycle flags
+        self._monitor_of = {m.socket: m for m in self._monitors}
+        # The process's receive thread, or one of the bridge's own (module doc of
+        # eamos.net.receive_host).
+        self._own_host = host is None
+        self._host = host if host is not None else ReceiveHost(context, "eamos-inbridge")
+        self._lock = threading.Lock()  # guards the lifecycle flags
         self._started = False
         self._closed = False
-        self._tx_open = True
-        self._ledger = ReceiveLedger(self._log)
-        self._thread = threading.Thread(target=self._run, name="eamos-inbridge", daemon=True)
+        self._ended = threading.Event()  # its sockets are closed
 
     def _close_sockets(self) -> None:
+        # Monitors first: a monitor stops only while its socket is open (Monitor.close).
         for monitor in self._monitors:
             monitor.close()
-        for sock in (*self._subs, self._ctrl_rx, self._ctrl_tx):
+        for sock in self._subs:
             sock.close(linger=0)
 
     # -- lifecycle ---------------------------------------------------------
 
-    def _close_timeout(self) -> None:
-        self._log.warning("net.in.close_timeout")
+    def start(self) -> None:
+        """Have its sockets read (by its receive thread); a no-op if started,
+        RuntimeError once closed or when the receive thread has ended."""
+        with self._lock:
+            if self._closed:
+                raise RuntimeError("InBridge is closed")
+            if self._started:
+                return
+            self._started = True
+            if not self._host.add(self):
+                self._closed = True
+                self.ended()
+                raise RuntimeError("InBridge: its receive thread has ended")
+
+    def close(self) -> None:
+        """Stop reading and close the sockets; idempotent and safe from any thread.
+
+        Requests made before ``close()`` are carried out first.  May be called from
+        the bridge's own callbacks: the sockets then close after the turn (nothing
+        more is delivered meanwhile).
+        """
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            if not self._started:
+                self.ended()  # the receive thread never saw its sockets
+                if self._own_host:
+                    self._host.stop()
+                return
+            self._host.remove(self, self._ended)
+        if self._own_host:
+            self._host.stop()
+        if self._host.on_its_thread():
+            return  # from a callback: it leaves at the start of the next turn
+        if not self._ended.wait(JOIN_TIMEOUT_S):
+            self._log.warning("net.in.close_timeout")
+
+    def __enter__(self) -> Self:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close()`` was called."""
+        return self._closed
+
+    def wait_ended(self, timeout_s: float) -> bool:
+        """Wait until its sockets are closed (after :meth:`close`); whether they are."""
+        return self._ended.wait(timeout_s)
 
     # -- subscriptions -----------------------------------------------------
 
     def add_subscription(self, topic: bytes) -> bool:
         """Also receive ``topic``; safe from any thread.  False if closed."""
         with self._lock:
-            if self._closed or not self._tx_open:
+            if self._closed:
                 return False
             if not self._started:
                 self._subscribe(topic)
-            else:
-                self._ctrl_tx.send_multipart([CMD_SUB, topic])
-        return True
+                return True
+            return self._host.call(self, lambda: self._on_thread(self._subscribe, topic))
 
     def announce(self, peer: str) -> None:
         """``peer`` listens now: connect to it if it is one of ``announced``; any thread."""
         with self._lock:
-            if self._closed or not self._tx_open:
+            if self._closed:
                 return
             if not self._started:
                 self._reconnector.announced(peer)
             else:
-                self._ctrl_tx.send_multipart([CMD_CONNECT, peer.encode("utf-8")])
+                self._host.call(self, lambda: self._on_thread(self._reconnector.announced, peer))
+
+    def _on_thread(self, request: Callable[[Any], None], arg: Any) -> None:
+        # A socket connected or subscribed raises no signal for what that brings at
+        # once: every one is looked at again (eamos.net.readiness).
+        request(arg)
+        for sub in self._subs:
+            self._host.again(sub)
 
     @property
     def unannounced(self) -> frozenset[str]:
@@ -321,13 +426,7 @@ class InBridge(BridgeThread):
     def _subscribe(self, topic: bytes) -> None:
         for sub in self._subs:
             sub.setsockopt(zmq.SUBSCRIBE, topic)
-        if topic == b"" or topic.endswith(b"/"):
-            self._prefixes.add(topic)
-        else:
-            self._exact.add(topic)
-
-    def _wanted(self, topic: bytes) -> bool:
-        return topic in self._exact or any(topic.startswith(p) for p in self._prefixes)
+        self._admission.subscribe(topic)
 
     # -- counters ----------------------------------------------------------
 
@@ -373,85 +472,60 @@ class InBridge(BridgeThread):
 
     @property
     def alive(self) -> bool:
-        """Whether the receive thread runs (started and not stopped)."""
-        return self._thread.is_alive()
+        """Whether its sockets are read (started, not closed, and its thread runs)."""
+        return self._started and not self._ended.is_set() and self._host.alive
 
     @property
     def auth_failures(self) -> int:
         """Handshakes with peers that failed (e.g. an impostor at a peer's address)."""
         return sum(m.failures for m in self._monitors)
 
-    # -- receive thread ----------------------------------------------------
+    # -- on the receive thread (eamos.net.receive_host.ReceiveMember) --------
 
-    def _run(self) -> None:
-        ctrl = self._ctrl_rx
-        subs = self._subs
-        monitors = {m.socket: m for m in self._monitors}
-        # Woken by the sockets that are ready, not by a walk over all of them: a fan-in
-        # endpoint watches two sockets per peer (SocketWatch).
-        watch = SocketWatch()
-        for sock in (ctrl, *subs, *monitors):
-            watch.add(sock)
-        reconnector = self._reconnector
-        try:
-            while True:
-                timeout = reconnector.poll_timeout_ms()
-                ready = watch.wait(None if timeout is None else timeout / 1000)
-                turn_began = time.monotonic()
-                # A socket this thread connects or subscribes raises no signal for
-                # what that brings at once: it is looked at again (SocketWatch).
-                if ctrl in ready:
-                    if not self._drain_control():
-                        return
-                    for sub in subs:
-                        watch.again(sub)
-                for again in reconnector.reconnect_due():
-                    watch.again(reconnector.sockets[again])
-                delivered = False
-                for sock in ready:
-                    peer = subs.get(sock)
-                    if peer is not None:
-                        drained, more = self._drain_sub(sock, peer)
-                        delivered = drained or delivered
-                        if more:
-                            watch.again(sock)
-                    elif sock is not ctrl:
-                        monitors[sock].drain()
-                if self._closed:
-                    return  # close() was called from on_message
-                if delivered and self._on_batch_end is not None:
-                    try:
-                        self._on_batch_end()
-                    except BaseException as exc:  # see _handle
-                        self._ledger.consumer_failed(exc, type="batch_end")
-                self._ledger.turn_took(time.monotonic() - turn_began, self._on_stall)
-        except zmq.ContextTerminated:
-            self._log.warning("net.in.context_terminated")
-        except zmq.ZMQError:
-            self._log.exception("net.in.thread_error")
-        finally:
-            watch.close()
-            with self._lock:
-                self._ctrl_tx.close()
-                self._tx_open = False
-            self._ctrl_rx.close()
-            for monitor in self._monitors:
-                monitor.close()
-            for sub in self._subs:
-                sub.close()
+    @property
+    def log(self) -> EventLog:
+        """The bridge's log."""
+        return self._log
 
-    def _drain_control(self) -> bool:
-        while True:
+    def sockets(self) -> list[zmq.Socket[Any]]:
+        """Its sockets to watch: the peers' SUB sockets and their monitors."""
+        return [*self._subs, *self._monitor_of]
+
+    def next_due(self) -> float | None:
+        """When a reconnect it owes is due (None: none)."""
+        return self._reconnector.next_due()
+
+    def turn(self, ready: list[zmq.Socket[Any]], host: ReceiveHost) -> None:
+        """Read its sockets in ``ready``, reconnect the peers due; then ``on_batch_end``."""
+        for again in self._reconnector.reconnect_due():
+            host.again(self._reconnector.sockets[again])
+        delivered = False
+        for sock in ready:
+            if self._closed:
+                return  # close() was called from on_message: deliver nothing more
+            peer = self._subs.get(sock)
+            if peer is not None:
+                drained, more = self._drain_sub(sock, peer)
+                delivered = drained or delivered
+                if more:
+                    host.again(sock)
+            else:
+                self._monitor_of[sock].drain()
+        if delivered and self._on_batch_end is not None and not self._closed:
             try:
-                frames = self._ctrl_rx.recv_multipart(zmq.NOBLOCK)
-            except zmq.Again:
-                return True
-            if frames[0] == CMD_STOP:
-                return False
-            if frames[0] == CMD_SUB:
-                self._subscribe(frames[1])
-            elif frames[0] == CMD_CONNECT:
-                self._reconnector.announced(frames[1].decode("utf-8"))
+                self._on_batch_end()
+            except BaseException as exc:  # see _handle
+                self._ledger.consumer_failed(exc, type="batch_end")
+
+    def stalled(self, seconds: float) -> None:
+        """A turn of its receive thread took ``seconds``: told to ``on_stall``."""
+        self._ledger.stalled(seconds, self._on_stall)
+
+    def ended(self) -> None:
+        """Close its sockets (it left its receive thread, or never joined one); once."""
+        if not self._ended.is_set():
+            self._close_sockets()
+            self._ended.set()
 
     def _drain_sub(self, sub: zmq.Socket[Any], peer: str) -> tuple[bool, bool]:
         """Read a batch of ``sub``: whether it held any, and whether more may wait."""
@@ -473,7 +547,7 @@ class InBridge(BridgeThread):
         request to stop it either: the process's own signals reach its main thread.
         """
         try:
-            msg = self._accepted(frames, peer)
+            msg = self._admission.admit(frames, peer)
         except BaseException as exc:  # any exception of one message
             self._ledger.message_failed(exc, frames, peer)
             return
@@ -484,21 +558,3 @@ class InBridge(BridgeThread):
             self._on_message(msg)
         except BaseException as exc:  # a consumer's failure is its own
             self._ledger.consumer_failed(exc, type=type(msg).__name__, sender=msg.sender)
-
-    def _accepted(self, frames: list[bytes], peer: str) -> Message | None:
-        """The message ``frames`` carry if it is for us (else None, counted and logged)."""
-        if not self._wanted(frames[0]):
-            self._ledger.ignored += 1
-            return None
-        try:
-            msg = decode(frames)
-        except WireError as exc:
-            self._ledger.drop(exc.reason, frames[0], str(exc), peer=peer)
-            return None
-        if msg.mission != self.mission:
-            self._ledger.drop("other_mission", frames[0], msg.mission, sender=msg.sender, peer=peer)
-            return None
-        if self._check_sender and msg.sender != peer:
-            self._ledger.drop("sender", frames[0], f"{msg.sender!r} on {peer!r}'s link", peer=peer)
-            return None
-        return msg

@@ -52,6 +52,7 @@ from eamos.net.effects import (
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
+from eamos.net.receive_host import ReceiveHost
 from eamos.net.reports import ReportJoiner
 from eamos.net.session import ReliableSession
 from eamos.net.settings import LinkSettings
@@ -437,7 +438,9 @@ class Link(LinkDriver[OutBridge, InBridge]):
     In-Bridge in :meth:`connect`.  ``clock`` (default :func:`time.monotonic`)
     and ``rng`` (the retransmission jitter) are injectable, as is the
     ``transport`` (default :class:`~eamos.net.transport.ZmqTransport`).  ``zap``: the
-    context's ZAP handler when participants share the context (else one of its own).
+    context's ZAP handler when participants share the context (else one of its own);
+    ``timers``, ``receivers``: the process's link timer and receive threads when
+    participants share them (else threads of the link's own).
     """
 
     def __init__(
@@ -455,6 +458,7 @@ class Link(LinkDriver[OutBridge, InBridge]):
         rng: random.Random | None = None,
         zap: ZapHandler | None = None,
         timers: TimerHost | None = None,
+        receivers: ReceiveHost | None = None,
     ) -> None:
         settings = settings or LinkSettings()
         log = log if log is not None else make_logger(None)
@@ -469,6 +473,7 @@ class Link(LinkDriver[OutBridge, InBridge]):
                 keys=keys,
                 heartbeat_ms=settings.zmq_heartbeat_ms,
                 zap=zap,
+                receivers=receivers,
             )
         session = ReliableSession(name, mission, settings, log=log, rng=rng)
         super().__init__(session, transport, log, clock=clock, timers=timers)

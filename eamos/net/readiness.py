@@ -47,6 +47,16 @@ class SocketWatch:
         self._selector.register(fd, selectors.EVENT_READ, sock)
         self._unchecked.add(sock)
 
+    def discard(self, sock: zmq.Socket[Any]) -> None:
+        """Stop watching ``sock`` (before it closes: its descriptor number may be reused)."""
+        self._unchecked.discard(sock)
+        fd = sock.getsockopt(zmq.FD)
+        assert isinstance(fd, int)
+        try:
+            self._selector.unregister(fd)
+        except KeyError:
+            pass  # never added (a member whose addition failed part way)
+
     def again(self, sock: zmq.Socket[Any]) -> None:
         """``sock`` may still be readable (its drain stopped early): check it without waiting."""
         self._unchecked.add(sock)

@@ -109,12 +109,9 @@ class Reconnector:
 
         return cancel
 
-    def poll_timeout_ms(self) -> int | None:
-        """How long the receive thread may wait for messages before a reconnect is due."""
-        if not self._due:
-            return None  # nothing owed: wait for messages only
-        wait = min(self._due.values()) - time.monotonic()
-        return max(0, int(wait * 1e3) + 1)
+    def next_due(self) -> float | None:
+        """When the next reconnect is due (monotonic seconds; None: none is owed)."""
+        return min(self._due.values()) if self._due else None
 
     def reconnect_due(self) -> list[str]:
         """Reconnect every peer whose time has come; those reconnected."""

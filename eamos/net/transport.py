@@ -20,6 +20,7 @@ from eamos.net.descriptors import raise_descriptor_limit
 from eamos.net.in_bridge import InBridge
 from eamos.net.keys import FleetAuthenticator, FleetKeys
 from eamos.net.out_bridge import OutBridge
+from eamos.net.receive_host import ReceiveHost
 from eamos.net.settings import DEFAULT_HEARTBEAT_MS
 from eamos.net.zap import ZapHandler
 
@@ -118,9 +119,12 @@ class ZmqTransport:
         keys: FleetKeys | None = None,
         heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
         zap: ZapHandler | None = None,
+        receivers: ReceiveHost | None = None,
     ) -> None:
         self.context = context
         self.zap = zap  # the context's shared ZAP handler (None: one of its own)
+        # The process's receive thread (None: the In-Bridge has one of its own).
+        self.receivers = receivers
         self.bind = bind
         self.mission = mission
         self.log = log
@@ -181,6 +185,7 @@ class ZmqTransport:
             on_batch_end=on_batch_end,
             announced=announced,
             on_stall=on_stall,
+            host=self.receivers,
         )
 
     def close(self) -> None:

@@ -65,8 +65,9 @@ class Bridges:
         mission: str = MISSION,
         log: Any = None,
         start: bool = True,
+        **kw: Any,
     ) -> InBridge:
-        bridge = InBridge(self.ctx, connect, subscribe, on_message, mission, log)
+        bridge = InBridge(self.ctx, connect, subscribe, on_message, mission, log, **kw)
         self.made.append(bridge)
         if start:
             bridge.start()

@@ -412,7 +412,7 @@ def test_close_from_inside_callback(bridges: Bridges) -> None:
     assert closed.wait(WAIT_S)
     assert holder[0].closed
     # Bounded wait for the thread to finish; after close() nothing more is delivered.
-    holder[0]._thread.join(WAIT_S)
+    assert holder[0].wait_ended(WAIT_S)
     assert len(seen) == 1
 
 
