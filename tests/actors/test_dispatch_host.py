@@ -20,7 +20,8 @@ from eamos.actors import dispatch
 from eamos.actors.dispatch import Dispatcher, LazyMail, PooledActor, tell_here
 from eamos.actors.executive import DeliverInterrupt, TriggerReceived
 from eamos.actors.inbound import InRouter
-from eamos.actors.messages import Interrupt, RemoteTrigger
+from eamos.actors.logic.telemetry import telemetry_values
+from eamos.actors.messages import Interrupt, RemoteTelemetry, RemoteTrigger
 from eamos.logs import make_logger
 from eamos.net import wire
 
@@ -229,12 +230,12 @@ def test_a_plain_pykka_actor_just_gets_the_mail() -> None:
         ref.stop()
 
 
-def _router(node: Any, executive: Any) -> InRouter:
+def _router(node: Any, executive: Any, board: Any = None) -> InRouter:
     return InRouter(
         drone="D2",
         nodes={"n2": node},
         executive=executive,
-        board=None,  # type: ignore[arg-type]  # no telemetry in these tests
+        board=board,
         log=make_logger(None),
         abort=lambda reason: None,
         completed=threading.Event(),
@@ -250,6 +251,21 @@ def test_the_in_bridge_hands_an_interrupt_to_the_executive_on_its_own_thread(
     _router(None, executive)(wire.Interrupt("m", "D1", "D2", "7", (1,), "all"))
     seen, _ = executive.proxy().report().get(timeout=WAIT_S)
     assert seen[-1] == (DeliverInterrupt(Interrupt(7, (1,), "all")), HOST)
+
+
+def test_the_in_bridge_hands_a_telemetry_sample_to_the_board_on_its_own_thread(
+    one: Dispatcher,
+) -> None:
+    # A ground station's board gets every drone's samples: a worker woken per sample
+    # cost more than the board's turn.
+    board = Turns.start(one)
+    _settle(one, board)
+    sample = wire.TelemetrySample(
+        "m", "D1", 1.0, 1.0, 2.0, 3.0, 47.0, 8.0, 500.0, 90.0, True, False
+    )
+    _router(None, None, board)(sample)
+    seen, _ = board.proxy().report().get(timeout=WAIT_S)
+    assert seen[-1] == (RemoteTelemetry("D1", telemetry_values(sample)), HOST)
 
 
 def test_the_in_bridge_counts_a_trigger_before_the_node_turn_it_runs(one: Dispatcher) -> None:
