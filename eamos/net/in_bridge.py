@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Iterable, Mapping
-from typing import TYPE_CHECKING, Any, Self
+from typing import TYPE_CHECKING, Any
 
 import zmq
 
@@ -22,6 +22,7 @@ from eamos.net.sockets import (
     JOIN_TIMEOUT_S,
     MAX_FRAME_BYTES,
     POLLIN_BIT,
+    Bridge,
     Monitor,
     connection_options,
     curve_client,
@@ -211,7 +212,7 @@ class Admission:
         return msg
 
 
-class InBridge:
+class InBridge(Bridge):
     """The participant's incoming side: one SUB socket per peer it connects to.
 
     ``connect`` maps peer names to their Out-Bridge endpoints; ``subscribe``
@@ -371,18 +372,6 @@ class InBridge:
             return  # from a callback: it leaves at the start of the next turn
         if not self._ended.wait(JOIN_TIMEOUT_S):
             self._log.warning("net.in.close_timeout")
-
-    def __enter__(self) -> Self:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    @property
-    def closed(self) -> bool:
-        """Whether ``close()`` was called."""
-        return self._closed
 
     def wait_ended(self, timeout_s: float) -> bool:
         """Wait until its sockets are closed (after :meth:`close`); whether they are."""

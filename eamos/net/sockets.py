@@ -38,6 +38,7 @@ __all__ = [
     "POLLIN_BIT",
     "RECONNECT_IVL_MAX_MS",
     "RECONNECT_IVL_MS",
+    "Bridge",
     "BridgeThread",
     "Monitor",
     "connection_options",
@@ -305,7 +306,33 @@ def curve_client(sock: zmq.Socket[Any], keys: FleetKeys, server_key: bytes) -> N
     sock.setsockopt(zmq.CURVE_SECRETKEY, keys.secret)
 
 
-class BridgeThread:
+class Bridge:
+    """What both bridges offer alike: ``with`` (start, then close) and :attr:`closed`."""
+
+    _closed: bool
+
+    def start(self) -> None:
+        """Start the bridge."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Close the bridge; idempotent."""
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether ``close()`` was called."""
+        return self._closed
+
+
+class BridgeThread(Bridge):
     """The lifecycle both bridges share: one thread owns the sockets, a command stops it.
 
     A subclass builds its sockets, ``_ctrl_tx`` and ``_thread`` and sets
@@ -355,18 +382,6 @@ class BridgeThread:
             self._thread.join(JOIN_TIMEOUT_S)
             if self._thread.is_alive():
                 self._close_timeout()
-
-    def __enter__(self) -> Self:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    @property
-    def closed(self) -> bool:
-        """Whether ``close()`` was called."""
-        return self._closed
 
     def _on_start(self) -> None:
         """Called under the lock just before the thread starts."""
