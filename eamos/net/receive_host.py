@@ -222,10 +222,13 @@ class ReceiveHost:
         finally:
             with self._lock:
                 self._open = False
+                unseen = [m for m, _ in self._calls if m not in self._members]
                 self._calls.clear()
                 self._close_control()
             for member in list(self._members):
                 self._remove(member)
+            for member in unseen:  # added while the thread ended: never watched
+                member.ended()
             watch.close()
 
     def _timeout_s(self) -> float | None:
