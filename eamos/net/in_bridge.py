@@ -287,7 +287,7 @@ class InBridge(Bridge):
             if missing:
                 raise ValueError(f"no public key for peer(s) {', '.join(missing)}")
         self._subs: dict[zmq.Socket[Any], str] = {}
-        self._monitors: list[Monitor] = []
+        self._monitors: dict[zmq.Socket[Any], Monitor] = {}  # by the monitor's socket
         self._reconnector = Reconnector(self.peers, self._log)
         # Owned by the receive thread once started; before that, by the caller
         # under _lock (the thread start is the hand-over).
@@ -308,7 +308,7 @@ class InBridge(Bridge):
                     on_disconnect=self._reconnector.disconnected(peer),
                     on_retry=self._reconnector.retrying(peer),
                 )
-                self._monitors.append(monitor)
+                self._monitors[monitor.socket] = monitor
                 self._reconnector.connect(peer, announced=peer not in wait_for)
             for topic in topics:
                 self._subscribe(topic)
@@ -316,7 +316,6 @@ class InBridge(Bridge):
             # A bad endpoint must not leak sockets (and block Context.term).
             self._close_sockets()
             raise
-        self._monitor_of = {m.socket: m for m in self._monitors}
         # The process's receive thread, or one of the bridge's own (module doc of
         # eamos.net.receive_host).
         self._own_host = host is None
@@ -328,7 +327,7 @@ class InBridge(Bridge):
 
     def _close_sockets(self) -> None:
         # Monitors first: a monitor stops only while its socket is open (Monitor.close).
-        for monitor in self._monitors:
+        for monitor in self._monitors.values():
             monitor.close()
         for sock in self._subs:
             sock.close(linger=0)
@@ -467,7 +466,7 @@ class InBridge(Bridge):
     @property
     def auth_failures(self) -> int:
         """Handshakes with peers that failed (e.g. an impostor at a peer's address)."""
-        return sum(m.failures for m in self._monitors)
+        return sum(m.failures for m in self._monitors.values())
 
     # -- on the receive thread (eamos.net.receive_host.ReceiveMember) --------
 
@@ -478,7 +477,7 @@ class InBridge(Bridge):
 
     def sockets(self) -> list[zmq.Socket[Any]]:
         """Its sockets to watch: the peers' SUB sockets and their monitors."""
-        return [*self._subs, *self._monitor_of]
+        return [*self._subs, *self._monitors]
 
     def next_due(self) -> float | None:
         """When a reconnect it owes is due (None: none)."""
@@ -499,7 +498,7 @@ class InBridge(Bridge):
                 if more:
                     host.again(sock)
             else:
-                self._monitor_of[sock].drain()
+                self._monitors[sock].drain()
         if delivered and self._on_batch_end is not None and not self._closed:
             try:
                 self._on_batch_end()

@@ -140,11 +140,6 @@ class ReceiveHost:
         """Whether the thread runs."""
         return self._thread.is_alive()
 
-    @property
-    def members(self) -> int:
-        """How many bridges it reads for (exact only on its thread)."""
-        return len(self._members)
-
     def stop(self, timeout_s: float = JOIN_TIMEOUT_S) -> bool:
         """End the thread (members left are let go); idempotent.  False if it did not end
         within ``timeout_s``."""

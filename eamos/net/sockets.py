@@ -22,9 +22,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BOUND_HEARTBEAT_FACTOR",
-    "CMD_CONNECT",
     "CMD_STOP",
-    "CMD_SUB",
     "CMD_WAKE",
     "CONNECTING_PING_FACTOR",
     "CONNECT_TIMEOUT_MS",
@@ -118,9 +116,8 @@ def recv_message(sock: zmq.Socket[Any]) -> list[bytes]:
 
 
 # Control-pipe commands (first frame).  Never on the network.
-CMD_SUB: Final = b"sub"
-CMD_CONNECT: Final = b"connect"  # connect to a peer that announced itself
-CMD_WAKE: Final = b"wake"  # the Out-Bridge's socket has something to read
+# Wakes a thread: the Out-Bridge's socket has something to read, a receive thread calls.
+CMD_WAKE: Final = b"wake"
 CMD_STOP: Final = b"stop"
 
 # Drops are logged one by one up to this count, then every LOG_EVERY-th, so a
